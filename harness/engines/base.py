@@ -1,0 +1,85 @@
+"""The engine protocol: build a case's model, roll it out with an integrator and a step, return a Trajectory."""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from harness.cases import Case
+    from harness.grid import TimeGrid
+
+
+class Status(str, enum.Enum):
+    OK = "ok"
+    DIVERGED = "diverged"
+    FAILED = "failed"
+    SKIPPED = "skipped"
+
+
+# A state whose angular speed passes this many times the initial scale (plus 1 rad/s) counts as diverged:
+# no conservative motion of these scenes gets anywhere near it, and NaN follows soon after anyway.
+DIVERGENCE_FACTOR = 1e6
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """States recorded on a TimeGrid's sample times.
+
+    times: (n,) s.
+    quat: (n, 4) attitude quaternion, scalar first (w, x, y, z), body -> world, as the engine left it (not renormalised).
+    omega: (n, 3) rad/s, body frame.
+    After a divergence the remaining samples are NaN and diverged_at (s) is the first time a state was bad.
+    steps: steps taken; rhs_evals: right-hand-side (dynamics) evaluations, where the engine counts them.
+    """
+
+    times: np.ndarray
+    quat: np.ndarray
+    omega: np.ndarray
+    status: Status = Status.OK
+    message: str = ""
+    diverged_at: float = float("nan")
+    steps: int = 0
+    rhs_evals: int = 0
+    info: dict = field(default_factory=dict)
+
+
+class Simulation(Protocol):
+    """A model built for one case, integrator and dt; run() steps it from the case's initial state."""
+
+    def run(self, grid: "TimeGrid") -> Trajectory: ...
+
+
+class Engine(Protocol):
+    name: str
+
+    def integrators(self) -> tuple[str, ...]:
+        """The integrator names this engine runs, in report order."""
+
+    def unsupported(self, case: "Case") -> str | None:
+        """Why this engine cannot model the case exactly (the run is then `skipped`), or None."""
+
+    def prepare(self, case: "Case", integrator: str, dt: float) -> Simulation:
+        """Build the model (not timed)."""
+
+
+def first_bad_sample(omega: np.ndarray, quat: np.ndarray, omega0: np.ndarray) -> int | None:
+    """Index of the first sample that is not finite or whose |omega| is beyond DIVERGENCE_FACTOR, else None."""
+    limit = DIVERGENCE_FACTOR * (1.0 + float(np.linalg.norm(omega0)))
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(omega).all(axis=1) | ~np.isfinite(quat).all(axis=1) | (np.linalg.norm(omega, axis=1) > limit)
+    hits = np.flatnonzero(bad)
+    return int(hits[0]) if hits.size else None
+
+
+def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, bad: int, diverged_at: float,
+                        steps: int, rhs_evals: int = 0) -> Trajectory:
+    """A Trajectory whose samples from `bad` on are NaN, with status diverged."""
+    quat, omega = quat.copy(), omega.copy()
+    quat[bad:] = np.nan
+    omega[bad:] = np.nan
+    return Trajectory(grid.times, quat, omega, Status.DIVERGED,
+                      f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s",
+                      diverged_at, steps, rhs_evals)
