@@ -1,12 +1,40 @@
 """Case files (DESIGN §3): loading, validation, the suite shipped in the `cases` package."""
 from __future__ import annotations
 
+import dataclasses
+import math
+import tomllib
 from dataclasses import dataclass
+from importlib.resources import files
 from pathlib import Path
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
 from reference.body import RigidBody
+
+# The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
+ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
+           "grioli_precession", "hess_grioli", "mlodzejowski", "self_excited_spinup", "self_excited_uniform")
+
+DEFAULT_SAMPLES = 1000
+UNIT_TOL = 1e-9            # |v| within this of 1 is normalised, further off is an error (DESIGN §3)
+SYMMETRY_RTOL = 1e-12      # relative to the largest inertia entry
+TRIANGLE_RTOL = 1e-12      # relative to the largest principal moment at O: round-off of Huygens–Steiner, planar bodies
+
+_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
+    # table: (allowed keys, required keys)
+    "": (frozenset({"name", "description", "tags", "body", "gravity", "body_torque", "central_field", "initial",
+                    "run", "expect"}), frozenset({"body", "initial", "run"})),
+    "body": (frozenset({"mass", "com", "inertia", "principal_moments"}), frozenset({"mass", "com"})),
+    "gravity": (frozenset({"g", "direction"}), frozenset({"g"})),
+    "body_torque": (frozenset({"axis", "a", "b"}), frozenset({"axis", "a", "b"})),
+    "central_field": (frozenset({"mu", "radius", "direction", "orbit_rate"}), frozenset({"mu", "radius", "direction"})),
+    "initial": (frozenset({"attitude", "omega"}), frozenset({"attitude", "omega"})),
+    "initial.attitude": (frozenset({"quaternion", "euler_zxz", "gibbs"}), frozenset()),
+    "run": (frozenset({"t_end", "dt", "samples"}), frozenset({"t_end", "dt"})),
+    "expect": (frozenset({"oracle", "horizon"}), frozenset()),
+}
 
 
 class CaseError(ValueError):
@@ -68,3 +96,313 @@ class Case:
     @property
     def body(self) -> RigidBody:
         return RigidBody(self.inertia, self.mass, self.com, self.gravity, self.gravity_direction)
+
+    @property
+    def source(self) -> str:
+        """Where the case came from, for messages: its file, or its name for a case built in code."""
+        return str(self.path) if self.path is not None else self.name
+
+
+# ---------------------------------------------------------------------------------------------------------- loading
+
+def load_case(path: str | Path) -> Case:
+    """Read and validate one case file. Bad input raises CaseError naming the file, the key and the rule."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise CaseError(path, "-", "file not found") from None
+    except OSError as exc:
+        raise CaseError(path, "-", f"cannot read file ({exc.strerror or exc})") from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise CaseError(path, "-", "invalid TOML: not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(path, "-", "invalid TOML: " + " ".join(str(exc).split())) from None
+    return _Parser(path).case(data)
+
+
+def suite_dir() -> Path:
+    """The folder of the suite's case files (package data of `cases`, so an installed copy finds it)."""
+    return Path(str(files("cases")))
+
+
+def load_suite(directory: str | Path | None = None) -> list[Case]:
+    """Every *.toml in the suite folder (or `directory`), sorted by case name. Duplicate names are an error."""
+    directory = suite_dir() if directory is None else Path(directory)
+    by_name: dict[str, Case] = {}
+    for file in sorted(directory.glob("*.toml")):
+        case = load_case(file)
+        if case.name in by_name:
+            raise CaseError(file, "name", f"duplicate case name {case.name!r} (also in {by_name[case.name].path})")
+        by_name[case.name] = case
+    return [by_name[name] for name in sorted(by_name)]
+
+
+def find_case(name_or_path: str | Path, suite: Sequence[Case] | None = None) -> Case:
+    """A suite case by name, or the case file at a path (anything ending in .toml, or an existing file)."""
+    candidate = Path(name_or_path)
+    if candidate.suffix == ".toml" or candidate.is_file():
+        return load_case(candidate)
+    suite = load_suite() if suite is None else suite
+    for case in suite:
+        if case.name == str(name_or_path):
+            return case
+    available = ", ".join(sorted(case.name for case in suite)) or "none"
+    raise CaseError(suite_dir(), str(name_or_path), f"no such case in the suite (available: {available})")
+
+
+def with_overrides(case: Case, *, t_end: float | None = None, dt: float | Iterable[float] | None = None) -> Case:
+    """The case with another span and/or steps (command-line overrides), validated like the file's [run];
+    a horizon beyond the new t_end is clipped to it."""
+    if t_end is None and dt is None:
+        return case
+    parser = _Parser(case.source)
+    new_t_end = case.t_end if t_end is None else parser.positive(t_end, "run.t_end")
+    if dt is None:
+        new_dt = parser.steps(list(case.dt), "run.dt", new_t_end)
+    else:
+        new_dt = parser.steps(dt if isinstance(dt, (int, float)) else list(dt), "run.dt", new_t_end)
+    horizon = None if case.horizon is None else min(case.horizon, new_t_end)
+    return dataclasses.replace(case, t_end=new_t_end, dt=new_dt, horizon=horizon)
+
+
+# ----------------------------------------------------------------------------------------------------- validation
+
+class _Parser:
+    """Validation of one file's contents; every failure is a CaseError for self.path."""
+
+    def __init__(self, path: str | Path):
+        self.path = path
+
+    def fail(self, key: str, rule: str) -> CaseError:
+        return CaseError(self.path, key, rule)
+
+    # --- shapes and types
+
+    def table(self, data: Any, key: str) -> dict:
+        allowed, required = _TABLES[key]
+        if not isinstance(data, dict):
+            raise self.fail(key, "must be a table")
+        prefix = f"{key}." if key else ""
+        for name in data:
+            if name not in allowed:
+                raise self.fail(prefix + name, f"unknown key (allowed here: {', '.join(sorted(allowed))})")
+        for name in sorted(required):
+            if name not in data:
+                raise self.fail(prefix + name, "required key missing")
+        return data
+
+    def number(self, value: Any, key: str) -> float:
+        # bool is an int subclass in Python, but `true` is never a number in a case file
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(key, f"must be a number, got {_describe(value)}")
+        try:
+            result = float(value)
+        except OverflowError:
+            result = math.inf
+        if not math.isfinite(result):
+            raise self.fail(key, f"must be finite, got {value}")
+        return result
+
+    def positive(self, value: Any, key: str) -> float:
+        result = self.number(value, key)
+        if result <= 0.0:
+            raise self.fail(key, f"must be > 0, got {result:g}")
+        return result
+
+    def vector(self, value: Any, key: str, n: int) -> np.ndarray:
+        if not isinstance(value, list) or len(value) != n:
+            raise self.fail(key, f"must be a list of {n} numbers, got {_describe(value)}")
+        return np.array([self.number(item, f"{key}[{i}]") for i, item in enumerate(value)])
+
+    def unit(self, value: Any, key: str, n: int, noun: str, symbol: str) -> np.ndarray:
+        vec = self.vector(value, key, n)
+        norm = float(np.linalg.norm(vec))
+        if abs(norm - 1.0) > UNIT_TOL:
+            raise self.fail(key, f"{noun} must have unit length (|{symbol}| = {norm:.12g}; "
+                                 f"within {UNIT_TOL:g} of 1 is normalised)")
+        return vec / norm
+
+    def string(self, value: Any, key: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(key, f"must be a string, got {_describe(value)}")
+        return value
+
+    def steps(self, value: Any, key: str, t_end: float) -> tuple[float, ...]:
+        if isinstance(value, list):
+            if not value:
+                raise self.fail(key, "must not be empty")
+            keys = [f"{key}[{i}]" for i in range(len(value))]
+        else:
+            value, keys = [value], [key]
+        result = []
+        for item, item_key in zip(value, keys):
+            step = self.positive(item, item_key)
+            if step > t_end:
+                raise self.fail(item_key, f"dt must be <= t_end ({step:g} > {t_end:g})")
+            result.append(step)
+        return tuple(result)
+
+    # --- the file
+
+    def case(self, data: dict) -> Case:
+        self.table(data, "")
+        name = self.string(data["name"], "name") if "name" in data else Path(self.path).stem
+        if not name.strip():
+            raise self.fail("name", "must not be empty")
+        description = self.string(data.get("description", ""), "description")
+        tags = data.get("tags", [])
+        if not isinstance(tags, list):
+            raise self.fail("tags", f"must be a list of strings, got {_describe(tags)}")
+        tags = tuple(self.string(tag, f"tags[{i}]") for i, tag in enumerate(tags))
+
+        mass, com, inertia = self.body(data["body"])
+        gravity, gravity_direction = 0.0, np.array([0.0, 0.0, -1.0])
+        if "gravity" in data:
+            gravity, gravity_direction = self.gravity(data["gravity"])
+        body_torque = self.body_torque(data["body_torque"]) if "body_torque" in data else None
+        central_field = None
+        if "central_field" in data:
+            central_field = self.central_field(data["central_field"])
+            if np.any(com != 0.0):
+                raise self.fail("body.com", "must be [0, 0, 0] with [central_field] (O is the centre of mass)")
+        quat0, omega0 = self.initial(data["initial"])
+        t_end, dt, samples = self.run(data["run"])
+        oracle, horizon = self.expect(data["expect"], t_end) if "expect" in data else (None, None)
+
+        for array in (com, inertia, gravity_direction, quat0, omega0):
+            array.setflags(write=False)
+        return Case(name=name, description=description, tags=tags, mass=mass, com=com, inertia=inertia,
+                    gravity=gravity, gravity_direction=gravity_direction, quat0=quat0, omega0=omega0, t_end=t_end,
+                    dt=dt, samples=samples, oracle=oracle, horizon=horizon, body_torque=body_torque,
+                    central_field=central_field, path=Path(self.path))
+
+    def body(self, data: Any) -> tuple[float, np.ndarray, np.ndarray]:
+        self.table(data, "body")
+        mass = self.positive(data["mass"], "body.mass")
+        com = self.vector(data["com"], "body.com", 3)
+        if ("inertia" in data) == ("principal_moments" in data):
+            raise self.fail("body.inertia", "give exactly one of inertia (3x3) or principal_moments (3 numbers)"
+                            + (", not both" if "inertia" in data else ""))
+        if "inertia" in data:
+            key = "body.inertia"
+            inertia = self.inertia_matrix(data["inertia"], key)
+        else:
+            key = "body.principal_moments"
+            moments = data["principal_moments"]
+            if not isinstance(moments, list) or len(moments) != 3:
+                raise self.fail(key, f"must be a list of 3 numbers, got {_describe(moments)}")
+            inertia = np.diag([self.positive(x, f"{key}[{i}]") for i, x in enumerate(moments)])
+        moments_o = np.linalg.eigvalsh(inertia)
+        if moments_o[0] <= 0.0:
+            raise self.fail(key, f"inertia must be positive definite (eigenvalues {_fmt(moments_o)})")
+        scale = float(moments_o[-1])
+        self.triangle(moments_o, scale, key, "about O")
+        inertia_g = inertia - mass * (com @ com * np.eye(3) - np.outer(com, com))
+        self.triangle(np.linalg.eigvalsh(inertia_g), scale, key,
+                      "about the centre of mass (Huygens–Steiner with body.mass and body.com)")
+        return mass, com, inertia
+
+    def inertia_matrix(self, value: Any, key: str) -> np.ndarray:
+        if not isinstance(value, list) or len(value) != 3 or not all(isinstance(r, list) and len(r) == 3 for r in value):
+            raise self.fail(key, f"must be a 3x3 array of numbers, got {_describe(value)}")
+        matrix = np.array([[self.number(x, f"{key}[{i}][{j}]") for j, x in enumerate(row)]
+                           for i, row in enumerate(value)])
+        asymmetry = float(np.max(np.abs(matrix - matrix.T)))
+        if asymmetry > SYMMETRY_RTOL * float(np.max(np.abs(matrix))):
+            raise self.fail(key, f"inertia must be symmetric (max |I - I^T| = {asymmetry:.3g})")
+        return 0.5 * (matrix + matrix.T)
+
+    def triangle(self, moments: np.ndarray, scale: float, key: str, where: str) -> None:
+        a1, a2, a3 = np.sort(moments)   # the only inequality that can fail is the smallest two against the largest
+        if a1 + a2 < a3 - TRIANGLE_RTOL * scale:
+            raise self.fail(key, f"inertia {where} must satisfy the triangle inequality A_i + A_j >= A_k "
+                                 f"(principal moments {_fmt(np.array([a1, a2, a3]))}: {a1 + a2:.6g} < {a3:.6g})")
+
+    def gravity(self, data: Any) -> tuple[float, np.ndarray]:
+        self.table(data, "gravity")
+        g = self.number(data["g"], "gravity.g")
+        if g < 0.0:
+            raise self.fail("gravity.g", f"must be >= 0, got {g:g}")
+        direction = np.array([0.0, 0.0, -1.0])
+        if "direction" in data:
+            direction = self.unit(data["direction"], "gravity.direction", 3, "direction", "d")
+        return g, direction
+
+    def body_torque(self, data: Any) -> BodyTorque:
+        self.table(data, "body_torque")
+        axis = self.unit(data["axis"], "body_torque.axis", 3, "axis", "axis")
+        return BodyTorque(axis=tuple(axis.tolist()), a=self.number(data["a"], "body_torque.a"),
+                          b=self.number(data["b"], "body_torque.b"))
+
+    def central_field(self, data: Any) -> CentralField:
+        self.table(data, "central_field")
+        return CentralField(
+            mu=self.positive(data["mu"], "central_field.mu"),
+            radius=self.positive(data["radius"], "central_field.radius"),
+            direction=tuple(self.unit(data["direction"], "central_field.direction", 3, "direction", "d").tolist()),
+            orbit_rate=self.number(data.get("orbit_rate", 0.0), "central_field.orbit_rate"))
+
+    def initial(self, data: Any) -> tuple[np.ndarray, np.ndarray]:
+        self.table(data, "initial")
+        attitude = self.table(data["attitude"], "initial.attitude")
+        if len(attitude) != 1:
+            raise self.fail("initial.attitude", "give exactly one of quaternion, euler_zxz or gibbs"
+                            + (f", got {', '.join(sorted(attitude))}" if attitude else ""))
+        (chart, value), = attitude.items()
+        key = f"initial.attitude.{chart}"
+        if chart == "quaternion":
+            quat = self.unit(value, key, 4, "quaternion", "q")
+        elif chart == "euler_zxz":
+            quat = _zxz_to_quat(*self.vector(value, key, 3))
+        else:
+            gibbs = self.vector(value, key, 3)
+            quat = np.concatenate(([1.0], gibbs)) / math.sqrt(1.0 + gibbs @ gibbs)
+        return quat, self.vector(data["omega"], "initial.omega", 3)
+
+    def run(self, data: Any) -> tuple[float, tuple[float, ...], int]:
+        self.table(data, "run")
+        t_end = self.positive(data["t_end"], "run.t_end")
+        dt = self.steps(data["dt"], "run.dt", t_end)
+        samples = data.get("samples", DEFAULT_SAMPLES)
+        if isinstance(samples, bool) or not isinstance(samples, int):
+            raise self.fail("run.samples", f"must be an integer, got {_describe(samples)}")
+        if samples < 2:
+            raise self.fail("run.samples", f"must be >= 2 (t = 0 and t_end), got {samples}")
+        return t_end, dt, samples
+
+    def expect(self, data: Any, t_end: float) -> tuple[str | None, float | None]:
+        self.table(data, "expect")
+        oracle = None
+        if "oracle" in data:
+            oracle = self.string(data["oracle"], "expect.oracle")
+            if oracle not in ORACLES:
+                raise self.fail("expect.oracle", f"unknown oracle {oracle!r} (known: {', '.join(ORACLES)})")
+        horizon = None
+        if "horizon" in data:
+            horizon = self.positive(data["horizon"], "expect.horizon")
+            if horizon > t_end:
+                raise self.fail("expect.horizon", f"must be <= run.t_end ({horizon:g} > {t_end:g})")
+        return oracle, horizon
+
+
+# -------------------------------------------------------------------------------------------------------- helpers
+
+def _zxz_to_quat(phi: float, theta: float, psi: float) -> np.ndarray:
+    """Quaternion (scalar first) of R = Rz(phi) Rx(theta) Rz(psi), body -> world (FORMULARY C1)."""
+    half_sum, half_diff, half_theta = 0.5 * (phi + psi), 0.5 * (phi - psi), 0.5 * theta
+    return np.array([math.cos(half_theta) * math.cos(half_sum), math.sin(half_theta) * math.cos(half_diff),
+                     math.sin(half_theta) * math.sin(half_diff), math.cos(half_theta) * math.sin(half_sum)])
+
+
+def _describe(value: Any) -> str:
+    text = repr(value)
+    if len(text) > 40:
+        text = text[:37] + "..."
+    return f"{type(value).__name__} {text}"
+
+
+def _fmt(values: np.ndarray) -> str:
+    return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"

@@ -1,0 +1,53 @@
+"""The results table (DESIGN §4): its columns, and atomic writes so an interrupted run loses nothing written."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+from harness.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
+
+COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
+           "wall_s", "us_per_step", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err", "truth_err")
+
+# Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
+# them, dt descending.
+SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_dt_rank")
+
+
+def frame(rows: list[dict]) -> pd.DataFrame:
+    """A DataFrame with exactly COLUMNS (missing values NaN), in the canonical row order."""
+    df = pd.DataFrame(rows)
+    for column in COLUMNS:
+        if column not in df:
+            df[column] = float("nan")
+    if df.empty:
+        return df[list(COLUMNS)]
+    df = df.sort_values([k for k in SORT_KEYS if k in df], kind="stable")
+    return df[list(COLUMNS)].reset_index(drop=True)
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write text to path through a temporary file in the same folder and a rename: readers never see a partial file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_results(df: pd.DataFrame, path: Path) -> None:
+    write_atomic(path, df.to_csv(index=False, float_format="%.10g"))
+
+
+def read_results(path: Path) -> pd.DataFrame:
+    return pd.read_csv(path, keep_default_na=True, dtype={"formulation": str, "message": str}).fillna(
+        {"formulation": "", "message": ""})

@@ -1,0 +1,301 @@
+"""First integrals and invariant relations of the body with a fixed point (FORMULARY G3–G8), with their drift.
+
+Each Integral says when it applies (structural conditions on the body and, for invariant relations, on the initial
+state), how to evaluate it along a recorded trajectory, and the scale that makes its drift relative (DESIGN §4: the
+sum of the absolute values of its terms at t = 0; for a dot product the product of the norms, for a vector its norm).
+
+Quaternions given to `value` may be slightly off unit length (engines' raw output): they are normalised before R is
+built, except by the Casimir, which measures exactly that defect. Inertia tensors may be non-diagonal: principal
+frames come from numpy.linalg.eigh and are made right-handed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from reference.body import RigidBody
+from reference.euler_poisson import downward_vertical
+from reference.rotations import quat_to_matrix
+
+# Relative tolerance of the structural conditions (equal moments, com in a plane, K_H = 0, ...). A case satisfies
+# them to rounding (1e-16) or not at all; 1e-9 leaves room for moments computed from a rotated inertia tensor.
+STRUCTURE_RTOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Integral:
+    """A conserved quantity of the motion, for the drift columns of the results table.
+
+    name: column stem; the drift column is f"{name}_drift".
+    applies(body, quat0 (4,), omega0 (3,) rad/s body) -> bool: the structural conditions hold.
+    value(body, quat (n, 4), omega (n, 3) rad/s body) -> (n,) or (n, 3) (a world vector).
+    scale(body, quat0, omega0) -> float > 0: what a drift is divided by.
+    exact: the value the integral must keep whatever the initial state (the Casimir's 1), or None to measure the
+        drift from the value at t = 0.
+    """
+
+    name: str
+    applies: Callable[[RigidBody, np.ndarray, np.ndarray], bool]
+    value: Callable[[RigidBody, np.ndarray, np.ndarray], np.ndarray]
+    scale: Callable[[RigidBody, np.ndarray, np.ndarray], float]
+    exact: float | None = None
+
+
+def drift(integral: Integral, body: RigidBody, quat: np.ndarray, omega: np.ndarray) -> float:
+    """max over finite samples of |I(t) - I(0)| / scale (Euclidean norm for a vector integral).
+
+    quat (n, 4), omega (n, 3) rad/s body, sample 0 is t = 0. NaN if the integral does not apply, or if the initial
+    value or every sample is non-finite (a diverged run keeps the drift of its finite samples).
+    """
+    quat = np.atleast_2d(np.asarray(quat, dtype=float))
+    omega = np.atleast_2d(np.asarray(omega, dtype=float))
+    if quat.shape[0] == 0 or not (np.all(np.isfinite(quat[0])) and np.all(np.isfinite(omega[0]))):
+        return float("nan")
+    if not integral.applies(body, quat[0], omega[0]):
+        return float("nan")
+    values = np.asarray(integral.value(body, quat, omega), dtype=float)
+    reference = values[0] if integral.exact is None else integral.exact
+    deviation = values - reference
+    if deviation.ndim == 2:
+        deviation = np.linalg.norm(deviation, axis=-1)
+    deviation = np.abs(deviation)
+    finite = deviation[np.isfinite(deviation)]
+    if finite.size == 0:
+        return float("nan")
+    return float(np.max(finite) / integral.scale(body, quat[0], omega[0]))
+
+
+def _nonzero(scale: float) -> float:
+    """A scale that is exactly 0 (a body at rest, say) would make every drift infinite: use 1 (absolute drift)."""
+    return float(scale) if scale != 0.0 else 1.0
+
+
+def _as_rows(quat: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(quat, dtype=float), np.asarray(omega, dtype=float)
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= STRUCTURE_RTOL * max(abs(a), abs(b))
+
+
+def _principal(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments (ascending) and a right-handed frame: columns of the (3, 3) matrix are the axes."""
+    moments, axes = np.linalg.eigh(body.inertia)
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] = -axes[:, 2]
+    return moments, axes
+
+
+def _plane_frame(axis: np.ndarray, hint: np.ndarray) -> np.ndarray:
+    """Right-handed (3, 3) frame (e1, e2, axis) as columns, e1 along the part of hint orthogonal to axis."""
+    e1 = hint - (hint @ axis) * axis
+    e1 = e1 / np.linalg.norm(e1)
+    return np.column_stack([e1, np.cross(axis, e1), axis])
+
+
+def _equatorial_frame(body: RigidBody) -> tuple[np.ndarray, float]:
+    """For a body with two equal larger moments: frame (e1, e2, u3), u3 the axis of the smallest moment A3.
+
+    e1 lies along the com's part in the equatorial plane (any e1 in that plane serves the Kovalevskaya modulus; this
+    choice is the Goryachev–Chaplygin frame), or along the middle principal axis when the com has no such part.
+    """
+    moments, axes = _principal(body)
+    u3 = axes[:, 0]
+    com_plane = body.com - (body.com @ u3) * u3
+    hint = com_plane if np.linalg.norm(com_plane) > 0.0 else axes[:, 1]
+    return _plane_frame(u3, hint), float(moments[0])
+
+
+def _com_in_plane(body: RigidBody, normal: np.ndarray) -> bool:
+    return abs(body.com @ normal) <= STRUCTURE_RTOL * np.linalg.norm(body.com)
+
+
+# --- energy (G3) --------------------------------------------------------------------------------------------------
+
+def _kinetic(body: RigidBody, omega: np.ndarray) -> np.ndarray:
+    return 0.5 * np.einsum("...i,ij,...j->...", omega, body.inertia, omega)
+
+
+def _potential(body: RigidBody, quat: np.ndarray) -> np.ndarray:
+    return -downward_vertical(body, quat) @ body.weight_moment
+
+
+def _energy_value(body, quat, omega):
+    quat, omega = _as_rows(quat, omega)
+    return _kinetic(body, omega) + _potential(body, quat)
+
+
+def _energy_scale(body, quat0, omega0):
+    quat0, omega0 = _as_rows(quat0, omega0)
+    return _nonzero(abs(_kinetic(body, omega0)) + abs(_potential(body, quat0)))
+
+
+# --- angular momentum about O (G3, G4) --------------------------------------------------------------------------
+
+def _momentum_value(body, quat, omega):
+    """World vector K = R σω without torque; its vertical component K·d = σω·H under gravity."""
+    quat, omega = _as_rows(quat, omega)
+    momentum_body = omega @ body.inertia
+    if body.has_gravity:
+        return np.einsum("...i,...i->...", momentum_body, downward_vertical(body, quat))
+    return np.einsum("...ij,...j->...i", quat_to_matrix(quat), momentum_body)
+
+
+def _momentum_scale(body, quat0, omega0):
+    return _nonzero(np.linalg.norm(body.inertia @ np.asarray(omega0, dtype=float)))
+
+
+# --- Casimir -----------------------------------------------------------------------------------------------------
+
+def _casimir_value(body, quat, omega):
+    """|q|² of the raw quaternion: the R built homogeneously from q is |q|² times a rotation, so this is |H|."""
+    quat = np.asarray(quat, dtype=float)
+    return np.sum(quat * quat, axis=-1)
+
+
+# --- Lagrange (G5) -----------------------------------------------------------------------------------------------
+
+def _symmetry_axis(body: RigidBody) -> np.ndarray | None:
+    """The axis of the distinct principal moment of a symmetric body (None if the moments are all distinct).
+
+    For a spherical body any axis is one: the com direction is the one whose component of ω gravity conserves.
+    """
+    moments, axes = _principal(body)
+    low_pair, high_pair = _close(moments[0], moments[1]), _close(moments[1], moments[2])
+    if low_pair and high_pair:
+        norm = np.linalg.norm(body.com)
+        return body.com / norm if norm > 0.0 else axes[:, 2]
+    if high_pair:
+        return axes[:, 0]
+    if low_pair:
+        return axes[:, 2]
+    return None
+
+
+def _lagrange_applies(body, quat0, omega0):
+    axis = _symmetry_axis(body)
+    if axis is None:
+        return False
+    return (not body.has_gravity) or bool(
+        np.linalg.norm(np.cross(body.com, axis)) <= STRUCTURE_RTOL * np.linalg.norm(body.com))
+
+
+def _lagrange_value(body, quat, omega):
+    axis = _symmetry_axis(body)
+    if axis is None:  # value is also called on bodies that fail the predicate (tests); the largest moment's axis
+        axis = _principal(body)[1][:, 2]
+    return np.asarray(omega, dtype=float) @ axis
+
+
+def _lagrange_scale(body, quat0, omega0):
+    return _nonzero(np.linalg.norm(omega0))
+
+
+# --- Kovalevskaya (G6) -------------------------------------------------------------------------------------------
+
+def _kovalevskaya_applies(body, quat0, omega0):
+    moments, axes = _principal(body)
+    return (body.has_gravity and _close(moments[1], moments[2]) and _close(moments[1], 2.0 * moments[0])
+            and _com_in_plane(body, axes[:, 0]))
+
+
+def _kovalevskaya_parts(body, quat, omega):
+    """(p1 + i p2)², (m g/A3)(c1 + i c2)(H1 + i H2) in the equatorial frame."""
+    frame, a3 = _equatorial_frame(body)
+    quat, omega = _as_rows(quat, omega)
+    p = omega @ frame
+    h = downward_vertical(body, quat) @ frame
+    c = body.com @ frame
+    spin = (p[..., 0] + 1j * p[..., 1]) ** 2
+    weight = body.mass * body.gravity / a3 * (c[0] + 1j * c[1]) * (h[..., 0] + 1j * h[..., 1])
+    return spin, weight
+
+
+def _kovalevskaya_value(body, quat, omega):
+    """|w|², w = (p1 + i p2)² + (m g/A3)(c1 + i c2)(H1 + i H2); plus sign because H points down (G6)."""
+    spin, weight = _kovalevskaya_parts(body, quat, omega)
+    return np.abs(spin + weight) ** 2
+
+
+def _kovalevskaya_scale(body, quat0, omega0):
+    spin, weight = _kovalevskaya_parts(body, quat0, omega0)
+    return _nonzero(float((np.abs(spin) + np.abs(weight)) ** 2))
+
+
+# --- Goryachev–Chaplygin (G8) -----------------------------------------------------------------------------------
+
+def _momentum_along_vertical_is_zero(body, quat0, omega0) -> bool:
+    momentum = body.inertia @ np.asarray(omega0, dtype=float)
+    vertical = downward_vertical(body, np.asarray(quat0, dtype=float))
+    return abs(momentum @ vertical) <= STRUCTURE_RTOL * np.linalg.norm(momentum) * np.linalg.norm(vertical)
+
+
+def _chaplygin_applies(body, quat0, omega0):
+    moments, axes = _principal(body)
+    return (body.has_gravity and _close(moments[1], moments[2]) and _close(moments[1], 4.0 * moments[0])
+            and _com_in_plane(body, axes[:, 0]) and _momentum_along_vertical_is_zero(body, quat0, omega0))
+
+
+def _chaplygin_terms(body, quat, omega):
+    """(p1² + p2²) p3 and λ² p1 H3, λ² = m g |c| / A3, in the frame with e1 along the com."""
+    frame, a3 = _equatorial_frame(body)
+    quat, omega = _as_rows(quat, omega)
+    p = omega @ frame
+    h = downward_vertical(body, quat) @ frame
+    lambda2 = body.mass * body.gravity * (body.com @ frame[:, 0]) / a3
+    return (p[..., 0] ** 2 + p[..., 1] ** 2) * p[..., 2], lambda2 * p[..., 0] * h[..., 2]
+
+
+def _chaplygin_value(body, quat, omega):
+    spin, weight = _chaplygin_terms(body, quat, omega)
+    return spin + weight
+
+
+def _chaplygin_scale(body, quat0, omega0):
+    spin, weight = _chaplygin_terms(body, quat0, omega0)
+    return _nonzero(float(abs(spin) + abs(weight)))
+
+
+# --- Hess invariant relation (G7) --------------------------------------------------------------------------------
+
+def _com_direction(body: RigidBody) -> np.ndarray:
+    norm = np.linalg.norm(body.com)
+    return body.com / norm if norm > 0.0 else np.array([0.0, 0.0, 1.0])
+
+
+def _hess_applies(body, quat0, omega0):
+    if not body.has_gravity:
+        return False
+    moments, _ = _principal(body)
+    if _close(moments[0], moments[1]) or _close(moments[1], moments[2]):
+        return False
+    k = _com_direction(body)
+    plane = _plane_frame(k, np.eye(3)[np.argmin(np.abs(k))])[:, :2]
+    gyration = plane.T @ np.linalg.inv(body.inertia) @ plane  # σ⁻¹ restricted to k⊥
+    isotropic = (abs(gyration[0, 0] - gyration[1, 1]) + 2.0 * abs(gyration[0, 1])
+                 <= STRUCTURE_RTOL * np.trace(gyration))
+    momentum = body.inertia @ np.asarray(omega0, dtype=float)
+    return bool(isotropic and abs(momentum @ k) <= STRUCTURE_RTOL * np.linalg.norm(momentum))
+
+
+def _hess_value(body, quat, omega):
+    """K·k = σω·k, which stays 0 on the Hess manifold."""
+    return (np.asarray(omega, dtype=float) @ body.inertia) @ _com_direction(body)
+
+
+def _hess_scale(body, quat0, omega0):
+    return _nonzero(np.linalg.norm(body.inertia @ np.asarray(omega0, dtype=float)))
+
+
+INTEGRALS: dict[str, Integral] = {
+    "energy": Integral("energy", lambda body, quat0, omega0: True, _energy_value, _energy_scale),
+    "momentum": Integral("momentum", lambda body, quat0, omega0: True, _momentum_value, _momentum_scale),
+    "casimir": Integral("casimir", lambda body, quat0, omega0: True, _casimir_value,
+                        lambda body, quat0, omega0: 1.0, exact=1.0),
+    "lagrange": Integral("lagrange", _lagrange_applies, _lagrange_value, _lagrange_scale),
+    "kovalevskaya": Integral("kovalevskaya", _kovalevskaya_applies, _kovalevskaya_value, _kovalevskaya_scale),
+    "chaplygin": Integral("chaplygin", _chaplygin_applies, _chaplygin_value, _chaplygin_scale),
+    "hess": Integral("hess", _hess_applies, _hess_value, _hess_scale),
+}
