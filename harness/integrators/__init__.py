@@ -1,0 +1,80 @@
+"""The integrator registry: names -> Integrator classes, built-ins first, then third-party plug-ins.
+
+A plug-in is an Integrator subclass advertised in the entry-point group "stereodyn.integrators", e.g. in its
+pyproject.toml: [project.entry-points."stereodyn.integrators"] my_rk = "my_package.module:MyRK". Plug-ins are loaded
+the first time the registry is consulted; one that fails to load is skipped with a warning, never breaking a sweep.
+"""
+from __future__ import annotations
+
+import warnings
+from importlib.metadata import entry_points
+
+from harness.integrators.base import Integrator, LieSystem
+from harness.integrators.lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEuler
+
+__all__ = ["ENTRY_POINT_GROUP", "ButcherTableau", "ExplicitRK", "Integrator", "LieSystem", "get", "names", "register"]
+
+ENTRY_POINT_GROUP = "stereodyn.integrators"
+
+_registry: dict[str, type[Integrator]] = {}
+_plugins_loaded = False
+
+
+def register(cls: type[Integrator]) -> type[Integrator]:
+    """Add an Integrator class under cls.name (usable as a decorator). Raises TypeError/ValueError on a bad class or
+    a name already taken by another class."""
+    _check(cls)
+    existing = _registry.get(cls.name)
+    if existing is not None and existing is not cls:
+        raise ValueError(f"integrator name {cls.name!r} is already registered to {existing.__module__}."
+                         f"{existing.__qualname__}")
+    _registry[cls.name] = cls
+    return cls
+
+
+def get(name_or_class: str | type[Integrator]) -> type[Integrator]:
+    """The Integrator class called name, or the class itself (checked) when one is given.
+
+    KeyError, listing the valid names, for an unknown name.
+    """
+    if isinstance(name_or_class, type):
+        return _check(name_or_class)
+    _load_plugins()
+    try:
+        return _registry[name_or_class]
+    except KeyError:
+        raise KeyError(f"unknown integrator {name_or_class!r}; valid: {', '.join(_registry)}") from None
+
+
+def names(state_space: str | None = "lie") -> tuple[str, ...]:
+    """Registered names in report order (built-ins first), for one state space (None: all)."""
+    _load_plugins()
+    return tuple(n for n, cls in _registry.items() if state_space is None or cls.state_space == state_space)
+
+
+def _check(cls: type) -> type[Integrator]:
+    if not (isinstance(cls, type) and issubclass(cls, Integrator)):
+        raise TypeError(f"{cls!r} is not an Integrator subclass")
+    missing = [key for key in Integrator.METADATA if not hasattr(cls, key)]
+    if missing:
+        raise TypeError(f"integrator {cls.__qualname__} lacks metadata: {', '.join(missing)}")
+    abstract = sorted(getattr(cls, "__abstractmethods__", ()))
+    if abstract:
+        raise TypeError(f"integrator {cls.__qualname__} does not implement {', '.join(abstract)}")
+    return cls
+
+
+def _load_plugins() -> None:
+    global _plugins_loaded
+    if _plugins_loaded:
+        return
+    _plugins_loaded = True
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            register(entry.load())
+        except Exception as exc:  # a broken plug-in must not take the built-ins down with it
+            warnings.warn(f"integrator plug-in {entry.name!r} ({entry.value}) not loaded: {exc}", stacklevel=3)
+
+
+for _cls in (Euler, SymplecticEuler, RK4, RK4Naive):
+    register(_cls)

@@ -1,0 +1,142 @@
+"""The sweep end to end through the command line: rows, statuses, the table contract, bad input."""
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from harness import cli, runner
+from harness.engines import get_engine
+from harness.results import COLUMNS
+
+
+def run_cli(*argv):
+    return cli.main(["run", *argv, "--quiet"])
+
+
+@pytest.fixture(scope="module")
+def short_suite(tmp_path_factory):
+    """All four suite cases, every engine and integrator, two steps, one second, on two worker processes."""
+    out = tmp_path_factory.mktemp("suite")
+    assert run_cli("--t-end", "1", "--dt", "1e-2,5e-3", "--jobs", "2", "--out", str(out)) == 0
+    return out, pd.read_csv(out / "results.csv")
+
+
+def test_every_run_is_a_row_with_the_contract_columns(short_suite):
+    out, df = short_suite
+    assert tuple(df.columns) == COLUMNS
+    truth = df[df.engine == "reference"]
+    assert len(truth) == 4 and set(truth.integrator) == {"taylor"} and truth.dt.isna().all()
+    assert set(truth.formulation) == {"quaternion"}
+    for engine, integrators in (("mujoco", 4), ("pinocchio", 4)):
+        assert len(df[df.engine == engine]) == 4 * integrators * 2
+    assert set(df.status) == {"ok"}, df[df.status != "ok"][["case", "engine", "integrator", "message"]]
+    assert (out / "report.md").read_text().count("### ") == 4
+    assert not list(out.glob(".*tmp"))  # atomic writes leave no partial files
+
+
+def test_special_integrals_only_on_their_cases(short_suite):
+    _, df = short_suite
+    kova = df.case == "kovalevskaya"
+    assert np.isfinite(df[kova].kovalevskaya_drift).all()
+    assert df[~kova].kovalevskaya_drift.isna().all()
+    lagrange = df.case.isin(["lagrange-top"])
+    assert np.isfinite(df[lagrange].lagrange_drift).all()
+    assert df[df.case.isin(["kovalevskaya", "heavy-asymmetric", "free-asymmetric"])].lagrange_drift.isna().all()
+    assert np.isfinite(df.energy_drift).all() and np.isfinite(df.momentum_drift).all()
+
+
+def test_errors_are_measured_against_the_truth(short_suite):
+    _, df = short_suite
+    engines = df[df.engine != "reference"]
+    assert np.isfinite(engines.attitude_err).all() and (engines.attitude_err >= engines.attitude_err_end).all()
+    # The truth is exact to round-off: rk4 at dt = 5e-3 over one second is far more accurate than Euler.
+    rk4 = engines[(engines.integrator == "rk4") & (engines.dt == 5e-3)]
+    euler = engines[(engines.integrator == "euler") & (engines.dt == 5e-3)]
+    assert rk4.attitude_err.max() < 1e-6 < euler.attitude_err.min()
+    assert (engines.us_per_step > 0).all()
+
+
+def test_a_diverging_run_is_a_row_and_the_sweep_completes(tmp_path):
+    assert run_cli("heavy-asymmetric", "--engines", "mujoco", "--integrators", "euler,rk4", "--dt", "0.3",
+                   "--jobs", "1", "--out", str(tmp_path)) == 0
+    df = pd.read_csv(tmp_path / "results.csv").set_index("integrator")
+    assert df.loc["euler", "status"] == "diverged"
+    assert 0 < df.loc["euler", "diverged_at"] <= 20.0
+    assert math.isnan(df.loc["euler", "wall_s"]) and math.isnan(df.loc["euler", "us_per_step"])
+    # It diverges after the case's horizon (10 s), so its error within the horizon is still measured.
+    assert df.loc["euler", "diverged_at"] > 10.0 and np.isfinite(df.loc["euler", "attitude_err"])
+    assert df.loc["rk4", "status"] == "ok"
+
+
+def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path, monkeypatch):
+    real = get_engine("pinocchio")
+
+    class Broken:
+        name = "pinocchio"
+
+        def integrators(self):
+            return real.integrators()
+
+        def unsupported(self, case):
+            return None
+
+        def prepare(self, case, integrator, dt):
+            if integrator == "euler":
+                raise RuntimeError("model build failed\nsecond line")
+            return real.prepare(case, integrator, dt)
+
+    monkeypatch.setattr(runner, "get_engine", lambda name: Broken() if name == "pinocchio" else get_engine(name))
+    assert run_cli("lagrange-top", "--engines", "pinocchio", "--t-end", "0.5", "--dt", "1e-2", "--jobs", "1",
+                   "--out", str(tmp_path)) == 0
+    df = pd.read_csv(tmp_path / "results.csv").set_index("integrator")
+    assert df.loc["euler", "status"] == "failed"
+    assert df.loc["euler", "message"] == "RuntimeError: model build failed"
+    assert math.isnan(df.loc["euler", "attitude_err"]) and math.isnan(df.loc["euler", "wall_s"])
+    assert (df.drop("euler").status == "ok").all()
+
+
+def test_a_missing_engine_makes_its_runs_skipped(tmp_path, monkeypatch):
+    from harness import engines
+
+    monkeypatch.setitem(engines._ENGINES, "mujoco", ("harness.engines.no_such_sdk", "Nothing"))
+    engines.get_engine.cache_clear()
+    try:
+        assert run_cli("free-asymmetric", "--engines", "mujoco,reference", "--t-end", "0.5", "--jobs", "1",
+                       "--out", str(tmp_path)) == 0
+    finally:
+        engines.get_engine.cache_clear()
+    df = pd.read_csv(tmp_path / "results.csv")
+    skipped = df[df.engine == "mujoco"]
+    assert len(skipped) == 3 and set(skipped.status) == {"skipped"}  # one row per dt of the case
+    assert skipped.message.str.contains("mujoco engine unavailable").all()
+    assert (df[df.engine == "reference"].status == "ok").all()
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["run", "no-such-case"], "no-such-case"),
+    (["run", "--case-file", "missing.toml"], "missing.toml: -: file not found"),
+    (["run", "--engines", "bullet"], "unknown engine bullet"),
+    (["run", "--integrators", "leapfrog"], "valid:"),
+    (["run", "--jobs", "0"], "--jobs"),
+])
+def test_bad_input_exits_2_with_one_line(argv, expected, capsys):
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert expected in err and err.count("\n") == 1
+
+
+def test_a_malformed_case_file_names_file_key_and_rule(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[body]\nmass = 1.0\ncom = [0,0,0]\nprincipal_moments = [1,1,1]\ncolour = 'red'\n"
+                   "[initial]\nattitude = { quaternion = [1,0,0,0] }\nomega = [0,0,1]\n[run]\nt_end = 1.0\ndt = [0.1]\n")
+    assert cli.main(["run", "--case-file", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "body.colour" in err and err.count("\n") == 1
+
+
+def test_cases_lists_the_suite(capsys):
+    assert cli.main(["cases"]) == 0
+    out = capsys.readouterr().out
+    for name in ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric"):
+        assert name in out
