@@ -126,13 +126,30 @@ def test_bad_input_exits_2_with_one_line(argv, expected, capsys):
     assert expected in err and err.count("\n") == 1
 
 
-def test_a_malformed_case_file_names_file_key_and_rule(tmp_path, capsys):
+GOOD_BODY = "mass = 1.0\ncom = [0.0, 0.0, 0.0]\nprincipal_moments = [1.0, 1.0, 1.5]\n"
+GOOD_INITIAL = "attitude = { quaternion = [1.0, 0.0, 0.0, 0.0] }\nomega = [0.0, 0.0, 1.0]\n"
+
+
+@pytest.mark.parametrize("body, initial, run, key, rule", [
+    (GOOD_BODY + "colour = 'red'\n", GOOD_INITIAL, "t_end = 1.0\ndt = [0.1]\n", "body.colour", "unknown key"),
+    ("mass = 1.0\ncom = [0.0, 0.0, 0.0]\ninertia = [[1.0, 0.1, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.5]]\n",
+     GOOD_INITIAL, "t_end = 1.0\ndt = [0.1]\n", "body.inertia", "symmetric"),
+    ("mass = 1.0\ncom = [0.0, 0.0, 0.0]\ninertia = [[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.5]]\n",
+     GOOD_INITIAL, "t_end = 1.0\ndt = [0.1]\n", "body.inertia", "positive definite"),
+    # About O (1, 1, 1.9) holds the triangle inequality; about G = O + (0, 0, 0.3) it is (0.91, 0.91, 1.9): broken.
+    ("mass = 1.0\ncom = [0.0, 0.0, 0.3]\nprincipal_moments = [1.0, 1.0, 1.9]\n",
+     GOOD_INITIAL, "t_end = 1.0\ndt = [0.1]\n", "body.principal_moments", "centre of mass"),
+    (GOOD_BODY, "attitude = { quaternion = [1.001, 0.0, 0.0, 0.0] }\nomega = [0.0, 0.0, 1.0]\n",
+     "t_end = 1.0\ndt = [0.1]\n", "initial.attitude.quaternion", "unit length"),
+    (GOOD_BODY, GOOD_INITIAL, "t_end = 1.0\ndt = [0.1, -0.1]\n", "run.dt[1]", "> 0"),
+])
+def test_a_malformed_case_file_exits_2_naming_file_key_and_rule(tmp_path, capsys, body, initial, run, key, rule):
     bad = tmp_path / "bad.toml"
-    bad.write_text("[body]\nmass = 1.0\ncom = [0,0,0]\nprincipal_moments = [1,1,1]\ncolour = 'red'\n"
-                   "[initial]\nattitude = { quaternion = [1,0,0,0] }\nomega = [0,0,1]\n[run]\nt_end = 1.0\ndt = [0.1]\n")
+    bad.write_text(f"[body]\n{body}[initial]\n{initial}[run]\n{run}")
     assert cli.main(["run", "--case-file", str(bad)]) == 2
     err = capsys.readouterr().err
-    assert str(bad) in err and "body.colour" in err and err.count("\n") == 1
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert str(bad) in err and key in err and rule in err, err
 
 
 def test_cases_lists_the_suite(capsys):

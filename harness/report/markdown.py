@@ -13,7 +13,7 @@ from harness.results import write_atomic
 
 TERMINAL_COLUMNS = ("engine", "integrator", "dt", "status", "energy_drift", "momentum_drift", "casimir_drift",
                     "lagrange_drift", "kovalevskaya_drift", "chaplygin_drift", "hess_drift", "attitude_err",
-                    "omega_err", "us_per_step")
+                    "omega_err", "truth_err", "us_per_step")
 SHORT = {"energy_drift": "energy", "momentum_drift": "momentum", "casimir_drift": "casimir",
          "lagrange_drift": "lagrange", "kovalevskaya_drift": "kovalevskaya", "chaplygin_drift": "chaplygin",
          "hess_drift": "hess", "attitude_err": "att_err", "omega_err": "omega_err", "us_per_step": "us/step"}
@@ -95,7 +95,7 @@ def report_markdown(df: pd.DataFrame) -> str:
         lines += ["## Runs that did not complete", "",
                   _markdown_table(_table(problems, ["case", "engine", "integrator", "dt", "status", "message"])), ""]
     lines += ["## Drift tables", ""]
-    columns = TERMINAL_COLUMNS[:-1] + ("attitude_err_end", "truth_err", "wall_s", "us_per_step")
+    columns = TERMINAL_COLUMNS[:-2] + ("attitude_err_end", "truth_err", "wall_s", "us_per_step")
     for case, group in df.groupby("case", sort=False):
         lines += [f"### {case}", "", _markdown_table(_table(group, _shown_columns(group, columns))), ""]
         diverged = group[group["status"] == "diverged"]
