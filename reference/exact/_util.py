@@ -2,8 +2,11 @@
 half-period, Carlson forms of the incomplete elliptic integrals, quaternion sign continuity."""
 from __future__ import annotations
 
+import math
+from decimal import Decimal, localcontext
+
 import numpy as np
-from scipy.special import ellipj, elliprf, elliprj
+from scipy.special import elliprf, elliprj
 
 from reference.rotations import quat_exp
 
@@ -12,9 +15,11 @@ from reference.rotations import quat_exp
 # from the oracle then grows with time, so the bound is kept tight.
 CONDITION_RTOL = 1e-12
 
-# Two principal moments closer than this (relative) are treated as equal: the gap is then indistinguishable from the
-# rounding of an eigendecomposition, and the symmetric closed form errs by at most gap/I |ω| t.
-SYMMETRIC_RTOL = 8.0 * np.finfo(float).eps
+# Two principal moments are equal (the symmetric closed form applies) when their refined PRECISE_DIGITS-digit values
+# agree to this: the given inertia is exactly symmetric. A genuine gap, even the 1e-16 left by rounding a rotated
+# symmetric tensor, is a triaxial body; the elliptic solution is exact for it (m, ν ~ the gap), whereas the symmetric
+# form would err by gap/I |ω| t (measured 2e-12 rad over 10 periods).
+SYMMETRIC_RTOL = 1e-30
 
 
 def principal_axes(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -26,6 +31,65 @@ def principal_axes(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if np.linalg.det(axes) < 0:
         axes[:, 2] = -axes[:, 2]
     return moments, axes
+
+
+# Digits of the decimal arithmetic that refines principal frames: the rounding of the frame and of the invariants
+# then sits far below float64, whatever the distance to the separatrix.
+PRECISE_DIGITS = 40
+
+
+def _decimal_matrix_product(a: list, b: list) -> list:
+    return [[sum((a[i][k] * b[k][j] for k in range(3)), Decimal(0)) for j in range(3)] for i in range(3)]
+
+
+def _decimal_transpose(a: list) -> list:
+    return [[a[j][i] for j in range(3)] for i in range(3)]
+
+
+def principal_frame_precise(inertia: np.ndarray, omega: np.ndarray) -> tuple[list, list, list]:
+    """Principal moments (descending), axes and ω in principal components, as decimal.Decimal with PRECISE_DIGITS
+    digits: moments [I1, I2, I3], axes as 3 rows of the (3, 3) matrix whose columns are e1, e2, e3 (body), and
+    w = [ω·e1, ω·e2, ω·e3].
+
+    eigh's axes are off by ~1e-16/gap rad and orthonormal only to ~1e-16, and near the separatrix such errors are
+    amplified by 1/|δ| in the period (measured: 3e-11 rad over 10 periods at δ = 7e-4). Gram–Schmidt and three
+    Jacobi sweeps on Pᵀ σ P, with σ and ω taken exactly from their float64 entries, remove them.
+    """
+    _, axes0 = principal_axes(inertia)
+    with localcontext() as context:
+        context.prec = PRECISE_DIGITS
+        sigma = [[Decimal(float(x)) for x in row] for row in np.asarray(inertia, dtype=float)]
+        columns = [[Decimal(float(x)) for x in axes0[:, i]] for i in range(3)]
+
+        def dot(u, v):
+            return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+        for _ in range(2):
+            e1 = [x / dot(columns[0], columns[0]).sqrt() for x in columns[0]]
+            e2 = [x - dot(e1, columns[1]) * y for x, y in zip(columns[1], e1)]
+            e2 = [x / dot(e2, e2).sqrt() for x in e2]
+            e3 = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+            columns = [e1, e2, e3]
+        axes = _decimal_transpose(columns)
+        one = Decimal(1)
+        for _ in range(3):
+            for p, q in ((0, 1), (0, 2), (1, 2)):
+                a = _decimal_matrix_product(_decimal_transpose(axes), _decimal_matrix_product(sigma, axes))
+                if a[p][q] == 0:
+                    continue
+                zeta = (a[q][q] - a[p][p]) / (2 * a[p][q])
+                t = (one if zeta >= 0 else -one) / (abs(zeta) + (one + zeta * zeta).sqrt())
+                c = one / (one + t * t).sqrt()
+                s = t * c
+                rotation = [[one if i == j else Decimal(0) for j in range(3)] for i in range(3)]
+                rotation[p][p] = rotation[q][q] = c
+                rotation[p][q], rotation[q][p] = s, -s
+                axes = _decimal_matrix_product(axes, rotation)
+        a = _decimal_matrix_product(_decimal_transpose(axes), _decimal_matrix_product(sigma, axes))
+        moments = [a[i][i] for i in range(3)]
+        omega_dec = [Decimal(float(x)) for x in np.asarray(omega, dtype=float)]
+        w = [sum((axes[k][i] * omega_dec[k] for k in range(3)), Decimal(0)) for i in range(3)]
+    return moments, axes, w
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -70,27 +134,49 @@ def continuous_signs(quat: np.ndarray, first: np.ndarray) -> np.ndarray:
     quat = np.array(quat, dtype=float)
     if quat.shape[0] == 0:
         return quat
-    if quat[0] @ first < 0:
-        quat[0] = -quat[0]
-    for i in range(1, quat.shape[0]):
-        if quat[i] @ quat[i - 1] < 0:
-            quat[i] = -quat[i]
-    return quat
+    steps = np.where(np.sum(quat[1:] * quat[:-1], axis=-1) < 0.0, -1.0, 1.0)
+    signs = np.cumprod(np.concatenate([[1.0 if quat[0] @ first >= 0.0 else -1.0], steps]))
+    return quat * signs[:, None]
 
 
-def jacobi(u: np.ndarray, m: float, quarter: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                                                  np.ndarray, np.ndarray, np.ndarray]:
-    """sn, cn, dn of u (n,) and of its reduction r = u - 2 K j, |r| <= K (K = quarter = K(m)).
+def jacobi_sncndn(u: np.ndarray, m: float, complement: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """sn, cn, dn of u (n,) for the parameter m, given also its complement 1 - m (both in [0, 1]).
 
-    Returns (sn_u, cn_u, dn_u, j, sn_r, cn_r, dn_r). The reduction keeps scipy's AGM (Cephes ellpj) on a short
-    argument, where it is accurate to a few ulps, and gives the half-period count j that the quasi-periodic
-    integrals need. sn(u) = (-1)^j sn(r), cn(u) = (-1)^j cn(r), dn(u) = dn(r).
+    The arithmetic-geometric mean of Cephes' ellpj (which scipy.special.ellipj wraps), started from √(1 - m) as
+    given rather than as 1 - m rounded: near the separatrix 1 - m ~ 1e-6, and forming it from m would lose ten
+    digits of it, i.e. of the period. Accurate to a few ulps (absolute) for |u| <= K.
+    """
+    u = np.asarray(u, dtype=float)
+    a, b, c = 1.0, math.sqrt(complement), math.sqrt(m)
+    ratios = []
+    while abs(c) > 1e-17 * a and len(ratios) < 40:
+        a_next = 0.5 * (a + b)
+        # c_{n+1} = (a_n - b_n)/2 = c_n² / (4 a_{n+1}): no cancellation
+        c = c * c / (4.0 * a_next)
+        b = math.sqrt(a * b)
+        a = a_next
+        ratios.append(c / a)
+    phi = (2.0 ** len(ratios)) * a * u
+    for ratio in reversed(ratios):
+        phi = 0.5 * (phi + np.arcsin(np.clip(ratio * np.sin(phi), -1.0, 1.0)))
+    sn, cn = np.sin(phi), np.cos(phi)
+    # dn² = 1 - m sn² = cn² + (1 - m) sn²: two positive terms. Cephes' cn / cos(φ0 - φ1) is 0/0 at u = K.
+    dn = np.sqrt(cn * cn + complement * sn * sn)
+    return sn, cn, dn
+
+
+def jacobi(u: np.ndarray, m: float, quarter: float, complement: float) -> tuple[np.ndarray, ...]:
+    """sn, cn, dn of u (n,) and of its reduction r = u - 2 K j, |r| <= K (K = quarter = K(m), complement = 1 - m).
+
+    Returns (sn_u, cn_u, dn_u, j, sn_r, cn_r, dn_r). The reduction keeps the AGM on a short argument and gives the
+    half-period count j that the quasi-periodic integrals need. sn(u) = (-1)^j sn(r), cn(u) = (-1)^j cn(r),
+    dn(u) = dn(r).
     """
     u = np.asarray(u, dtype=float)
     j = np.round(u / (2.0 * quarter))
     r = u - 2.0 * quarter * j
-    # ellpj on |r| (sn odd, cn and dn even) so the AGM never sees a negative argument
-    sn_abs, cn_r, dn_r, _ = ellipj(np.abs(r), m)
+    # the AGM on |r| (sn odd, cn and dn even)
+    sn_abs, cn_r, dn_r = jacobi_sncndn(np.abs(r), m, complement)
     sn_r = np.copysign(sn_abs, r)
     parity = 1.0 - 2.0 * np.mod(j, 2.0)
     return parity * sn_r, parity * cn_r, dn_r, j, sn_r, cn_r, dn_r
