@@ -12,6 +12,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from reference.body import RigidBody
+from reference.exact import ORACLES as EXACT_SOLUTIONS
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
@@ -274,10 +275,13 @@ class _Parser:
 
         for array in (com, inertia, gravity_direction, quat0, omega0):
             array.setflags(write=False)
-        return Case(name=name, description=description, tags=tags, mass=mass, com=com, inertia=inertia,
+        case = Case(name=name, description=description, tags=tags, mass=mass, com=com, inertia=inertia,
                     gravity=gravity, gravity_direction=gravity_direction, quat0=quat0, omega0=omega0, t_end=t_end,
                     dt=dt, samples=samples, oracle=oracle, horizon=horizon, body_torque=body_torque,
                     central_field=central_field, path=Path(self.path))
+        if oracle is not None:
+            self.oracle_applies(case)
+        return case
 
     def body(self, data: Any) -> tuple[float, np.ndarray, np.ndarray]:
         self.table(data, "body")
@@ -380,12 +384,26 @@ class _Parser:
             oracle = self.string(data["oracle"], "expect.oracle")
             if oracle not in ORACLES:
                 raise self.fail("expect.oracle", f"unknown oracle {oracle!r} (known: {', '.join(ORACLES)})")
+            if oracle not in EXACT_SOLUTIONS:
+                raise self.fail("expect.oracle", f"oracle {oracle!r} is not available yet (no exact solution in "
+                                                 f"reference.exact; available: {', '.join(EXACT_SOLUTIONS)})")
         horizon = None
         if "horizon" in data:
             horizon = self.positive(data["horizon"], "expect.horizon")
             if horizon > t_end:
                 raise self.fail("expect.horizon", f"must be <= run.t_end ({horizon:g} > {t_end:g})")
         return oracle, horizon
+
+    def oracle_applies(self, case: Case) -> None:
+        """The case's state must be on its oracle's motion (reference.exact's check, to its tolerance)."""
+        for table, present in (("body_torque", case.body_torque), ("central_field", case.central_field)):
+            if present is not None:
+                # the oracles' checks see only the body, gravity and initial state: an extra torque would pass them
+                raise self.fail("expect.oracle", f"no exact solution here models [{table}]; remove the oracle or "
+                                                 f"the table")
+        reason = EXACT_SOLUTIONS[case.oracle].check(case.body, case.quat0, case.omega0)
+        if reason is not None:
+            raise self.fail("expect.oracle", f"the case does not meet the conditions of {case.oracle!r}: {reason}")
 
 
 # -------------------------------------------------------------------------------------------------------- helpers

@@ -1,7 +1,9 @@
-"""The command line (DESIGN §5). Exit codes: 0 done (runs may have failed: that is data), 2 bad input."""
+"""The command line (DESIGN §5). Exit codes: 0 done (runs may have failed: that is data), 1 `check` found rows
+that got worse, 2 bad input, 130 interrupted."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -45,9 +47,31 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
     run.add_argument("--jobs", type=int, default=None, help="local worker processes (default: all cores)")
     run.add_argument("--certify", action="store_true", help="bound the truth's error by a quadruple-precision rerun")
-    run.add_argument("--quiet", action="store_true", help="no progress lines")
-    report = commands.add_parser("report", help="re-render report.md from DIR/results.csv")
+    run.add_argument("--quiet", action="store_true", help="no progress bar (there is none when stderr is not a TTY)")
+    run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
+    run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
+                     help="run on this Dask scheduler's cluster (needs stereodyn[dask]) instead of local processes")
+    report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
     report.add_argument("dir", type=Path)
+    baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
+    baseline.add_argument("dir", type=Path)
+    baseline.add_argument("--out", type=Path, required=True, metavar="FILE", help="baseline file to write (JSON)")
+    check = commands.add_parser("check", help="exit 1 and print the rows of DIR that got worse than the baseline")
+    check.add_argument("dir", type=Path)
+    check.add_argument("--baseline", type=Path, required=True, metavar="FILE")
+    check.add_argument("--tolerances", type=Path, default=None, metavar="FILE.toml",
+                       help="[default] factor/floor, [metric.NAME] factor/floor, [time] factor")
+    check.add_argument("--factor", type=float, default=None,
+                       help="a drift or error may grow to factor * baseline + floor (default 2, every metric)")
+    check.add_argument("--floor", type=float, default=None, help="absolute floor (default 1e-12, every metric)")
+    check.add_argument("--time-factor", type=float, default=None,
+                       help="also fail when us_per_step exceeds this factor times the baseline's")
+    export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
+    export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
+    export.add_argument("--format", required=True, choices=("mjcf", "urdf"))
+    export.add_argument("--out", type=Path, default=None, metavar="FILE", help="default: standard output")
+    export.add_argument("--integrator", default=None, help="MJCF only: MuJoCo integrator (default rk4)")
+    export.add_argument("--dt", type=float, default=None, help="MJCF only: timestep (default: the case's first dt)")
     return parser
 
 
@@ -91,40 +115,104 @@ def cmd_cases(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from harness.report.markdown import drift_table_text, write_report
-    from harness.runner import run_sweep, stderr_progress
+    from harness.progress import ProgressBar
+    from harness.report.build import write_reports
+    from harness.report.markdown import drift_table_text
+    from harness.runner import run_sweep
 
     _check_names(args)
     chosen = _select_cases(args)
-    progress = None if args.quiet else stderr_progress
+    progress = ProgressBar(enabled=not args.quiet)
     df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
-                   progress=progress)
+                   progress=progress, resume=args.resume, scheduler=args.scheduler)
     print(drift_table_text(df))
-    report = write_report(df, args.out)
-    print(f"wrote {args.out / 'results.csv'} and {report}")
+    markdown, html = write_reports(args.out, df)
+    print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     return 0
 
 
 def cmd_report(args) -> int:
-    from harness.report.markdown import write_report
-    from harness.results import read_results
+    from harness.report.build import write_reports
 
     results = args.dir / "results.csv"
     if not results.is_file():
         raise BadInput(f"{results}: file not found")
-    print(f"wrote {write_report(read_results(results), args.dir)}")
+    markdown, html = write_reports(args.dir)
+    print(f"wrote {markdown} and {html}")
+    return 0
+
+
+def cmd_baseline(args) -> int:
+    from harness import check
+    from harness.store import read_manifest
+
+    manifest = read_manifest(args.dir) or {}
+    rows = check.write_baseline(check.read_table(args.dir), args.out, manifest.get("environment"))
+    print(f"wrote {args.out} ({rows} rows)")
+    return 0
+
+
+def cmd_check(args) -> int:
+    from harness import check
+
+    tolerances = check.Tolerances()
+    if args.tolerances is not None:
+        tolerances = check.read_tolerances(args.tolerances)
+    for option, value in (("--factor", args.factor), ("--time-factor", args.time_factor)):
+        if value is not None and not value >= 1.0:
+            raise BadInput(f"{option}: must be >= 1, got {value:g}")
+    if args.floor is not None and not args.floor >= 0.0:
+        raise BadInput(f"--floor: must be >= 0, got {args.floor:g}")
+    if args.factor is not None or args.floor is not None:  # the command line overrides the file, for every metric
+        override = {k: v for k, v in (("factor", args.factor), ("floor", args.floor)) if v is not None}
+        tolerances = dataclasses.replace(
+            tolerances, default=dataclasses.replace(tolerances.default, **override),
+            per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
+    if args.time_factor is not None:
+        tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
+    baseline = check.read_baseline(args.baseline)
+    current = check.read_table(args.dir)
+    findings = check.compare(current, baseline, tolerances)
+    extra = check.new_rows(current, baseline)
+    note = f"; {extra} rows not in the baseline (not checked)" if extra else ""
+    if findings:
+        print(check.findings_table(findings))
+        rows = len({f.key for f in findings})
+        print(f"check failed: {rows} of {len(baseline)} baseline rows got worse than {args.baseline} allows{note}")
+        return 1
+    print(f"check passed: {len(baseline)} baseline rows, none worse{note}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    from harness.export import export
+    from harness.results import write_atomic
+
+    text = export(case_files.find_case(args.case), args.format, args.integrator, args.dt)
+    if args.out is None:
+        sys.stdout.write(text)
+    else:
+        write_atomic(args.out, text)
+        print(f"wrote {args.out}", file=sys.stderr)
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    from harness.check import GateError
+    from harness.distributed import ClusterError
+    from harness.export import ExportError
+    from harness.store import StoreBusy
+
     args = _parser().parse_args(argv)
+    commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
+                "check": cmd_check, "export": cmd_export}
     try:
-        return {"cases": cmd_cases, "run": cmd_run, "report": cmd_report}[args.command](args)
-    except (CaseError, BadInput) as exc:
+        return commands[args.command](args)
+    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy) as exc:
         print(f"stereodyn: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("stereodyn: interrupted; results.csv holds every run that finished", file=sys.stderr)
+        print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
 
 

@@ -10,11 +10,11 @@ import pandas as pd
 from harness.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
-           "wall_s", "us_per_step", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err", "truth_err")
+           "wall_s", "us_per_step", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err", "truth_err", "chart_changes")
 
 # Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
-# them, dt descending.
-SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_dt_rank")
+# them, formulations as the engine lists them, dt descending.
+SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_formulation_rank", "_dt_rank")
 
 
 def frame(rows: list[dict]) -> pd.DataFrame:
@@ -29,12 +29,15 @@ def frame(rows: list[dict]) -> pd.DataFrame:
     return df[list(COLUMNS)].reset_index(drop=True)
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write text to path through a temporary file in the same folder and a rename: readers never see a partial file."""
+def write_atomic(path: Path, text: str | bytes) -> None:
+    """Write text (or bytes) to path through a temporary file in the same folder and a rename: readers never see a
+    partial file."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+        os.fchmod(fd, 0o644)  # mkstemp makes the file private (0600); the result is an ordinary file
+        options = {"mode": "wb"} if isinstance(text, bytes) else {"mode": "w", "encoding": "utf-8", "newline": ""}
+        with os.fdopen(fd, **options) as handle:
             handle.write(text)
             handle.flush()
             os.fsync(handle.fileno())

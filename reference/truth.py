@@ -67,8 +67,9 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def _equations() -> list[tuple]:
-    """Euler–Poisson + quaternion kinematics as heyoka expressions (FORMULARY §0, G3)."""
+def equations() -> list[tuple]:
+    """Euler–Poisson + quaternion kinematics as heyoka (variable, right-hand side) pairs in the 18 runtime parameters
+    above (FORMULARY §0, G3)."""
     w, x, y, z, o1, o2, o3 = hy.make_vars("w", "x", "y", "z", "o1", "o2", "o3")
     v, omega = [x, y, z], [o1, o2, o3]
     sigma = _symmetric(0)
@@ -111,7 +112,7 @@ def taylor_integrator(precision: str = "double") -> tuple[object, threading.Lock
     fp_type = _FP_TYPE[precision]
     start = time.perf_counter()
     integrator = hy.taylor_adaptive(
-        _equations(),
+        equations(),
         np.array([1.0, 0, 0, 0, 0, 0, 0]).astype(fp_type),
         tol=fp_type(_TOLERANCE[precision]),
         pars=np.zeros(_N_PARS).astype(fp_type),

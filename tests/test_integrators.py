@@ -13,6 +13,7 @@ from harness.engines.base import DIVERGENCE_FACTOR, Status
 from harness.grid import time_grid
 from harness.integrators import ButcherTableau, ExplicitRK, Integrator, get, names, register
 from harness.integrators.lie import RK4, CLASSICAL_RK4
+from harness.integrators.vector import VectorRK4
 from reference import truth as reference_truth
 from reference.body import RigidBody
 from reference.euler_poisson import omega_dot
@@ -277,3 +278,84 @@ def test_non_finite_state_is_a_divergence_not_an_exception():
     assert run.status is Status.DIVERGED
     assert 0.0 < run.diverged_at <= 1.0
     assert np.isnan(run.omega[-1]).all()
+
+
+# ---------------------------------------------------------------------------------------------- vector state space
+
+class LinearSystem:
+    """y' = A y on R^2 (a rotation: y = (cos t, -sin t) from (1, 0)) in a single chart that never changes; the
+    observed 'omega' is y padded with a zero, the attitude the identity."""
+
+    matrix = np.array([[0.0, 1.0], [-1.0, 0.0]])
+
+    def rhs(self, chart, y):
+        return self.matrix @ y
+
+    def rechart(self, chart, y):
+        return chart, y
+
+    def observe(self, chart, y):
+        return (1.0, 0.0, 0.0, 0.0), (float(y[0]), float(y[1]), 0.0)
+
+    def chart_changes(self, chart):
+        return chart
+
+
+class SingularAt(LinearSystem):
+    """Raises ArithmeticError in rechart once y[0] < 0 (at t = pi/2), the way a chart reports its singularity."""
+
+    def rechart(self, chart, y):
+        if y[0] < 0.0:
+            raise ArithmeticError("coordinates singular")
+        return chart + 1, y
+
+
+def test_vector_registry_shares_names_with_the_lie_group_methods(scratch_registry):
+    assert names(state_space="vector") == ("euler", "rk4")
+    assert get("rk4", state_space="vector") is VectorRK4 and VectorRK4.tableau is CLASSICAL_RK4
+    assert get("rk4") is RK4 and get("rk4").state_space == "lie"
+    assert get("rk4", state_space="vector").state_space == "vector"
+    assert set(integrators.state_spaces()) == {"lie", "vector"}
+    assert names(state_space=None)[:4] == BUILTIN  # each name once
+    with pytest.raises(KeyError, match="for state space 'vector'; valid: euler, rk4"):
+        get("rk4_naive", state_space="vector")
+
+    class Impostor(integrators.VectorRK):
+        name, order, tableau, description = "euler", 1, CLASSICAL_RK4, "not Euler"
+
+    with pytest.raises(ValueError, match="already registered for state space 'vector'"):
+        register(Impostor)
+
+
+@pytest.mark.parametrize("name, order", [("euler", 1.0), ("rk4", 4.0)])
+def test_vector_runge_kutta_order_on_a_linear_ode(name, order):
+    integrator, errors, dts = get(name, state_space="vector")(), [], (0.02, 0.01, 0.005)
+    for dt in dts:
+        run = integrator.integrate(LinearSystem(), 0, np.array([1.0, 0.0]), time_grid(1.0, dt, 2))
+        assert run.status is Status.OK and run.chart_changes == 0 and run.rhs_evals == integrator.stages * run.steps
+        errors.append(abs(run.omega[-1, 0] - math.cos(1.0)) + abs(run.omega[-1, 1] + math.sin(1.0)))
+    assert abs(fitted_order(dts, errors) - order) <= 0.1
+
+
+def test_vector_step_is_the_step_integrate_takes():
+    integrator, system = get("rk4", state_space="vector")(), SingularAt()
+    grid = time_grid(0.05, 1e-2, 6)
+    run = integrator.integrate(system, 0, np.array([1.0, 0.0]), grid)
+    chart, y = 0, np.array([1.0, 0.0])
+    for k in range(1, grid.steps + 1):
+        chart, y = integrator.step(system, chart, y, grid.dt)
+        np.testing.assert_array_equal(run.omega[k, :2], y)
+    assert run.chart_changes == chart == grid.steps  # re-charted (counted) after every step
+
+
+def test_a_singular_chart_ends_the_run_as_diverged_at_the_exact_step():
+    dt = 1e-2
+    grid = time_grid(3.0, dt, 7)  # samples every 50 steps
+    run = get("rk4", state_space="vector")().integrate(SingularAt(), 0, np.array([1.0, 0.0]), grid)
+    expected = math.ceil((math.pi / 2) / dt)  # the first step with cos t < 0
+    assert run.status is Status.DIVERGED
+    assert run.diverged_at == pytest.approx(expected * dt, rel=1e-12)
+    assert run.message == f"coordinates singular at t = {expected * dt:.6g} s"
+    bad = int(np.searchsorted(grid.sample_steps, expected))
+    assert np.isnan(run.omega[bad:]).all() and np.isfinite(run.omega[:bad]).all()
+    assert run.steps == expected - 1 and run.chart_changes == run.steps

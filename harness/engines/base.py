@@ -33,6 +33,7 @@ class Trajectory:
     omega: (n, 3) rad/s, body frame.
     After a divergence the remaining samples are NaN and diverged_at (s) is the first time a state was bad.
     steps: steps taken; rhs_evals: right-hand-side (dynamics) evaluations, where the engine counts them.
+    chart_changes: changes of attitude chart made by a formulation with charts (None where there are none).
     """
 
     times: np.ndarray
@@ -44,6 +45,7 @@ class Trajectory:
     steps: int = 0
     rhs_evals: int = 0
     info: dict = field(default_factory=dict)
+    chart_changes: int | None = None
 
 
 class Simulation(Protocol):
@@ -53,6 +55,11 @@ class Simulation(Protocol):
 
 
 class Engine(Protocol):
+    """An engine. Two methods are optional: formulations() -> tuple[str, ...], the formulations it runs (each run
+    then names one, passed to prepare as formulation=...; without the method: none, and rows have formulation ""),
+    and adaptive(integrator) -> bool, whether an integrator chooses its own steps (its runs have dt None; without
+    the method: none does)."""
+
     name: str
 
     def integrators(self) -> tuple[str, ...]:
@@ -75,11 +82,12 @@ def first_bad_sample(omega: np.ndarray, quat: np.ndarray, omega0: np.ndarray) ->
 
 
 def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, bad: int, diverged_at: float,
-                        steps: int, rhs_evals: int = 0) -> Trajectory:
-    """A Trajectory whose samples from `bad` on are NaN, with status diverged."""
+                        steps: int, rhs_evals: int = 0, message: str | None = None) -> Trajectory:
+    """A Trajectory whose samples from `bad` on are NaN, with status diverged and message (default: the divergence
+    rule's)."""
     quat, omega = quat.copy(), omega.copy()
     quat[bad:] = np.nan
     omega[bad:] = np.nan
-    return Trajectory(grid.times, quat, omega, Status.DIVERGED,
-                      f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s",
-                      diverged_at, steps, rhs_evals)
+    if message is None:
+        message = f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s"
+    return Trajectory(grid.times, quat, omega, Status.DIVERGED, message, diverged_at, steps, rhs_evals)

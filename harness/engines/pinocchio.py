@@ -55,6 +55,52 @@ def build_model(case: Case) -> "pin.Model":
     return model
 
 
+def urdf(case: Case) -> str:
+    """build_model's body as URDF, to open in Pinocchio (buildModelFromUrdf) or other URDF tools.
+
+    URDF has no spherical joint. A floating joint would free the fixed point, so the ball joint is a gimbal: three
+    continuous joints at O about z, y, x (R = Rz(yaw) Ry(pitch) Rx(roll)) through two massless links. That is the
+    same body with the same dynamics, in other coordinates: q = the three angles (Pinocchio stores each as cos, sin),
+    v = their rates, singular (not the body, the chart) at pitch = ±90°. URDF has no gravity either: the comment in
+    the file gives g d to set in the tool (Pinocchio: model.gravity.linear).
+    Raises ValueError for a case this adapter cannot model exactly.
+    """
+    reason = PinocchioEngine().unsupported(case)
+    if reason:
+        raise ValueError(f"{case.name}: {reason}")
+    body = case.body
+    inertia = np.asarray(body.inertia_com, dtype=float)
+    gravity = body.gravity * np.asarray(body.gravity_direction, dtype=float)
+    number = lambda x: repr(float(x))  # noqa: E731 - repr round-trips a double exactly
+    vector = lambda v: " ".join(number(x) for x in v)  # noqa: E731
+    joints = []
+    for name, parent, child, axis in (("yaw", "world", "gimbal_yaw", "0 0 1"), ("pitch", "gimbal_yaw", "gimbal_pitch",
+                                      "0 1 0"), ("roll", "gimbal_pitch", "body", "1 0 0")):
+        joints.append(f'  <joint name="{name}" type="continuous">\n    <parent link="{parent}"/>\n'
+                      f'    <child link="{child}"/>\n    <origin xyz="0 0 0" rpy="0 0 0"/>\n'
+                      f'    <axis xyz="{axis}"/>\n  </joint>')
+    return f"""<?xml version="1.0"?>
+<!-- stereodyn case "{case.name}": a rigid body with a fixed point O at the world origin.
+     The ball joint at O is a gimbal of three continuous joints (yaw about z, pitch about y, roll about x:
+     R = Rz Ry Rx, body -> world) through two massless links; the body's frame is the case's body frame.
+     Gravity to set in the tool (URDF has none), world frame, m/s^2: {vector(gravity)} -->
+<robot name="{case.name}">
+  <link name="world"/>
+  <link name="gimbal_yaw"/>
+  <link name="gimbal_pitch"/>
+  <link name="body">
+    <inertial>
+      <origin xyz="{vector(body.com)}" rpy="0 0 0"/>
+      <mass value="{number(body.mass)}"/>
+      <inertia ixx="{number(inertia[0, 0])}" ixy="{number(inertia[0, 1])}" ixz="{number(inertia[0, 2])}" \
+iyy="{number(inertia[1, 1])}" iyz="{number(inertia[1, 2])}" izz="{number(inertia[2, 2])}"/>
+    </inertial>
+  </link>
+{chr(10).join(joints)}
+</robot>
+"""
+
+
 class PinocchioSimulation:
     """A case's model with one integrator and dt; run() starts from the case's initial state every time."""
 

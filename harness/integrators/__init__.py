@@ -1,4 +1,8 @@
-"""The integrator registry: names -> Integrator classes, built-ins first, then third-party plug-ins.
+"""The integrator registry: (state space, name) -> Integrator classes, built-ins first, then third-party plug-ins.
+
+A name means the same method in every state space ("rk4" is the classical tableau on the group, "lie", and on a
+formulation's coordinates, "vector"); names(state_space) says which integrators apply to a state space, and an engine
+asks for the ones of the space it works in.
 
 A plug-in is an Integrator subclass advertised in the entry-point group "stereodyn.integrators", e.g. in its
 pyproject.toml: [project.entry-points."stereodyn.integrators"] my_rk = "my_package.module:MyRK". Plug-ins are loaded
@@ -11,45 +15,55 @@ from importlib.metadata import entry_points
 
 from harness.integrators.base import Integrator, LieSystem
 from harness.integrators.lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEuler
+from harness.integrators.vector import VectorEuler, VectorRK, VectorRK4, VectorSystem
 
-__all__ = ["ENTRY_POINT_GROUP", "ButcherTableau", "ExplicitRK", "Integrator", "LieSystem", "get", "names", "register"]
+__all__ = ["ENTRY_POINT_GROUP", "ButcherTableau", "ExplicitRK", "Integrator", "LieSystem", "VectorRK", "VectorSystem",
+           "get", "names", "register", "state_spaces"]
 
 ENTRY_POINT_GROUP = "stereodyn.integrators"
 
-_registry: dict[str, type[Integrator]] = {}
+_registry: dict[tuple[str, str], type[Integrator]] = {}  # (state_space, name) -> class, in registration order
 _plugins_loaded = False
 
 
 def register(cls: type[Integrator]) -> type[Integrator]:
-    """Add an Integrator class under cls.name (usable as a decorator). Raises TypeError/ValueError on a bad class or
-    a name already taken by another class."""
+    """Add an Integrator class under (cls.state_space, cls.name) (usable as a decorator). Raises TypeError/ValueError
+    on a bad class or a name already taken by another class in the same state space."""
     _check(cls)
-    existing = _registry.get(cls.name)
+    key = (cls.state_space, cls.name)
+    existing = _registry.get(key)
     if existing is not None and existing is not cls:
-        raise ValueError(f"integrator name {cls.name!r} is already registered to {existing.__module__}."
-                         f"{existing.__qualname__}")
-    _registry[cls.name] = cls
+        raise ValueError(f"integrator name {cls.name!r} is already registered for state space {cls.state_space!r} "
+                         f"to {existing.__module__}.{existing.__qualname__}")
+    _registry[key] = cls
     return cls
 
 
-def get(name_or_class: str | type[Integrator]) -> type[Integrator]:
-    """The Integrator class called name, or the class itself (checked) when one is given.
+def get(name_or_class: str | type[Integrator], state_space: str = "lie") -> type[Integrator]:
+    """The Integrator class called name in state_space, or the class itself (checked) when one is given.
 
-    KeyError, listing the valid names, for an unknown name.
+    KeyError, listing the valid names of that state space, for an unknown name.
     """
     if isinstance(name_or_class, type):
         return _check(name_or_class)
     _load_plugins()
     try:
-        return _registry[name_or_class]
+        return _registry[(state_space, name_or_class)]
     except KeyError:
-        raise KeyError(f"unknown integrator {name_or_class!r}; valid: {', '.join(_registry)}") from None
+        raise KeyError(f"unknown integrator {name_or_class!r} for state space {state_space!r}; "
+                       f"valid: {', '.join(names(state_space))}") from None
 
 
 def names(state_space: str | None = "lie") -> tuple[str, ...]:
-    """Registered names in report order (built-ins first), for one state space (None: all)."""
+    """Registered names in report order (built-ins first), for one state space (None: all, each name once)."""
     _load_plugins()
-    return tuple(n for n, cls in _registry.items() if state_space is None or cls.state_space == state_space)
+    return tuple(dict.fromkeys(n for space, n in _registry if state_space is None or space == state_space))
+
+
+def state_spaces() -> tuple[str, ...]:
+    """The state spaces that have integrators."""
+    _load_plugins()
+    return tuple(dict.fromkeys(space for space, _ in _registry))
 
 
 def _check(cls: type) -> type[Integrator]:
@@ -76,5 +90,5 @@ def _load_plugins() -> None:
             warnings.warn(f"integrator plug-in {entry.name!r} ({entry.value}) not loaded: {exc}", stacklevel=3)
 
 
-for _cls in (Euler, SymplecticEuler, RK4, RK4Naive):
+for _cls in (Euler, SymplecticEuler, RK4, RK4Naive, VectorEuler, VectorRK4):
     register(_cls)

@@ -1,8 +1,12 @@
-"""Fixed-step integrators for ODEs on SO(3) x R^3 in left-trivialised form: g' = g exp-direction v, v' = accel(g, v).
+"""Fixed-step integrators and their bookkeeping.
 
-The engine owns the group element g (any object: a quaternion in its own layout, a matrix, ...); the integrator only
-moves it through `retract` and reads it through the engine's `record`. The base class owns the bookkeeping: stepping
-on a TimeGrid, recording the samples, detecting divergence and counting right-hand-side evaluations.
+Two state spaces. "lie": ODEs on SO(3) x R^3 in left-trivialised form, g' = g exp-direction v, v' = accel(g, v); the
+engine owns the group element g (any object: a quaternion in its own layout, a matrix, ...), the integrator only moves
+it through `retract` and reads it through the engine's `record`. "vector" (harness.integrators.vector): an ODE
+y' = f(chart, y) on R^n in a chart that the system may change between steps.
+
+The base class owns the bookkeeping: stepping on a TimeGrid, recording the samples, detecting divergence and counting
+right-hand-side evaluations.
 """
 from __future__ import annotations
 
@@ -29,10 +33,11 @@ class LieSystem(Protocol):
 
 
 class Integrator(abc.ABC):
-    """A fixed-step integrator on SO(3) x R^3 with declared metadata.
+    """A fixed-step integrator with declared metadata, on SO(3) x R^3 (state_space "lie") unless it says otherwise.
 
     Subclasses set the class attributes and implement step(); stepper() may be overridden to precompute what depends
-    only on the system and h, so the hot loop in integrate() does no repeated work.
+    only on the system and h, so the hot loop in integrate() does no repeated work. A subclass that sets a Butcher
+    `tableau` gets `stages` from it unless it sets its own.
     """
 
     name: ClassVar[str]
@@ -45,6 +50,12 @@ class Integrator(abc.ABC):
 
     METADATA: ClassVar[tuple[str, ...]] = ("name", "order", "stages", "symplectic", "geometric", "state_space",
                                            "description")
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        tableau = cls.__dict__.get("tableau")
+        if tableau is not None and "stages" not in cls.__dict__:
+            cls.stages = tableau.stages
 
     @abc.abstractmethod
     def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
@@ -64,28 +75,43 @@ class Integrator(abc.ABC):
         one by one to find the exact step where the state went bad (diverged_at = that step * dt).
         rhs_evals counts the evaluations of the run proper (stages * steps), not the replay.
         """
-        step = self.stepper(system, grid.dt)
-        v = np.array(v0, dtype=float)
-        limit2 = (DIVERGENCE_FACTOR * (1.0 + float(np.linalg.norm(v))))**2
-        quats = [record(g0)]
-        omegas = [v.tolist()]
-        g, done = g0, 0
+        trajectory, _ = self._run(self.stepper(system, grid.dt), g0, np.array(v0, dtype=float), grid,
+                                  lambda g, v: (record(g), v.tolist()))
+        return trajectory
+
+    def _run(self, step: Stepper, g0: object, v0: object, grid: TimeGrid,
+             observe: Callable[[object, object], tuple]) -> tuple[Trajectory, object]:
+        """The bookkeeping of integrate() for any state space: observe(g, v) gives the sample's attitude quaternion
+        (4 floats) and body angular velocity (3 floats). A step that raises ArithmeticError (a system's way to say its
+        coordinates became singular) ends the run as diverged at that step, with the exception's text as the message.
+        Returns the trajectory and the g of the last good state."""
+        quat0, omega0 = observe(g0, v0)
+        limit2 = (DIVERGENCE_FACTOR * (1.0 + math.sqrt(sum(w * w for w in omega0))))**2
+        quats = [quat0]
+        omegas = [omega0]
+        g, v, done = g0, v0, 0
+        n = grid.sample_steps.size
         with np.errstate(all="ignore"):  # overflow on the way to a divergence is an outcome, reported as one
             for target in grid.sample_steps[1:].tolist():
                 g_last, v_last, start = g, v, done
-                for _ in range(target - done):
-                    g, v = step(g, v)
+                try:
+                    for _ in range(target - done):
+                        g, v = step(g, v)
+                except ArithmeticError as exc:
+                    bad_step, g_good = _first_bad_step(step, observe, g_last, v_last, start, target, limit2)
+                    return diverged_trajectory(grid, _padded(quats, n), _padded(omegas, n), len(quats),
+                                               bad_step * grid.dt, bad_step - 1, self.stages * (bad_step - 1),
+                                               f"{exc} at t = {bad_step * grid.dt:.6g} s"), g_good
                 done = target
-                quat, omega = record(g), v.tolist()
+                quat, omega = observe(g, v)
                 quats.append(quat)
                 omegas.append(omega)
                 if not _good(quat, omega, limit2):
-                    n = grid.sample_steps.size
-                    bad_step = _first_bad_step(step, record, g_last, v_last, start, target, limit2)
+                    bad_step, g_good = _first_bad_step(step, observe, g_last, v_last, start, target, limit2)
                     return diverged_trajectory(grid, _padded(quats, n), _padded(omegas, n), len(quats) - 1,
-                                               bad_step * grid.dt, done, self.stages * done)
+                                               bad_step * grid.dt, done, self.stages * done), g_good
         return Trajectory(grid.times, np.array(quats, dtype=float), np.array(omegas, dtype=float), Status.OK, "",
-                          math.nan, grid.steps, self.stages * grid.steps)
+                          math.nan, grid.steps, self.stages * grid.steps), g
 
 
 def _good(quat, omega, limit2: float) -> bool:
@@ -96,13 +122,18 @@ def _good(quat, omega, limit2: float) -> bool:
     return w0 * w0 + w1 * w1 + w2 * w2 <= limit2 and math.isfinite(quat[0] + quat[1] + quat[2] + quat[3])
 
 
-def _first_bad_step(step: Stepper, record, g, v, start: int, end: int, limit2: float) -> int:
-    """Replay from the last good sample (at step index start) to the first step whose state breaks the rule."""
+def _first_bad_step(step: Stepper, observe, g, v, start: int, end: int, limit2: float) -> tuple[int, object]:
+    """Replay from the last good sample (at step index start) to the first step whose state breaks the rule or
+    whose step raises ArithmeticError: its index, and the g of the state before it."""
     for index in range(start + 1, end + 1):
-        g, v = step(g, v)
-        if not _good(record(g), v.tolist(), limit2):
-            return index
-    return end  # not reached for a deterministic step; the sample itself is the bound
+        try:
+            g_next, v = step(g, v)
+        except ArithmeticError:
+            return index, g
+        if not _good(*observe(g_next, v), limit2):
+            return index, g
+        g = g_next
+    return end, g  # not reached for a deterministic step; the sample itself is the bound
 
 
 def _padded(rows: list, n: int) -> np.ndarray:

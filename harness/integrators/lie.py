@@ -66,11 +66,6 @@ class ExplicitRK(Integrator):
     symplectic = False
     geometric = True
 
-    def __init_subclass__(cls, **kwargs) -> None:
-        super().__init_subclass__(**kwargs)
-        if "tableau" in cls.__dict__ and "stages" not in cls.__dict__:
-            cls.stages = cls.tableau.stages
-
     def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
         return self.stepper(system, h)(g, v)
 

@@ -1,22 +1,21 @@
 """The drift table in the terminal and report.md."""
 from __future__ import annotations
 
-import datetime
-import platform
-from importlib import metadata
-from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import pandas as pd
 
-from harness.results import write_atomic
+from harness.environment import environment
 
-TERMINAL_COLUMNS = ("engine", "integrator", "dt", "status", "energy_drift", "momentum_drift", "casimir_drift",
+TERMINAL_COLUMNS = ("engine", "formulation", "integrator", "dt", "status", "energy_drift", "momentum_drift",
+                    "casimir_drift",
                     "lagrange_drift", "kovalevskaya_drift", "chaplygin_drift", "hess_drift", "attitude_err",
                     "omega_err", "truth_err", "us_per_step")
 SHORT = {"energy_drift": "energy", "momentum_drift": "momentum", "casimir_drift": "casimir",
          "lagrange_drift": "lagrange", "kovalevskaya_drift": "kovalevskaya", "chaplygin_drift": "chaplygin",
-         "hess_drift": "hess", "attitude_err": "att_err", "omega_err": "omega_err", "us_per_step": "us/step"}
+         "hess_drift": "hess", "attitude_err": "att_err", "omega_err": "omega_err", "us_per_step": "us/step",
+         "chart_changes": "charts"}
 
 DEFINITIONS = """\
 - *_drift: max over the samples of |I(t) - I(0)| / scale, scale = the sum of the absolute values of the integral's
@@ -32,7 +31,13 @@ DEFINITIONS = """\
 - truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err is the largest angle
   between it and a quadruple-precision rerun (only with --certify).
 - us_per_step: stepping time only, best of up to 3 timed runs after an untimed accuracy run (which is the warm-up),
-  metrics off. Runs share the machine's cores (--jobs), so compare timings within one report."""
+  metrics off. Runs share the machine's cores (--jobs), so compare timings within one report.
+- formulation (engine reference): the state and equations integrated. quaternion: Euler-Poisson with a quaternion;
+  gibbs: Ferrarese's Lagrangian in the Gibbs vector, with Christoffel symbols; gibbs_hamiltonian: his Hamiltonian form;
+  euler_zxz: Lagrange's equations in ZXZ Euler angles. taylor integrates them by heyoka, the fixed-step integrators
+  step the formulation's coordinates (a quaternion state is not renormalised). charts (chart_changes): how often the
+  coordinates were re-centred on the current attitude, the Gibbs vector when |q| > 1 (a rotation of more than 90
+  degrees from its frame), the angles when |sin theta| < 0.5."""
 
 
 def _fmt(value, column: str) -> str:
@@ -44,12 +49,18 @@ def _fmt(value, column: str) -> str:
         return f"{value:g}"
     if column == "us_per_step":
         return f"{value:.3g}"
+    if column == "chart_changes":
+        return f"{value:.0f}"
     return f"{value:.2e}"
 
 
 def _shown_columns(df: pd.DataFrame, columns: tuple[str, ...]) -> list[str]:
-    """Drop numeric columns that are NaN on every row (integrals the case does not have)."""
-    return [c for c in columns if c in ("engine", "integrator", "dt", "status") or df[c].notna().any()]
+    """Drop numeric columns that are NaN on every row (integrals the case does not have), and the formulation when
+    no engine shown has one."""
+    if "formulation" in columns and not (df["formulation"].fillna("") != "").any():
+        columns = tuple(c for c in columns if c != "formulation")
+    return [c for c in columns if c in ("engine", "formulation", "integrator", "dt", "status")
+            or df[c].notna().any()]
 
 
 def _table(df: pd.DataFrame, columns: list[str]) -> list[list[str]]:
@@ -70,46 +81,73 @@ def drift_table_text(df: pd.DataFrame) -> str:
 
 def _markdown_table(cells: list[list[str]]) -> str:
     lines = ["| " + " | ".join(cells[0]) + " |", "|" + "---|" * len(cells[0])]
+    # A bar inside a cell (a message about |omega|, say) would end the cell: escape it.
+    cells = [[cell.replace("|", "\\|") for cell in row] for row in cells]
     return "\n".join(lines + ["| " + " | ".join(row) + " |" for row in cells[1:]])
 
 
-def environment() -> dict[str, str]:
-    versions = {}
-    for package in ("numpy", "scipy", "pandas", "mujoco", "pin", "heyoka", "stereodyn"):
-        try:
-            versions[package] = metadata.version(package)
-        except metadata.PackageNotFoundError:
-            versions[package] = "absent"
-    return {"python": platform.python_version(), **versions, "machine": platform.machine(),
-            "processor": platform.processor() or platform.machine(),
-            "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
-
-
-def report_markdown(df: pd.DataFrame) -> str:
+def report_markdown(df: pd.DataFrame, summary: Sequence[str] = (), sections: Sequence[str] = (),
+                    env: dict[str, str] | None = None) -> str:
+    """report.md. summary: lines appended to the summary; sections: lines (whole sections) before the definitions;
+    env: the environment of the sweep (default: this process's)."""
     counts = df["status"].value_counts()
-    lines = ["# stereodyn report", "",
+    lines = ["# stereodyn report", "", "## Summary", "",
              f"{len(df)} runs over {df['case'].nunique()} cases: "
-             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), ""]
+             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "", *summary]
     problems = df[df["status"].isin(["failed", "skipped"])]
     if len(problems):
         lines += ["## Runs that did not complete", "",
                   _markdown_table(_table(problems, ["case", "engine", "integrator", "dt", "status", "message"])), ""]
     lines += ["## Drift tables", ""]
-    columns = TERMINAL_COLUMNS[:-2] + ("attitude_err_end", "truth_err", "wall_s", "us_per_step")
+    columns = TERMINAL_COLUMNS[:-2] + ("attitude_err_end", "truth_err", "chart_changes", "wall_s", "us_per_step")
     for case, group in df.groupby("case", sort=False):
         lines += [f"### {case}", "", _markdown_table(_table(group, _shown_columns(group, columns))), ""]
         diverged = group[group["status"] == "diverged"]
         for _, row in diverged.iterrows():
-            lines.append(f"- {row['engine']} {row['integrator']} dt={row['dt']:g} diverged at t = "
+            formulation = row.get("formulation", "")
+            formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
+            lines.append(f"- {row['engine']}{formulation} {row['integrator']} dt={row['dt']:g} diverged at t = "
                          f"{row['diverged_at']:.4g} s")
         if len(diverged):
             lines.append("")
-    lines += ["## Definitions", "", DEFINITIONS, "", "## Environment", ""]
-    lines += [f"- {key}: {value}" for key, value in environment().items()]
+    lines += formulation_lines(df)
+    lines += [*sections, "## Definitions", "", DEFINITIONS, "", "## Environment", ""]
+    lines += [f"- {key}: {value}" for key, value in (env or environment()).items()]
     return "\n".join(lines) + "\n"
 
 
-def write_report(df: pd.DataFrame, out_dir: Path) -> Path:
-    path = Path(out_dir) / "report.md"
-    write_atomic(path, report_markdown(df))
-    return path
+FORMULATION_COLUMNS = ("formulation", "integrator", "dt", "status", "chart_changes", "energy_drift", "attitude_err",
+                       "us_per_step")
+
+
+def formulation_lines(df: pd.DataFrame) -> list[str]:
+    """The section "Formulations side by side": for one case and one engine with several formulations, every
+    formulation at one dt (the middle of the dt values they all ran) with each fixed-step integrator, and integrated
+    by the adaptive integrators (dt empty). The case: the one whose rows at that dt changed charts most often (the one
+    where the coordinates differ most), first in table order on a tie. Empty when no engine ran two formulations."""
+    formulations = df["formulation"].fillna("") if "formulation" in df else pd.Series("", index=df.index)
+    best = None
+    for (case, engine), group in df[formulations != ""].groupby(["case", "engine"], sort=False):
+        fixed = group[group["dt"].notna()]
+        if fixed["formulation"].nunique() < 2:
+            continue
+        common = sorted(set.intersection(*(set(g["dt"]) for _, g in fixed.groupby("formulation"))), reverse=True)
+        if not common:
+            continue
+        dt = common[len(common) // 2]
+        at_dt = fixed[fixed["dt"] == dt]
+        changes = at_dt["chart_changes"].fillna(0).sum() if "chart_changes" in at_dt else 0
+        if best is None or changes > best[0]:
+            best = (changes, case, engine, dt, pd.concat([group[group["dt"].isna()], at_dt]))
+    if best is None:
+        return []
+    _, case, engine, dt, rows = best
+    cells = _table(rows, list(FORMULATION_COLUMNS))
+    cells[1:] = [[cell if cell or column != "dt" else "adaptive" for cell, column in zip(row, FORMULATION_COLUMNS)]
+                 for row in cells[1:]]
+    return ["## Formulations side by side", "",
+            f"Case {case}, engine {engine}: each formulation at dt = {dt:g} with every fixed-step integrator, and "
+            "integrated by the adaptive one (its attitude error is the formulations' disagreement with the truth). "
+            "Same equations of motion, different coordinates: the differences are the coordinates' doing.", "",
+            _markdown_table(cells), ""]
+

@@ -1,0 +1,172 @@
+"""The report of an output folder: report.md, the figures it shows (DIR/figures/*.png), and report.html.
+
+Sources, all in the folder: results.csv (the table), runs.json and store/ (the sweep's environment and each run's
+invariant series, harness.store), checks.csv when some check wrote it (DESIGN §4).
+"""
+from __future__ import annotations
+
+import datetime
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from harness import checks as theory_checks
+from harness.report import figures, html
+from harness.report.markdown import report_markdown
+from harness.results import read_results, write_atomic
+from harness.store import read_manifest, read_records
+
+FIGURES_DIR = "figures"
+CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
+# "Good enough" attitude error for the summary's cheapest-run column: a microradian over the case's span.
+SUMMARY_ACCURACY = 1e-6
+
+
+def _num(value, digits: str = ".2e") -> str:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    return "-" if math.isnan(value) else format(value, digits)
+
+
+def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    escape = lambda cell: str(cell).replace("|", "\\|")  # noqa: E731 - a bar would end the cell
+    return (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+            + ["| " + " | ".join(escape(c) for c in row) + " |" for row in rows])
+
+
+def _run_name(row) -> str:
+    dt = "" if figures.dt_key(row["dt"]) == "" else f" dt={row['dt']:g}"
+    return figures.run_label(row) + dt
+
+
+def summary_lines(df: pd.DataFrame) -> list[str]:
+    """Per case: the most accurate fixed-step run, and the cheapest one within SUMMARY_ACCURACY (adaptive runs are the
+    truth and its relatives, not contenders)."""
+    rows = []
+    for case, group in df.groupby("case", sort=False):
+        ok = group[(group["status"] == "ok") & np.isfinite(group["attitude_err"]) & np.isfinite(group["dt"])]
+        if ok.empty:
+            rows.append([case, "-", "-", "-", "-"])
+            continue
+        best = ok.loc[ok["attitude_err"].idxmin()]
+        timed = ok[(ok["attitude_err"] <= SUMMARY_ACCURACY) & np.isfinite(ok["wall_s"])]
+        cheap = timed.loc[(timed["wall_s"] / timed["t_end"]).idxmin()] if len(timed) else None
+        rows.append([case, _run_name(best), _num(best["attitude_err"]),
+                     "-" if cheap is None else _run_name(cheap),
+                     "-" if cheap is None else _num(cheap["wall_s"] / cheap["t_end"] * 1e6, ".3g")])
+    return _md_table(["case", "most accurate fixed-step run", "att_err",
+                      f"cheapest fixed-step run with att_err <= {SUMMARY_ACCURACY:g}", "us per simulated s"],
+                     rows) + [""]
+
+
+def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool) -> tuple[list[str], dict]:
+    """The work–precision and invariant sections, and their figures {relative path: PNG bytes}."""
+    images: dict[str, bytes] = {}
+    work = ["## Work–precision", "",
+            "Max attitude error against the cost of stepping, in µs per simulated second (wall_s / t_end), one line "
+            "per engine and integrator through its dt values. Runs that diverged or failed are left out.", ""]
+    drift = ["## Invariants against time", "",
+             "Relative deviation of the energy and of the conserved angular momentum from their initial values, and "
+             "the attitude error against the truth (up to the case's horizon), each the maximum over buckets of "
+             "samples; a column per dt, the adaptive truth drawn in every column.", ""]
+    if not has_store:
+        drift += ["No stored series in this folder (DIR/runs.json and DIR/store/ are written by `stereodyn run`).",
+                  ""]
+    for case, group in df.groupby("case", sort=False):
+        stem = html.slug(case)
+        for lines, kind, draw, missing in (
+                (work, "work-precision", lambda: figures.work_precision(group, case),
+                 "No run of this case has both a finite error and a timing."),
+                (drift, "invariants", lambda: figures.invariants(group, series, case),
+                 "No stored series for this case.")):
+            lines += [f"### {case}", ""]
+            png = draw()
+            if png is None:
+                lines += [missing, ""]
+                continue
+            path = f"{FIGURES_DIR}/{stem}-{kind}.png"
+            images[path] = png
+            lines += [f"![{case}: {kind.replace('-', '–')}]({path})", ""]
+    return work + drift, images
+
+
+def checks_lines(df: pd.DataFrame, out_dir: Path) -> list[str]:
+    """Oracle and theory checks: checks.csv when present, and the truth against the exact solutions."""
+    lines = ["## Oracle and theory checks", ""]
+    checks_path = Path(out_dir) / "checks.csv"
+    if checks_path.is_file():
+        checks = pd.read_csv(checks_path, dtype={"formulation": str}, keep_default_na=True)
+        missing = [c for c in CHECKS_COLUMNS if c not in checks]
+        if not missing and checks.empty:
+            lines += ["checks.csv has no rows: no case of this sweep has a check against theory.", ""]
+        elif not missing:  # one row per case and quantity: checks.csv has one per run, hundreds in the default suite
+            header, rows = theory_checks.summary_rows(checks.fillna({"formulation": ""}))
+            lines += [f"From checks.csv ({len(checks)} rows, one per run and quantity): a quantity measured from each "
+                      "run's trajectory against theory; error is relative, or absolute where theory is 0, or the "
+                      "angle (rad) for a phase. The truth is engine reference, quaternion, taylor.", "",
+                      *_md_table(header, rows), ""]
+        else:
+            lines += [f"checks.csv lacks the columns {', '.join(missing)} (DESIGN §4); shown as it is.", ""]
+            shown = [c for c in CHECKS_COLUMNS if c in checks] or list(checks.columns)
+            rows = []
+            for _, row in checks.iterrows():
+                cells = []
+                for column in shown:
+                    value = row[column]
+                    if column in ("theory", "measured"):
+                        cells.append(_num(value, ".8g"))
+                    elif column == "error":
+                        cells.append(_num(value))
+                    elif column == "dt":
+                        cells.append(figures.dt_key(value))
+                    else:
+                        cells.append("" if isinstance(value, float) and math.isnan(value) else str(value))
+                rows.append(cells)
+            lines += [f"From checks.csv ({len(checks)} rows): a measured quantity against theory.", "",
+                      *_md_table(shown, rows), ""]
+    oracle = df[np.isfinite(df["oracle_err"])] if "oracle_err" in df else df.iloc[:0]
+    if len(oracle):
+        header, rows = theory_checks.oracle_rows(df.fillna({"formulation": ""}))
+        lines += ["Runs against the case's exact solution (oracle_err: max attitude angle, rad, up to the case's "
+                  "horizon; the truth's is DESIGN §4's oracle_err):", "", *_md_table(header, rows), ""]
+    if not checks_path.is_file() and not len(oracle):
+        lines += ["No checks.csv in this folder, and no run measured oracle_err (no case names an exact solution).",
+                  ""]
+    return lines
+
+
+def _series_index(out_dir: Path) -> dict[tuple, dict]:
+    index = {}
+    for record in read_records(out_dir):
+        row, values = record["row"], record.get("series")
+        if values:
+            index[(row["case"], row["engine"], row.get("formulation", "") or "", row["integrator"],
+                   figures.dt_key(row.get("dt")))] = values
+    return index
+
+
+def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, Path]:
+    """Write DIR/report.md, DIR/figures/*.png and DIR/report.html from the folder's results; return the two pages."""
+    out_dir = Path(out_dir)
+    df = read_results(out_dir / "results.csv") if df is None else df
+    manifest = read_manifest(out_dir)
+    sections, images = figure_sections(df, _series_index(out_dir), manifest is not None)
+    env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
+    if env is not None:
+        env["report rendered"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+    markdown = report_markdown(df, summary=summary_lines(df), sections=sections + checks_lines(df, out_dir), env=env)
+    figures_dir = out_dir / FIGURES_DIR
+    figures_dir.mkdir(exist_ok=True)
+    for path, png in images.items():
+        write_atomic(out_dir / path, png)
+    for stale in figures_dir.glob("*.png"):  # figures of cases no longer in results.csv
+        if f"{FIGURES_DIR}/{stale.name}" not in images:
+            stale.unlink()
+    md_path, html_path = out_dir / "report.md", out_dir / "report.html"
+    write_atomic(md_path, markdown)
+    write_atomic(html_path, html.render(markdown, images, out_dir))
+    return md_path, html_path

@@ -1,0 +1,175 @@
+"""report.html: report.md rendered as one self-contained page (inline CSS, figures embedded as base64 PNG).
+
+report.md is the single source, so every section anyone adds to it appears in the HTML too. The renderer knows the
+subset of Markdown the report uses (headings, pipe tables, bullet lists with indented continuation lines, paragraphs,
+images on their own line, `code`) and adds what Markdown cannot say: table cells of drifts and errors are coloured on
+a log scale, statuses by severity.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import math
+import re
+from pathlib import Path
+
+# Log10 range of the colour scale: 1e-16 (round-off) is green, 1 (nothing left of the quantity) is red.
+GRADE_RANGE = (-16.0, 0.0)
+STATUS_COLOURS = {"ok": "#d9f2d9", "diverged": "#ffd699", "failed": "#ff9f9f", "skipped": "#e0e0e0"}
+GRADED_HEADERS = {"energy", "momentum", "casimir", "lagrange", "kovalevskaya", "chaplygin", "hess", "att_err",
+                  "omega_err", "error"}
+
+CSS = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 110em; padding: 0 1em; color: #222; }
+h1 { border-bottom: 2px solid #444; } h2 { border-bottom: 1px solid #aaa; margin-top: 2em; }
+table { border-collapse: collapse; margin: 0.5em 0 1.2em; font-size: 0.85em; }
+th, td { border: 1px solid #bbb; padding: 0.15em 0.5em; text-align: right; white-space: nowrap; }
+th { background: #eee; } td.text { text-align: left; white-space: normal; }
+figure { margin: 0.5em 0 1.5em; } img { max-width: 100%; }
+code { background: #f3f3f3; padding: 0 0.2em; }
+.scale { display: inline-block; width: 16em; height: 0.9em; vertical-align: middle; border: 1px solid #999; }
+"""
+
+
+def slug(text: str) -> str:
+    """An ASCII id for a heading: 'Work–precision' -> 'work-precision'."""
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+
+
+def grade_colour(value: float) -> str:
+    """Background for a drift or error: log10 of the value on GRADE_RANGE, green (small) to red (large)."""
+    from matplotlib import colormaps
+    from matplotlib.colors import to_hex
+
+    low, high = GRADE_RANGE
+    position = 0.0 if value <= 0 else (min(max(math.log10(value), low), high) - low) / (high - low)
+    # Pale version of RdYlGn (reversed): text stays readable on every cell.
+    r, g, b, _ = colormaps["RdYlGn_r"](position)
+    return to_hex((0.45 + 0.55 * r, 0.45 + 0.55 * g, 0.45 + 0.55 * b))
+
+
+def _graded(header: str) -> bool:
+    return header in GRADED_HEADERS or header.endswith(("_drift", "_err", "_err_end"))
+
+
+def _inline(text: str) -> str:
+    parts = re.split(r"(`[^`]*`)", text)
+    return "".join(f"<code>{html.escape(p[1:-1])}</code>" if p.startswith("`") and p.endswith("`") and len(p) > 1
+                   else html.escape(p) for p in parts)
+
+
+def _cells(line: str) -> list[str]:
+    """The cells of a pipe-table line; '\\|' is a literal bar."""
+    inner = line.strip()[1:]
+    inner = inner[:-1] if inner.endswith("|") and not inner.endswith("\\|") else inner
+    return [cell.strip().replace("\\|", "|") for cell in re.split(r"(?<!\\)\|", inner)]
+
+
+def _table(lines: list[str]) -> str:
+    header = _cells(lines[0])
+    body = [_cells(line) for line in lines[2:]]
+    out = ["<table>", "<tr>" + "".join(f"<th>{_inline(h)}</th>" for h in header) + "</tr>"]
+    for cells in body:
+        row = []
+        for name, cell in zip(header, cells):
+            style, css_class = "", ""
+            if name == "status" and cell in STATUS_COLOURS:
+                style = f' style="background:{STATUS_COLOURS[cell]}"'
+            elif _graded(name):
+                try:
+                    value = float(cell)
+                except ValueError:
+                    value = math.nan
+                if math.isfinite(value):
+                    style = f' style="background:{grade_colour(abs(value))}"'
+            elif cell and not re.fullmatch(r"[-+0-9.eE]+", cell):
+                css_class = ' class="text"'
+            row.append(f"<td{css_class}{style}>{_inline(cell)}</td>")
+        out.append("<tr>" + "".join(row) + "</tr>")
+    return "\n".join(out + ["</table>"])
+
+
+def _image(alt: str, source: str, images: dict[str, bytes], base: Path | None) -> str:
+    data = images.get(source)
+    if data is None and base is not None and (base / source).is_file():
+        data = (base / source).read_bytes()
+    if data is None:
+        return f"<p>(figure {html.escape(source)} not found)</p>"
+    encoded = base64.b64encode(data).decode("ascii")
+    return (f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{encoded}">'
+            f"<figcaption>{html.escape(alt)}</figcaption></figure>")
+
+
+def _scale_legend() -> str:
+    low, high = GRADE_RANGE
+    stops = ", ".join(grade_colour(10 ** (low + (high - low) * i / 8)) for i in range(9))
+    return (f'<p>Cell colours: drift or error on a log scale, <span class="scale" style="background: '
+            f'linear-gradient(to right, {stops})"></span> from 1e{low:.0f} (green) to 1e{high:.0f} (red).</p>')
+
+
+def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | None = None) -> str:
+    """The HTML page of a report.md. images: figure path as written in the Markdown -> PNG bytes; missing ones are
+    read from `base` (the report's folder)."""
+    images = images or {}
+    lines = markdown.splitlines()
+    body: list[str] = []
+    paragraph: list[str] = []
+    items: list[str] = []
+    section_open = False
+
+    def flush() -> None:
+        if paragraph:
+            body.append(f"<p>{_inline(' '.join(paragraph))}</p>")
+            paragraph.clear()
+        if items:
+            body.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in items) + "</ul>")
+            items.clear()
+
+    i, title = 0, "stereodyn report"
+    while i < len(lines):
+        line = lines[i]
+        heading = re.match(r"(#{1,6}) (.*)", line)
+        image = re.fullmatch(r"!\[([^\]]*)\]\(([^)]+)\)", line.strip())
+        if heading:
+            flush()
+            level, text = len(heading.group(1)), heading.group(2).strip()
+            if level == 1:
+                title = text
+            if level == 2:
+                if section_open:
+                    body.append("</section>")
+                body.append(f'<section id="{slug(text)}">')
+                section_open = True
+            body.append(f'<h{level} id="{slug(text)}">{_inline(text)}</h{level}>')
+            if level == 2 and slug(text) == "drift-tables":
+                body.append(_scale_legend())
+        elif line.startswith("|"):
+            flush()
+            block = []
+            while i < len(lines) and lines[i].startswith("|"):
+                block.append(lines[i])
+                i += 1
+            body.append(_table(block))
+            continue
+        elif image:
+            flush()
+            body.append(_image(image.group(1), image.group(2), images, base))
+        elif line.startswith("- "):
+            if paragraph:
+                flush()
+            items.append(line[2:].strip())
+        elif line.startswith("  ") and items:
+            items[-1] += " " + line.strip()
+        elif not line.strip():
+            flush()
+        else:
+            if items:
+                flush()
+            paragraph.append(line.strip())
+        i += 1
+    flush()
+    if section_open:
+        body.append("</section>")
+    return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+            f"<title>{html.escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
+            + "\n".join(body) + "\n</body>\n</html>\n")

@@ -1,0 +1,182 @@
+"""The result store: one JSON file per run, DIR/store/<key>.json, written atomically.
+
+A run's key hashes everything its row depends on: the case's content, engine, formulation, integrator, dt, whether
+the truth is certified, and the library versions. A record is written (temporary file, fsync, rename) the moment its run
+finishes, so an interrupted sweep loses nothing already computed and never leaves a partial record; `--resume` reuses
+the records whose key matches. results.csv and DIR/runs.json (the sweep's keys and environment) are assembled from the
+records.
+
+A sweep holds an exclusive lock on DIR/store while it runs, so two sweeps never write one folder, and any temporary
+file found there is the leftover of a killed process: it is removed when the next sweep opens the store.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from harness.cases import Case
+from harness.environment import library_versions
+from harness.results import write_atomic
+
+STORE_DIR = "store"
+MANIFEST = "runs.json"
+FORMAT = 1
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: no lock; the store still never holds a partial record
+    fcntl = None
+
+
+class StoreBusy(RuntimeError):
+    """Another sweep holds the folder's lock."""
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready: numpy scalars and arrays as Python numbers and lists, NaN as null."""
+    if isinstance(value, np.ndarray):
+        return [_plain(v) for v in value.tolist()]
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None if math.isnan(value) else repr(value)
+    return value
+
+
+# Case fields that do not change a run's row: words, where the file was, and the other steps of the sweep.
+NOT_CONTENT = ("description", "tags", "path", "dt")
+
+
+def case_content(case: Case) -> dict:
+    """What a case's runs depend on: every field but NOT_CONTENT (a field added to Case is part of it at once)."""
+    content = {}
+    for field in dataclasses.fields(case):
+        if field.name not in NOT_CONTENT:
+            value = getattr(case, field.name)
+            content[field.name] = dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
+    return _plain(content)
+
+
+def run_identity(case: Case, engine: str, formulation: str, integrator: str, dt: float | None, certify: bool,
+                 versions: dict[str, str]) -> dict:
+    return {"case": case_content(case), "engine": engine, "formulation": formulation, "integrator": integrator,
+            "dt": None if dt is None else float(dt), "certify": bool(certify), "versions": versions}
+
+
+def run_key(identity: dict) -> str:
+    """sha256 of the identity's canonical JSON (floats by repr, so bit-exact), first 24 hex digits."""
+    text = json.dumps(identity, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+_TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "status", "message")
+
+
+def _row_from_json(row: dict) -> dict:
+    """The inverse of _plain on a row: null back to NaN ("" in text columns), "inf" back to a float."""
+    out = {}
+    for column, value in row.items():
+        if column in _TEXT_COLUMNS:
+            out[column] = "" if value is None else value
+        elif value is None:
+            out[column] = math.nan
+        elif value in ("inf", "-inf"):
+            out[column] = float(value)
+        else:
+            out[column] = value
+    return out
+
+
+class Store:
+    """The records under DIR/store. Use as a context manager: it takes the folder's lock and clears leftovers."""
+
+    def __init__(self, out_dir: Path):
+        self.out_dir = Path(out_dir)
+        self.root = self.out_dir / STORE_DIR
+        self.versions = library_versions()
+        self._lock_fd: int | None = None
+
+    def __enter__(self) -> "Store":
+        self.root.mkdir(parents=True, exist_ok=True)
+        if fcntl is not None:
+            fd = os.open(self.root, os.O_RDONLY)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                raise StoreBusy(f"{self.out_dir}: another sweep is writing to this folder") from None
+            self._lock_fd = fd
+        self.remove_partial_files()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)  # closing the descriptor releases the lock
+            self._lock_fd = None
+
+    def remove_partial_files(self) -> list[Path]:
+        """Delete the temporary files of interrupted atomic writes (harness.results.write_atomic's .NAME.*.tmp)."""
+        leftovers = [*self.root.glob(".*.tmp"), *self.out_dir.glob(".*.tmp")]
+        for path in leftovers:
+            path.unlink(missing_ok=True)
+        return leftovers
+
+    def identity(self, case: Case, engine: str, formulation: str, integrator: str, dt: float | None,
+                 certify: bool) -> dict:
+        return run_identity(case, engine, formulation, integrator, dt, certify, self.versions)
+
+    def path(self, key: str) -> Path:
+        return self.root / f"{key}.json"
+
+    def get(self, key: str) -> dict | None:
+        """The record {"identity", "row", "series"} of a finished run, or None. An unreadable record counts as absent
+        (it is rewritten when the run is redone)."""
+        try:
+            record = json.loads(self.path(key).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        if not isinstance(record, dict) or record.get("format") != FORMAT or "row" not in record:
+            return None
+        record["row"] = _row_from_json(record["row"])
+        return record
+
+    def put(self, key: str, identity: dict, row: dict, series: dict | None) -> None:
+        """Write one run's record atomically. row: the public columns (keys starting with "_" are dropped)."""
+        public = {k: v for k, v in row.items() if not k.startswith("_")}
+        record = {"format": FORMAT, "key": key, "identity": identity, "row": _plain(public),
+                  "series": _plain(series)}
+        write_atomic(self.path(key), json.dumps(record, separators=(",", ":")) + "\n")
+
+    def write_manifest(self, keys: list[str], environment: dict) -> None:
+        """DIR/runs.json: the store keys behind results.csv, and the environment of the sweep."""
+        write_atomic(self.out_dir / MANIFEST, json.dumps({"format": FORMAT, "environment": environment,
+                                                          "runs": keys}, indent=1) + "\n")
+
+
+def read_manifest(out_dir: Path) -> dict | None:
+    """DIR/runs.json, or None when the folder has none (results.csv from elsewhere)."""
+    try:
+        manifest = json.loads((Path(out_dir) / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return manifest if isinstance(manifest, dict) and manifest.get("format") == FORMAT else None
+
+
+def read_records(out_dir: Path) -> list[dict]:
+    """The records listed in DIR/runs.json (those still present), or [] without a manifest."""
+    manifest = read_manifest(out_dir)
+    if manifest is None:
+        return []
+    store = Store(out_dir)
+    return [record for key in manifest.get("runs", []) if (record := store.get(key)) is not None]

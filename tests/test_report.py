@@ -1,0 +1,126 @@
+"""report.md and report.html: every section, self-contained HTML, every figure a real image."""
+import base64
+import io
+import re
+import shutil
+import subprocess
+from html.parser import HTMLParser
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib import image as mpimg
+
+from harness import cli
+from harness.report.html import render
+
+SECTIONS = {"summary": "## Summary", "drift-tables": "## Drift tables", "work-precision": "## Work–precision",
+            "invariants-against-time": "## Invariants against time",
+            "oracle-and-theory-checks": "## Oracle and theory checks", "environment": "## Environment"}
+CASES = ("lagrange-top", "heavy-asymmetric")
+CHECKS = pd.DataFrame([
+    {"case": "lagrange-top", "engine": "reference", "formulation": "quaternion", "integrator": "taylor", "dt": None,
+     "quantity": "precession_rate", "theory": 0.6541, "measured": 0.6541000001, "error": 1.5e-10},
+    {"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4", "dt": None,
+     "quantity": "convergence_order", "theory": 4.0, "measured": 3.98, "error": 5e-3}])
+
+
+class Page(HTMLParser):
+    """What a test needs of the page: section ids, images, styled cells, and anything that would load from outside."""
+
+    def __init__(self):
+        super().__init__()
+        self.sections, self.images, self.external, self.graded, self.tags = [], [], [], 0, set()
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self.tags.add(tag)
+        if tag == "section":
+            self.sections.append(attrs.get("id"))
+        if tag == "img":
+            self.images.append(attrs.get("src", ""))
+        for name in ("src", "href"):
+            if name in attrs and not attrs[name].startswith(("data:", "#")):
+                self.external.append(attrs[name])
+        if tag == "td" and "background" in attrs.get("style", ""):
+            self.graded += 1
+
+
+@pytest.fixture(scope="module")
+def reported(tmp_path_factory):
+    """A sweep with a diverged run (heavy-asymmetric, Euler at dt = 0.3), then checks.csv, then `report`."""
+    out = tmp_path_factory.mktemp("report")
+    assert cli.main(["run", *CASES, "--engines", "mujoco,pinocchio", "--integrators", "euler,rk4", "--t-end", "20",
+                     "--dt", "0.3,1e-2", "--jobs", "2", "--quiet", "--out", str(out)]) == 0
+    assert (out / "report.md").is_file() and (out / "report.html").is_file()  # run writes both
+    CHECKS.to_csv(out / "checks.csv", index=False)
+    assert cli.main(["report", str(out)]) == 0
+    return out
+
+
+def test_report_md_has_every_section(reported):
+    text = (reported / "report.md").read_text()
+    positions = [text.index(heading + "\n") for heading in SECTIONS.values()]
+    assert positions == sorted(positions)  # in this order; the environment is the footer
+    assert "diverged at t = " in text
+    for case in CASES:
+        assert f"![{case}: work–precision](figures/{case}-work-precision.png)" in text
+        assert f"![{case}: invariants](figures/{case}-invariants.png)" in text
+    assert "precession_rate" in text and "convergence_order" in text
+    footer = text.split("## Environment")[1]
+    for key in ("python", "numpy", "scipy", "mujoco", "pin", "heyoka", "cpu", "date", "git commit"):
+        assert f"- {key}: " in footer
+
+
+def test_report_html_is_self_contained_with_every_section(reported):
+    page = Page()
+    text = (reported / "report.html").read_text()
+    page.feed(text)
+    assert set(SECTIONS) <= set(page.sections)
+    assert page.external == [] and not {"script", "link", "iframe"} & page.tags
+    assert len(page.images) == 2 * len(CASES)
+    assert page.graded > 50  # drift and error cells and statuses carry colours
+    assert "precession_rate" in text and "git commit" in text
+
+
+def test_every_figure_is_a_non_empty_image(reported):
+    page = Page()
+    page.feed((reported / "report.html").read_text())
+    for src in page.images:
+        assert src.startswith("data:image/png;base64,")
+        png = base64.b64decode(src.split(",", 1)[1], validate=True)
+        pixels = mpimg.imread(io.BytesIO(png), format="png")
+        assert pixels.shape[0] > 100 and pixels.shape[1] > 100
+        assert pixels[..., :3].std() > 0.05  # not a blank canvas: lines, labels and legends
+    assert sorted(p.name for p in (reported / "figures").glob("*.png")) == sorted(
+        f"{case}-{kind}.png" for case in CASES for kind in ("invariants", "work-precision"))
+
+
+def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):
+    shutil.copy(reported / "results.csv", tmp_path / "results.csv")
+    assert cli.main(["report", str(tmp_path)]) == 0
+    text = (tmp_path / "report.md").read_text()
+    assert all(heading + "\n" in text for heading in SECTIONS.values())
+    assert "No stored series" in text and "No checks.csv" in text
+
+
+def test_markdown_subset_rendering():
+    page = render("# T\n\n## A b\n\ntext `x<y`\n\n| status | energy | message |\n|---|---|---|\n"
+                  "| ok | 1.00e-03 | a \\| b |\n\n- one\n  more\n- two\n")
+    assert '<section id="a-b">' in page and "<code>x&lt;y</code>" in page
+    assert re.search(r'<td style="background:#[0-9a-f]{6}">ok</td>', page)
+    assert re.search(r'<td style="background:#[0-9a-f]{6}">1.00e-03</td>', page)
+    assert "<td class=\"text\">a | b</td>" in page and "<li>one more</li><li>two</li>" in page
+
+
+@pytest.mark.skipif(not (shutil.which("chromium") or shutil.which("chromium-browser")),
+                    reason="no Chromium to render the page headless (apt-get install chromium)")
+def test_chromium_renders_the_page(reported, tmp_path):
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    shot = tmp_path / "page.png"
+    subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    "--window-size=1400,4000", f"--screenshot={shot}", (reported / "report.html").as_uri()],
+                   check=True, capture_output=True, timeout=120)
+    pixels = mpimg.imread(shot)
+    assert pixels.shape[:2] == (4000, 1400)
+    assert np.mean(pixels[..., :3] < 0.9) > 0.02  # text, tables and figures, not an empty page

@@ -1,0 +1,141 @@
+"""The result store: keys, atomic records, --resume, and sweeps interrupted by SIGKILL and Ctrl-C (SIGINT)."""
+import dataclasses
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from harness import cli
+from harness.cases import find_case
+from harness.store import Store, StoreBusy, run_identity, run_key
+
+TIMINGS = ["wall_s", "us_per_step"]
+# Two cases, both simulators, 32 runs; the slowest take ~0.1 s, so a sweep on one process lasts a few seconds.
+SWEEP = ["lagrange-top", "kovalevskaya", "--engines", "mujoco,pinocchio", "--t-end", "2", "--dt", "1e-2,3e-3",
+         "--quiet"]
+
+
+def table(out: Path) -> pd.DataFrame:
+    return pd.read_csv(out / "results.csv").drop(columns=TIMINGS)
+
+
+def records(out: Path) -> dict[str, float]:
+    return {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    out = tmp_path_factory.mktemp("full")
+    assert cli.main(["run", *SWEEP, "--jobs", "1", "--out", str(out)]) == 0
+    return out
+
+
+def test_the_key_changes_with_what_a_row_depends_on():
+    case = find_case("lagrange-top")
+    versions = {"mujoco": "4.0.0"}
+    base = run_key(run_identity(case, "mujoco", "", "rk4", 1e-2, False, versions))
+    assert base == run_key(run_identity(case, "mujoco", "", "rk4", 1e-2, False, dict(versions)))
+    heavier = dataclasses.replace(case, mass=case.mass * (1 + 1e-15))  # bit-exact: the last bit counts
+    variants = [run_identity(heavier, "mujoco", "", "rk4", 1e-2, False, versions),
+                run_identity(case, "pinocchio", "", "rk4", 1e-2, False, versions),
+                run_identity(case, "mujoco", "gibbs", "rk4", 1e-2, False, versions),
+                run_identity(case, "mujoco", "", "euler", 1e-2, False, versions),
+                run_identity(case, "mujoco", "", "rk4", 3e-3, False, versions),
+                run_identity(case, "mujoco", "", "rk4", 1e-2, True, versions),
+                run_identity(case, "mujoco", "", "rk4", 1e-2, False, {"mujoco": "4.0.1"})]
+    keys = {run_key(identity) for identity in variants}
+    assert base not in keys and len(keys) == len(variants)
+    # A case's description and file path are not physics: same key.
+    described = dataclasses.replace(case, description="other words", path=None)
+    assert run_key(run_identity(described, "mujoco", "", "rk4", 1e-2, False, versions)) == base
+
+
+def test_one_sweep_per_folder_and_leftovers_are_removed(tmp_path):
+    (tmp_path / "store").mkdir()
+    leftover = tmp_path / "store" / ".abc.json.x1y2.tmp"
+    leftover.write_text('{"format": 1, "ro')
+    with Store(tmp_path):
+        assert not leftover.exists()
+        with pytest.raises(StoreBusy):
+            Store(tmp_path).__enter__()
+    with Store(tmp_path):  # released on exit
+        pass
+
+
+def test_resume_reuses_every_stored_run(uninterrupted, tmp_path):
+    out = tmp_path / "copy"
+    shutil.copytree(uninterrupted, out)
+    before, first = records(out), pd.read_csv(out / "results.csv")
+    assert len(before) == len(first)
+    assert cli.main(["run", *SWEEP, "--jobs", "1", "--out", str(out), "--resume"]) == 0
+    assert records(out) == before  # nothing recomputed, nothing rewritten
+    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv"), first)  # timings included: they are stored
+    pd.testing.assert_frame_equal(table(out), table(uninterrupted))
+    manifest = json.loads((out / "runs.json").read_text())
+    assert sorted(f"{key}.json" for key in manifest["runs"]) == sorted(before)
+
+
+def test_without_resume_every_run_is_redone(tmp_path):
+    argv = ["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2", "--dt",
+            "1e-2", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
+    assert cli.main(argv) == 0
+    before = records(tmp_path)
+    time.sleep(0.01)
+    assert cli.main(argv) == 0
+    after = records(tmp_path)
+    assert after.keys() == before.keys() and all(after[k] > before[k] for k in before)
+
+
+def _interrupted(out: Path, sig: int, jobs: str, at_least: int) -> tuple[int, dict]:
+    """Start the sweep in its own process group, send `sig` to the group once `at_least` runs are stored."""
+    process = subprocess.Popen([sys.executable, "-m", "harness.cli", "run", *SWEEP, "--jobs", jobs, "--out", str(out)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "store").is_dir() or len(records(out)) < at_least:
+            assert process.poll() is None, process.stderr.read().decode()
+            assert time.monotonic() < deadline, "the sweep stored nothing in two minutes"
+            time.sleep(0.01)
+        os.killpg(process.pid, sig)  # the group: the sweep and its workers, as Ctrl-C in a terminal does
+        code = process.wait(timeout=60)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    return code, records(out)
+
+
+def _no_partial_files(out: Path) -> None:
+    assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")]
+    for path in (out / "store").glob("*.json"):
+        json.loads(path.read_text())  # every record is whole
+
+
+def test_a_killed_sweep_resumes_to_the_uninterrupted_table(uninterrupted, tmp_path):
+    total = len(pd.read_csv(uninterrupted / "results.csv"))
+    code, stored = _interrupted(tmp_path, signal.SIGKILL, "1", at_least=4)
+    assert code == -signal.SIGKILL and 4 <= len(stored) < total
+    partial = pd.read_csv(tmp_path / "results.csv")
+    assert len(partial) >= len(stored) - 1  # results.csv follows the store (the last record may be newer)
+    assert cli.main(["run", *SWEEP, "--jobs", "1", "--out", str(tmp_path), "--resume"]) == 0
+    after = records(tmp_path)
+    assert all(after[name] == mtime for name, mtime in stored.items())  # what was done was not redone
+    pd.testing.assert_frame_equal(table(tmp_path), table(uninterrupted))
+    _no_partial_files(tmp_path)
+
+
+def test_ctrl_c_stops_a_parallel_sweep_keeping_every_finished_run(uninterrupted, tmp_path):
+    total = len(pd.read_csv(uninterrupted / "results.csv"))
+    code, stored = _interrupted(tmp_path, signal.SIGINT, "2", at_least=3)
+    assert code == 130 and 3 <= len(stored) < total
+    _no_partial_files(tmp_path)
+    assert cli.main(["run", *SWEEP, "--jobs", "2", "--out", str(tmp_path), "--resume"]) == 0
+    pd.testing.assert_frame_equal(table(tmp_path), table(uninterrupted))
+    _no_partial_files(tmp_path)
