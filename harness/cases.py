@@ -13,10 +13,17 @@ import numpy as np
 
 from reference.body import RigidBody
 from reference.exact import ORACLES as EXACT_SOLUTIONS
+from reference.ladder import Ladder, detachment_cosine
+from reference.torques import BodyTorque, CentralField, PrecessionTorque
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
            "grioli_precession", "hess_grioli", "mlodzejowski", "self_excited_spinup", "self_excited_uniform")
+# The oracles whose exact solutions model a body torque (their checks see it through Case.body).
+TORQUE_ORACLES = ("self_excited_spinup", "self_excited_uniform")
+# Scene kinds (top-level `kind`): a rigid body with a fixed point (default), and the sliding ladder (FORMULARY T5).
+RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"
+KINDS = (RIGID_BODY, SLIDING_LADDER)
 
 DEFAULT_SAMPLES = 1000
 UNIT_TOL = 1e-9            # |v| within this of 1 is normalised, further off is an error (DESIGN §3)
@@ -25,8 +32,13 @@ TRIANGLE_RTOL = 1e-12      # relative to the largest principal moment at O: roun
 
 _TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     # table: (allowed keys, required keys)
-    "": (frozenset({"name", "description", "tags", "body", "gravity", "body_torque", "central_field", "initial",
-                    "run", "expect"}), frozenset({"body", "initial", "run"})),
+    "": (frozenset({"name", "description", "tags", "kind", "body", "gravity", "body_torque", "central_field",
+                    "precession_torque", "initial", "run", "expect"}), frozenset({"body", "initial", "run"})),
+    "ladder_case": (frozenset({"name", "description", "tags", "kind", "ladder", "run"}),
+                    frozenset({"kind", "ladder", "run"})),
+    "ladder": (frozenset({"mass", "half_length", "theta0", "theta_dot0", "g"}),
+               frozenset({"mass", "half_length", "theta0", "g"})),
+    "precession_torque": (frozenset({"theta", "l", "m3"}), frozenset({"theta", "l", "m3"})),
     "body": (frozenset({"mass", "com", "inertia", "principal_moments"}), frozenset({"mass", "com"})),
     "gravity": (frozenset({"g", "direction"}), frozenset({"g"})),
     "body_torque": (frozenset({"axis", "a", "b"}), frozenset({"axis", "a", "b"})),
@@ -44,26 +56,6 @@ class CaseError(ValueError):
     def __init__(self, path: str | Path, key: str, rule: str):
         self.path, self.key, self.rule = str(path), key, rule
         super().__init__(f"{path}: {key}: {rule}")
-
-
-@dataclass(frozen=True)
-class BodyTorque:
-    """M = (a + b |omega|^2) axis, body frame (002 eq. 30). axis: (3,) unit, body frame; a: N m; b: N m s^2."""
-
-    axis: tuple[float, float, float]
-    a: float
-    b: float
-
-
-@dataclass(frozen=True)
-class CentralField:
-    """Newtonian attracting centre (002 §III). mu: m^3/s^2; radius: m; direction: (3,) world unit centre -> O at t=0;
-    orbit_rate: rad/s about world z."""
-
-    mu: float
-    radius: float
-    direction: tuple[float, float, float]
-    orbit_rate: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,10 +85,13 @@ class Case:
     body_torque: BodyTorque | None = None
     central_field: CentralField | None = None
     path: Path | None = None
+    precession_torque: PrecessionTorque | None = None
+    kind: str = RIGID_BODY
 
     @property
     def body(self) -> RigidBody:
-        return RigidBody(self.inertia, self.mass, self.com, self.gravity, self.gravity_direction)
+        return RigidBody(self.inertia, self.mass, self.com, self.gravity, self.gravity_direction, self.body_torque,
+                         self.central_field, self.precession_torque)
 
     @property
     def source(self) -> str:
@@ -104,9 +99,34 @@ class Case:
         return str(self.path) if self.path is not None else self.name
 
 
+@dataclass(frozen=True, eq=False)
+class LadderCase:
+    """A sliding-ladder scene (kind "sliding_ladder", FORMULARY T5): a planar, constrained one-degree-of-freedom
+    rod, not a body with a fixed point; harness.ladder runs it. ladder: reference.ladder.Ladder."""
+
+    name: str
+    description: str
+    tags: tuple[str, ...]
+    ladder: Ladder
+    t_end: float
+    dt: tuple[float, ...]
+    samples: int
+    path: Path | None = None
+    kind: str = SLIDING_LADDER
+    oracle: None = None
+    horizon: None = None
+    body_torque: None = None
+    central_field: None = None
+    precession_torque: None = None
+
+    @property
+    def source(self) -> str:
+        return str(self.path) if self.path is not None else self.name
+
+
 # ---------------------------------------------------------------------------------------------------------- loading
 
-def load_case(path: str | Path) -> Case:
+def load_case(path: str | Path) -> Case | LadderCase:
     """Read and validate one case file. Bad input raises CaseError naming the file, the key and the rule."""
     path = Path(path)
     try:
@@ -248,17 +268,16 @@ class _Parser:
 
     # --- the file
 
-    def case(self, data: dict) -> Case:
+    def case(self, data: dict) -> Case | LadderCase:
+        kind = RIGID_BODY
+        if isinstance(data, dict) and "kind" in data:
+            kind = self.string(data["kind"], "kind")
+            if kind not in KINDS:
+                raise self.fail("kind", f"unknown scene kind {kind!r} (known: {', '.join(KINDS)})")
+        if kind == SLIDING_LADDER:
+            return self.ladder_case(data)
         self.table(data, "")
-        name = self.string(data["name"], "name") if "name" in data else Path(self.path).stem
-        if not name.strip():
-            raise self.fail("name", "must not be empty")
-        description = self.string(data.get("description", ""), "description")
-        tags = data.get("tags", [])
-        if not isinstance(tags, list):
-            raise self.fail("tags", f"must be a list of strings, got {_describe(tags)}")
-        tags = tuple(self.string(tag, f"tags[{i}]") for i, tag in enumerate(tags))
-
+        name, description, tags = self.words(data)
         mass, com, inertia = self.body(data["body"])
         gravity, gravity_direction = 0.0, np.array([0.0, 0.0, -1.0])
         if "gravity" in data:
@@ -269,6 +288,16 @@ class _Parser:
             central_field = self.central_field(data["central_field"])
             if np.any(com != 0.0):
                 raise self.fail("body.com", "must be [0, 0, 0] with [central_field] (O is the centre of mass)")
+        precession_torque = None
+        if "precession_torque" in data:
+            precession_torque = self.precession_torque(data["precession_torque"])
+            others = [f"[{t}]" for t in ("gravity", "body_torque", "central_field") if t in data]
+            if others:
+                raise self.fail("precession_torque", f"must be the only torque (G14: every motion precesses only "
+                                                     f"under (41) alone), remove {', '.join(others)}")
+            if np.any(inertia != np.diag(np.diag(inertia))):
+                raise self.fail("precession_torque", "needs principal body axes (torque (41) is written with "
+                                                     "u = i3 in principal components): inertia must be diagonal")
         quat0, omega0 = self.initial(data["initial"])
         t_end, dt, samples = self.run(data["run"])
         oracle, horizon = self.expect(data["expect"], t_end) if "expect" in data else (None, None)
@@ -278,10 +307,49 @@ class _Parser:
         case = Case(name=name, description=description, tags=tags, mass=mass, com=com, inertia=inertia,
                     gravity=gravity, gravity_direction=gravity_direction, quat0=quat0, omega0=omega0, t_end=t_end,
                     dt=dt, samples=samples, oracle=oracle, horizon=horizon, body_torque=body_torque,
-                    central_field=central_field, path=Path(self.path))
+                    central_field=central_field, path=Path(self.path), precession_torque=precession_torque)
         if oracle is not None:
             self.oracle_applies(case)
         return case
+
+    def words(self, data: dict) -> tuple[str, str, tuple[str, ...]]:
+        """name (default: the file stem), description, tags."""
+        name = self.string(data["name"], "name") if "name" in data else Path(self.path).stem
+        if not name.strip():
+            raise self.fail("name", "must not be empty")
+        description = self.string(data.get("description", ""), "description")
+        tags = data.get("tags", [])
+        if not isinstance(tags, list):
+            raise self.fail("tags", f"must be a list of strings, got {_describe(tags)}")
+        return name, description, tuple(self.string(tag, f"tags[{i}]") for i, tag in enumerate(tags))
+
+    def ladder_case(self, data: dict) -> LadderCase:
+        self.table(data, "ladder_case")
+        name, description, tags = self.words(data)
+        table = self.table(data["ladder"], "ladder")
+        theta0 = self.number(table["theta0"], "ladder.theta0")
+        if not 0.0 < theta0 < 0.5 * math.pi:
+            raise self.fail("ladder.theta0", f"must be in (0, pi/2) rad (from the wall), got {theta0:g}")
+        theta_dot0 = self.number(table.get("theta_dot0", 0.0), "ladder.theta_dot0")
+        if theta_dot0 < 0.0:
+            raise self.fail("ladder.theta_dot0", f"must be >= 0 (the ladder slides down), got {theta_dot0:g}")
+        ladder = Ladder(mass=self.positive(table["mass"], "ladder.mass"),
+                        half_length=self.positive(table["half_length"], "ladder.half_length"),
+                        theta0=theta0, theta_dot0=theta_dot0, g=self.positive(table["g"], "ladder.g"))
+        if not detachment_cosine(ladder) < math.cos(theta0):
+            raise self.fail("ladder.theta_dot0", "the wall would pull at t = 0 (cos theta_detach = "
+                                                 f"{detachment_cosine(ladder):.6g} >= cos theta0): too fast a start")
+        t_end, dt, samples = self.run(data["run"])
+        return LadderCase(name=name, description=description, tags=tags, ladder=ladder, t_end=t_end, dt=dt,
+                          samples=samples, path=Path(self.path))
+
+    def precession_torque(self, data: Any) -> PrecessionTorque:
+        self.table(data, "precession_torque")
+        theta = self.number(data["theta"], "precession_torque.theta")
+        if not 0.0 < theta < math.pi:
+            raise self.fail("precession_torque.theta", f"must be in (0, pi) rad, got {theta:g}")
+        return PrecessionTorque(theta=theta, l=self.number(data["l"], "precession_torque.l"),
+                                m3=self.number(data["m3"], "precession_torque.m3"))
 
     def body(self, data: Any) -> tuple[float, np.ndarray, np.ndarray]:
         self.table(data, "body")
@@ -396,8 +464,9 @@ class _Parser:
 
     def oracle_applies(self, case: Case) -> None:
         """The case's state must be on its oracle's motion (reference.exact's check, to its tolerance)."""
-        for table, present in (("body_torque", case.body_torque), ("central_field", case.central_field)):
-            if present is not None:
+        for table, present in (("body_torque", case.body_torque), ("central_field", case.central_field),
+                               ("precession_torque", case.precession_torque)):
+            if present is not None and not (table == "body_torque" and case.oracle in TORQUE_ORACLES):
                 # the oracles' checks see only the body, gravity and initial state: an extra torque would pass them
                 raise self.fail("expect.oracle", f"no exact solution here models [{table}]; remove the oracle or "
                                                  f"the table")

@@ -93,7 +93,7 @@ class Check:
 
 def applicable(case: Case) -> list[Check]:
     """The checks whose theory holds for the case's body and initial state."""
-    if case.body_torque is not None or case.central_field is not None:
+    if case.body.has_external_torque:
         return []
     body = case.body
     if not body.has_gravity:

@@ -51,6 +51,15 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
     run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
                      help="run on this Dask scheduler's cluster (needs stereodyn[dask]) instead of local processes")
+    run.add_argument("--dt-ladder", action="store_true",
+                     help="work–precision ladder (about ten dt from the stability limit to the round-off regime) for "
+                          "every case x engine x formulation x integrator; default: only the default suite's few "
+                          "representative ladders")
+    run.add_argument("--no-ladder", action="store_true", help="no dt ladder at all (orders from the dt lists only)")
+    run.add_argument("--ladder-max-steps", type=int, default=None, metavar="N",
+                     help="smallest ladder dt = t_end / N (default 200000 with --dt-ladder, 40000 otherwise)")
+    run.add_argument("--extremes", action="store_true",
+                     help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
     report.add_argument("dir", type=Path)
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
@@ -77,6 +86,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def _select_cases(args) -> list:
     suite = case_files.load_suite()
+    if getattr(args, "extremes", False):
+        suite = case_files.load_suite(case_files.suite_dir() / "extreme")
     if args.cases:
         chosen = [case_files.find_case(name, suite) for name in args.cases]
     else:  # --case-file alone runs just those files; nothing at all runs the suite
@@ -125,10 +136,30 @@ def cmd_run(args) -> int:
     progress = ProgressBar(enabled=not args.quiet)
     df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
                    progress=progress, resume=args.resume, scheduler=args.scheduler)
+    _work_precision(args, chosen, df)
     print(drift_table_text(df))
     markdown, html = write_reports(args.out, df)
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     return 0
+
+
+def _work_precision(args, chosen: list, df) -> None:
+    """ladder.csv, convergence.csv, pareto.csv and the orders in checks.csv (harness.workprecision). The default
+    suite (no CASE, no --case-file, no --dt) gets the small default ladder; --dt-ladder every family's."""
+    from harness import workprecision
+
+    if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
+        raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}")
+    if args.dt_ladder:
+        mode = "full"
+    elif args.no_ladder or args.cases or args.case_file or args.dt is not None:
+        mode = "off"
+    else:
+        mode = "default"
+    if mode != "off" and not args.quiet:
+        print(f"work–precision: {mode} dt ladder", file=sys.stderr)
+    workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
+                          max_steps=args.ladder_max_steps, jobs=args.jobs)
 
 
 def cmd_report(args) -> int:

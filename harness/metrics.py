@@ -7,6 +7,7 @@ import numpy as np
 
 from harness.cases import Case
 from harness.engines.base import Trajectory
+from reference import torques
 from reference.integrals import INTEGRALS, drift
 from reference.rotations import attitude_angle, quat_to_matrix
 
@@ -16,10 +17,32 @@ DRIFT_COLUMNS = ("energy_drift", "momentum_drift", "casimir_drift", "lagrange_dr
 ERROR_COLUMNS = ("attitude_err", "attitude_err_end", "omega_err")
 
 
+# Under an external torque (reference.torques) only these keep their meaning: energy as the energy (Jacobi)
+# balance, the Casimir, (36), and the angular momentum along a fixed central field's direction.
+TORQUED_INTEGRALS = ("energy", "casimir", "self_excited")
+
+
 def applicable_integrals(case: Case) -> tuple[str, ...]:
     """The integral names whose structural conditions this case meets (from its initial state)."""
     body = case.body
-    return tuple(name for name, integral in INTEGRALS.items() if integral.applies(body, case.quat0, case.omega0))
+    names = tuple(name for name, integral in INTEGRALS.items() if integral.applies(body, case.quat0, case.omega0))
+    if body.has_external_torque:
+        keep = TORQUED_INTEGRALS
+        if (body.central_field is not None and body.central_field.orbit_rate == 0.0 and not body.has_gravity
+                and not torques.has_nonpotential_torque(body)):
+            keep = keep + ("momentum",)
+        names = tuple(name for name in names if name in keep)
+    return names
+
+
+def energy_balance_drift(case: Case, traj: Trajectory) -> float:
+    """max over finite samples of |J(t) − J(0) − W(t)| / scale (reference.torques.energy_balance): the work–energy
+    balance with a non-potential torque, the energy with MacCullagh's potential for a fixed central field, the Jacobi
+    integral for a turning one. NaN if a sample is not finite (the work needs every sample)."""
+    if not (np.isfinite(traj.quat).all() and np.isfinite(traj.omega).all()):
+        return math.nan
+    deviation, scale = torques.energy_balance(case.body, traj.times, traj.quat, traj.omega)
+    return float(np.max(deviation) / scale)
 
 
 def drifts(case: Case, traj: Trajectory, applicable: tuple[str, ...]) -> dict[str, float]:
@@ -28,8 +51,24 @@ def drifts(case: Case, traj: Trajectory, applicable: tuple[str, ...]) -> dict[st
     out = {}
     for column in DRIFT_COLUMNS:
         stem = column.removesuffix("_drift")
+        if stem == "energy" and stem in applicable and body.has_external_torque:
+            out[column] = energy_balance_drift(case, traj)
+            continue
         out[column] = drift(INTEGRALS[stem], body, traj.quat, traj.omega) if stem in applicable else math.nan
     return out
+
+
+def torque_metrics(case: Case, traj: Trajectory) -> dict[str, float]:
+    """precession_axis_drift (G14): max |e(t) − e(0)| of the world precession axis (40) over the samples, NaN
+    without [precession_torque] or when a sample comes within PRECESSION_SINGULAR_ANGLE of ω ∥ u (the axis is
+    undefined there)."""
+    body = case.body
+    if body.precession_torque is None or not (np.isfinite(traj.quat).all() and np.isfinite(traj.omega).all()):
+        return {"precession_axis_drift": math.nan}
+    if np.min(torques.transverse_angle(traj.omega)) < torques.PRECESSION_SINGULAR_ANGLE:
+        return {"precession_axis_drift": math.nan}
+    axis = torques.precession_axis(body, traj.quat, traj.omega)
+    return {"precession_axis_drift": float(np.max(np.linalg.norm(axis - axis[0], axis=1)))}
 
 
 def errors(traj: Trajectory, truth_quat: np.ndarray, truth_omega: np.ndarray,

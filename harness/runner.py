@@ -14,8 +14,9 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from harness import checks, metrics, oracles, series
-from harness.cases import Case
+from harness import checks, ladder, metrics, oracles, series
+from harness import integrators as integrator_registry
+from harness.cases import SLIDING_LADDER, Case
 from harness.engines import get_engine
 from harness.engines.base import Status, Trajectory
 from harness.grid import TimeGrid, time_grid
@@ -112,19 +113,25 @@ def skipped_row(spec: RunSpec, reason: str) -> dict:
     return {**_base_row(spec, grid), "status": Status.SKIPPED.value, "message": reason}
 
 
-def execute(spec: RunSpec, truth: CaseTruth) -> dict:
+def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
     """Run one spec: an untimed accuracy run (also the warm-up), metrics, then timed runs. Never raises."""
     grid = truth_grid(spec.case) if spec.dt is None else time_grid(spec.case.t_end, spec.dt, spec.case.samples)
     row = _base_row(spec, grid)
+    if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
+        return ladder.execute(spec, row)
     try:
         formulation = {"formulation": spec.formulation} if spec.formulation else {}
-        sim = get_engine(spec.engine).prepare(spec.case, spec.integrator, spec.dt, **formulation)
+        engine = get_engine(spec.engine)
+        sim = engine.prepare(spec.case, spec.integrator, spec.dt, **formulation)
         traj: Trajectory = sim.run(grid)
         row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
-                   chart_changes=math.nan if traj.chart_changes is None else traj.chart_changes)
+                   chart_changes=math.nan if traj.chart_changes is None else traj.chart_changes,
+                   torque_mode=traj.info.get("torque_mode") or getattr(engine, "torque_mode", lambda case: "none")(
+                       spec.case))
         if spec.dt is None:
             row["steps"] = traj.steps
         row.update(metrics.drifts(spec.case, traj, truth.applicable))
+        row.update(metrics.torque_metrics(spec.case, traj))
         row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
         row["oracle_err"] = oracles.oracle_err(spec.case, traj, truth.times, truth.exact_quat)
         # theory checks; the perturbed reruns some of them need are untimed, like the accuracy run
@@ -153,10 +160,17 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
     specs, skipped = [], []
     for engine_rank, name in enumerate(engines):
         engine = get_engine(name)
-        chosen = [i for i in engine.integrators() if integrators is None or i in integrators]
+        chosen = [i for i in engine.integrators()
+                  if (integrators is None and integrator_registry.in_default_sweep(i))
+                  or (integrators is not None and i in integrators)]
         formulations = tuple(getattr(engine, "formulations", tuple)()) or ("",)
         adaptive = getattr(engine, "adaptive", lambda integrator: False)
         for case in cases:
+            if case.kind == SLIDING_LADDER:
+                ladder_specs, ladder_skipped = ladder.specs(case, name, engine_rank, chosen, RunSpec)
+                specs += ladder_specs
+                skipped += ladder_skipped
+                continue
             reason = engine.unsupported(case)
             for integrator_rank, integrator in enumerate(chosen or ([""] if reason else [])):
                 dts = (None,) if integrator and adaptive(integrator) else case.dt
@@ -164,7 +178,10 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
                     for dt in dts:
                         spec = RunSpec(case, name, integrator, dt, engine_rank, integrator_rank, formulation,
                                        formulation_rank)
-                        (skipped.append(skipped_row(spec, reason)) if reason else specs.append(spec))
+                        # a formulation/integrator pair that cannot model the case (engine.unsupported_run)
+                        why = reason or (integrator and getattr(engine, "unsupported_run", lambda *a: None)(
+                            case, formulation, integrator))
+                        (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
     return specs, skipped
 
 
@@ -257,7 +274,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         pending = [s for s in specs if keys[id(s)] not in stored]
         truths = {}
         for case in cases:
-            if any(s.case is case for s in pending):
+            if case.kind == SLIDING_LADDER:  # harness.ladder solves the equation in each run
+                truths[case.name] = None
+            elif any(s.case is case for s in pending):
                 progress.phase(f"truth {case.name}")
                 truths[case.name] = compute_truth(case, case.dt, certify)
         progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))

@@ -10,6 +10,7 @@ import numpy as np
 
 from harness.cases import Case
 from harness.engines.base import Trajectory
+from reference import torques
 from reference.integrals import INTEGRALS
 from reference.rotations import attitude_angle, quat_to_matrix
 
@@ -20,6 +21,11 @@ DIGITS = 4  # significant digits kept: enough for a log-scale plot, a fifth of t
 def _deviation(case: Case, stem: str, traj: Trajectory) -> np.ndarray:
     """|I(t) - I(0)| / scale per sample (as reference.integrals.drift, before its maximum); NaN where not finite."""
     integral, body = INTEGRALS[stem], case.body
+    if stem == "energy" and body.has_external_torque:  # the energy (Jacobi) balance, as harness.metrics
+        if not (np.isfinite(traj.quat).all() and np.isfinite(traj.omega).all()):
+            return np.full(len(traj.times), np.nan)
+        deviation, scale = torques.energy_balance(body, traj.times, traj.quat, traj.omega)
+        return deviation / scale
     with np.errstate(invalid="ignore", over="ignore"):
         values = np.asarray(integral.value(body, traj.quat, traj.omega), dtype=float)
         reference = values[0] if integral.exact is None else integral.exact

@@ -5,6 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reference.torques import BodyTorque, CentralField, PrecessionTorque
+
 
 @dataclass(frozen=True, eq=False)
 class RigidBody:
@@ -15,6 +17,7 @@ class RigidBody:
     com: (3,) m, body frame, the vector O -> G.
     gravity: m/s^2, magnitude g (0 for a torque-free body).
     gravity_direction: (3,) world frame, unit; the world gravity vector is gravity * gravity_direction.
+    body_torque, central_field, precession_torque: the external torques of reference.torques (None: absent).
     """
 
     inertia: np.ndarray
@@ -22,6 +25,9 @@ class RigidBody:
     com: np.ndarray
     gravity: float = 0.0
     gravity_direction: np.ndarray = None  # type: ignore[assignment]
+    body_torque: BodyTorque | None = None
+    central_field: CentralField | None = None
+    precession_torque: PrecessionTorque | None = None
 
     def __post_init__(self) -> None:
         direction = (0.0, 0.0, -1.0) if self.gravity_direction is None else self.gravity_direction
@@ -36,6 +42,12 @@ class RigidBody:
     @property
     def has_gravity(self) -> bool:
         return self.gravity != 0.0 and self.mass != 0.0 and bool(np.any(self.com != 0.0))
+
+    @property
+    def has_external_torque(self) -> bool:
+        """A torque other than uniform gravity acts (reference.torques)."""
+        return (self.body_torque is not None or self.central_field is not None
+                or self.precession_torque is not None)
 
     @property
     def weight_moment(self) -> np.ndarray:

@@ -12,6 +12,7 @@ import numpy as np
 
 from reference.body import RigidBody
 from reference.rotations import quat_mul, quat_to_matrix
+from reference.torques import external_torque
 
 
 def downward_vertical(body: RigidBody, quat: np.ndarray) -> np.ndarray:
@@ -25,13 +26,16 @@ def gravity_torque(body: RigidBody, quat: np.ndarray) -> np.ndarray:
     return np.cross(body.weight_moment, downward_vertical(body, quat))
 
 
-def omega_dot(body: RigidBody, quat: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """ω̇ = σ⁻¹(σω × ω + M): (..., 4), (..., 3) -> (..., 3) rad/s², body frame."""
+def omega_dot(body: RigidBody, quat: np.ndarray, omega: np.ndarray, t=0.0) -> np.ndarray:
+    """ω̇ = σ⁻¹(σω × ω + M): (..., 4), (..., 3) -> (..., 3) rad/s², body frame; t (s) places a turning central
+    field (reference.torques)."""
     omega = np.asarray(omega, dtype=float)
     momentum = omega @ body.inertia  # σ symmetric, so ω σ = (σ ω)ᵀ row-wise
     torque = np.cross(momentum, omega)
     if body.has_gravity:
         torque = torque + gravity_torque(body, quat)
+    if body.has_external_torque:
+        torque = torque + external_torque(body, quat, omega, t)
     torque = np.broadcast_to(torque, np.broadcast_shapes(torque.shape, np.shape(quat)[:-1] + (3,)))
     return np.linalg.solve(body.inertia, torque[..., None])[..., 0]
 
@@ -43,6 +47,6 @@ def quat_dot(quat: np.ndarray, omega: np.ndarray) -> np.ndarray:
     return 0.5 * quat_mul(quat, pure)
 
 
-def rhs(body: RigidBody, quat: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(q̇, ω̇) of the Euler–Poisson system: (..., 4), (..., 3) -> ((..., 4), (..., 3))."""
-    return quat_dot(quat, omega), omega_dot(body, quat, omega)
+def rhs(body: RigidBody, quat: np.ndarray, omega: np.ndarray, t=0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(q̇, ω̇) of the Euler–Poisson system: (..., 4), (..., 3) -> ((..., 4), (..., 3)); t in s."""
+    return quat_dot(quat, omega), omega_dot(body, quat, omega, t)

@@ -138,7 +138,7 @@ class Formulation(abc.ABC):
         the same right-hand side as the Taylor integrator's, a few µs a call against ~100 µs for rhs() on one state.
         Not thread-safe (it caches the last chart's parameters)."""
         if chart is not self._compiled_chart:
-            self._compiled_chart, self._compiled_pars = chart, self.parameters(chart)[:ex.THRESHOLD]
+            self._compiled_chart, self._compiled_pars = chart, self.rhs_parameters(chart)
         return compiled_rhs(self.name)(y, pars=self._compiled_pars)
 
     # --- charts
@@ -201,6 +201,10 @@ class Formulation(abc.ABC):
             raise ChartSingularity(self.singularity(y))
         return chart, y
 
+    def rhs_parameters(self, chart: Chart) -> np.ndarray:
+        """The parameters of compiled_rhs(name) (the Taylor parameters without the event threshold)."""
+        return self.parameters(chart)[:ex.THRESHOLD]
+
     def parameters(self, chart: Chart, chart_changes: bool = True) -> np.ndarray:
         """The heyoka runtime parameters for this body, chart and chart policy."""
         threshold = self.recentre_threshold if chart_changes else self.guard_threshold
@@ -248,6 +252,17 @@ class Quaternion(Formulation):
     def rhs(self, down, y):
         quat_dot, omega_dot = euler_poisson.rhs(self.body, y[..., :4], y[..., 4:])
         return np.concatenate([quat_dot, omega_dot], axis=-1)
+
+    def fast_rhs(self, chart: Chart, y: np.ndarray) -> np.ndarray:
+        """As Formulation.fast_rhs, at time 0: the only term that depends on time is a turning central field, which
+        fixed-step runs do not model (harness.engines.reference skips them; the Taylor truth sees the time)."""
+        if chart is not self._compiled_chart:
+            self._compiled_chart, self._compiled_pars = chart, self.rhs_parameters(chart)
+        return compiled_rhs(self.name)(y, pars=self._compiled_pars, time=0.0)
+
+    def rhs_parameters(self, chart):
+        """reference.truth's parameters: the body's, the unused threshold slot, the torques (reference.torques)."""
+        return np.concatenate([ex.parameters(self.body, chart.frame, 0.0), truth.torque_parameters(self.body)])
 
     @classmethod
     def equations(cls):
@@ -433,6 +448,20 @@ FORMULATIONS: dict[str, type[Formulation]] = {cls.name: cls for cls in (Quaterni
                                                                         EulerZXZ)}
 
 
+def unsupported_torque(name: str, body: RigidBody) -> str | None:
+    """Why formulation `name` cannot model the body's external torques (reference.torques), or None. Only the
+    quaternion formulation (the truth's Euler–Poisson) has them; the charted ones would need each torque as a
+    generalized force in their own coordinates (F9: F = ρ̄ M for the Gibbs vector), not derived here."""
+    if name == Quaternion.name:
+        return None
+    present = [table for table, value in (("body_torque", body.body_torque), ("central_field", body.central_field),
+                                          ("precession_torque", body.precession_torque)) if value is not None]
+    if present:
+        return (f"formulation {name} does not model {', '.join(f'[{t}]' for t in present)} (only quaternion "
+                f"Euler–Poisson has the external torques)")
+    return None
+
+
 def get(name: str, body: RigidBody) -> Formulation:
     """The formulation called name, bound to body; KeyError listing the valid names."""
     try:
@@ -505,9 +534,13 @@ def integrate_taylor(name: str, body: RigidBody, quat0: np.ndarray, omega0: np.n
 
     The chart's terminal event stops the propagation; the chart is re-centred and the propagation continues from
     the event time. With chart_changes False the event is the singularity guard instead, and the run stops there.
-    "quaternion" is the truth itself. Raises ValueError on bad input or a propagation that fails otherwise.
+    "quaternion" is the truth itself, the only formulation that models the torques of reference.torques (the
+    others raise ValueError on a body with one: unsupported_torque names it). Raises ValueError on bad input or a
+    propagation that fails otherwise.
     """
     times = np.asarray(times, dtype=float)
+    if name != Quaternion.name and (reason := unsupported_torque(name, body)):
+        raise ValueError(reason)
     if name == Quaternion.name:
         result = truth.truth(body, quat0, omega0, times)
         return FormulationRun(result.times, result.quat, result.omega, result.steps, None, result.wall_s)

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from reference import torques
 from reference.body import RigidBody
 from reference.euler_poisson import downward_vertical
 from reference.rotations import quat_to_matrix
@@ -135,9 +136,13 @@ def _energy_scale(body, quat0, omega0):
 # --- angular momentum about O (G3, G4) --------------------------------------------------------------------------
 
 def _momentum_value(body, quat, omega):
-    """World vector K = R σω without torque; its vertical component K·d = σω·H under gravity."""
+    """World vector K = R σω without torque; its vertical component K·d = σω·H under gravity; K·D along a fixed
+    central field's direction D (the gravity-gradient torque H × σH has no component along H)."""
     quat, omega = _as_rows(quat, omega)
     momentum_body = omega @ body.inertia
+    if body.central_field is not None:
+        world = np.einsum("...ij,...j->...i", quat_to_matrix(quat), momentum_body)
+        return world @ np.asarray(body.central_field.direction, dtype=float)
     if body.has_gravity:
         return np.einsum("...i,...i->...", momentum_body, downward_vertical(body, quat))
     return np.einsum("...ij,...j->...i", quat_to_matrix(quat), momentum_body)
@@ -289,6 +294,15 @@ def _hess_scale(body, quat0, omega0):
     return _nonzero(np.linalg.norm(body.inertia @ np.asarray(omega0, dtype=float)))
 
 
+def _self_excited_value(body, quat, omega):
+    return torques.self_excited_value(body, np.asarray(omega, dtype=float))
+
+
+def _self_excited_scale(body, quat0, omega0):
+    first, second = torques.self_excited_terms(body, np.asarray(omega0, dtype=float))
+    return _nonzero(float(abs(first) + abs(second)))
+
+
 INTEGRALS: dict[str, Integral] = {
     "energy": Integral("energy", lambda body, quat0, omega0: True, _energy_value, _energy_scale),
     "momentum": Integral("momentum", lambda body, quat0, omega0: True, _momentum_value, _momentum_scale),
@@ -298,4 +312,7 @@ INTEGRALS: dict[str, Integral] = {
     "kovalevskaya": Integral("kovalevskaya", _kovalevskaya_applies, _kovalevskaya_value, _kovalevskaya_scale),
     "chaplygin": Integral("chaplygin", _chaplygin_applies, _chaplygin_value, _chaplygin_scale),
     "hess": Integral("hess", _hess_applies, _hess_value, _hess_scale),
+    # (36), the conic-cylinder invariant of a body torque along a principal axis (G12)
+    "self_excited": Integral("self_excited", lambda body, quat0, omega0: torques.self_excited_applies(body),
+                             _self_excited_value, _self_excited_scale),
 }

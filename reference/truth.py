@@ -2,8 +2,9 @@
 
 State (w, x, y, z, ω1, ω2, ω3): scalar-first quaternion, angular velocity in body components (DESIGN §2).
 Runtime parameters: inertia about O (6: σ11, σ22, σ33, σ12, σ13, σ23), its inverse (same layout), m g c (3, body
-frame) and the world downward direction d (3), so one compiled integrator per precision serves every body. It is
-compiled on first use and cached in the module; each call resets its time, state and parameters.
+frame) and the world downward direction d (3); index 18 is unused (the charted formulations' event threshold), then
+the torques of reference.torques (TORQUE_PARAMETERS), so one compiled integrator per precision serves every body and
+every scene. It is compiled on first use and cached in the module; each call resets its time, state and parameters.
 
 The attitude matrix inside the right-hand side is the homogeneous quadratic form of q (no division by |q|²): the
 kinematics q̇ = ½ q ⊗ (0, ω) conserve |q| exactly, so this is R(q) to the integrator's tolerance and keeps the
@@ -23,6 +24,7 @@ import numpy as np
 
 from reference.body import RigidBody
 from reference.rotations import attitude_angle, quat_to_matrix
+from reference.torques import field_direction_world
 
 TRUTH_TOL = 1e-16       # double precision; the issue requires <= 1e-15
 TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)
@@ -32,7 +34,14 @@ _FP_TYPE = {"double": float, "quad": hy.real128}
 _TOLERANCE = {"double": TRUTH_TOL, "quad": TRUTH_TOL_QUAD}
 # Upper-triangle index pairs of a symmetric 3x3 matrix, in the parameter layout above.
 _SYMMETRIC_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-_N_PARS = 18
+# The torque parameters (reference.torques), after the 18 of the body and gravity and the unused index 18:
+#   19..21 u, 22 a, 23 b                          body torque (a + b |ω|²) u
+#   24 3μ/r³, 25..27 Da, 28..30 Db, 31..33 Dc, 34 Ω   central field; D(t) = cos Ωt Da + sin Ωt Db + Dc in the frame
+#                                                   of the coordinates (Da = (D0x, D0y, 0), Db = ẑ × Da, Dc = (0, 0, D0z))
+#   35 cot θ, 36 l, 37 M3, 38 on (1/0), 39 ε       torque (41); ρ = √(p1² + p2² + ε): ε = 1 when the torque is off, so
+#                                                   the Taylor series of √ never meets 0 on a motion with ω ∥ i3
+TORQUE_OFFSET = 19
+_N_PARS = 40
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,8 +77,8 @@ def _dot(a, b):
 
 
 def equations() -> list[tuple]:
-    """Euler–Poisson + quaternion kinematics as heyoka (variable, right-hand side) pairs in the 18 runtime parameters
-    above (FORMULARY §0, G3)."""
+    """Euler–Poisson + quaternion kinematics as heyoka (variable, right-hand side) pairs in the runtime parameters
+    above (FORMULARY §0, G3; the torques of reference.torques, G12–G15)."""
     w, x, y, z, o1, o2, o3 = hy.make_vars("w", "x", "y", "z", "o1", "o2", "o3")
     v, omega = [x, y, z], [o1, o2, o3]
     sigma = _symmetric(0)
@@ -86,13 +95,67 @@ def equations() -> list[tuple]:
     momentum = [_dot(sigma[i], omega) for i in range(3)]
     gyroscopic = _cross(momentum, omega)
     gravity = _cross(weight_moment, vertical)
-    torque = [gyroscopic[i] + gravity[i] for i in range(3)]
+    external = torque_expressions(w, v, omega, sigma)
+    torque = [gyroscopic[i] + gravity[i] + external[i] for i in range(3)]
     omega_dot = [_dot(sigma_inv[i], torque) for i in range(3)]
 
     # q̇ = ½ q ⊗ (0, ω)
     v_cross_omega = _cross(v, omega)
     quat_dot = [-0.5 * _dot(v, omega)] + [0.5 * (w * omega[i] + v_cross_omega[i]) for i in range(3)]
     return list(zip([w, x, y, z, o1, o2, o3], quat_dot + omega_dot))
+
+
+def _body_components(w, v, vector) -> list:
+    """Rᵀ x for R = (w² - v·v) I + 2 v vᵀ + 2 w [v]× (homogeneous in q, as the vertical above)."""
+    v_dot_x = _dot(v, vector)
+    v_cross_x = _cross(v, vector)
+    scalar = w * w - _dot(v, v)
+    return [scalar * vector[i] + 2.0 * v_dot_x * v[i] - 2.0 * w * v_cross_x[i] for i in range(3)]
+
+
+def torque_expressions(w, v, omega, sigma) -> list:
+    """The torques of reference.torques (body frame) in the parameters TORQUE_OFFSET.. (layout above)."""
+    par = hy.par
+    o = TORQUE_OFFSET
+    axis = [par[o], par[o + 1], par[o + 2]]
+    magnitude = par[o + 3] + par[o + 4] * _dot(omega, omega)
+    phase = par[o + 15] * hy.time
+    cos_phase, sin_phase = hy.cos(phase), hy.sin(phase)
+    direction = [cos_phase * par[o + 6 + i] + sin_phase * par[o + 9 + i] + par[o + 12 + i] for i in range(3)]
+    h = _body_components(w, v, direction)
+    sigma_h = [_dot(sigma[i], h) for i in range(3)]
+    gradient = _cross(h, sigma_h)
+    p1, p2, p3 = omega
+    a1, a2, a3 = sigma[0][0], sigma[1][1], sigma[2][2]
+    cot, ell, m3, on, eps = (par[o + 16 + i] for i in range(5))
+    rho = hy.sqrt(p1 * p1 + p2 * p2 + eps)
+    precession = [on * (((a3 - a2 + a1) * p3 - cot * a1 * rho) * p2 + ell * p1 / a2),
+                  on * (((a1 - a3 - a2) * p3 + cot * a2 * rho) * p1 + ell * p2 / a1),
+                  on * m3]
+    return [magnitude * axis[i] + par[o + 5] * gradient[i] + precession[i] for i in range(3)]
+
+
+def torque_parameters(body: RigidBody, frame_matrix: np.ndarray | None = None) -> np.ndarray:
+    """The 21 torque parameters (layout above, float64); frame_matrix (3, 3): the coordinates' frame in the world
+    (identity for the quaternion formulation)."""
+    out = np.zeros(_N_PARS - TORQUE_OFFSET)
+    out[20] = 1.0  # ε: the torque (41) is off
+    if body.body_torque is not None:
+        out[0:3] = body.body_torque.axis
+        out[3], out[4] = body.body_torque.a, body.body_torque.b
+    if body.central_field is not None:
+        field = body.central_field
+        d = np.asarray(field.direction, dtype=float)
+        basis = np.eye(3) if frame_matrix is None else np.asarray(frame_matrix, dtype=float)
+        out[5] = field.coefficient
+        out[6:9] = basis.T @ np.array([d[0], d[1], 0.0])
+        out[9:12] = basis.T @ np.array([-d[1], d[0], 0.0])
+        out[12:15] = basis.T @ np.array([0.0, 0.0, d[2]])
+        out[15] = field.orbit_rate
+    if body.precession_torque is not None:
+        torque = body.precession_torque
+        out[16:21] = (1.0 / np.tan(torque.theta), torque.l, torque.m3, 1.0, 0.0)
+    return out
 
 
 # Seconds spent building each integrator in this process: ~0.17 s (double) and ~0.19 s (quad) cold, ~0.015 s when
@@ -124,7 +187,7 @@ def taylor_integrator(precision: str = "double") -> tuple[object, threading.Lock
 
 
 def _parameters(body: RigidBody, fp_type) -> np.ndarray:
-    """The 18 runtime parameters, computed in the integrator's precision.
+    """The runtime parameters, computed in the integrator's precision.
 
     The inverse inertia is the adjugate over the determinant in that precision, so a quadruple-precision run sees
     the body itself and not a double-rounded inverse (this matters on unstable invariant manifolds such as Hess').
@@ -144,7 +207,8 @@ def _parameters(body: RigidBody, fp_type) -> np.ndarray:
     down = np.asarray(body.gravity_direction, dtype=float).astype(fp_type)
     return np.concatenate([np.array([sigma[i, j] for i, j in _SYMMETRIC_ENTRIES]),
                            np.array([inverse[i, j] for i, j in _SYMMETRIC_ENTRIES]),
-                           weight_moment, down])
+                           weight_moment, down, np.zeros(1).astype(fp_type),
+                           torque_parameters(body).astype(fp_type)])
 
 
 def truth(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray, *,

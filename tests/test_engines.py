@@ -163,14 +163,15 @@ def test_unknown_mujoco_integrator_lists_the_valid_ones():
     ("body_torque", BodyTorque(axis=(0.0, 0.0, 1.0), a=0.6, b=-0.2)),
     ("central_field", CentralField(mu=1.0, radius=10.0, direction=(0.0, 0.0, 1.0), orbit_rate=0.0)),
 ])
-def test_features_not_modelled_yet_are_unsupported(feature, value):
+def test_torques_are_modelled_by_every_engine(feature, value):
+    """Issue 5: each engine models the torque exactly (tests/test_torques.py checks how); a turning field is the
+    one thing Pinocchio's stages cannot see (they get no time)."""
     case = make_case("free-asymmetric", **{feature: value})
-    assert MUJOCO.unsupported(case) == f"MuJoCo adapter does not model [{feature}] yet"
-    assert PINOCCHIO.unsupported(case) == f"Pinocchio adapter does not model [{feature}] yet"
     for engine in ENGINES.values():
-        assert engine.unsupported(make_case("free-asymmetric")) is None
-        with pytest.raises(ValueError, match=feature):
-            engine.prepare(case, "rk4", 1e-3)
+        assert engine.unsupported(case) is None
+        assert engine.prepare(case, "rk4", 1e-3).run(time_grid(0.01, 1e-3, 2)).status is Status.OK
+    turning = make_case("free-asymmetric", central_field=CentralField(1.0, 10.0, (1.0, 0.0, 0.0), 0.5))
+    assert "turning [central_field]" in PINOCCHIO.unsupported(turning)
 
 
 def test_pinocchio_runs_a_plugin_integrator(monkeypatch):

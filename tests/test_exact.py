@@ -65,7 +65,8 @@ SETUPS = _setups()
 
 def test_registry_names_and_shape():
     assert list(ORACLES) == ["euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
-                             "grioli_precession", "hess_grioli", "mlodzejowski"]
+                             "grioli_precession", "hess_grioli", "mlodzejowski", "self_excited_spinup",
+                             "self_excited_uniform"]
     assert [field.name for field in dataclasses.fields(Oracle)] == ["name", "check", "solve"]
     assert all(name == oracle.name for name, oracle in ORACLES.items())
     with pytest.raises(dataclasses.FrozenInstanceError):

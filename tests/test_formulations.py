@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from harness import cli, runner
-from harness.cases import Case, load_suite
+from harness.cases import Case, find_case, load_suite
 from harness.engines import get_engine
 from harness.engines.base import Status
 from harness.engines.reference import FormulationSystem, ReferenceEngine
@@ -110,8 +110,8 @@ def test_quaternion_formulation_equations_match_euler_poisson():
     formulation = formulations.get("quaternion", HEAVY)
     chart = formulation.chart(np.array([1.0, 0.0, 0.0, 0.0]))
     states = np.concatenate([to_quat(rng.uniform(0, 3, (50, 3))), rng.normal(size=(50, 3))], axis=1)
-    pars = np.repeat(formulation.parameters(chart)[:THRESHOLD, None], len(states), axis=1)
-    compiled = formulations.compiled_rhs("quaternion")(states.T.copy(), pars=pars).T
+    pars = np.repeat(formulation.rhs_parameters(chart)[:, None], len(states), axis=1)
+    compiled = formulations.compiled_rhs("quaternion")(states.T.copy(), pars=pars, time=np.zeros(len(states))).T
     np.testing.assert_allclose(compiled, formulation.rhs(chart.down, states), rtol=0, atol=1e-13)
 
 
@@ -232,7 +232,7 @@ def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
 
 
 def test_plan_gives_every_formulation_its_rows():
-    case = load_suite()[0]
+    case = find_case("free-asymmetric")
     specs, skipped = runner.plan([case], ["reference"], None)
     assert not skipped
     taylor = [s for s in specs if s.integrator == "taylor"]

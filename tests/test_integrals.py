@@ -30,7 +30,8 @@ ROTATION = zxz_to_matrix(0.7, -1.1, 2.3)
 
 
 def test_keys_and_names():
-    assert set(INTEGRALS) == {"energy", "momentum", "casimir", "lagrange", "kovalevskaya", "chaplygin", "hess"}
+    assert set(INTEGRALS) == {"energy", "momentum", "casimir", "lagrange", "kovalevskaya", "chaplygin", "hess",
+                              "self_excited"}
     assert all(integral.name == key for key, integral in INTEGRALS.items())
 
 

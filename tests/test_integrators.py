@@ -161,7 +161,9 @@ def test_entry_point_plugins_load_lazily(scratch_registry, monkeypatch, tmp_path
     with pytest.warns(UserWarning, match="broken"):
         available = names()
     assert seen == [integrators.ENTRY_POINT_GROUP]
-    assert available[:4] == BUILTIN and available[4:] == ("test_ralston",)
+    # built-ins first (the anchors, then the geometric methods), then plug-ins
+    assert available[:4] == BUILTIN and available[-1:] == ("test_ralston",)
+    assert available[4:-1] == ("implicit_midpoint", "strang_free_flow", "moser_veselov")
     assert get("test_ralston").order == 2
     names()
     assert len(seen) == 1                     # loaded once
@@ -311,13 +313,13 @@ class SingularAt(LinearSystem):
 
 
 def test_vector_registry_shares_names_with_the_lie_group_methods(scratch_registry):
-    assert names(state_space="vector") == ("euler", "rk4")
+    assert names(state_space="vector") == ("euler", "rk4", "implicit_midpoint")
     assert get("rk4", state_space="vector") is VectorRK4 and VectorRK4.tableau is CLASSICAL_RK4
     assert get("rk4") is RK4 and get("rk4").state_space == "lie"
     assert get("rk4", state_space="vector").state_space == "vector"
     assert set(integrators.state_spaces()) == {"lie", "vector"}
     assert names(state_space=None)[:4] == BUILTIN  # each name once
-    with pytest.raises(KeyError, match="for state space 'vector'; valid: euler, rk4"):
+    with pytest.raises(KeyError, match="for state space 'vector'; valid: euler, rk4, implicit_midpoint"):
         get("rk4_naive", state_space="vector")
 
     class Impostor(integrators.VectorRK):

@@ -52,7 +52,7 @@ def test_the_suite_covers_the_issue():
     suite = {case.name: case for case in load_suite()}
     assert {case.oracle for case in suite.values()} - {None} == {
         "euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation", "grioli_precession",
-        "hess_grioli", "mlodzejowski"}
+        "hess_grioli", "mlodzejowski", "self_excited_spinup", "self_excited_uniform"}
     for case in suite.values():
         if "unstable" in case.tags and case.oracle:
             assert case.horizon is not None, case.name  # FORMULARY §6: round-off grows exponentially
@@ -68,7 +68,10 @@ def test_every_oracle_case_has_oracle_err_within_the_bound(truth_sweep):
         else:
             assert truth.loc[name, "oracle_err"] <= ORACLE_BOUND, name
     assert df[df.case == "free-asymmetric"].oracle_err.isna().all()
-    assert np.isfinite(df[~df.case.isin([*WITHOUT_ORACLE, "free-asymmetric"])].oracle_err).all()
+    ran = df[~df.case.isin([*WITHOUT_ORACLE, "free-asymmetric"]) & (df.status == "ok")]
+    assert np.isfinite(ran.oracle_err).all()
+    # only the charted formulations are skipped, on the self-excited cases (they do not model [body_torque])
+    assert df[df.status == "skipped"].message.str.contains("[body_torque]", regex=False).all()
 
 
 def test_special_integrals_only_on_their_cases(truth_sweep):

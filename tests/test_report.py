@@ -5,6 +5,7 @@ import re
 import shutil
 import subprocess
 from html.parser import HTMLParser
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -12,6 +13,7 @@ import pytest
 from matplotlib import image as mpimg
 
 from harness import cli
+from harness.report import build
 from harness.report.html import render
 
 SECTIONS = {"summary": "## Summary", "drift-tables": "## Drift tables", "work-precision": "## Work–precision",
@@ -104,6 +106,14 @@ def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):
     assert "No stored series" in text and "No checks.csv" in text
 
 
+def test_figures_drawn_in_parallel_are_the_same(reported, tmp_path, monkeypatch):
+    shutil.copytree(reported, tmp_path / "copy")
+    monkeypatch.setattr(build, "PARALLEL_FIGURES", 1)  # 4 figures: two processes
+    build.write_reports(tmp_path / "copy")
+    for png in (reported / "figures").glob("*.png"):
+        assert (tmp_path / "copy" / "figures" / png.name).read_bytes() == png.read_bytes()
+
+
 def test_markdown_subset_rendering():
     page = render("# T\n\n## A b\n\ntext `x<y`\n\n| status | energy | message |\n|---|---|---|\n"
                   "| ok | 1.00e-03 | a \\| b |\n\n- one\n  more\n- two\n")
@@ -124,3 +134,15 @@ def test_chromium_renders_the_page(reported, tmp_path):
     pixels = mpimg.imread(shot)
     assert pixels.shape[:2] == (4000, 1400)
     assert np.mean(pixels[..., :3] < 0.9) > 0.02  # text, tables and figures, not an empty page
+
+
+def test_the_committed_default_report_is_whole():
+    """reports/default holds the default suite's report (regenerate it with `stereodyn run --out DIR` and copy)."""
+    folder = Path(__file__).resolve().parents[1] / "reports" / "default"
+    text = (folder / "report.md").read_text()
+    assert all(heading + "\n" in text for heading in SECTIONS.values())
+    page = Page()
+    page.feed((folder / "report.html").read_text())
+    assert set(SECTIONS) <= set(page.sections) and page.external == [] and page.images
+    results = pd.read_csv(folder / "results.csv")
+    assert set(results.case) <= {line[4:] for line in text.splitlines() if line.startswith("### ")}

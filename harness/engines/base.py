@@ -7,6 +7,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from reference.torques import PRECESSION_SINGULAR_ANGLE, transverse_angle
+
 if TYPE_CHECKING:
     from harness.cases import Case
     from harness.grid import TimeGrid
@@ -91,3 +93,35 @@ def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, b
     if message is None:
         message = f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s"
     return Trajectory(grid.times, quat, omega, Status.DIVERGED, message, diverged_at, steps, rhs_evals)
+
+
+def precession_singular(case: Case) -> str | None:
+    """Torque (41) is singular at ω ∥ u = i3: a case starting within PRECESSION_SINGULAR_ANGLE of it is skipped."""
+    if case.precession_torque is None:
+        return None
+    angle = float(transverse_angle(np.asarray(case.omega0, dtype=float)))
+    if angle < PRECESSION_SINGULAR_ANGLE:
+        return (f"[precession_torque] singular: omega0 within {angle:.3g} rad of u = i3 (torque (41) needs "
+                f">= {PRECESSION_SINGULAR_ANGLE:g} rad)")
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class LadderTrajectory:
+    """The sliding ladder's recorded states (harness.ladder): not a body with a fixed point.
+
+    times: (n,) s. state: (n, 6) x, y (m, centre of the rod; wall x = 0, floor y = 0), θ (rad from the wall), and
+    their rates (m/s, rad/s). violation: (n,) m, how far the model's ends are off the wall and floor (bilateral:
+    the equality residual; unilateral: the contacts' penetration). detach_angle: rad, θ where the wall's push on the
+    top reached zero (NaN where not measured).
+    """
+
+    times: np.ndarray
+    state: np.ndarray
+    violation: np.ndarray
+    status: Status = Status.OK
+    message: str = ""
+    diverged_at: float = float("nan")
+    steps: int = 0
+    detach_angle: float = float("nan")
+    info: dict = field(default_factory=dict)

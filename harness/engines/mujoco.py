@@ -2,6 +2,15 @@
 
 Ball joint: qpos = quaternion (w, x, y, z) body -> world, qvel = angular velocity in body components (ENGINES.md).
 Autoreset is disabled, so a divergence shows as NaN (or a runaway |omega|) in the states, which run() detects.
+
+External torques (reference.torques; Trajectory.info["torque_mode"] says how each entered): a constant body torque
+(b = 0, nothing else) through qfrc_applied set once before the first step ("qfrc_applied"); any torque that depends
+on the state or the time through mjcb_passive ("passive_callback"), which MuJoCo calls at every force evaluation,
+every RK4 stage included, with that stage's qpos, qvel and time. Refreshing qfrc_applied from Python between steps
+instead would hold the torque through the stages and make RK4 first order (tests/test_torques.py shows it). Torqued
+scenes are stepped from Python with mj_step (the callback is process-global: set for the run, restored after).
+
+The sliding ladder (harness.ladder) is built here too, as planar rods: ladder_simulation().
 """
 from __future__ import annotations
 
@@ -13,8 +22,10 @@ import numpy as np
 from mujoco import rollout
 
 from harness.cases import Case
-from harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
+from harness.engines.base import (DIVERGENCE_FACTOR, LadderTrajectory, Status, Trajectory, diverged_trajectory,
+                                  precession_singular)
 from harness.grid import TimeGrid
+from reference.torques import torque_function
 
 # harness name -> (MJCF option value, dynamics evaluations per step)
 INTEGRATORS: dict[str, tuple[str, int]] = {
@@ -28,13 +39,30 @@ INTEGRATORS: dict[str, tuple[str, int]] = {
 # per-call cost is well under 1% of the stepping.
 CHUNK_STEPS = 10_000
 
-_FEATURES = ("body_torque", "central_field")
+_FEATURES = ("body_torque", "central_field", "precession_torque")
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 
 
 def _unsupported(case: Case) -> str | None:
-    missing = [f"[{name}]" for name in _FEATURES if getattr(case, name) is not None]
-    return f"MuJoCo adapter does not model {', '.join(missing)} yet" if missing else None
+    return precession_singular(case)
+
+
+def torque_mode(case: Case) -> str:
+    """How the case's external torque enters: "none", "qfrc_applied" (constant, set once) or "passive_callback"."""
+    if not case.body.has_external_torque:
+        return "none"
+    if case.central_field is None and case.precession_torque is None and case.body_torque.b == 0.0:
+        return "qfrc_applied"
+    return "passive_callback"
+
+
+def _runtime_torques(case: Case) -> str | None:
+    """The MJCF scene cannot hold a torque that enters at run time (export refuses it)."""
+    present = [f"[{name}]" for name in _FEATURES if getattr(case, name) is not None]
+    if present:
+        return (f"{', '.join(present)} enters the MuJoCo adapter at run time (qfrc_applied or a passive callback), "
+                f"which an MJCF file cannot hold")
+    return None
 
 
 def _numbers(values) -> str:
@@ -49,11 +77,19 @@ def mjcf(case: Case, integrator: str, dt: float) -> str:
     "Ixx Iyy Izz Ixy Ixz Iyz"). gravity = g d (m/s^2, world frame). Everything the scene lacks is disabled.
     Raises KeyError for an unknown integrator and ValueError for a case MuJoCo cannot model exactly.
     """
-    if integrator not in INTEGRATORS:
-        raise KeyError(f"unknown MuJoCo integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
-    reason = _unsupported(case)
+    if case.kind != "rigid_body":
+        raise ValueError(f"{case.name}: a {case.kind} scene has two MuJoCo models (bilateral, unilateral): "
+                         f"ladder_mjcf(case.ladder, model, integrator, dt) writes either")
+    reason = _runtime_torques(case)
     if reason:
         raise ValueError(f"{case.name}: {reason}")
+    return _scene(case, integrator, dt)
+
+
+def _scene(case: Case, integrator: str, dt: float) -> str:
+    """mjcf() without the export's refusal of run-time torques."""
+    if integrator not in INTEGRATORS:
+        raise KeyError(f"unknown MuJoCo integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
     body = case.body
     inertia = np.asarray(body.inertia_com, dtype=float)
     moments = np.linalg.eigvalsh(inertia)
@@ -82,7 +118,7 @@ class MujocoSimulation:
     """A compiled scene; run() rolls it out from the case's initial state (every call starts afresh)."""
 
     def __init__(self, case: Case, integrator: str, dt: float):
-        self.xml = mjcf(case, integrator, dt)
+        self.xml = _scene(case, integrator, dt)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
         self.stages = INTEGRATORS[integrator][1]
@@ -153,6 +189,221 @@ class MujocoSimulation:
         return int(np.argmin(ok))
 
 
+class TorqueSimulation(MujocoSimulation):
+    """A scene with an external torque (reference.torques), stepped with mj_step from Python: qfrc_applied set once
+    for a constant torque, else a passive callback that every stage sees (module docstring)."""
+
+    def __init__(self, case: Case, integrator: str, dt: float):
+        super().__init__(case, integrator, dt)
+        self.mode = torque_mode(case)
+        self.torque = torque_function(case.body)
+        self.quat0 = np.array(case.quat0, dtype=float)
+        self.omega0 = np.array(case.omega0, dtype=float)
+
+    def _passive(self, model, data) -> None:
+        qpos, qvel = data.qpos, data.qvel
+        m = self.torque(data.time, (qpos[0], qpos[1], qpos[2], qpos[3]), (qvel[0], qvel[1], qvel[2]))
+        passive = data.qfrc_passive
+        passive[0] += m[0]
+        passive[1] += m[1]
+        passive[2] += m[2]
+
+    def run(self, grid: TimeGrid) -> Trajectory:
+        trajectory = super().run(grid)
+        return dataclasses.replace(trajectory, info={**trajectory.info, "torque_mode": self.mode})
+
+    def _rollout(self, grid: TimeGrid) -> Trajectory:
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        data.qpos[:] = self.quat0
+        data.qvel[:] = self.omega0
+        previous = mujoco.get_mjcb_passive()
+        if self.mode == "qfrc_applied":
+            data.qfrc_applied[:] = self.torque(0.0, tuple(self.quat0), tuple(self.omega0))
+        else:
+            mujoco.set_mjcb_passive(self._passive)  # process-global: restored below
+        try:
+            return self._step_all(grid)
+        finally:
+            if self.mode != "qfrc_applied":
+                mujoco.set_mjcb_passive(previous)
+
+    def _step_all(self, grid: TimeGrid) -> Trajectory:
+        model, data, step = self.model, self.data, mujoco.mj_step
+        samples = grid.sample_steps
+        quat = np.full((samples.size, 4), np.nan)
+        omega = np.full((samples.size, 3), np.nan)
+        quat[0], omega[0] = data.qpos, data.qvel
+        done = 0
+        for index, target in enumerate(samples[1:].tolist(), start=1):
+            for _ in range(target - done):
+                step(model, data)
+            done = target
+            quat[index], omega[index] = data.qpos, data.qvel
+            w = omega[index]
+            if not (w @ w <= self.limit2 and np.isfinite(quat[index]).all()):
+                return diverged_trajectory(grid, quat, omega, index, done * grid.dt, done, self.stages * done)
+        return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, self.stages * grid.steps)
+
+
+# The sliding ladder (harness.ladder, FORMULARY T5). Soft constraints and contacts relax on this time constant (s):
+# the smallest MuJoCo keeps stable at the suite's steps (it clamps solref's time constant to >= 2 dt), so the
+# constraint violation it leaves is as small as MuJoCo allows.
+LADDER_SOLREF = 2e-3
+# Capsule radius of the unilateral ladder, as a fraction of the half length: the ends' sphere centres then slide on
+# the lines x = r and y = r, exactly the ideal ladder shifted by (r, r) (its dynamics unchanged).
+LADDER_RADIUS = 0.01
+LADDER_MODELS = ("bilateral", "unilateral")
+
+
+def ladder_mjcf(ladder, model: str, integrator: str, dt: float) -> str:
+    """The MJCF scene of a sliding ladder (z up: the wall is x = 0, the floor z = 0; θ turns about -y).
+
+    bilateral: the top end slides on the wall (a slide joint, zero at height 2 l) and carries the rod on a hinge;
+    the foot end is held on a floor slider by a connect equality (at qpos0 the rod hangs with its end on the foot's
+    origin, which is how MuJoCo places the connect point on body2). A uniform rod is split exactly into two end point masses m/12 (on the
+    two sliders, each moving along its axis only, so their rotational inertia, needed to compile, never enters)
+    and a rod body of mass 5m/6 with inertia m l^2/6 about its centre: same mass, centre and m l^2/3 about G.
+    unilateral: one free planar rod (slide x, slide z, hinge) whose capsule touches a wall and a floor plane through
+    frictionless contacts (condim 1), which can only push.
+    """
+    if integrator not in INTEGRATORS:
+        raise KeyError(f"unknown MuJoCo integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+    m, l, g = float(ladder.mass), float(ladder.half_length), float(ladder.g)
+    option = (f'<option timestep="{float(dt)!r}" gravity="0 0 {-g!r}" integrator="{INTEGRATORS[integrator][0]}">')
+    solref = f'solref="{LADDER_SOLREF!r} 1"'
+    if model == "bilateral":
+        end, rod_inertia = m / 12.0, m * l * l / 6.0
+        return f"""<mujoco model="ladder-bilateral">
+  {option}
+    <flag contact="disable" frictionloss="disable" limit="disable" damper="disable" autoreset="disable"/>
+  </option>
+  <worldbody>
+    <body name="top" pos="0 0 {2 * l!r}">
+      <joint name="top_slide" type="slide" axis="0 0 1"/>
+      <inertial pos="0 0 0" mass="{end!r}" diaginertia="{end * l * l!r} {end * l * l!r} {end * l * l!r}"/>
+      <body name="rod">
+        <joint name="hinge" type="hinge" axis="0 -1 0"/>
+        <inertial pos="0 0 {-l!r}" mass="{m - 2 * end!r}" diaginertia="{rod_inertia!r} {rod_inertia!r} {rod_inertia / 100!r}"/>
+      </body>
+    </body>
+    <body name="foot">
+      <joint name="foot_slide" type="slide" axis="1 0 0"/>
+      <inertial pos="0 0 0" mass="{end!r}" diaginertia="{end * l * l!r} {end * l * l!r} {end * l * l!r}"/>
+    </body>
+  </worldbody>
+  <equality>
+    <connect body1="rod" body2="foot" anchor="0 0 {-2 * l!r}" {solref}/>
+  </equality>
+</mujoco>
+"""
+    if model == "unilateral":
+        radius, inertia = LADDER_RADIUS * l, m * l * l / 3.0
+        return f"""<mujoco model="ladder-unilateral">
+  {option}
+    <flag equality="disable" frictionloss="disable" limit="disable" damper="disable" autoreset="disable"/>
+  </option>
+  <worldbody>
+    <geom name="floor" type="plane" size="0 0 1" condim="1" {solref}/>
+    <geom name="wall" type="plane" size="0 0 1" zaxis="1 0 0" condim="1" {solref}/>
+    <body name="rod">
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="z" type="slide" axis="0 0 1"/>
+      <joint name="hinge" type="hinge" axis="0 -1 0"/>
+      <inertial pos="0 0 0" mass="{m!r}" diaginertia="{inertia!r} {inertia!r} {inertia / 100!r}"/>
+      <geom type="capsule" fromto="0 0 {l!r} 0 0 {-l!r}" size="{radius!r}" condim="1" {solref} contype="1" conaffinity="0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+    raise KeyError(f"unknown ladder model {model!r}; valid: {', '.join(LADDER_MODELS)}")
+
+
+class LadderSimulation:
+    """A sliding ladder in MuJoCo (ladder_mjcf), stepped with mj_step; records every step's horizontal velocity of
+    the rod's centre, whose change over a step is the wall's push (the only horizontal force) times dt / m."""
+
+    def __init__(self, ladder, model: str, integrator: str, dt: float):
+        self.ladder, self.kind, self.dt = ladder, model, float(dt)
+        self.xml = ladder_mjcf(ladder, model, integrator, dt)
+        self.model = mujoco.MjModel.from_xml_string(self.xml)
+        self.data = mujoco.MjData(self.model)
+        self.stages = INTEGRATORS[integrator][1]
+
+    def _start(self) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        l, theta, rate = self.ladder.half_length, self.ladder.theta0, self.ladder.theta_dot0
+        qpos, qvel = self.data.qpos, self.data.qvel
+        if self.kind == "bilateral":  # top_slide, hinge, foot_slide
+            qpos[:] = (2 * l * (math.cos(theta) - 1.0), theta, 2 * l * math.sin(theta))
+            qvel[:] = (-2 * l * math.sin(theta) * rate, rate, 2 * l * math.cos(theta) * rate)
+        else:  # x, z, hinge of the centre, on the axes shifted by the capsule radius
+            r = LADDER_RADIUS * l
+            qpos[:] = (r + l * math.sin(theta), r + l * math.cos(theta), theta)
+            qvel[:] = (l * math.cos(theta) * rate, -l * math.sin(theta) * rate, rate)
+
+    def _planar(self) -> tuple[list[float], float]:
+        """(x, y, θ, ẋ, ẏ, θ̇) in the ideal ladder's axes, and the constraint violation (m)."""
+        l, qpos, qvel = self.ladder.half_length, self.data.qpos, self.data.qvel
+        if self.kind == "bilateral":
+            z_top, theta, x_foot = qpos
+            z_top += 2 * l
+            dz_top, rate, _ = qvel
+            s, c = math.sin(theta), math.cos(theta)
+            state = [l * s, z_top - l * c, theta, l * c * rate, dz_top + l * s * rate, rate]
+            foot = (2 * l * s - x_foot, z_top - 2 * l * c)  # the rod's end against the floor slider's point
+            return state, math.hypot(*foot)
+        r = LADDER_RADIUS * l
+        x, z, theta = qpos
+        s, c = math.sin(theta), math.cos(theta)
+        state = [x - r, z - r, theta, qvel[0], qvel[1], qvel[2]]
+        penetration = max(0.0, -(state[0] - l * s), -(state[1] - l * c))  # top inside the wall, foot in the floor
+        return state, penetration
+
+    def run(self, grid: TimeGrid) -> LadderTrajectory:
+        if grid.dt != self.dt:
+            raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
+        self._start()
+        samples = grid.sample_steps
+        state = np.full((samples.size, 6), np.nan)
+        violation = np.full(samples.size, np.nan)
+        speed = np.empty(grid.steps + 1)  # ẋ of the centre after each step
+        angle = np.empty(grid.steps + 1)
+        first, violation[0] = self._planar()
+        state[0], speed[0], angle[0] = first, first[3], first[2]
+        worst, sample = violation[0], 1
+        model, data, step = self.model, self.data, mujoco.mj_step
+        for index in range(1, grid.steps + 1):
+            step(model, data)
+            current, off = self._planar()
+            speed[index], angle[index] = current[3], current[2]
+            worst = max(worst, off)
+            if sample < samples.size and samples[sample] == index:
+                state[sample], violation[sample] = current, worst
+                worst, sample = 0.0, sample + 1
+            if not math.isfinite(current[2] + current[5]):
+                return LadderTrajectory(grid.times, state, violation, Status.DIVERGED,
+                                        f"state not finite at t = {index * grid.dt:.6g} s", index * grid.dt, index)
+        return LadderTrajectory(grid.times, state, violation, Status.OK, "", math.nan, grid.steps,
+                                self._detachment(speed, angle))
+
+    def _detachment(self, speed: np.ndarray, angle: np.ndarray) -> float:
+        """θ where the wall's push (∝ Δẋ per step, placed at the step's mid-angle) reaches zero for good: the zero of
+        the line through the last two steps that pushed (the soft contact's push rings at first, so the first sign
+        change is not the detachment; once the top is off the wall no horizontal force acts and Δẋ is exactly 0).
+        NaN for the bilateral model (its wall also pulls) or when the top never leaves the wall."""
+        if self.kind != "unilateral":
+            return math.nan
+        push = np.diff(speed)
+        middle = 0.5 * (angle[1:] + angle[:-1])
+        pushing = np.flatnonzero(push > 0.0)
+        if pushing.size < 2 or pushing[-1] == push.size - 1:
+            return math.nan
+        j = int(pushing[-1])
+        f0, f1 = push[j - 1], push[j]
+        return float(middle[j] + (middle[j] - middle[j - 1]) * f1 / (f0 - f1))
+
+
 class MujocoEngine:
     name = "mujoco"
 
@@ -163,4 +414,16 @@ class MujocoEngine:
         return _unsupported(case)
 
     def prepare(self, case: Case, integrator: str, dt: float) -> MujocoSimulation:
+        reason = _unsupported(case)
+        if reason:
+            raise ValueError(f"{case.name}: {reason}")
+        if case.body.has_external_torque:
+            return TorqueSimulation(case, integrator, dt)
         return MujocoSimulation(case, integrator, dt)
+
+    def ladder_models(self) -> tuple[str, ...]:
+        """The sliding ladder's models (harness.ladder): rows name them in the formulation column."""
+        return LADDER_MODELS
+
+    def prepare_ladder(self, case, model: str, integrator: str, dt: float) -> LadderSimulation:
+        return LadderSimulation(case.ladder, model, integrator, dt)

@@ -2,9 +2,13 @@
 
 Pinocchio has no time stepper; it supplies the dynamics (articulated-body algorithm) and the group operation.
 Its configuration q is a quaternion stored (x, y, z, w); v and tau are body-frame angular velocity and torque.
+External torques (reference.torques) enter as tau, evaluated at every stage of the integrator (torque_mode "stage").
+The harness's Lie-group integrators pass no time to a stage, so a torque that depends on time (a central field whose
+direction turns) is not modelled: such runs are skipped.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -12,10 +16,9 @@ import pinocchio as pin
 
 from harness import integrators
 from harness.cases import Case
-from harness.engines.base import Trajectory
+from harness.engines.base import Trajectory, precession_singular
 from harness.grid import TimeGrid
-
-_FEATURES = ("body_torque", "central_field")
+from reference.torques import torque_function
 
 
 class PinocchioSystem:
@@ -25,14 +28,22 @@ class PinocchioSystem:
     that saves attribute lookups per call and, for retract, a Python frame (a few percent of an RK4 step).
     """
 
-    def __init__(self, model: "pin.Model"):
+    def __init__(self, model: "pin.Model", torque=None):
         self.model = model
         self.data = data = model.createData()
-        tau, aba = np.zeros(model.nv), pin.aba
+        tau, aba, array = np.zeros(model.nv), pin.aba, np.array
 
         def accel(q: np.ndarray, v: np.ndarray) -> np.ndarray:
             """v' (3,) rad/s^2, body frame. pin.aba returns a fresh array (not a view of data.ddq)."""
             return aba(model, data, q, v, tau)
+
+        def accel_torqued(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+            """As accel, with the external torque of this stage's state as tau (time-independent torques only)."""
+            x, y, z, w = q.tolist()
+            return aba(model, data, q, v, array(torque(0.0, (w, x, y, z), v.tolist())))
+
+        if torque is not None:
+            accel = accel_torqued
 
         self.accel = accel
         self.retract = functools.partial(pin.integrate, model)  # q (x) exp(theta), theta (3,) rad body frame
@@ -65,7 +76,13 @@ def urdf(case: Case) -> str:
     the file gives g d to set in the tool (Pinocchio: model.gravity.linear).
     Raises ValueError for a case this adapter cannot model exactly.
     """
+    if case.kind != "rigid_body":
+        raise ValueError(f"{case.name}: the Pinocchio adapter does not model the {case.kind} scene")
     reason = PinocchioEngine().unsupported(case)
+    present = [f"[{name}]" for name in ("body_torque", "central_field", "precession_torque")
+               if getattr(case, name) is not None]
+    if present and not reason:
+        reason = f"{', '.join(present)} enters the Pinocchio adapter at run time (tau), which URDF cannot hold"
     if reason:
         raise ValueError(f"{case.name}: {reason}")
     body = case.body
@@ -107,7 +124,9 @@ class PinocchioSimulation:
     def __init__(self, case: Case, integrator: integrators.Integrator, dt: float):
         self.integrator = integrator
         self.dt = dt
-        self.system = PinocchioSystem(build_model(case))
+        self.system = PinocchioSystem(build_model(case), torque_function(case.body))
+        self.torque_mode = "stage" if case.body.has_external_torque else "none"
+        self.system.body = case.body  # for integrators that use the body itself (harness.integrators.geometric)
         w, x, y, z = np.asarray(case.quat0, dtype=float)
         self.q0 = np.array([x, y, z, w])
         self.v0 = np.array(case.omega0, dtype=float)
@@ -115,7 +134,8 @@ class PinocchioSimulation:
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
-        return self.integrator.integrate(self.system, self.q0, self.v0, grid, record)
+        trajectory = self.integrator.integrate(self.system, self.q0, self.v0, grid, record)
+        return dataclasses.replace(trajectory, info={**trajectory.info, "torque_mode": self.torque_mode})
 
 
 class PinocchioEngine:
@@ -126,8 +146,10 @@ class PinocchioEngine:
         return integrators.names(state_space="lie")
 
     def unsupported(self, case: Case) -> str | None:
-        missing = [f"[{name}]" for name in _FEATURES if getattr(case, name) is not None]
-        return f"Pinocchio adapter does not model {', '.join(missing)} yet" if missing else None
+        if case.central_field is not None and case.central_field.orbit_rate != 0.0:
+            return ("Pinocchio adapter does not model a turning [central_field] (orbit_rate != 0): the harness's "
+                    "Lie-group integrators give a stage no time")
+        return precession_singular(case)
 
     def prepare(self, case: Case, integrator: str | type[integrators.Integrator], dt: float) -> PinocchioSimulation:
         reason = self.unsupported(case)

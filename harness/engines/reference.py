@@ -8,7 +8,7 @@ import numpy as np
 
 from harness import integrators
 from harness.cases import Case
-from harness.engines.base import Status, Trajectory, diverged_trajectory
+from harness.engines.base import Status, Trajectory, diverged_trajectory, precession_singular
 from harness.grid import TimeGrid
 from reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
 from reference.formulations import Chart, ChartSingularity, Formulation
@@ -95,10 +95,22 @@ class ReferenceEngine:
         return integrator == TAYLOR
 
     def unsupported(self, case: Case) -> str | None:
-        for table, present in (("body_torque", case.body_torque), ("central_field", case.central_field)):
-            if present is not None:
-                return f"reference engine does not model [{table}] yet"
+        return precession_singular(case)
+
+    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
+        """Why one formulation/integrator pair cannot model the case exactly (the run is `skipped`), or None:
+        only quaternion Euler–Poisson has the external torques, and fixed steps give a stage no time (a turning
+        central field needs it; the Taylor truth has it)."""
+        reason = ref_formulations.unsupported_torque(formulation, case.body)
+        if reason:
+            return reason
+        if integrator != TAYLOR and case.central_field is not None and case.central_field.orbit_rate != 0.0:
+            return (f"reference {integrator} does not model a turning [central_field] (orbit_rate != 0): the "
+                    f"harness's fixed-step integrators give a stage no time")
         return None
+
+    def torque_mode(self, case: Case) -> str:
+        return "rhs" if case.body.has_external_torque else "none"
 
     def prepare(self, case: Case, integrator: str | type[integrators.Integrator], dt: float | None,
                 formulation: str = ref_formulations.Quaternion.name,

@@ -5,7 +5,8 @@ formulation's coordinates, "vector"); names(state_space) says which integrators 
 asks for the ones of the space it works in.
 
 A plug-in is an Integrator subclass advertised in the entry-point group "stereodyn.integrators", e.g. in its
-pyproject.toml: [project.entry-points."stereodyn.integrators"] my_rk = "my_package.module:MyRK". Plug-ins are loaded
+pyproject.toml: [project.entry-points."stereodyn.integrators"] my_rk = "my_package.module:MyRK" (the object may also be
+a list or tuple of classes: one method in both state spaces, "lie" and "vector"). Plug-ins are loaded
 the first time the registry is consulted; one that fails to load is skipped with a warning, never breaking a sweep.
 """
 from __future__ import annotations
@@ -14,11 +15,12 @@ import warnings
 from importlib.metadata import entry_points
 
 from harness.integrators.base import Integrator, LieSystem
+from harness.integrators.geometric import GEOMETRIC
 from harness.integrators.lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEuler
 from harness.integrators.vector import VectorEuler, VectorRK, VectorRK4, VectorSystem
 
 __all__ = ["ENTRY_POINT_GROUP", "ButcherTableau", "ExplicitRK", "Integrator", "LieSystem", "VectorRK", "VectorSystem",
-           "get", "names", "register", "state_spaces"]
+           "get", "in_default_sweep", "names", "register", "state_spaces"]
 
 ENTRY_POINT_GROUP = "stereodyn.integrators"
 
@@ -85,10 +87,20 @@ def _load_plugins() -> None:
     _plugins_loaded = True
     for entry in entry_points(group=ENTRY_POINT_GROUP):
         try:
-            register(entry.load())
+            loaded = entry.load()
+            for cls in (loaded if isinstance(loaded, (list, tuple)) else (loaded,)):
+                register(cls)
         except Exception as exc:  # a broken plug-in must not take the built-ins down with it
             warnings.warn(f"integrator plug-in {entry.name!r} ({entry.value}) not loaded: {exc}", stacklevel=3)
 
 
-for _cls in (Euler, SymplecticEuler, RK4, RK4Naive, VectorEuler, VectorRK4):
+def in_default_sweep(name: str) -> bool:
+    """Whether a sweep that names no integrators runs `name`: False only when every class registered under it says
+    default_sweep = False (the slow geometric methods); a name the registry does not hold (an engine's own) is run."""
+    _load_plugins()
+    classes = [cls for (_, n), cls in _registry.items() if n == name]
+    return not classes or any(getattr(cls, "default_sweep", True) for cls in classes)
+
+
+for _cls in (Euler, SymplecticEuler, RK4, RK4Naive, VectorEuler, VectorRK4, *GEOMETRIC):
     register(_cls)

@@ -47,6 +47,10 @@ class Integrator(abc.ABC):
     geometric: ClassVar[bool]         # the attitude stays on the group (moved only through retract)
     state_space: ClassVar[str] = "lie"
     description: ClassVar[str]
+    # Optional metadata: the method claims an energy error bounded in time (no secular drift) on conservative
+    # scenes (harness.testing.assert_bounded_energy checks it); it runs in a sweep that names no integrators.
+    energy_bounded: ClassVar[bool] = False
+    default_sweep: ClassVar[bool] = True
 
     METADATA: ClassVar[tuple[str, ...]] = ("name", "order", "stages", "symplectic", "geometric", "state_space",
                                            "description")

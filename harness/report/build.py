@@ -7,12 +7,16 @@ from __future__ import annotations
 
 import datetime
 import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from harness import checks as theory_checks
+from harness import workprecision
 from harness.report import figures, html
 from harness.report.markdown import report_markdown
 from harness.results import read_results, write_atomic
@@ -22,6 +26,8 @@ FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
 # "Good enough" attitude error for the summary's cheapest-run column: a microradian over the case's span.
 SUMMARY_ACCURACY = 1e-6
+# Figures per extra process when drawing in parallel: a process costs ~1 s to start, a figure ~0.5 s to draw.
+PARALLEL_FIGURES = 8
 
 
 def _num(value, digits: str = ".2e") -> str:
@@ -63,12 +69,15 @@ def summary_lines(df: pd.DataFrame) -> list[str]:
                      rows) + [""]
 
 
-def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool) -> tuple[list[str], dict]:
-    """The work–precision and invariant sections, and their figures {relative path: PNG bytes}."""
+def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool,
+                    ladder: pd.DataFrame | None = None) -> tuple[list[str], dict]:
+    """The work–precision and invariant sections, and their figures {relative path: PNG bytes}; the points of the
+    dt ladders (ladder.csv, harness.workprecision) join their case's work–precision plot."""
     images: dict[str, bytes] = {}
     work = ["## Work–precision", "",
             "Max attitude error against the cost of stepping, in µs per simulated second (wall_s / t_end), one line "
-            "per engine and integrator through its dt values. Runs that diverged or failed are left out.", ""]
+            "per engine and integrator through its dt values, the dt ladder's points included (ladder.csv). Runs that diverged "
+            "or failed are left out.", ""]
     drift = ["## Invariants against time", "",
              "Relative deviation of the energy and of the conserved angular momentum from their initial values, and "
              "the attitude error against the truth (up to the case's horizon), each the maximum over buckets of "
@@ -76,22 +85,46 @@ def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool
     if not has_store:
         drift += ["No stored series in this folder (DIR/runs.json and DIR/store/ are written by `stereodyn run`).",
                   ""]
+    tasks = []
     for case, group in df.groupby("case", sort=False):
-        stem = html.slug(case)
-        for lines, kind, draw, missing in (
-                (work, "work-precision", lambda: figures.work_precision(group, case),
-                 "No run of this case has both a finite error and a timing."),
-                (drift, "invariants", lambda: figures.invariants(group, series, case),
-                 "No stored series for this case.")):
-            lines += [f"### {case}", ""]
-            png = draw()
-            if png is None:
-                lines += [missing, ""]
-                continue
-            path = f"{FIGURES_DIR}/{stem}-{kind}.png"
-            images[path] = png
-            lines += [f"![{case}: {kind.replace('-', '–')}]({path})", ""]
+        tasks.append(("work-precision", case, _with_ladder(group, ladder, case), None))
+        tasks.append(("invariants", case, group, {k: v for k, v in series.items() if k[0] == case}))
+    missing = {"work-precision": "No run of this case has both a finite error and a timing.",
+               "invariants": "No stored series for this case."}
+    for (kind, case, _, _), png in zip(tasks, _render_all(tasks)):
+        lines = work if kind == "work-precision" else drift
+        lines += [f"### {case}", ""]
+        if png is None:
+            lines += [missing[kind], ""]
+            continue
+        path = f"{FIGURES_DIR}/{html.slug(case)}-{kind}.png"
+        images[path] = png
+        lines += [f"![{case}: {kind.replace('-', '–')}]({path})", ""]
     return work + drift, images
+
+
+def _render(task: tuple) -> bytes | None:
+    kind, case, group, series = task
+    return figures.work_precision(group, case) if kind == "work-precision" else figures.invariants(group, series, case)
+
+
+def _render_all(tasks: list[tuple]) -> list[bytes | None]:
+    """The figures' PNGs, on all cores when there are many: drawing is most of a report's time (~0.5 s a figure)."""
+    workers = min(os.cpu_count() or 1, len(tasks) // PARALLEL_FIGURES)
+    if workers < 2:
+        return [_render(task) for task in tasks]
+    # spawn, not fork: the caller may hold heyoka's LLVM state and threads (a report at the end of a sweep).
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return list(pool.map(_render, tasks))
+
+
+def _with_ladder(group: pd.DataFrame, ladder: pd.DataFrame | None, case: str) -> pd.DataFrame:
+    """A case's rows and its ladder points (same columns where they overlap), for the work–precision plot."""
+    if ladder is None or ladder.empty:
+        return group
+    points = ladder[ladder["case"] == case]
+    return pd.concat([group, points[[c for c in points.columns if c in group.columns]]], ignore_index=True) \
+        if len(points) else group
 
 
 def checks_lines(df: pd.DataFrame, out_dir: Path) -> list[str]:
@@ -154,10 +187,12 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, 
     out_dir = Path(out_dir)
     df = read_results(out_dir / "results.csv") if df is None else df
     manifest = read_manifest(out_dir)
-    sections, images = figure_sections(df, _series_index(out_dir), manifest is not None)
+    sections, images = figure_sections(df, _series_index(out_dir), manifest is not None,
+                                       workprecision.read_optional(out_dir / workprecision.LADDER_FILE))
     env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
     if env is not None:
         env["report rendered"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+    sections = workprecision.report_lines(out_dir) + sections
     markdown = report_markdown(df, summary=summary_lines(df), sections=sections + checks_lines(df, out_dir), env=env)
     figures_dir = out_dir / FIGURES_DIR
     figures_dir.mkdir(exist_ok=True)

@@ -37,7 +37,27 @@ DEFINITIONS = """\
   euler_zxz: Lagrange's equations in ZXZ Euler angles. taylor integrates them by heyoka, the fixed-step integrators
   step the formulation's coordinates (a quaternion state is not renormalised). charts (chart_changes): how often the
   coordinates were re-centred on the current attitude, the Gibbs vector when |q| > 1 (a rotation of more than 90
-  degrees from its frame), the angles when |sin theta| < 0.5."""
+  degrees from its frame), the angles when |sin theta| < 0.5.
+- External torques (issue 5, reference.torques). energy_drift then means a balance: with a body torque
+  M = (a + b|omega|^2) u or Grioli's torque (41), the work-energy balance |E(t) - E(0) - W(t)|, W = integral of M.omega
+  dt from the recorded samples (antiderivative of a degree-7 interpolating spline), relative to the terms of E at
+  t = 0 plus max |W|; with a central field in a fixed direction, the energy with MacCullagh's potential
+  (3 mu / 2 r^3) H.sigma H; with the field's direction turning at orbit_rate Omega about world z, the Jacobi integral
+  J = 1/2 sigma omega.omega + (3 mu / 2 r^3) H.sigma H - Omega K_z (K_z the world z component of R sigma omega),
+  conserved because the scene is stationary in the frame turning with the orbit (its Lagrangian in the relative
+  angular velocity omega - Omega R^T z does not depend on time, and J is its Jacobi function); a body torque on top
+  adds the work of M along omega - Omega R^T z. momentum: K.D along a fixed field's direction D (NaN otherwise).
+  self_excited: the conic-cylinder invariant (36) A1/(A2-A3) p1^2 - A2/(A3-A1) p2^2 in the principal frame with i3
+  along the torque axis (any torque along i3, no other torque). precession_axis_drift: max |e(t) - e(0)| of the
+  world precession axis (40) e = sin(theta)(omega - (omega.u)u)/|omega x u| + cos(theta) u under torque (41);
+  NaN when a sample comes within 0.05 rad of omega || u, where (41) is singular. torque_mode: how the torque entered
+  the engine: rhs (the reference's equations), qfrc_applied (MuJoCo, a constant torque set once), passive_callback
+  (MuJoCo's mjcb_passive, seen at every RK4 stage), stage (Pinocchio, tau at every stage), none.
+- Sliding ladder (kind sliding_ladder, harness.ladder): rows are the equation theta'' = 3g/(4l) sin theta (engine
+  reference, formulation theta) and MuJoCo's bilateral and unilateral models (formulation column). energy_drift: the
+  rod's energy 1/2 m|v_G|^2 + 1/2 (m l^2/3) theta'^2 + m g y_G; attitude_err: |theta - theta_equation| (rad),
+  omega_err likewise for theta', up to the equation's detachment for the unilateral model. checks.csv: the
+  detachment angle against arccos((2/3) cos theta0 + 4 l theta0'^2 / (9 g)), energy drift, constraint violation (m)."""
 
 
 def _fmt(value, column: str) -> str:

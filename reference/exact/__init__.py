@@ -7,7 +7,8 @@ the given times (s).
 
 Modules: euler_poinsot (torque-free body: both families, symmetric body, separatrix; periods, Montgomery's phase),
 stationary (Lyapunov exponent and small-oscillation frequencies, FORMULARY T8), heavy (Lagrange, Staude, Grioli,
-Hess–Grioli, Mlodzejowski; FORMULARY G5, G9–G11), pendulum (the plane pendulum in Jacobi functions).
+Hess–Grioli, Mlodzejowski; FORMULARY G5, G9–G11), self_excited (the tanh spin-up and uniform rotations under a
+body torque, G12, G13; the torque is part of the RigidBody the check and solve receive), pendulum (the plane pendulum in Jacobi functions).
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from typing import Callable
 import numpy as np
 
 from reference.body import RigidBody
-from reference.exact import heavy
+from reference.exact import heavy, self_excited
 from reference.exact._util import CONDITION_RTOL
 from reference.exact.euler_poinsot import (SEPARATRIX_TOL, FreeMotion, euler_poinsot_check, euler_poinsot_solve,
                                            free_motion, montgomery_phase, period, precession_per_period,
@@ -45,6 +46,9 @@ ORACLES: dict[str, Oracle] = {oracle.name: oracle for oracle in (
     Oracle("grioli_precession", heavy.grioli_check, heavy.grioli_solve),
     Oracle("hess_grioli", heavy.hess_grioli_check, heavy.hess_grioli_solve),
     Oracle("mlodzejowski", heavy.mlodzejowski_check, heavy.mlodzejowski_solve),
+    # the self-excited body (G12, G13): the torque reaches check and solve through the RigidBody
+    Oracle("self_excited_spinup", self_excited.spinup_check, self_excited.spinup_solve),
+    Oracle("self_excited_uniform", self_excited.uniform_check, self_excited.uniform_solve),
 )}
 
 __all__ = [

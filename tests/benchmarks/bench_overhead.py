@@ -3,7 +3,7 @@
     python tests/benchmarks/bench_overhead.py [--repeats N]
 
 mujoco_overhead     = MujocoEngine us/step / bare mujoco.rollout.rollout us/step (same model, same steps; the worse
-                      of euler and rk4). Target <= 1.2.
+                      of euler and rk4). Target <= 1.1.
 pinocchio_overhead  = PinocchioEngine rk4 us/step / a bare hand-written Python RKMK4 loop with pin.aba and
                       pin.integrate (numpy vector arithmetic, a float helper for dexp^-1). Target <= 1.2. Also
                       printed: the ratio to the same loop fully unrolled on Python floats, the fastest pure-Python

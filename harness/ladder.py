@@ -1,0 +1,121 @@
+"""The sliding ladder in a sweep (kind "sliding_ladder", FORMULARY T5): its own runs, metrics and check rows, beside
+the rigid-body path of harness.runner (which routes a LadderCase here).
+
+Rows: the equation (engine reference, formulation "theta", integrator taylor: reference.ladder, whose heyoka event
+gives the detachment), every MuJoCo model (formulation "bilateral" or "unilateral", harness.engines.mujoco) with each
+MuJoCo integrator and dt, and a skipped Pinocchio row. Columns: energy_drift (the rod's energy, ½ m|v_G|² +
+½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
+omega_err (|θ̇ − θ̇_equation| / max |θ̇_equation|) — for the unilateral model only up to the equation's detachment,
+after which the equation (both ends on the axes) no longer describes it. checks.csv: detachment_angle (the
+equation's event and the unilateral model's wall push, against arccos((2/3) cos θ0 + 4ℓθ̇0²/(9g))), energy_drift
+and constraint_violation (m; theory 0).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from harness import checks
+from harness.engines import get_engine
+from harness.engines.base import LadderTrajectory, Status
+from harness.grid import time_grid
+from reference import ladder as ref_ladder
+
+EQUATION, TAYLOR = "theta", "taylor"
+PINOCCHIO_REASON = ("Pinocchio adapter does not model the sliding ladder: its constraints (ends on the wall and the "
+                    "floor, one of them unilateral) need a constrained-dynamics model the adapter does not build")
+
+
+def specs(case, engine_name: str, engine_rank: int, chosen: list[str], spec_type) -> tuple[list, list]:
+    """(runs, skipped rows) of one ladder case on one engine with its chosen integrators; spec_type:
+    harness.runner.RunSpec."""
+    from harness.runner import skipped_row
+    if engine_name == "reference":
+        return [spec_type(case, engine_name, TAYLOR, None, engine_rank, 0, EQUATION, 0)], []
+    engine = get_engine(engine_name)
+    if not hasattr(engine, "ladder_models"):
+        reason = PINOCCHIO_REASON if engine_name == "pinocchio" else getattr(engine, "reason", None) or \
+            f"{engine_name} adapter does not model the sliding ladder"
+        return [], [skipped_row(spec_type(case, engine_name, "", None, engine_rank), reason)]
+    runs = []
+    for integrator_rank, integrator in enumerate(chosen):
+        for model_rank, model in enumerate(engine.ladder_models()):
+            for dt in case.dt:
+                runs.append(spec_type(case, engine_name, integrator, dt, engine_rank, integrator_rank, model,
+                                      model_rank))
+    return runs, []
+
+
+def _grid(spec):
+    case = spec.case
+    return time_grid(case.t_end, case.t_end / (case.samples - 1) if spec.dt is None else spec.dt, case.samples)
+
+
+def run(spec) -> LadderTrajectory:
+    """The spec's untimed run."""
+    case, grid = spec.case, _grid(spec)
+    if spec.engine == "reference":
+        motion = ref_ladder.solve(case.ladder, grid.times)
+        state = ref_ladder.planar_state(case.ladder, motion.theta, motion.theta_dot)
+        return LadderTrajectory(grid.times, state, ref_ladder.constraint_violation(case.ladder, state),
+                                steps=grid.steps, detach_angle=motion.detach_angle)
+    return get_engine(spec.engine).prepare_ladder(case, spec.formulation, spec.integrator, spec.dt).run(grid)
+
+
+def execute(spec, base_row: dict) -> dict:
+    """One ladder run's row (metrics, checks, timing); never raises."""
+    from harness.timing import best_time
+    row = dict(base_row)
+    try:
+        ladder, grid = spec.case.ladder, _grid(spec)
+        traj = run(spec)
+        row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
+                   torque_mode="none")
+        equation = ref_ladder.solve(ladder, grid.times)
+        row.update(metrics(spec, traj, equation))
+        row[checks.ROW_KEY] = check_rows(spec, traj, row)
+        if traj.status is Status.OK:
+            if spec.engine == "reference":
+                wall = best_time(lambda: ref_ladder.solve(ladder, grid.times))
+            else:
+                sim = get_engine(spec.engine).prepare_ladder(spec.case, spec.formulation, spec.integrator, spec.dt)
+                wall = best_time(lambda: sim.run(grid))
+            row.update(wall_s=wall, us_per_step=wall / max(1, grid.steps) * 1e6)
+    except Exception as exc:  # a run that breaks is data
+        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    return row
+
+
+def metrics(spec, traj: LadderTrajectory, equation: ref_ladder.LadderMotion) -> dict:
+    ladder = spec.case.ladder
+    state = traj.state
+    finite = np.isfinite(state).all(axis=1)
+    energy = ref_ladder.energy(ladder, state)
+    out = {"energy_drift": float(np.max(np.abs(energy[finite] - energy[0]))) / ref_ladder.energy_scale(ladder,
+                                                                                                        state[0])}
+    keep = np.ones(len(traj.times), bool)
+    if spec.formulation == "unilateral" and math.isfinite(equation.detach_time):
+        keep = traj.times <= equation.detach_time
+    if finite[keep].all():
+        angle = np.abs(state[keep, 2] - equation.theta[keep])
+        out.update(attitude_err=float(np.max(angle)), attitude_err_end=float(angle[-1]),
+                   omega_err=float(np.max(np.abs(state[keep, 5] - equation.theta_dot[keep]))
+                                   / (np.max(np.abs(equation.theta_dot[keep])) or 1.0)))
+    out["_violation"] = float(np.nanmax(traj.violation)) if np.isfinite(traj.violation).any() else math.nan
+    return out
+
+
+def check_rows(spec, traj: LadderTrajectory, row: dict) -> list[dict]:
+    ladder = spec.case.ladder
+    rows = [{"quantity": "energy_drift", "theory": 0.0, "measured": row["energy_drift"]},
+            {"quantity": "constraint_violation", "theory": 0.0, "measured": row.pop("_violation")}]
+    if spec.engine == "reference" or spec.formulation == "unilateral":
+        rows.append({"quantity": "detachment_angle", "theory": ref_ladder.detachment_angle(ladder),
+                     "measured": traj.detach_angle})
+    ok = traj.status is Status.OK
+    for check in rows:
+        if not ok:
+            check["measured"] = math.nan
+        check["error"] = checks.error(check["quantity"], check["theory"], check["measured"])
+    return rows

@@ -1,0 +1,134 @@
+"""pytest helpers for checking an integrator in your own CI: its declared order, and its bounded energy error.
+
+    from harness.testing import assert_order, assert_bounded_energy
+
+    def test_my_integrator_order():
+        assert_order(MyIntegrator, cases=["free-asymmetric", "lagrange-top"])
+
+    def test_my_integrator_energy():
+        assert_bounded_energy(MyIntegrator)          # only if MyIntegrator.energy_bounded is True
+
+The integrator is a registered name or an Integrator class (harness.integrators); it runs on the Pinocchio engine
+(state space "lie") or on the reference engine's formulation (state space "vector"). Both helpers raise
+AssertionError with the measured numbers, so pytest shows why.
+"""
+from __future__ import annotations
+
+import math
+from typing import Iterable
+
+import numpy as np
+
+from harness import integrators as registry
+from harness import metrics
+from harness.cases import Case, find_case, with_overrides
+from harness.engines import get_engine
+from harness.engines.base import Status
+from harness.grid import time_grid
+from harness.integrators.base import Integrator
+from reference import truth as reference_truth
+
+# A fitted order within this of the declared one passes: the asymptotic fits of the suite's integrators land within
+# 0.15 of their order (convergence.csv), and an order off by a whole unit is what a wrong method shows.
+ORDER_TOLERANCE = 0.3
+# The order is fitted where the error is between these (rad): above, higher-order terms bend the curve; below, rounding
+# (which accumulates to ~1e-13 over 1e4 steps) does.
+ORDER_ERR_RANGE = (1e-11, 1e-2)
+# Bounded energy: the maximum energy error of a run `ratio` times longer may be at most ENERGY_GROWTH times that of
+# the short run; ENERGY_NOISE (relative) is the round-off of evaluating the energy from a rounded state, a few ulps,
+# below which no comparison is meaningful (the midpoint rule conserves a free body's energy exactly, leaving only it).
+ENERGY_GROWTH = 2.0
+ENERGY_NOISE = 8 * float(np.finfo(float).eps)
+
+
+def _engine_for(cls: type[Integrator]) -> tuple[str, dict]:
+    if cls.state_space == "lie":
+        return "pinocchio", {}
+    if cls.state_space == "vector":
+        return "reference", {"formulation": "quaternion"}
+    raise ValueError(f"no engine runs state space {cls.state_space!r}")
+
+
+def _resolve(integrator: str | type[Integrator], state_space: str) -> type[Integrator]:
+    return registry.get(integrator, state_space)
+
+
+def _case(case: str | Case) -> Case:
+    return case if isinstance(case, Case) else find_case(case)
+
+
+def _run(cls: type[Integrator], case: Case, dt: float, formulation: str | None = None):
+    engine, extra = _engine_for(cls)
+    if formulation is not None:
+        extra = {"formulation": formulation}
+    grid = time_grid(case.t_end, dt, case.samples)
+    traj = get_engine(engine).prepare(case, cls, dt, **extra).run(grid)
+    return grid, traj
+
+
+def measured_order(integrator: str | type[Integrator], case: str | Case, dts: Iterable[float] | None = None,
+                   state_space: str = "lie", formulation: str | None = None, t_end: float = 2.0) -> float:
+    """The fitted order (slope of log max state error against log dt, the measure of convergence.csv) of an integrator on a case over t_end, from the
+    dt values whose error lies in ORDER_ERR_RANGE. dts default: 0.1 down to 0.00625 by halves."""
+    cls = _resolve(integrator, state_space)
+    case = with_overrides(_case(case), t_end=t_end)
+    dts = list(dts) if dts is not None else [0.1 / 2 ** k for k in range(5)]
+    points = []
+    for dt in dts:
+        grid, traj = _run(cls, case, dt, formulation)
+        if traj.status is not Status.OK:
+            continue
+        truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
+        err = metrics.errors(traj, truth.quat, truth.omega, case.horizon)
+        drifts = metrics.drifts(case, traj, ("casimir",))
+        state_err = max(v for v in (err["attitude_err"], err["omega_err"], drifts["casimir_drift"]) if math.isfinite(v))
+        if ORDER_ERR_RANGE[0] <= state_err <= ORDER_ERR_RANGE[1]:
+            points.append((dt, state_err))
+    if len(points) < 2:
+        raise AssertionError(f"{cls.name} on {case.name}: fewer than 2 steps of {dts} give an error in "
+                             f"{ORDER_ERR_RANGE} (points: {points})")
+    dt, err = np.log(np.array(points)).T
+    return float(np.polyfit(dt, err, 1)[0])
+
+
+def assert_order(integrator: str | type[Integrator], cases: Iterable[str | Case] = ("lagrange-top",),
+                 dts: Iterable[float] | None = None, state_space: str = "lie", formulation: str | None = None,
+                 tolerance: float = ORDER_TOLERANCE, t_end: float = 2.0) -> dict[str, float]:
+    """Assert that the fitted order on each case is within tolerance of the integrator's declared `order`.
+    Returns {case name: fitted order}."""
+    cls = _resolve(integrator, state_space)
+    orders = {}
+    for case in cases:
+        case = _case(case)
+        order = measured_order(cls, case, dts, state_space, formulation, t_end)
+        orders[case.name] = order
+        assert abs(order - cls.order) <= tolerance, (
+            f"{cls.name} on {case.name}: fitted order {order:.3f}, declared {cls.order} (tolerance {tolerance})")
+    return orders
+
+
+def energy_error(integrator: str | type[Integrator], case: str | Case, dt: float, steps: int,
+                 state_space: str = "lie", formulation: str | None = None) -> float:
+    """Max relative energy error (energy_drift, DESIGN §4) of a run of `steps` steps of dt."""
+    cls = _resolve(integrator, state_space)
+    case = with_overrides(_case(case), t_end=steps * dt, dt=dt)
+    _, traj = _run(cls, case, dt, formulation)
+    if traj.status is not Status.OK:
+        raise AssertionError(f"{cls.name} on {case.name}, dt={dt:g}, {steps} steps: {traj.status.value} "
+                             f"({traj.message})")
+    return metrics.drifts(case, traj, ("energy",))["energy_drift"]
+
+
+def assert_bounded_energy(integrator: str | type[Integrator], case: str | Case = "free-asymmetric",
+                          dt: float = 0.01, steps: int = 1000, ratio: int = 100, state_space: str = "lie",
+                          formulation: str | None = None, growth: float = ENERGY_GROWTH) -> tuple[float, float]:
+    """For an integrator that claims energy_bounded: the max energy error over steps * ratio steps is at most
+    `growth` times that over `steps` steps (no secular drift), both floored at ENERGY_NOISE. Returns both errors."""
+    cls = _resolve(integrator, state_space)
+    assert getattr(cls, "energy_bounded", False), f"{cls.name} does not claim a bounded energy error"
+    short = energy_error(cls, case, dt, steps, state_space, formulation)
+    long = energy_error(cls, case, dt, steps * ratio, state_space, formulation)
+    assert long <= growth * max(short, ENERGY_NOISE), (
+        f"{cls.name}: energy error {long:.3e} after {steps * ratio} steps against {short:.3e} after {steps}: "
+        f"grows more than {growth}x (secular drift)")
+    return short, long

@@ -1,0 +1,248 @@
+"""The seven performance figures of issue 6, each a ratio measured side by side in one process, printed `name value`.
+
+    python tests/benchmarks/bench_performance.py [--repeats N] [--quick]
+
+mujoco_overhead      MujocoEngine µs/step over a bare mujoco.rollout (worse of euler and rk4).        target <= 1.1
+pinocchio_overhead   PinocchioEngine rk4 µs/step over a bare Python RKMK4 loop (bench_overhead.py).   target <= 1.2
+pinocchio_vs_native  PinocchioEngine rk4 µs per step of one trajectory over the native floor of a step: four
+                     articulated-body evaluations batched in C++ (pin.abaInParallel, per state). Also printed:
+                     pinocchio_batched_vs_native, an RKMK4 over an ensemble (numpy arithmetic for the group, the four
+                     stage accelerations of all members in one abaInParallel call) over the same floor.  goal <= 3
+truth_share          time computing the truth over the time of the whole sweep (the suite's four general cases,
+                     every engine).                                                                    target <= 0.05
+step_scaling         exponent of stepping time against steps over 1e3..1e6 (least squares on log-log; the one
+                     farther from 1 of MuJoCo euler and Pinocchio symplectic_euler).                   target 1 ± 0.05
+memory_scaling       peak traced memory (tracemalloc: Python and numpy allocations) of a whole run (prepare, run,
+                     metrics) of 1e6 steps over one of 1e4 steps, MuJoCo and Pinocchio, the larger.    target <= 1.2
+parallel_efficiency  sweep time with --jobs 1 over 2 x the time with --jobs 2 (same runs).             target >= 0.8
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import math
+import os
+import sys
+import tempfile
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_overhead  # noqa: E402 - the overhead benchmarks live beside this file
+
+from harness import metrics, runner  # noqa: E402
+from harness.cases import find_case, with_overrides  # noqa: E402
+from harness.engines import get_engine  # noqa: E402
+from harness.engines.pinocchio import build_model  # noqa: E402
+from harness.grid import time_grid  # noqa: E402
+from harness.runner import run_sweep  # noqa: E402
+
+GENERAL_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
+
+
+# ------------------------------------------------------------------------------------------- pinocchio vs native
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise Hamilton product of (N, 4) quaternions stored (x, y, z, w), Pinocchio's order."""
+    ax, ay, az, aw = a.T
+    bx, by, bz, bw = b.T
+    return np.stack((aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz), axis=1)
+
+
+def _exp(theta: np.ndarray) -> np.ndarray:
+    """(N, 3) rotation vectors -> (N, 4) quaternions (x, y, z, w)."""
+    angle = np.linalg.norm(theta, axis=1)
+    half = 0.5 * angle
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(angle > 1e-8, np.sin(half) / angle, 0.5 - angle ** 2 / 48.0)
+    return np.concatenate((theta * scale[:, None], np.cos(half)[:, None]), axis=1)
+
+
+def batched_rkmk4(model, pool, q: np.ndarray, v: np.ndarray, h: float, steps: int, threads: int) -> np.ndarray:
+    """RKMK4 (classical tableau, dexp⁻¹ to second order, as harness.integrators.lie.RK4) on N states at once:
+    q (N, 4) xyzw, v (N, 3). The stage accelerations come from pin.abaInParallel (column-major batches)."""
+    n = q.shape[0]
+    tau = np.zeros((model.nv, n), order="F")
+    acc = np.zeros((model.nv, n), order="F")
+
+    def accel(qs, vs):
+        pin.abaInParallel(threads, pool, np.asfortranarray(qs.T), np.asfortranarray(vs.T), tau, acc)
+        return acc.T.copy()
+
+    def dexp_inv(theta, w):
+        c = np.cross(theta, w)
+        return w + 0.5 * c + np.cross(theta, c) / 12.0
+
+    for _ in range(steps):
+        k1 = accel(q, v)
+        t2, v2 = 0.5 * h * v, v + 0.5 * h * k1
+        k2 = accel(_quat_mul(q, _exp(t2)), v2)
+        s2 = dexp_inv(t2, v2)
+        t3, v3 = 0.5 * h * s2, v + 0.5 * h * k2
+        k3 = accel(_quat_mul(q, _exp(t3)), v3)
+        s3 = dexp_inv(t3, v3)
+        t4, v4 = h * s3, v + h * k3
+        k4 = accel(_quat_mul(q, _exp(t4)), v4)
+        s4 = dexp_inv(t4, v4)
+        q = _quat_mul(q, _exp(h / 6.0 * (v + 2.0 * s2 + 2.0 * s3 + s4)))
+        v = v + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return v
+
+
+def pinocchio_vs_native(repeats: int, members: int = 1024, steps: int = 200) -> dict[str, float]:
+    case = bench_overhead.lagrange_top()
+    dt = bench_overhead.DT
+    model = build_model(case)
+    threads = os.cpu_count() or 1
+    pool = pin.ModelPool(model, threads)
+    rng = np.random.default_rng(1)
+    w, x, y, z = case.quat0
+    q = np.tile([x, y, z, w], (members, 1))
+    v = np.asarray(case.omega0) + 0.01 * rng.standard_normal((members, 3))
+    qf, vf = np.asfortranarray(q.T), np.asfortranarray(v.T)
+    tau, acc = np.zeros((3, members), order="F"), np.zeros((3, members), order="F")
+    # one trajectory of the batch agrees with the engine's RK4 (same scheme): a check that the batch is the method
+    grid = time_grid(steps * dt, dt, 2)
+    single = with_overrides(case, t_end=steps * dt)
+    import dataclasses
+    single = dataclasses.replace(single, omega0=v[0].copy())
+    reference = get_engine("pinocchio").prepare(single, "rk4", dt).run(grid).omega[-1]
+    assert np.abs(batched_rkmk4(model, pool, q, v, dt, steps, threads)[0] - reference).max() < 1e-9
+    sim = get_engine("pinocchio").prepare(case, "rk4", dt)
+    adapter_grid = time_grid(bench_overhead.PINOCCHIO_STEPS * dt, dt, bench_overhead.SAMPLES)
+    best = bench_overhead.best_interleaved({
+        "native": lambda: [pin.abaInParallel(threads, pool, qf, vf, tau, acc) for _ in range(4 * steps)],
+        "batched": lambda: batched_rkmk4(model, pool, q, v, dt, steps, threads),
+        "adapter": lambda: sim.run(adapter_grid)}, repeats)
+    native_us = best["native"] / (steps * members) * 1e6             # per state-step: four aba, natively batched
+    batched_us = best["batched"] / (steps * members) * 1e6
+    adapter_us = best["adapter"] / adapter_grid.steps * 1e6
+    return {"native_us": native_us, "batched_us": batched_us, "adapter_us": adapter_us}
+
+
+# ------------------------------------------------------------------------------------------- truth share
+
+def truth_share(jobs: int, quick: bool) -> dict[str, float]:
+    cases = [find_case(name) for name in GENERAL_CASES]
+    if quick:
+        cases = [with_overrides(c, t_end=5.0) for c in cases]
+    spent = []
+    original = runner.compute_truth
+
+    def timed(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            spent.append(time.perf_counter() - start)
+
+    runner.compute_truth = timed
+    try:
+        with tempfile.TemporaryDirectory() as out:
+            start = time.perf_counter()
+            run_sweep(cases, ["mujoco", "pinocchio", "reference"], None, Path(out), jobs=jobs)
+            total = time.perf_counter() - start
+    finally:
+        runner.compute_truth = original
+    return {"truth_s": sum(spent), "sweep_s": total}
+
+
+# ------------------------------------------------------------------------------------------- steps and memory
+
+def _stepping_time(engine: str, integrator: str, steps: int, dt: float = 1e-3) -> float:
+    case = with_overrides(find_case("free-asymmetric"), t_end=steps * dt, dt=dt)
+    grid = time_grid(case.t_end, dt, case.samples)
+    sim = get_engine(engine).prepare(case, integrator, dt)
+    sim.run(grid)  # warm-up
+    best = math.inf
+    gc.disable()
+    try:
+        for _ in range(3 if steps < 1_000_000 else 1):
+            start = time.perf_counter()
+            sim.run(grid)
+            best = min(best, time.perf_counter() - start)
+    finally:
+        gc.enable()
+    return best
+
+
+def step_scaling() -> dict[str, float]:
+    steps = np.array([1_000, 10_000, 100_000, 1_000_000])
+    out = {}
+    for engine, integrator in (("mujoco", "euler"), ("pinocchio", "symplectic_euler")):
+        times = np.array([_stepping_time(engine, integrator, int(n)) for n in steps])
+        out[engine] = float(np.polyfit(np.log(steps), np.log(times), 1)[0])
+    return out
+
+
+def _peak_bytes(engine: str, integrator: str, steps: int, dt: float = 1e-3) -> int:
+    case = with_overrides(find_case("free-asymmetric"), t_end=steps * dt, dt=dt)
+    grid = time_grid(case.t_end, dt, case.samples)
+    gc.collect()
+    tracemalloc.start()
+    try:
+        sim = get_engine(engine).prepare(case, integrator, dt)
+        traj = sim.run(grid)
+        metrics.drifts(case, traj, metrics.applicable_integrals(case))
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def memory_scaling() -> dict[str, float]:
+    return {engine: _peak_bytes(engine, integrator, 1_000_000) / _peak_bytes(engine, integrator, 10_000)
+            for engine, integrator in (("mujoco", "rk4"), ("pinocchio", "symplectic_euler"))}
+
+
+# ------------------------------------------------------------------------------------------- parallel efficiency
+
+def parallel_efficiency(quick: bool) -> dict[str, float]:
+    cases = [with_overrides(find_case(name), t_end=5.0 if quick else 20.0) for name in GENERAL_CASES]
+    times = {}
+    for jobs in (1, 2):
+        with tempfile.TemporaryDirectory() as out:
+            start = time.perf_counter()
+            run_sweep(cases, ["mujoco", "pinocchio", "reference"], None, Path(out), jobs=jobs)
+            times[jobs] = time.perf_counter() - start
+    return {"jobs1_s": times[1], "jobs2_s": times[2]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--quick", action="store_true", help="shorter sweeps for truth_share and parallel_efficiency")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as scratch:
+        os.chdir(scratch)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory on a warning
+        case = bench_overhead.lagrange_top()
+        mujoco = [bench_overhead.bench_mujoco(case, integrator, args.repeats) for integrator in ("euler", "rk4")]
+        pinocchio = bench_overhead.bench_pinocchio(case, args.repeats)
+        native = pinocchio_vs_native(args.repeats)
+        print(f"# pinocchio rk4: adapter {native['adapter_us']:.3f} us/step, batched RKMK4 "
+              f"{native['batched_us']:.3f} us/state-step, native floor (4 x abaInParallel) "
+              f"{native['native_us']:.3f} us/state-step")
+        share = truth_share(2, args.quick)
+        print(f"# truth {share['truth_s']:.2f} s of a {share['sweep_s']:.1f} s sweep")
+        scaling = step_scaling()
+        print(f"# step scaling exponents: {scaling}")
+        memory = memory_scaling()
+        print(f"# memory ratios 1e6 / 1e4 steps: {memory}")
+        parallel = parallel_efficiency(args.quick)
+        print(f"# sweep: --jobs 1 {parallel['jobs1_s']:.1f} s, --jobs 2 {parallel['jobs2_s']:.1f} s")
+        print(f"mujoco_overhead {max(a / b for a, b in mujoco):.3f}")
+        print(f"pinocchio_overhead {pinocchio['adapter'] / pinocchio['bare']:.3f}")
+        print(f"pinocchio_vs_native {native['adapter_us'] / native['native_us']:.2f}")
+        print(f"pinocchio_batched_vs_native {native['batched_us'] / native['native_us']:.2f}")
+        print(f"truth_share {share['truth_s'] / share['sweep_s']:.4f}")
+        print(f"step_scaling {max(scaling.values(), key=lambda e: abs(e - 1.0)):.3f}")
+        print(f"memory_scaling {max(memory.values()):.3f}")
+        print(f"parallel_efficiency {parallel['jobs1_s'] / (2.0 * parallel['jobs2_s']):.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,101 @@
+"""The sliding ladder (FORMULARY T5, kind "sliding_ladder"): the case format, the reference equation and its
+detachment event, the MuJoCo models' rows and check rows."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from harness import ladder
+from harness.cases import CaseError, LadderCase, find_case, load_case
+from harness.runner import RunSpec, _base_row, plan
+from harness.grid import time_grid
+from reference import ladder as ref_ladder
+
+LADDER = """kind = "sliding_ladder"
+[ladder]
+mass = 1.0
+half_length = 1.0
+theta0 = 0.3
+g = 9.81
+[run]
+t_end = 0.8
+dt = [1e-3]
+samples = 161
+"""
+
+
+def write(tmp_path, text):
+    path = tmp_path / "ladder.toml"
+    path.write_text(text)
+    return path
+
+
+def test_ladder_case_loads(tmp_path):
+    case = load_case(write(tmp_path, LADDER))
+    assert isinstance(case, LadderCase) and case.ladder.theta_dot0 == 0.0 and case.kind == "sliding_ladder"
+
+
+@pytest.mark.parametrize("old, new, key, rule", [
+    ("theta0 = 0.3", "theta0 = 1.7", "ladder.theta0", "must be in (0, pi/2)"),
+    ("mass = 1.0", "mass = 0.0", "ladder.mass", "must be > 0"),
+    ("g = 9.81", "g = 9.81\nmu = 0.2", "ladder.mu", "unknown key"),
+    ('kind = "sliding_ladder"', 'kind = "ladder"', "kind", "unknown scene kind"),
+    ("g = 9.81", "g = 9.81\ntheta_dot0 = 10.0", "ladder.theta_dot0", "the wall would pull"),
+])
+def test_bad_ladder_files_are_errors(tmp_path, old, new, key, rule):
+    with pytest.raises(CaseError) as error:
+        load_case(write(tmp_path, LADDER.replace(old, new)))
+    assert error.value.key == key and rule in error.value.rule
+
+
+def test_reference_detaches_at_the_formulary_angle():
+    """Within 1e-8 rad of arccos((2/3) cos θ0), found by a heyoka event; energy conserved."""
+    case = find_case("sliding-ladder")
+    times = np.linspace(0.0, case.t_end, case.samples)
+    motion = ref_ladder.solve(case.ladder, times)
+    assert abs(motion.detach_angle - math.acos(2.0 / 3.0 * math.cos(case.ladder.theta0))) <= 1e-8
+    assert abs(ref_ladder.wall_force(case.ladder, motion.detach_angle,
+                                     np.interp(motion.detach_time, times, motion.theta_dot))) < 1e-3
+    # Φ1 changes sign there: positive before, negative after (the bilateral wall would pull)
+    before, after = times < motion.detach_time, times > motion.detach_time
+    assert np.all(ref_ladder.wall_force(case.ladder, motion.theta[before][1:], motion.theta_dot[before][1:]) > 0)
+    assert np.all(ref_ladder.wall_force(case.ladder, motion.theta[after], motion.theta_dot[after]) < 0)
+    state = ref_ladder.planar_state(case.ladder, motion.theta, motion.theta_dot)
+    energy = ref_ladder.energy(case.ladder, state)
+    assert np.ptp(energy) / ref_ladder.energy_scale(case.ladder, state[0]) <= 1e-14
+
+
+def test_detachment_with_an_initial_rate():
+    lad = ref_ladder.Ladder(mass=2.0, half_length=0.5, theta0=0.4, theta_dot0=0.5, g=9.81)
+    motion = ref_ladder.solve(lad, np.linspace(0.0, 1.0, 101))
+    assert abs(motion.detach_angle - ref_ladder.detachment_angle(lad)) <= 1e-8
+
+
+def test_ladder_rows_and_checks(monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    case = dataclasses.replace(find_case("sliding-ladder"), dt=(1e-3,))
+    specs, skipped = plan([case], ["mujoco", "pinocchio", "reference"], ["rk4", "taylor"])
+    assert len(skipped) == 1 and "sliding ladder" in skipped[0]["message"]
+    rows = {}
+    for spec in specs:
+        grid = None if spec.dt is None else time_grid(case.t_end, spec.dt, case.samples)
+        rows[(spec.engine, spec.formulation)] = ladder.execute(spec, _base_row(spec, grid))
+    assert set(rows) == {("reference", "theta"), ("mujoco", "bilateral"), ("mujoco", "unilateral")}
+    for key, row in rows.items():
+        assert row["status"] == "ok", row.get("message")
+        quantities = {check["quantity"]: check for check in row["checks"]}
+        assert {"energy_drift", "constraint_violation"} <= set(quantities)
+        assert math.isfinite(quantities["energy_drift"]["measured"])
+        assert math.isfinite(quantities["constraint_violation"]["measured"])
+    reference = {c["quantity"]: c for c in rows[("reference", "theta")]["checks"]}
+    assert reference["detachment_angle"]["error"] <= 1e-8
+    unilateral = {c["quantity"]: c for c in rows[("mujoco", "unilateral")]["checks"]}
+    # soft contacts and one-step resolution: the top leaves the wall within 1e-2 rad of theory at dt = 1e-3
+    assert unilateral["detachment_angle"]["error"] <= 1e-2
+    # the bilateral model follows the equation over the whole motion (soft equality: violation ~5e-5 m)
+    bilateral = rows[("mujoco", "bilateral")]
+    assert bilateral["attitude_err"] <= 1e-4 and {c["quantity"]: c for c in bilateral["checks"]}[
+        "constraint_violation"]["measured"] <= 1e-4

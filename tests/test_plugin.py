@@ -1,0 +1,140 @@
+"""A third-party integrator package, built and installed in a temporary directory, registers an integrator through
+the entry-point group stereodyn.integrators; `stereodyn run --integrators heun_plugin` then runs it on the Pinocchio
+and reference engines."""
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+PACKAGE = "stereodyn_heun_plugin"
+
+PYPROJECT = f"""
+[build-system]
+requires = []
+build-backend = "wheel_backend"
+backend-path = ["."]
+
+[project]
+name = "{PACKAGE.replace('_', '-')}"
+version = "0.1.0"
+
+[project.entry-points."stereodyn.integrators"]
+heun_plugin = "{PACKAGE}:INTEGRATORS"
+"""
+
+# A PEP 517 backend in the package's own tree (backend-path): it builds the wheel with zipfile, so the test needs
+# neither network (build isolation) nor a setuptools with bdist_wheel in the venv.
+BACKEND = f'''
+import base64, hashlib, zipfile
+from pathlib import Path
+
+NAME, VERSION, PACKAGE = "{PACKAGE.replace('_', '-')}", "0.1.0", "{PACKAGE}"
+DIST_INFO = f"{PACKAGE}-{{VERSION}}.dist-info"
+FILES = {{
+    f"{{DIST_INFO}}/METADATA": f"Metadata-Version: 2.1\\nName: {{NAME}}\\nVersion: {{VERSION}}\\n",
+    f"{{DIST_INFO}}/WHEEL": "Wheel-Version: 1.0\\nGenerator: wheel_backend\\nRoot-Is-Purelib: true\\nTag: py3-none-any\\n",
+    f"{{DIST_INFO}}/entry_points.txt": "[stereodyn.integrators]\\nheun_plugin = {PACKAGE}:INTEGRATORS\\n",
+}}
+
+
+def get_requires_for_build_wheel(config_settings=None):
+    return []
+
+
+def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
+    files = dict(FILES)
+    files[f"{{PACKAGE}}/__init__.py"] = Path(PACKAGE, "__init__.py").read_text()
+    record = []
+    name = f"{PACKAGE}-{{VERSION}}-py3-none-any.whl"
+    with zipfile.ZipFile(Path(wheel_directory) / name, "w") as wheel:
+        for path, text in files.items():
+            data = text.encode()
+            wheel.writestr(path, data)
+            digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
+            record.append(f"{{path}},sha256={{digest}},{{len(data)}}")
+        record.append(f"{{DIST_INFO}}/RECORD,,")
+        wheel.writestr(f"{{DIST_INFO}}/RECORD", "\\n".join(record) + "\\n")
+    return name
+'''
+
+MODULE = '''
+"""Heun's method (explicit trapezoidal rule), as a user would add it: one tableau, both state spaces."""
+from harness.integrators import ButcherTableau, ExplicitRK, VectorRK
+
+HEUN = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
+
+
+class HeunLie(ExplicitRK):
+    name = "heun_plugin"
+    order = 2
+    tableau = HEUN
+    description = "Heun's method, Runge-Kutta-Munthe-Kaas on the group"
+
+
+class HeunVector(VectorRK):
+    name = "heun_plugin"
+    order = 2
+    tableau = HEUN
+    description = "Heun's method on a formulation's coordinates"
+
+
+INTEGRATORS = (HeunLie, HeunVector)
+'''
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Path:
+    """The package pip-installed into a target folder (the venv itself is not touched); removed with tmp_path."""
+    root = tmp_path_factory.mktemp("plugin")
+    source = root / "src"
+    (source / PACKAGE).mkdir(parents=True)
+    (source / "pyproject.toml").write_text(PYPROJECT)
+    (source / PACKAGE / "__init__.py").write_text(textwrap.dedent(MODULE))
+    (source / "wheel_backend.py").write_text(BACKEND)
+    target = root / "site"
+    result = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-build-isolation", "--no-deps",
+                             "--target", str(target), str(source)], capture_output=True, text=True, cwd=root)
+    if result.returncode != 0:
+        pytest.fail(f"pip install failed: {result.stderr[-2000:]}")
+    return target
+
+
+def _env(target: Path) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(target), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
+
+
+def test_plugin_runs_by_name_on_pinocchio_and_reference(installed, tmp_path):
+    out = tmp_path / "out"
+    result = subprocess.run([sys.executable, "-m", "harness.cli", "run", "free-asymmetric", "--engines",
+                             "pinocchio,reference", "--integrators", "heun_plugin", "--t-end", "1", "--dt", "0.01",
+                             "--out", str(out), "--quiet", "--jobs", "1"],
+                            capture_output=True, text=True, env=_env(installed), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    df = pd.read_csv(out / "results.csv").fillna({"formulation": ""})
+    rows = df[df["integrator"] == "heun_plugin"]
+    assert set(rows["engine"]) == {"pinocchio", "reference"}
+    assert (rows["status"] == "ok").all(), rows[["engine", "formulation", "status", "message"]]
+    assert (rows["attitude_err"] < 1e-3).all()  # a 2nd-order method at dt = 0.01 over 1 s: ~1e-5 rad
+
+
+def test_plugin_order_with_harness_testing(installed, tmp_path):
+    """The user's CI check, harness.testing.assert_order, in a process that sees the plug-in."""
+    code = ("from harness import testing; "
+            "print(testing.assert_order('heun_plugin', ['lagrange-top'], dts=[0.02 / 2 ** k for k in range(4)]))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(installed),
+                            cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "lagrange-top" in result.stdout
+
+
+def test_without_the_plugin_the_name_is_unknown(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "harness.cli", "run", "free-asymmetric", "--engines", "pinocchio",
+                             "--integrators", "heun_plugin", "--out", str(tmp_path / "out"), "--quiet"],
+                            capture_output=True, text=True, cwd=tmp_path)
+    assert result.returncode == 2 and "heun_plugin" in result.stderr
