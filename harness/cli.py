@@ -1,5 +1,5 @@
-"""The command line (DESIGN §5). Exit codes: 0 done (runs may have failed: that is data), 1 `check` found rows
-that got worse, 2 bad input, 130 interrupted."""
+"""The command line (DESIGN §5). Exit codes: 0 done (failed runs are data), 1 check failed, 2 bad input, 130 stopped.
+"""
 from __future__ import annotations
 
 import argparse
@@ -36,7 +36,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="stereodyn", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
     commands.add_parser("cases", help="list the suite's cases with tags")
-    run = commands.add_parser("run", help="run cases on engines; write results.csv and report.md")
+    run = commands.add_parser("run", help="run cases on engines; write results.csv, report.md and report.html")
     run.add_argument("cases", nargs="*", metavar="CASE", help="suite case names or .toml paths (default: the suite)")
     run.add_argument("--case-file", action="append", default=[], metavar="F.toml", help="a case outside the suite")
     run.add_argument("--engines", type=_list, default=list(engine_names()),

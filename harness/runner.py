@@ -6,6 +6,7 @@ import math
 import multiprocessing
 import os
 import signal
+import time
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +30,7 @@ from harness.timing import best_time
 from reference import truth as reference_truth
 
 TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR = "reference", "quaternion", "taylor"
+PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,8 +193,10 @@ def _cost(spec: RunSpec) -> float:
 
 
 def _worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
-    """The row of a run whose worker process died (e.g. a crash inside an SDK) or whose task was lost."""
-    return {**_base_row(spec, None), "status": Status.FAILED.value,
+    """The row of a run whose worker process died (e.g. a crash inside an SDK) or whose task was lost. It is shown in
+    results.csv but not stored (_lost), so --resume tries the run again: the cause may have been passing (an
+    interrupt, the memory killer, a cluster going away)."""
+    return {**_base_row(spec, None), "status": Status.FAILED.value, "_lost": True,
             "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
@@ -257,7 +261,10 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             done = [s for s in specs if keys[id(s)] in stored]
             return frame(skipped_rows + [{**stored[keys[id(s)]], **_ranks(s)} for s in done])
 
+        last_publish = [time.monotonic()]
+
         def publish() -> None:
+            last_publish[0] = time.monotonic()
             write_results(table(), results_path)
             checks.write_checks([{**stored[keys[id(s)]], **_ranks(s)} for s in specs if keys[id(s)] in stored],
                                 out_dir / checks.CHECKS_FILE)
@@ -265,9 +272,14 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
 
         def finished(spec: RunSpec, row: dict) -> None:
             key = keys[id(spec)]
-            store.put(key, identities[id(spec)], row, row.pop("_series", None))
+            series = row.pop("_series", None)
+            if not row.get("_lost"):
+                store.put(key, identities[id(spec)], row, series)
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
-            publish()
+            # The run is safe in the store already; re-assembling the tables after every run was quadratic in the
+            # sweep (seconds per run at ~1000 rows), so refresh them at most every PUBLISH_EVERY_S and at the end.
+            if time.monotonic() - last_publish[0] >= PUBLISH_EVERY_S:
+                publish()
             progress.advance(spec.label, _cost(spec), str(row.get("status", "")))
 
         publish()
@@ -286,6 +298,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             else:
                 _run_local(pending, truths, jobs or os.cpu_count() or 1, finished)
         finally:
+            publish()
             progress.close()
         return table()
 

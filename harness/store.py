@@ -121,6 +121,8 @@ class Store:
         return self
 
     def __exit__(self, *exc) -> None:
+        if exc[0] is not None:  # interrupted: an atomic write cut short between mkstemp and its try may leave one
+            self.remove_partial_files()
         if self._lock_fd is not None:
             os.close(self._lock_fd)  # closing the descriptor releases the lock
             self._lock_fd = None
