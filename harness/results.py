@@ -53,5 +53,5 @@ def write_results(df: pd.DataFrame, path: Path) -> None:
 
 
 def read_results(path: Path) -> pd.DataFrame:
-    return pd.read_csv(path, keep_default_na=True, dtype={"formulation": str, "message": str}).fillna(
-        {"formulation": "", "message": ""})
+    text = ("integrator", "formulation", "message")  # empty means "none" here, not a missing number
+    return pd.read_csv(path, keep_default_na=True, dtype=dict.fromkeys(text, str)).fillna(dict.fromkeys(text, ""))

@@ -41,6 +41,7 @@ from harness.cases import Case
 from harness.engines import get_engine
 from harness.engines.base import Status
 from harness.grid import time_grid
+from harness.report.markdown import markdown_table as _md, number as _num
 from harness.results import write_atomic
 from harness.timing import best_time
 
@@ -423,20 +424,6 @@ def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) 
         return None
     df = pd.read_csv(path, dtype={c: str for c in text_columns}, keep_default_na=True)
     return df.fillna({c: "" for c in text_columns if c in df})
-
-
-def _num(value, spec: str = ".2e") -> str:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    return "-" if math.isnan(value) else format(value, spec)
-
-
-def _md(header: list[str], rows: list[list[str]]) -> list[str]:
-    escape = lambda cell: str(cell).replace("|", "\\|")  # noqa: E731 - a bar would end the cell
-    return (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-            + ["| " + " | ".join(escape(c) for c in row) + " |" for row in rows])
 
 
 def _name(row) -> str:

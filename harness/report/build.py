@@ -18,7 +18,7 @@ import pandas as pd
 from harness import checks as theory_checks
 from harness import workprecision
 from harness.report import figures, html
-from harness.report.markdown import report_markdown
+from harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
 from harness.results import read_results, write_atomic
 from harness.store import read_manifest, read_records
 
@@ -28,20 +28,6 @@ CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity
 SUMMARY_ACCURACY = 1e-6
 # Figures per extra process when drawing in parallel: a process costs ~1 s to start, a figure ~0.5 s to draw.
 PARALLEL_FIGURES = 8
-
-
-def _num(value, digits: str = ".2e") -> str:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    return "-" if math.isnan(value) else format(value, digits)
-
-
-def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
-    escape = lambda cell: str(cell).replace("|", "\\|")  # noqa: E731 - a bar would end the cell
-    return (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-            + ["| " + " | ".join(escape(c) for c in row) + " |" for row in rows])
 
 
 def _run_name(row) -> str:

@@ -1,6 +1,7 @@
 """The drift table in the terminal and report.md."""
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -99,11 +100,25 @@ def drift_table_text(df: pd.DataFrame) -> str:
     return "\n".join(out)
 
 
-def _markdown_table(cells: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(cells[0]) + " |", "|" + "---|" * len(cells[0])]
+def number(value, spec: str = ".2e") -> str:
+    """A table cell for a number: '-' for NaN, the text itself for a non-number."""
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    return "-" if math.isnan(value) else format(value, spec)
+
+
+def markdown_table(header: list[str], rows: list[list]) -> list[str]:
+    """The lines of a Markdown table."""
     # A bar inside a cell (a message about |omega|, say) would end the cell: escape it.
-    cells = [[cell.replace("|", "\\|") for cell in row] for row in cells]
-    return "\n".join(lines + ["| " + " | ".join(row) + " |" for row in cells[1:]])
+    escape = lambda cell: str(cell).replace("|", "\\|")  # noqa: E731
+    return (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+            + ["| " + " | ".join(escape(c) for c in row) + " |" for row in rows])
+
+
+def _markdown_table(cells: list[list[str]]) -> str:
+    return "\n".join(markdown_table(cells[0], cells[1:]))
 
 
 def report_markdown(df: pd.DataFrame, summary: Sequence[str] = (), sections: Sequence[str] = (),
