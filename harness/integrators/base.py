@@ -144,3 +144,15 @@ def _padded(rows: list, n: int) -> np.ndarray:
     out = np.full((n, len(rows[0])), np.nan)
     out[:len(rows)] = rows
     return out
+
+
+class StepperIntegrator(Integrator):
+    """An integrator written as a stepper factory, which precomputes what depends only on the system and h;
+    step() builds it for a single step."""
+
+    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
+        return self.stepper(system, h)(g, v)
+
+    @abc.abstractmethod
+    def stepper(self, system: LieSystem, h: float) -> Stepper:
+        """A function (g, v) -> (g, v) doing one step of size h on system."""

@@ -22,7 +22,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from harness.integrators.base import Integrator, LieSystem, Stepper
+from harness.integrators.base import Integrator, LieSystem, Stepper, StepperIntegrator
 from harness.integrators.vector import VectorRK, VectorSystem
 from reference.body import RigidBody
 from reference.exact import free_motion
@@ -61,7 +61,7 @@ def _body_of(system, name: str) -> RigidBody:
     return body
 
 
-class ImplicitMidpoint(Integrator):
+class ImplicitMidpoint(StepperIntegrator):
     name = "implicit_midpoint"
     order = 2
     stages = 1  # accel evaluations per fixed-point iteration; rhs_evals counts iterations as one each
@@ -71,9 +71,6 @@ class ImplicitMidpoint(Integrator):
     default_sweep = False
     description = ("implicit midpoint on the group: v_bar = v + Δ/2, Δ = h a(g exp(h v_bar/2), v_bar), g exp(h v_bar); "
                    "symmetric, order 2; solved by fixed-point iteration to round-off")
-
-    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        return self.stepper(system, h)(g, v)
 
     def stepper(self, system: LieSystem, h: float) -> Stepper:
         accel, retract, array = system.accel, system.retract, np.array
@@ -152,7 +149,7 @@ class ImplicitMidpointVector(VectorRK):
         return step
 
 
-class StrangSplitting(Integrator):
+class StrangSplitting(StepperIntegrator):
     """Strang splitting: half a gravity kick, the exact torque-free flow over h (reference.exact.free_motion), half a
     kick. The kick is exact (the gravity torque depends on the attitude only: v += τ σ⁻¹ τ_g(g) = τ a(g, 0)).
     Symmetric, order 2; exact (to round-off) for the torque-free body."""
@@ -165,9 +162,6 @@ class StrangSplitting(Integrator):
     energy_bounded = True
     default_sweep = False
     description = "Strang splitting: half gravity kick, exact torque-free flow (Jacobi elliptic functions), half kick"
-
-    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        return self.stepper(system, h)(g, v)
 
     def stepper(self, system: LieSystem, h: float) -> Stepper:
         body = _body_of(system, self.name)
@@ -189,7 +183,7 @@ class StrangSplitting(Integrator):
         return step
 
 
-class MoserVeselov(Integrator):
+class MoserVeselov(StepperIntegrator):
     """The discrete Moser–Veselov scheme for the torque-free body (equivalent to RATTLE on SO(3)): find the body
     increment Q with h m̂ = Q J − J Qᵀ, J = ½ tr(σ) 1 − σ, m = σv; then g Q and m ← Qᵀ m. With Q the unit quaternion
     (s, u) the equation reads h m = 2 s σu + 2 u × σu, solved for u by fixed-point iteration to round-off. Symplectic,
@@ -203,9 +197,6 @@ class MoserVeselov(Integrator):
     energy_bounded = True
     default_sweep = False
     description = "discrete Moser–Veselov (RATTLE on SO(3)) for the torque-free body; order 2, symplectic"
-
-    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        return self.stepper(system, h)(g, v)
 
     def stepper(self, system: LieSystem, h: float) -> Stepper:
         body = _body_of(system, self.name)

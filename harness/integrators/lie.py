@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from harness.integrators.base import Integrator, LieSystem, Stepper
+from harness.integrators.base import Integrator, LieSystem, Stepper, StepperIntegrator
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ CLASSICAL_RK4 = ButcherTableau(
 )
 
 
-class ExplicitRK(Integrator):
+class ExplicitRK(StepperIntegrator):
     """Explicit Runge–Kutta on the group, driven by `tableau`; `munthe_kaas` selects the dexp^-1 correction.
 
     Stage i: theta_i = h sum_j a_ij T_j, Y_i = (g exp(theta_i), v + h sum_j a_ij K_j), K_i = accel(Y_i),
@@ -65,9 +65,6 @@ class ExplicitRK(Integrator):
     munthe_kaas: ClassVar[bool] = True
     symplectic = False
     geometric = True
-
-    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        return self.stepper(system, h)(g, v)
 
     def stepper(self, system: LieSystem, h: float) -> Stepper:
         # The arithmetic is done on Python floats, inline: on 3-vectors that is several times cheaper than numpy
