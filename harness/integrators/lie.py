@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from harness.integrators.base import Integrator, LieSystem, Stepper, StepperIntegrator
+from harness.integrators.base import BatchLieSystem, Integrator, LieSystem, Stepper, StepperIntegrator
 
 
 @dataclass(frozen=True)
@@ -113,6 +113,37 @@ class ExplicitRK(StepperIntegrator):
 
         return step
 
+    def batch_stepper(self, system: BatchLieSystem, h: float) -> Stepper:
+        # The same stages in numpy arithmetic on (N, 3) arrays: for a large ensemble the fixed cost of each numpy call
+        # is shared by all members, and the N accelerations of a stage are one call into the engine.
+        accel, retract, cross = system.accel, system.retract, np.cross
+        plan = tuple((tuple((j, h * a) for j, a in enumerate(coefficients) if a != 0.0), is_update)
+                     for coefficients, is_update in [(row, False) for row in self.tableau.a] + [(self.tableau.b, True)])
+        munthe_kaas = self.munthe_kaas
+
+        def step(g, v):
+            slopes = []  # per stage: (T_i, K_i), each (N, 3)
+            for pairs, is_update in plan:
+                if not pairs:  # theta = 0, dv = 0: the stage is the current state itself, T = v
+                    slopes.append((v, accel(g, v)))
+                    continue
+                (j, c), rest = pairs[0], pairs[1:]
+                theta, dv = c * slopes[j][0], c * slopes[j][1]
+                for j, c in rest:
+                    theta = theta + c * slopes[j][0]
+                    dv = dv + c * slopes[j][1]
+                if is_update:
+                    return retract(g, theta), v + dv
+                u = v + dv
+                k = accel(retract(g, theta), u)
+                if munthe_kaas:  # T = dexp^-1_theta(u) = u + 1/2 theta x u + 1/12 theta x (theta x u)
+                    c1 = cross(theta, u)
+                    u = u + 0.5 * c1 + cross(theta, c1) / 12.0
+                slopes.append((u, k))
+            raise AssertionError("a tableau's plan ends with its update")
+
+        return step
+
 
 class Euler(ExplicitRK):
     name = "euler"
@@ -151,3 +182,6 @@ class SymplecticEuler(Integrator):
     def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
         v = v + h * system.accel(g, v)
         return system.retract(g, h * v), v
+
+    def batch_stepper(self, system: BatchLieSystem, h: float) -> Stepper:
+        return lambda g, v: self.step(system, g, v, h)  # the same numpy expressions serve (N, 3) arrays
