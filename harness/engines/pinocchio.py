@@ -192,7 +192,7 @@ class PinocchioEnsemble:
         model, torque = build_model(case), torque_function(case.body)
         self.batch = PinocchioBatchSystem(model, threads, torque)
         self.single = PinocchioSystem(model, torque)
-        self.single.body = self.batch.body = case.body
+        self.single.body = case.body  # for the integrators without a batched form that use the body (geometric)
         self.torque_mode = "stage" if case.body.has_external_torque else "none"
         self.q0 = np.ascontiguousarray(quat0[:, [1, 2, 3, 0]])
         self.v0 = omega0
