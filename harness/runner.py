@@ -7,7 +7,9 @@ import multiprocessing
 import os
 import signal
 import time
+from collections.abc import Iterator
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -15,7 +17,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from harness import checks, ladder, metrics, oracles, series
+from harness import checks, ladder, metrics, oracles, series, timing
 from harness import integrators as integrator_registry
 from harness.cases import SLIDING_LADDER, Case
 from harness.engines import get_engine
@@ -187,9 +189,36 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
     return specs, skipped
 
 
+# The cost model of a run (execute), to start the longest runs first and to weigh the progress bar's ETA. Measured on
+# the suite's four general cases (t_end 5 and 20, every engine, 2-core AMD EPYC): one simulation pass costs about
+# PASS_US[engine] µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations 5.6-7.5), and
+# execute about 4.1-4.5 passes (the accuracy run, the timed runs, ~0.1-0.5 for metrics and check reruns) plus ~6-25 ms.
+# Only the ranking matters, so rough constants are enough; an engine not listed gets DEFAULT_PASS_US.
+PASS_US = {"mujoco": 1.5, "pinocchio": 2.6, "reference": 6.5}
+DEFAULT_PASS_US = 5.0
+RUN_OVERHEAD_S = 0.01   # prepare, metrics and the row, s
+CHECK_PASSES = 0.3      # mean extra passes of metrics and the checks' perturbed reruns
+
+
+def _stages(integrator: str) -> int:
+    """Derivative evaluations per step of a registered integrator; 1 for an engine's own (e.g. MuJoCo implicit)."""
+    for space in integrator_registry.state_spaces():
+        if integrator in integrator_registry.names(space):
+            return integrator_registry.get(integrator, space).stages
+    return 1
+
+
 def _cost(spec: RunSpec) -> float:
-    """Rough relative cost, to start the longest runs first."""
-    return 1.0 if spec.dt is None else spec.case.t_end / spec.dt
+    """Estimated seconds of execute(spec): by steps x stages x the engine's cost of a step, not by steps alone, since
+    the cost of a step differs ~4x between engines and ~4x between integrators. An adaptive run, whose steps are
+    unknown before it runs, counts as a one-stage run at the case's finest step: an upper bound for the reference's
+    Taylor runs (measured 0.02-1 times that), since underestimating a long run is what leaves it alone at the end."""
+    dt = min(spec.case.dt) if spec.dt is None else spec.dt
+    steps = math.ceil(spec.case.t_end / dt - 1e-9)
+    one_pass = steps * _stages(spec.integrator) * PASS_US.get(spec.engine, DEFAULT_PASS_US) * 1e-6
+    # timing.best_time repeats the run at most REPEATS times and stops once BUDGET_S is spent
+    timed = min(timing.REPEATS * one_pass, timing.BUDGET_S + one_pass)
+    return RUN_OVERHEAD_S + (1 + CHECK_PASSES) * one_pass + timed
 
 
 def _worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
@@ -200,38 +229,63 @@ def _worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
             "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
-def _ignore_sigint() -> None:
+def _init_worker(engines: tuple[str, ...]) -> None:
+    """A pool worker's start-up: ignore Ctrl-C and import the engines' SDKs now, while the parent computes the truths,
+    rather than in the worker's first run."""
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
     # must not die mid-run on it and send back a traceback instead of a row.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for name in engines:
+        try:
+            get_engine(name)
+        except Exception:  # the runs that need the engine record why
+            pass
 
 
-def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], jobs: int,
+@contextmanager
+def _local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[ProcessPoolExecutor | None]:
+    """The process pool of a local sweep (None when it runs in this process), its workers started at once so that
+    they spawn and import (~1 s) while the parent computes the truths. On an exception (Ctrl-C) the queued runs are
+    dropped and the running ones ended now rather than waited for."""
+    if jobs == 1 or runs <= 1:
+        yield None
+        return
+    # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_init_worker, initargs=(engines,))
+    try:
+        for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all now
+            pool.submit(int)
+        yield pool
+    except BaseException:
+        # Python < 3.14 has no public way to end a pool's workers, hence the private process table, read before
+        # shutdown() empties it.
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        raise
+    # Every run is done and stored: let the idle workers exit on their own rather than wait here for their interpreter
+    # teardown (0.2-0.5 s with the SDKs loaded, ~3% of a short sweep). Python joins them at exit at the latest.
+    pool.shutdown(wait=False)
+
+
+def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: ProcessPoolExecutor | None,
                finished: Callable[[RunSpec, dict], None]) -> None:
-    if jobs == 1 or len(specs) <= 1:
+    """Run the specs in this process (pool None) or on the pool, in the order given; finished(spec, row) as each
+    completes."""
+    if pool is None:
         for spec in specs:
             finished(spec, execute(spec, truths[spec.case.name]))
         return
-    # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
-    context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_ignore_sigint)
-    try:
-        futures: dict[Future, RunSpec] = {pool.submit(execute, s, truths[s.case.name]): s for s in specs}
-        for future in as_completed(futures):
-            spec = futures[future]
-            try:
-                row = future.result()
-            except Exception as exc:
-                row = _worker_failed_row(spec, exc)
-            finished(spec, row)
-    except BaseException:
-        # Interrupted: drop the queued runs and end the running ones now rather than waiting for them. Python < 3.14
-        # has no public way to end a pool's workers, hence the private process table.
-        pool.shutdown(wait=False, cancel_futures=True)
-        for process in list((getattr(pool, "_processes", None) or {}).values()):
-            process.terminate()
-        raise
-    pool.shutdown(wait=True)
+    futures: dict[Future, RunSpec] = {pool.submit(execute, s, truths[s.case.name]): s for s in specs}
+    for future in as_completed(futures):
+        spec = futures[future]
+        try:
+            row = future.result()
+        except Exception as exc:
+            row = _worker_failed_row(spec, exc)
+        finished(spec, row)
 
 
 def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | None, out_dir: Path,
@@ -284,22 +338,24 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
 
         publish()
         pending = [s for s in specs if keys[id(s)] not in stored]
-        truths = {}
-        for case in cases:
-            if case.kind == SLIDING_LADDER:  # harness.ladder solves the equation in each run
-                truths[case.name] = None
-            elif any(s.case is case for s in pending):
-                progress.phase(f"truth {case.name}")
-                truths[case.name] = compute_truth(case, case.dt, certify)
-        progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
-        try:
-            if scheduler:
-                run_on_cluster(scheduler, pending, truths, execute, finished, _worker_failed_row)
-            else:
-                _run_local(pending, truths, jobs or os.cpu_count() or 1, finished)
-        finally:
-            publish()
-            progress.close()
+        local_jobs = 1 if scheduler else jobs or os.cpu_count() or 1
+        with _local_pool(local_jobs, len(pending), tuple(engines)) as pool:
+            truths = {}
+            for case in cases:
+                if case.kind == SLIDING_LADDER:  # harness.ladder solves the equation in each run
+                    truths[case.name] = None
+                elif any(s.case is case for s in pending):
+                    progress.phase(f"truth {case.name}")
+                    truths[case.name] = compute_truth(case, case.dt, certify)
+            progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
+            try:
+                if scheduler:
+                    run_on_cluster(scheduler, pending, truths, execute, finished, _worker_failed_row)
+                else:
+                    _run_local(pending, truths, pool, finished)
+            finally:
+                publish()
+                progress.close()
         return table()
 
 
