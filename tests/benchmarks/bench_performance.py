@@ -105,28 +105,23 @@ def truth_share(jobs: int, quick: bool) -> dict[str, float]:
 
 # ------------------------------------------------------------------------------------------- steps and memory
 
-def _stepping_time(engine: str, integrator: str, steps: int, dt: float = 1e-3) -> float:
+def _stepping_run(engine: str, integrator: str, steps: int, dt: float = 1e-3):
+    """A prepared run of `steps` steps (the case's 1000 samples), warmed up: a callable to time."""
     case = with_overrides(find_case("free-asymmetric"), t_end=steps * dt, dt=dt)
     grid = time_grid(case.t_end, dt, case.samples)
     sim = get_engine(engine).prepare(case, integrator, dt)
-    sim.run(grid)  # warm-up
-    best = math.inf
-    gc.disable()
-    try:
-        for _ in range(3 if steps < 1_000_000 else 1):
-            start = time.perf_counter()
-            sim.run(grid)
-            best = min(best, time.perf_counter() - start)
-    finally:
-        gc.enable()
-    return best
+    return lambda: sim.run(grid)
 
 
-def step_scaling() -> dict[str, float]:
+def step_scaling(repeats: int = 3) -> dict[str, float]:
+    """Least-squares exponent of the best time over `repeats` rounds, the four sizes interleaved within a round so
+    that a slow spell of the shared machine hits every size alike, not one of them."""
     steps = np.array([1_000, 10_000, 100_000, 1_000_000])
     out = {}
     for engine, integrator in (("mujoco", "euler"), ("pinocchio", "symplectic_euler")):
-        times = np.array([_stepping_time(engine, integrator, int(n)) for n in steps])
+        runs = {int(n): _stepping_run(engine, integrator, int(n)) for n in steps}
+        best = bench_overhead.best_interleaved(runs, repeats)
+        times = np.array([best[int(n)] for n in steps])
         out[engine] = float(np.polyfit(np.log(steps), np.log(times), 1)[0])
     return out
 
