@@ -202,7 +202,8 @@ class PinocchioEnsemble:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         step = self.integrator.batch_stepper(self.batch, grid.dt)
         if step is None:
-            trajectories = [self.integrator.integrate(self.single, q, v, grid, record) for q, v in zip(self.q0, self.v0)]
+            trajectories = [self.integrator.integrate(self.single, q, v, grid, record)
+                            for q, v in zip(self.q0, self.v0)]
         else:
             trajectories = integrate_ensemble(step, self.integrator.stages, self.q0, self.v0, grid,
                                               lambda q: q[:, [3, 0, 1, 2]])

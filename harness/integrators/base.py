@@ -136,8 +136,9 @@ class Integrator(abc.ABC):
                 w0, w1, w2 = omega  # _good, inline: NaN fails the comparison; the sum is finite iff every term is
                 if not (w0 * w0 + w1 * w1 + w2 * w2 <= limit2 and isfinite(quat[0] + quat[1] + quat[2] + quat[3])):
                     bad_step, g_good = _first_bad_step(step, observe, g_last, v_last, start, target, limit2)
-                    return diverged_trajectory(grid, _padded(quats, 4, n), _padded(omegas, 3, n),
-                                               len(omegas) // 3 - 1, bad_step * grid.dt, done, self.stages * done), g_good
+                    trajectory = diverged_trajectory(grid, _padded(quats, 4, n), _padded(omegas, 3, n),
+                                                     len(omegas) // 3 - 1, bad_step * grid.dt, done, self.stages * done)
+                    return trajectory, g_good
         return Trajectory(grid.times, np.array(quats, dtype=float).reshape(n, 4),
                           np.array(omegas, dtype=float).reshape(n, 3), Status.OK, "", math.nan, grid.steps,
                           self.stages * grid.steps), g
