@@ -183,17 +183,15 @@ class PinocchioEnsemble:
     method). An integrator without a batch_stepper runs the members one after the other.
     """
 
-    def __init__(self, case: Case, integrator: integrators.Integrator, dt: float, quat0: np.ndarray,
-                 omega0: np.ndarray, threads: int):
+    def __init__(self, case: Case, simulation: PinocchioSimulation, quat0: np.ndarray, omega0: np.ndarray,
+                 threads: int):
         quat0, omega0 = np.array(quat0, dtype=float, ndmin=2), np.array(omega0, dtype=float, ndmin=2)
         if quat0.shape[1:] != (4,) or omega0.shape != (quat0.shape[0], 3):
             raise ValueError(f"an ensemble wants quat0 (N, 4) and omega0 (N, 3), got {quat0.shape} and {omega0.shape}")
-        self.integrator, self.dt = integrator, dt
-        model, torque = build_model(case), torque_function(case.body)
-        self.batch = PinocchioBatchSystem(model, threads, torque)
-        self.single = PinocchioSystem(model, torque)
-        self.single.body = case.body  # for the integrators without a batched form that use the body (geometric)
-        self.torque_mode = "stage" if case.body.has_external_torque else "none"
+        # the single run's model, system (for integrators without a batched form) and settings
+        self.integrator, self.dt = simulation.integrator, simulation.dt
+        self.single, self.torque_mode = simulation.system, simulation.torque_mode
+        self.batch = PinocchioBatchSystem(simulation.system.model, threads, torque_function(case.body))
         self.q0 = np.ascontiguousarray(quat0[:, [1, 2, 3, 0]])
         self.v0 = omega0
 
@@ -240,6 +238,4 @@ class PinocchioEngine:
         accelerations of each stage are one pin.abaInParallel call on `threads` OpenMP threads. Worth it from tens
         of members on: below that the fixed cost of the numpy calls dominates. threads > 1 only on idle cores: OpenMP
         threads contending with other processes (a sweep's workers) made a 64-member RK4 ensemble 6x slower."""
-        simulation = self.prepare(case, integrator, dt)  # the same checks and errors as a single run
-        return PinocchioEnsemble(case, simulation.integrator, float(dt), quat0, omega0,
-                                 threads)
+        return PinocchioEnsemble(case, self.prepare(case, integrator, dt), quat0, omega0, threads)

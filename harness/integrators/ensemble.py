@@ -13,7 +13,7 @@ import numpy as np
 
 from harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
 from harness.grid import TimeGrid
-from harness.integrators.base import Stepper
+from harness.integrators.base import Stepper, _first_bad_step
 
 
 def integrate_ensemble(step: Stepper, stages: int, g0: np.ndarray, v0: np.ndarray, grid: TimeGrid,
@@ -46,8 +46,10 @@ def integrate_ensemble(step: Stepper, stages: int, g0: np.ndarray, v0: np.ndarra
                 continue
             for row in np.flatnonzero(~good).tolist():
                 member = int(alive[row])
-                bad_step = _first_bad_step(step, quat_of, g_last[row:row + 1], v_last[row:row + 1], start, target,
-                                           limit2[member:member + 1])
+                # Integrator.integrate's replay, on a 1-member ensemble
+                bad_step, _ = _first_bad_step(step, lambda g1, v1: (quat_of(g1)[0].tolist(), v1[0].tolist()),
+                                              g_last[row:row + 1], v_last[row:row + 1], start, target,
+                                              float(limit2[member]))
                 outcomes[member] = diverged_trajectory(grid, quats[member], omegas[member], k, bad_step * grid.dt,
                                                        done, stages * done)
             alive, g, v = alive[good], g[good], v[good]
@@ -63,12 +65,3 @@ def _good(quat: np.ndarray, v: np.ndarray, limit2: np.ndarray) -> np.ndarray:
     """Integrator.integrate's rule row by row: |v|^2 within the limit (NaN fails) and a finite quaternion."""
     return (np.einsum("ij,ij->i", v, v) <= limit2) & np.isfinite(quat.sum(axis=1))
 
-
-def _first_bad_step(step: Stepper, quat_of, g: np.ndarray, v: np.ndarray, start: int, end: int,
-                    limit2: np.ndarray) -> int:
-    """Replay one member (a 1-row ensemble) from its last good sample at step index start: the first bad step."""
-    for index in range(start + 1, end + 1):
-        g, v = step(g, v)
-        if not _good(quat_of(g), v, limit2)[0]:
-            return index
-    return end  # not reached for a deterministic step; the sample itself is the bound
