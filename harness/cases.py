@@ -11,10 +11,10 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from reference.body import RigidBody
-from reference.exact import ORACLES as EXACT_SOLUTIONS
-from reference.ladder import Ladder, detachment_cosine
-from reference.torques import BodyTorque, CentralField, PrecessionTorque
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.exact import ORACLES as EXACT_SOLUTIONS
+from stereodyn.reference.ladder import Ladder, detachment_cosine
+from stereodyn.reference.torques import BodyTorque, CentralField, PrecessionTorque
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
@@ -146,7 +146,7 @@ def load_case(path: str | Path) -> Case | LadderCase:
 
 def suite_dir() -> Path:
     """The folder of the suite's case files (package data of `cases`, so an installed copy finds it)."""
-    return Path(str(files("cases")))
+    return Path(str(files("stereodyn.cases")))
 
 
 def load_suite(directory: str | Path | None = None) -> list[Case]:
@@ -454,7 +454,7 @@ class _Parser:
                 raise self.fail("expect.oracle", f"unknown oracle {oracle!r} (known: {', '.join(ORACLES)})")
             if oracle not in EXACT_SOLUTIONS:
                 raise self.fail("expect.oracle", f"oracle {oracle!r} is not available yet (no exact solution in "
-                                                 f"reference.exact; available: {', '.join(EXACT_SOLUTIONS)})")
+                                                 f"stereodyn.reference.exact; available: {', '.join(EXACT_SOLUTIONS)})")
         horizon = None
         if "horizon" in data:
             horizon = self.positive(data["horizon"], "expect.horizon")

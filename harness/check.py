@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.results import read_results, write_atomic
+from stereodyn.harness.results import read_results, write_atomic
 
 KEY = ("case", "engine", "formulation", "integrator", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}

@@ -25,11 +25,11 @@ import pandas as pd
 from numpy.polynomial import Polynomial
 from scipy.optimize import brentq
 
-from harness.cases import Case
-from harness.engines.base import Status, Trajectory
-from harness.results import SORT_KEYS, write_atomic
-from reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
-from reference.rotations import quat_conj, quat_mul, quat_to_matrix
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.base import Status, Trajectory
+from stereodyn.harness.results import SORT_KEYS, write_atomic
+from stereodyn.reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
+from stereodyn.reference.rotations import quat_conj, quat_mul, quat_to_matrix
 
 ROW_KEY = "checks"      # a run's row carries its check rows under this key, so the result store keeps them with it
 CHECKS_FILE = "checks.csv"

@@ -7,9 +7,9 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from harness import cases as case_files
-from harness.cases import CaseError
-from harness.engines import engine_names
+from stereodyn.harness import cases as case_files
+from stereodyn.harness.cases import CaseError
+from stereodyn.harness.engines import engine_names
 
 DEFAULT_OUT = "out"
 
@@ -102,7 +102,7 @@ def _select_cases(args) -> list:
 
 
 def _check_names(args) -> None:
-    from harness.engines import get_engine
+    from stereodyn.harness.engines import get_engine
 
     unknown = [e for e in args.engines if e not in engine_names()]
     if unknown:
@@ -126,10 +126,10 @@ def cmd_cases(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from harness.progress import ProgressBar
-    from harness.report.build import write_reports
-    from harness.report.markdown import drift_table_text
-    from harness.runner import run_sweep
+    from stereodyn.harness.progress import ProgressBar
+    from stereodyn.harness.report.build import write_reports
+    from stereodyn.harness.report.markdown import drift_table_text
+    from stereodyn.harness.runner import run_sweep
 
     _check_names(args)
     chosen = _select_cases(args)
@@ -146,7 +146,7 @@ def cmd_run(args) -> int:
 def _work_precision(args, chosen: list, df) -> None:
     """ladder.csv, convergence.csv, pareto.csv and the orders in checks.csv (harness.workprecision). The default
     suite (no CASE, no --case-file, no --dt) gets the small default ladder; --dt-ladder every family's."""
-    from harness import workprecision
+    from stereodyn.harness import workprecision
 
     if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
         raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}")
@@ -163,7 +163,7 @@ def _work_precision(args, chosen: list, df) -> None:
 
 
 def cmd_report(args) -> int:
-    from harness.report.build import write_reports
+    from stereodyn.harness.report.build import write_reports
 
     results = args.dir / "results.csv"
     if not results.is_file():
@@ -174,8 +174,8 @@ def cmd_report(args) -> int:
 
 
 def cmd_baseline(args) -> int:
-    from harness import check
-    from harness.store import read_manifest
+    from stereodyn.harness import check
+    from stereodyn.harness.store import read_manifest
 
     manifest = read_manifest(args.dir) or {}
     rows = check.write_baseline(check.read_table(args.dir), args.out, manifest.get("environment"))
@@ -184,7 +184,7 @@ def cmd_baseline(args) -> int:
 
 
 def cmd_check(args) -> int:
-    from harness import check
+    from stereodyn.harness import check
 
     tolerances = check.Tolerances()
     if args.tolerances is not None:
@@ -216,8 +216,8 @@ def cmd_check(args) -> int:
 
 
 def cmd_export(args) -> int:
-    from harness.export import export
-    from harness.results import write_atomic
+    from stereodyn.harness.export import export
+    from stereodyn.harness.results import write_atomic
 
     text = export(case_files.find_case(args.case), args.format, args.integrator, args.dt)
     if args.out is None:
@@ -229,10 +229,10 @@ def cmd_export(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from harness.check import GateError
-    from harness.distributed import ClusterError
-    from harness.export import ExportError
-    from harness.store import StoreBusy
+    from stereodyn.harness.check import GateError
+    from stereodyn.harness.distributed import ClusterError
+    from stereodyn.harness.export import ExportError
+    from stereodyn.harness.store import StoreBusy
 
     args = _parser().parse_args(argv)
     commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,

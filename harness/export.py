@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-from harness.cases import Case
+from stereodyn.harness.cases import Case
 
 FORMATS = ("mjcf", "urdf")
 DEFAULT_MJCF_INTEGRATOR = "rk4"
@@ -21,7 +21,7 @@ def export(case: Case, fmt: str, integrator: str | None = None, dt: float | None
     """The model text. integrator and dt (default rk4 and the case's first dt) only go into MJCF's <option>."""
     if fmt not in FORMATS:
         raise ExportError(f"--format: unknown format {fmt!r}; valid: {', '.join(FORMATS)}")
-    module = {"mjcf": "harness.engines.mujoco", "urdf": "harness.engines.pinocchio"}[fmt]
+    module = {"mjcf": "stereodyn.harness.engines.mujoco", "urdf": "stereodyn.harness.engines.pinocchio"}[fmt]
     try:
         adapter = importlib.import_module(module)
     except ImportError as exc:

@@ -16,11 +16,11 @@ import math
 
 import numpy as np
 
-from harness import checks
-from harness.engines import get_engine
-from harness.engines.base import LadderTrajectory, Status
-from harness.grid import time_grid
-from reference import ladder as ref_ladder
+from stereodyn.harness import checks
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import LadderTrajectory, Status
+from stereodyn.harness.grid import time_grid
+from stereodyn.reference import ladder as ref_ladder
 
 EQUATION, TAYLOR = "theta", "taylor"
 PINOCCHIO_REASON = ("Pinocchio adapter does not model the sliding ladder: its constraints (ends on the wall and the "
@@ -30,7 +30,7 @@ PINOCCHIO_REASON = ("Pinocchio adapter does not model the sliding ladder: its co
 def specs(case, engine_name: str, engine_rank: int, chosen: list[str], spec_type) -> tuple[list, list]:
     """(runs, skipped rows) of one ladder case on one engine with its chosen integrators; spec_type:
     harness.runner.RunSpec."""
-    from harness.runner import skipped_row
+    from stereodyn.harness.runner import skipped_row
     if engine_name == "reference":
         return [spec_type(case, engine_name, TAYLOR, None, engine_rank, 0, EQUATION, 0)], []
     engine = get_engine(engine_name)
@@ -65,7 +65,7 @@ def run(spec) -> LadderTrajectory:
 
 def execute(spec, base_row: dict) -> dict:
     """One ladder run's row (metrics, checks, timing); never raises."""
-    from harness.timing import best_time
+    from stereodyn.harness.timing import best_time
     row = dict(base_row)
     try:
         ladder, grid = spec.case.ladder, _grid(spec)

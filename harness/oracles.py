@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 
-from harness.cases import Case
-from harness.engines.base import Trajectory
-from reference.exact import ORACLES
-from reference.rotations import attitude_angle, quat_to_matrix
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.base import Trajectory
+from stereodyn.reference.exact import ORACLES
+from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 # Samples at t <= horizon * (1 + HORIZON_RTOL) count as within the horizon (as in harness.metrics.errors): a sample
 # time is steps * dt, which can land a rounding error past a horizon that is meant to include it.

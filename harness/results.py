@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
+from stereodyn.harness.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
            "wall_s", "us_per_step", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err", "truth_err", "chart_changes",

@@ -17,19 +17,19 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from harness import checks, ladder, metrics, oracles, series, timing
-from harness import integrators as integrator_registry
-from harness.cases import SLIDING_LADDER, Case
-from harness.engines import get_engine
-from harness.engines.base import Status, Trajectory
-from harness.grid import TimeGrid, time_grid
-from harness.distributed import run_on_cluster
-from harness.environment import environment as current_environment
-from harness.progress import ProgressBar
-from harness.results import frame, write_results
-from harness.store import Store, run_key
-from harness.timing import best_time
-from reference import truth as reference_truth
+from stereodyn.harness import checks, ladder, metrics, oracles, series, timing
+from stereodyn.harness import integrators as integrator_registry
+from stereodyn.harness.cases import SLIDING_LADDER, Case
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import Status, Trajectory
+from stereodyn.harness.grid import TimeGrid, time_grid
+from stereodyn.harness.distributed import run_on_cluster
+from stereodyn.harness.environment import environment as current_environment
+from stereodyn.harness.progress import ProgressBar
+from stereodyn.harness.results import frame, write_results
+from stereodyn.harness.store import Store, run_key
+from stereodyn.harness.timing import best_time
+from stereodyn.reference import truth as reference_truth
 
 TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR = "reference", "quaternion", "taylor"
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.cases import Case
-from harness.engines.base import Trajectory
-from reference import torques
-from reference.integrals import INTEGRALS
-from reference.rotations import attitude_angle, quat_to_matrix
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.base import Trajectory
+from stereodyn.reference import torques
+from stereodyn.reference.integrals import INTEGRALS
+from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 POINTS = 200
 DIGITS = 4  # significant digits kept: enough for a log-scale plot, a fifth of the bytes of a full double

@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from harness.cases import Case
-from harness.environment import library_versions
-from harness.results import write_atomic
+from stereodyn.harness.cases import Case
+from stereodyn.harness.environment import library_versions
+from stereodyn.harness.results import write_atomic
 
 STORE_DIR = "store"
 MANIFEST = "runs.json"

@@ -1,6 +1,6 @@
 """pytest helpers for checking an integrator in your own CI: its declared order, and its bounded energy error.
 
-    from harness.testing import assert_order, assert_bounded_energy
+    from stereodyn.harness.testing import assert_order, assert_bounded_energy
 
     def test_my_integrator_order():
         assert_order(MyIntegrator, cases=["free-asymmetric", "lagrange-top"])
@@ -19,14 +19,14 @@ from typing import Iterable
 
 import numpy as np
 
-from harness import integrators as registry
-from harness import metrics
-from harness.cases import Case, find_case, with_overrides
-from harness.engines import get_engine
-from harness.engines.base import Status
-from harness.grid import time_grid
-from harness.integrators.base import Integrator
-from reference import truth as reference_truth
+from stereodyn.harness import integrators as registry
+from stereodyn.harness import metrics
+from stereodyn.harness.cases import Case, find_case, with_overrides
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import Status
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.integrators.base import Integrator
+from stereodyn.reference import truth as reference_truth
 
 # A fitted order within this of the declared one passes: the asymptotic fits of the suite's integrators land within
 # 0.15 of their order (convergence.csv), and an order off by a whole unit is what a wrong method shows.

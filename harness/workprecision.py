@@ -36,14 +36,14 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from harness import checks, metrics
-from harness.cases import Case
-from harness.engines import get_engine
-from harness.engines.base import Status
-from harness.grid import time_grid
-from harness.report.markdown import markdown_table as _md, number as _num
-from harness.results import write_atomic
-from harness.timing import best_time
+from stereodyn.harness import checks, metrics
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import Status
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
+from stereodyn.harness.results import write_atomic
+from stereodyn.harness.timing import best_time
 
 LADDER_FILE, CONVERGENCE_FILE, PARETO_FILE = "ladder.csv", "convergence.csv", "pareto.csv"
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
@@ -91,7 +91,7 @@ ENGINE_STATE_SPACE = {"pinocchio": "lie", "reference": "vector"}
 def declared_order(engine: str, integrator: str) -> float:
     if (engine, integrator) in ENGINE_ORDERS:
         return float(ENGINE_ORDERS[(engine, integrator)])
-    from harness import integrators
+    from stereodyn.harness import integrators
 
     try:
         return float(integrators.get(integrator, ENGINE_STATE_SPACE.get(engine, "lie")).order)
@@ -133,7 +133,7 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
         drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
         row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
         if with_truth:
-            from reference import truth as reference_truth
+            from stereodyn.reference import truth as reference_truth
 
             truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
             row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
@@ -258,7 +258,7 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
              formulations: tuple[str, ...] | None = None) -> list[Family]:
     """The fixed-step run families a sweep of these cases would have (harness.runner.plan's selection)."""
-    from harness.runner import plan
+    from stereodyn.harness.runner import plan
 
     specs, _ = plan(cases, engines, integrators)
     out = {}

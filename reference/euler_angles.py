@@ -15,8 +15,8 @@ from __future__ import annotations
 import heyoka as hy
 import numpy as np
 
-from reference import expressions as ex
-from reference.rotations import matrix_to_zxz, quat_mul, quat_to_matrix
+from stereodyn.reference import expressions as ex
+from stereodyn.reference.rotations import matrix_to_zxz, quat_mul, quat_to_matrix
 
 
 def _split(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

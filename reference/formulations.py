@@ -32,10 +32,10 @@ from typing import ClassVar
 import heyoka as hy
 import numpy as np
 
-from reference import euler_angles, euler_poisson, gibbs, truth
-from reference import expressions as ex
-from reference.body import RigidBody
-from reference.rotations import quat_mul, quat_normalize, quat_to_matrix
+from stereodyn.reference import euler_angles, euler_poisson, gibbs, truth
+from stereodyn.reference import expressions as ex
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.rotations import quat_mul, quat_normalize, quat_to_matrix
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -261,7 +261,7 @@ class Quaternion(Formulation):
         return compiled_rhs(self.name)(y, pars=self._compiled_pars, time=0.0)
 
     def rhs_parameters(self, chart):
-        """reference.truth's parameters: the body's, the unused threshold slot, the torques (reference.torques)."""
+        """stereodyn.reference.truth's parameters: the body's, the unused threshold slot, the torques (reference.torques)."""
         return np.concatenate([ex.parameters(self.body, chart.frame, 0.0), truth.torque_parameters(self.body)])
 
     @classmethod

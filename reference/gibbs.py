@@ -16,8 +16,8 @@ from __future__ import annotations
 import heyoka as hy
 import numpy as np
 
-from reference import expressions as ex
-from reference.rotations import skew
+from stereodyn.reference import expressions as ex
+from stereodyn.reference.rotations import skew
 
 # skew(e_r) for r = 0, 1, 2: ∂Q/∂q^r.
 _UNIT_SKEWS = skew(np.eye(3))

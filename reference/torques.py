@@ -27,10 +27,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from reference.rotations import quat_to_matrix
+from stereodyn.reference.rotations import quat_to_matrix
 
 if TYPE_CHECKING:
-    from reference.body import RigidBody
+    from stereodyn.reference.body import RigidBody
 
 # Degree of the spline through the samples of M·ω whose antiderivative is the work: error O(h^8) on smooth samples,
 # far below the 1e-12 the truth's balance is judged against for the suite's sample spacings (h |ω| <= 0.05).

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.cases import (ORACLES, BodyTorque, CaseError, CentralField, find_case, load_case, load_suite, suite_dir,
+from stereodyn.harness.cases import (ORACLES, BodyTorque, CaseError, CentralField, find_case, load_case, load_suite, suite_dir,
                            with_overrides)
-from reference.exact import ORACLES as EXACT_SOLUTIONS
+from stereodyn.reference.exact import ORACLES as EXACT_SOLUTIONS
 
 # A valid case (a Kovalevskaya top with every optional table but [central_field]); the bad files below are edits of it.
 BASE = """\
@@ -140,7 +140,7 @@ def quat_matrix(q: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------------ the suite
 
 def test_suite_dir_is_the_cases_package():
-    assert suite_dir() == Path(str(files("cases")))
+    assert suite_dir() == Path(str(files("stereodyn.cases")))
     assert sorted(p.name for p in suite_dir().glob("*.toml")) == sorted(f"{name}.toml" for name in SUITE)
 
 
@@ -540,7 +540,7 @@ def test_with_overrides():
 
 
 def test_attitudes_agree_with_reference_rotations(tmp_path):
-    rotations = pytest.importorskip("reference.rotations")   # written in parallel; the loader does not depend on it
+    rotations = pytest.importorskip("stereodyn.reference.rotations")   # written in parallel; the loader does not depend on it
     for case in load_suite():
         if case.kind != "rigid_body":
             continue

@@ -5,9 +5,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness import check, cli, runner
-from harness.cases import find_case, with_overrides
-from harness.engines import engine_names
+from stereodyn.harness import check, cli, runner
+from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.engines import engine_names
 
 SWEEP = ["lagrange-top", "heavy-asymmetric", "--t-end", "0.5", "--dt", "1e-2", "--jobs", "1", "--quiet"]
 REPO = Path(__file__).resolve().parents[1]

@@ -8,13 +8,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import checks, cli
-from harness.cases import find_case
-from harness.engines.base import Status, Trajectory
-from harness.grid import time_grid
-from reference.exact import lyapunov_exponent, sleeping_top_threshold
-from reference.rotations import quat_exp
-from reference.truth import truth
+from stereodyn.harness import checks, cli
+from stereodyn.harness.cases import find_case
+from stereodyn.harness.engines.base import Status, Trajectory
+from stereodyn.harness.grid import time_grid
+from stereodyn.reference.exact import lyapunov_exponent, sleeping_top_threshold
+from stereodyn.reference.rotations import quat_exp
+from stereodyn.reference.truth import truth
 
 # The suite's sample spacing: t_end 20 over 999 intervals.
 TIMES = np.linspace(0.0, 20.0, 1000)

@@ -2,7 +2,7 @@
 import pandas as pd
 import pytest
 
-from harness import cli, distributed as stereodyn_distributed
+from stereodyn.harness import cli, distributed as stereodyn_distributed
 
 dask_distributed = pytest.importorskip(
     "distributed", reason="dask.distributed is not installed (pip install 'stereodyn[dask]')")
@@ -20,7 +20,7 @@ def test_a_local_cluster_gives_the_local_table(tmp_path, capsys):
         assert cli.main(["run", *SWEEP, "--scheduler", cluster.scheduler_address, "--out", str(remote)]) == 0
         # Results are keyed by this process's library versions: workers with others are refused.
         with dask_distributed.Client(cluster) as client:
-            client.run(exec, "from harness import environment as e; "
+            client.run(exec, "from stereodyn.harness import environment as e; "
                              "e.library_versions = lambda real=e.library_versions: {**real(), 'mujoco': '0.0.1'}")
         capsys.readouterr()
         assert cli.main(["run", *SWEEP, "--scheduler", cluster.scheduler_address, "--out", str(tmp_path / "x")]) == 2

@@ -8,17 +8,17 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-import harness.integrators as integrators
-from harness.cases import BodyTorque, Case, CentralField
-from harness.engines.base import DIVERGENCE_FACTOR, Status
-from harness.grid import time_grid
-from harness.integrators import ButcherTableau, ExplicitRK
-from reference import truth as reference_truth
-from reference.euler_poisson import omega_dot
-from reference.rotations import attitude_angle, quat_mul, quat_to_matrix
+import stereodyn.harness.integrators as integrators
+from stereodyn.harness.cases import BodyTorque, Case, CentralField
+from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
+from stereodyn.reference import truth as reference_truth
+from stereodyn.reference.euler_poisson import omega_dot
+from stereodyn.reference.rotations import attitude_angle, quat_mul, quat_to_matrix
 
-mujoco_engine = pytest.importorskip("harness.engines.mujoco")
-pinocchio_engine = pytest.importorskip("harness.engines.pinocchio")
+mujoco_engine = pytest.importorskip("stereodyn.harness.engines.mujoco")
+pinocchio_engine = pytest.importorskip("stereodyn.harness.engines.pinocchio")
 MUJOCO = mujoco_engine.MujocoEngine()
 PINOCCHIO = pinocchio_engine.PinocchioEngine()
 ENGINES = {"mujoco": MUJOCO, "pinocchio": PINOCCHIO}

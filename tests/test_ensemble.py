@@ -6,11 +6,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from harness.cases import find_case, with_overrides
-from harness.engines import get_engine
-from harness.engines.base import Status
-from harness.engines.pinocchio import build_model, retract_rows
-from harness.grid import time_grid
+from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import Status
+from stereodyn.harness.engines.pinocchio import build_model, retract_rows
+from stereodyn.harness.grid import time_grid
 
 ENGINE = get_engine("pinocchio")
 

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.cases import Case
-from harness.engines.base import Status
-from harness.engines.reference import ReferenceEngine
-from harness.grid import time_grid
-from reference import euler_angles, formulations, truth
-from reference.body import RigidBody
-from reference.expressions import THRESHOLD
-from reference.rotations import attitude_angle, quat_to_matrix, zxz_to_matrix
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.base import Status
+from stereodyn.harness.engines.reference import ReferenceEngine
+from stereodyn.harness.grid import time_grid
+from stereodyn.reference import euler_angles, formulations, truth
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.expressions import THRESHOLD
+from stereodyn.reference.rotations import attitude_angle, quat_to_matrix, zxz_to_matrix
 
 HEAVY = RigidBody(np.array([[2.0, 0.1, -0.05], [0.1, 1.6, 0.08], [-0.05, 0.08, 1.1]]), 1.0,
                   np.array([0.1, -0.05, 0.25]), 9.81,

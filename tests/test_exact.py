@@ -1,4 +1,4 @@
-"""reference.exact: the oracle registry, every exact motion substituted back into the Euler–Poisson equations and the
+"""stereodyn.reference.exact: the oracle registry, every exact motion substituted back into the Euler–Poisson equations and the
 quaternion kinematics, the checks' teeth, and the elliptic building blocks."""
 import dataclasses
 import math
@@ -8,13 +8,13 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 from scipy.special import ellipj, ellipk
 
-from reference.body import RigidBody
-from reference.euler_poisson import downward_vertical, quat_dot
-from reference.exact import (ORACLES, Oracle, Setup, free_motion, grioli_body, grioli_precession, hess_grioli,
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.euler_poisson import downward_vertical, quat_dot
+from stereodyn.reference.exact import (ORACLES, Oracle, Setup, free_motion, grioli_body, grioli_precession, hess_grioli,
                              hess_grioli_body, lagrange_precession, mlodzejowski, pendulum, separatrix_omega,
                              staude_direction, staude_rotation)
-from reference.exact._util import first_kind, jacobi, third_kind_complete, third_kind_reduced
-from reference.rotations import matrix_to_quat, zxz_to_matrix
+from stereodyn.reference.exact._util import first_kind, jacobi, third_kind_complete, third_kind_reduced
+from stereodyn.reference.rotations import matrix_to_quat, zxz_to_matrix
 
 G = 9.81
 QUAT = matrix_to_quat(zxz_to_matrix(0.3, 1.2, -0.4))

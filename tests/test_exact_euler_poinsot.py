@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
-from reference.body import RigidBody
-from reference.exact import (free_motion, lyapunov_exponent, montgomery_phase, oscillation_frequencies, period,
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.exact import (free_motion, lyapunov_exponent, montgomery_phase, oscillation_frequencies, period,
                              precession_per_period, separatrix_distance, separatrix_omega, solid_angle,
                              unstable_direction)
-from reference.rotations import attitude_angle, matrix_to_quat, quat_to_matrix, zxz_to_matrix
-from reference.truth import truth
+from stereodyn.reference.rotations import attitude_angle, matrix_to_quat, quat_to_matrix, zxz_to_matrix
+from stereodyn.reference.truth import truth
 
 # The bound for the exact attitude against the real128 truth over 10 periods. Measured: <= 5e-13 (the
 # oracle's float64 rates over ~1000 rad of rotation).

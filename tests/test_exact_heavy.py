@@ -5,14 +5,14 @@ import math
 import numpy as np
 import pytest
 
-from reference.body import RigidBody
-from reference.exact import (ORACLES, grioli_body, grioli_precession, grioli_rate, grioli_vertical, hess_frame,
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.exact import (ORACLES, grioli_body, grioli_precession, grioli_rate, grioli_vertical, hess_frame,
                              hess_grioli, hess_grioli_body, lagrange_precession, lagrange_rates, mlodzejowski,
                              mlodzejowski_axis, sleeping_top_threshold, staude_direction, staude_rate_squared,
                              staude_rotation)
-from reference.euler_poisson import downward_vertical
-from reference.rotations import attitude_angle, quat_to_matrix, zxz_to_matrix
-from reference.truth import truth
+from stereodyn.reference.euler_poisson import downward_vertical
+from stereodyn.reference.rotations import attitude_angle, quat_to_matrix, zxz_to_matrix
+from stereodyn.reference.truth import truth
 
 G = 9.81
 # The bound for an oracle against the truth (within the horizon of an unstable motion).

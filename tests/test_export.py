@@ -4,12 +4,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from harness import cli
-from harness.cases import load_suite
-from harness.engines.mujoco import MujocoEngine
-from harness.engines.pinocchio import PinocchioSystem, build_model
-from reference.euler_poisson import omega_dot
-from reference.rotations import matrix_to_quat
+from stereodyn.harness import cli
+from stereodyn.harness.cases import load_suite
+from stereodyn.harness.engines.mujoco import MujocoEngine
+from stereodyn.harness.engines.pinocchio import PinocchioSystem, build_model
+from stereodyn.reference.euler_poisson import omega_dot
+from stereodyn.reference.rotations import matrix_to_quat
 
 # Scenes whose torque enters at run time (or that are not a body with a fixed point) have no exported model:
 # test_a_case_the_adapters_cannot_model_is_bad_input.

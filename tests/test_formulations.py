@@ -8,20 +8,20 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import cli, runner
-from harness.cases import Case, find_case, load_suite
-from harness.engines import get_engine
-from harness.engines.base import Status
-from harness.engines.reference import FormulationSystem, ReferenceEngine
-from harness.grid import time_grid
-from harness.integrators import get as get_integrator
-from harness.report.markdown import formulation_lines
-from harness.results import COLUMNS
-from reference import formulations, truth
-from reference.body import RigidBody
-from reference.euler_angles import to_quat
-from reference.expressions import THRESHOLD
-from reference.rotations import attitude_angle, quat_to_matrix
+from stereodyn.harness import cli, runner
+from stereodyn.harness.cases import Case, find_case, load_suite
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import Status
+from stereodyn.harness.engines.reference import FormulationSystem, ReferenceEngine
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.integrators import get as get_integrator
+from stereodyn.harness.report.markdown import formulation_lines
+from stereodyn.harness.results import COLUMNS
+from stereodyn.reference import formulations, truth
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.euler_angles import to_quat
+from stereodyn.reference.expressions import THRESHOLD
+from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 NAMES = ("quaternion", "gibbs", "gibbs_hamiltonian", "euler_zxz")
 CHARTED = NAMES[1:]

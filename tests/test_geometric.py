@@ -2,13 +2,13 @@
 import numpy as np
 import pytest
 
-from harness import integrators, testing
-from harness.cases import find_case, with_overrides
-from harness.engines import get_engine
-from harness.grid import time_grid
-from harness.integrators.geometric import ImplicitMidpoint, MoserVeselov, StrangSplitting
-from reference import truth as reference_truth
-from reference.rotations import attitude_angle, quat_to_matrix
+from stereodyn.harness import integrators, testing
+from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.integrators.geometric import ImplicitMidpoint, MoserVeselov, StrangSplitting
+from stereodyn.reference import truth as reference_truth
+from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 SMALL_DTS = [0.02 / 2 ** k for k in range(5)]  # the Lagrange top spins at 15 rad/s: h |ω| <= 0.3
 

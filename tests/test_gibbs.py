@@ -8,10 +8,10 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from reference import formulations, gibbs
-from reference.body import RigidBody
-from reference.expressions import THRESHOLD
-from reference.rotations import gibbs_compose, gibbs_to_matrix, gibbs_to_quat, quat_mul, quat_to_gibbs, quat_to_matrix
+from stereodyn.reference import formulations, gibbs
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.expressions import THRESHOLD
+from stereodyn.reference.rotations import gibbs_compose, gibbs_to_matrix, gibbs_to_quat, quat_mul, quat_to_gibbs, quat_to_matrix
 
 RNG_SEED = 20260121
 N = 1000
@@ -269,7 +269,7 @@ def test_hamiltonian_is_conserved_on_the_asymmetric_heavy_top():
     sample's own chart: relative drift <= 1e-13 (scale: kinetic + |potential| at t = 0, DESIGN §4)."""
     body = RigidBody(np.array([[2.0, 0.1, -0.05], [0.1, 1.6, 0.08], [-0.05, 0.08, 1.1]]), 1.0,
                      np.array([0.1, -0.05, 0.25]), 9.81, np.array([0.0, 0.0, -1.0]))
-    from reference.euler_angles import to_quat
+    from stereodyn.reference.euler_angles import to_quat
 
     quat0, omega0 = to_quat(np.array([0.1, 0.7, 0.3])), np.array([1.0, -0.5, 2.0])
     run = formulations.integrate_taylor("gibbs_hamiltonian", body, quat0, omega0, np.linspace(0.0, 20.0, 2001))

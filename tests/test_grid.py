@@ -1,6 +1,6 @@
 import numpy as np
 
-from harness.grid import time_grid
+from stereodyn.harness.grid import time_grid
 
 
 def test_steps_and_samples_follow_the_contract():

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from reference.body import RigidBody
-from reference.euler_poisson import downward_vertical, omega_dot, rhs
-from reference.integrals import INTEGRALS, Integral, drift
-from reference.rotations import quat_exp, quat_mul, quat_to_matrix, zxz_to_matrix, matrix_to_quat
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.euler_poisson import downward_vertical, omega_dot, rhs
+from stereodyn.reference.integrals import INTEGRALS, Integral, drift
+from stereodyn.reference.rotations import quat_exp, quat_mul, quat_to_matrix, zxz_to_matrix, matrix_to_quat
 
 G = 9.81
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])

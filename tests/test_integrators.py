@@ -8,16 +8,16 @@ from importlib.metadata import EntryPoint
 import numpy as np
 import pytest
 
-import harness.integrators as integrators
-from harness.engines.base import DIVERGENCE_FACTOR, Status
-from harness.grid import time_grid
-from harness.integrators import ButcherTableau, ExplicitRK, Integrator, get, names, register
-from harness.integrators.lie import RK4, CLASSICAL_RK4
-from harness.integrators.vector import VectorRK4
-from reference import truth as reference_truth
-from reference.body import RigidBody
-from reference.euler_poisson import omega_dot
-from reference.rotations import attitude_angle, quat_exp, quat_mul, quat_to_matrix
+import stereodyn.harness.integrators as integrators
+from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, Integrator, get, names, register
+from stereodyn.harness.integrators.lie import RK4, CLASSICAL_RK4
+from stereodyn.harness.integrators.vector import VectorRK4
+from stereodyn.reference import truth as reference_truth
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.euler_poisson import omega_dot
+from stereodyn.reference.rotations import attitude_angle, quat_exp, quat_mul, quat_to_matrix
 
 BUILTIN = ("euler", "symplectic_euler", "rk4", "rk4_naive")
 
@@ -140,7 +140,7 @@ def test_register_as_decorator_and_name_conflicts(scratch_registry):
 
 def test_entry_point_plugins_load_lazily(scratch_registry, monkeypatch, tmp_path):
     (tmp_path / "stereodyn_test_plugin.py").write_text(
-        "from harness.integrators import ButcherTableau, ExplicitRK\n"
+        "from stereodyn.harness.integrators import ButcherTableau, ExplicitRK\n"
         "class Ralston(ExplicitRK):\n"
         "    name = 'test_ralston'\n"
         "    order = 2\n"

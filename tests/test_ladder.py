@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from harness import ladder
-from harness.cases import CaseError, LadderCase, find_case, load_case
-from harness.runner import RunSpec, _base_row, plan
-from harness.grid import time_grid
-from reference import ladder as ref_ladder
+from stereodyn.harness import ladder
+from stereodyn.harness.cases import CaseError, LadderCase, find_case, load_case
+from stereodyn.harness.runner import RunSpec, _base_row, plan
+from stereodyn.harness.grid import time_grid
+from stereodyn.reference import ladder as ref_ladder
 
 LADDER = """kind = "sliding_ladder"
 [ladder]

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness import cli
-from harness.cases import load_suite
-from harness.checks import read_checks
-from harness.results import read_results
+from stereodyn.harness import cli
+from stereodyn.harness.cases import load_suite
+from stereodyn.harness.checks import read_checks
+from stereodyn.harness.results import read_results
 
 REPO = Path(__file__).resolve().parent.parent
 # The bound on oracle_err, the truth against the exact solution, within each case's horizon.

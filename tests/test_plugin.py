@@ -63,7 +63,7 @@ def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
 
 MODULE = '''
 """Heun's method (explicit trapezoidal rule), as a user would add it: one tableau, both state spaces."""
-from harness.integrators import ButcherTableau, ExplicitRK, VectorRK
+from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, VectorRK
 
 HEUN = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
 
@@ -111,7 +111,7 @@ def _env(target: Path) -> dict:
 
 def test_plugin_runs_by_name_on_pinocchio_and_reference(installed, tmp_path):
     out = tmp_path / "out"
-    result = subprocess.run([sys.executable, "-m", "harness.cli", "run", "free-asymmetric", "--engines",
+    result = subprocess.run([sys.executable, "-m", "stereodyn.harness.cli", "run", "free-asymmetric", "--engines",
                              "pinocchio,reference", "--integrators", "heun_plugin", "--t-end", "1", "--dt", "0.01",
                              "--out", str(out), "--quiet", "--jobs", "1"],
                             capture_output=True, text=True, env=_env(installed), cwd=tmp_path)
@@ -125,7 +125,7 @@ def test_plugin_runs_by_name_on_pinocchio_and_reference(installed, tmp_path):
 
 def test_plugin_order_with_harness_testing(installed, tmp_path):
     """The user's CI check, harness.testing.assert_order, in a process that sees the plug-in."""
-    code = ("from harness import testing; "
+    code = ("from stereodyn.harness import testing; "
             "print(testing.assert_order('heun_plugin', ['lagrange-top'], dts=[0.02 / 2 ** k for k in range(4)]))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(installed),
                             cwd=tmp_path)
@@ -134,7 +134,7 @@ def test_plugin_order_with_harness_testing(installed, tmp_path):
 
 
 def test_without_the_plugin_the_name_is_unknown(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "harness.cli", "run", "free-asymmetric", "--engines", "pinocchio",
+    result = subprocess.run([sys.executable, "-m", "stereodyn.harness.cli", "run", "free-asymmetric", "--engines", "pinocchio",
                              "--integrators", "heun_plugin", "--out", str(tmp_path / "out"), "--quiet"],
                             capture_output=True, text=True, cwd=tmp_path)
     assert result.returncode == 2 and "heun_plugin" in result.stderr

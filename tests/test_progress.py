@@ -1,9 +1,9 @@
 """The progress bar: drawn on a terminal with an ETA, silent otherwise."""
 import io
 
-from harness import cli, runner
-from harness.cases import find_case, with_overrides
-from harness.progress import ProgressBar
+from stereodyn.harness import cli, runner
+from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.progress import ProgressBar
 
 
 class Terminal(io.StringIO):

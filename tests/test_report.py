@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 from matplotlib import image as mpimg
 
-from harness import cli
-from harness.report import build
-from harness.report.html import render
+from stereodyn.harness import cli
+from stereodyn.harness.report import build
+from stereodyn.harness.report.html import render
 
 SECTIONS = {"summary": "## Summary", "drift-tables": "## Drift tables", "work-precision": "## Work–precision",
             "invariants-against-time": "## Invariants against time",

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from reference.rotations import (attitude_angle, gibbs_compose, gibbs_to_matrix, gibbs_to_quat, matrix_to_gibbs,
+from stereodyn.reference.rotations import (attitude_angle, gibbs_compose, gibbs_to_matrix, gibbs_to_quat, matrix_to_gibbs,
                                  matrix_to_quat, matrix_to_zxz, quat_conj, quat_exp, quat_log, quat_mul,
                                  quat_normalize, quat_to_gibbs, quat_to_matrix, skew, zxz_to_matrix)
 

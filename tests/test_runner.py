@@ -5,9 +5,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import cli, runner
-from harness.engines import get_engine
-from harness.results import COLUMNS
+from stereodyn.harness import cli, runner
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.results import COLUMNS
 
 
 def run_cli(*argv):
@@ -105,9 +105,9 @@ def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path, monkeypatch):
 
 
 def test_a_missing_engine_makes_its_runs_skipped(tmp_path, monkeypatch):
-    from harness import engines
+    from stereodyn.harness import engines
 
-    monkeypatch.setitem(engines._ENGINES, "mujoco", ("harness.engines.no_such_sdk", "Nothing"))
+    monkeypatch.setitem(engines._ENGINES, "mujoco", ("stereodyn.harness.engines.no_such_sdk", "Nothing"))
     engines.get_engine.cache_clear()
     try:
         assert run_cli("free-asymmetric", "--engines", "mujoco,reference", "--t-end", "0.5", "--jobs", "1",

@@ -5,9 +5,9 @@ import time
 
 import pytest
 
-from harness import runner
-from harness.cases import find_case, with_overrides
-from harness.runner import RunSpec
+from stereodyn.harness import runner
+from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.runner import RunSpec
 
 
 def spec(engine, integrator, dt, case="lagrange-top", formulation=""):

@@ -12,9 +12,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness import cli
-from harness.cases import find_case
-from harness.store import Store, StoreBusy, run_identity, run_key
+from stereodyn.harness import cli
+from stereodyn.harness.cases import find_case
+from stereodyn.harness.store import Store, StoreBusy, run_identity, run_key
 
 TIMINGS = ["wall_s", "us_per_step"]
 # Two cases, both simulators, 32 runs; the slowest take ~0.1 s, so a sweep on one process lasts a few seconds.
@@ -97,7 +97,7 @@ def _interrupted(out: Path, sig: int, jobs: str, at_least: int) -> tuple[int, di
     """Start the sweep in its own process group, send `sig` to the group once `at_least` runs are stored."""
     log = out.parent / f"{out.name}.stderr"  # a file, not a pipe: a full pipe would stall the sweep
     with log.open("w") as stderr:
-        process = subprocess.Popen([sys.executable, "-m", "harness.cli", "run", *SWEEP, "--jobs", jobs, "--out",
+        process = subprocess.Popen([sys.executable, "-m", "stereodyn.harness.cli", "run", *SWEEP, "--jobs", jobs, "--out",
                                     str(out)], stdout=subprocess.DEVNULL, stderr=stderr, start_new_session=True)
     try:
         deadline = time.monotonic() + 120
@@ -150,7 +150,7 @@ def test_ctrl_c_stops_a_parallel_sweep_keeping_every_finished_run(uninterrupted,
 
 
 def test_a_run_whose_worker_died_is_not_stored_and_is_retried(tmp_path, monkeypatch):
-    from harness import runner
+    from stereodyn.harness import runner
 
     argv = ["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler,rk4", "--t-end", "0.2",
             "--dt", "1e-2", "--jobs", "1", "--quiet", "--out", str(tmp_path)]

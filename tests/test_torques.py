@@ -9,15 +9,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from harness import metrics
-from harness.cases import find_case, load_suite
-from harness.engines import get_engine
-from harness.engines.base import Status
-from harness.grid import time_grid
-from harness.runner import plan
-from reference import torques, truth
-from reference.exact import ORACLES
-from reference.rotations import attitude_angle, quat_to_matrix
+from stereodyn.harness import metrics
+from stereodyn.harness.cases import find_case, load_suite
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import Status
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.runner import plan
+from stereodyn.reference import torques, truth
+from stereodyn.reference.exact import ORACLES
+from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 
 def truth_run(case, t_end=None, samples=None):
@@ -57,8 +57,8 @@ def test_central_field_energy_or_jacobi_integral_is_conserved_by_the_truth(name)
 
 
 def test_numpy_and_heyoka_right_hand_sides_agree_with_every_torque():
-    from reference import euler_poisson
-    from reference.formulations import get
+    from stereodyn.reference import euler_poisson
+    from stereodyn.reference.formulations import get
     rng = np.random.default_rng(3)
     for name in ("self-excited-conic", "central-field-fixed", "generalized-precession"):
         case = find_case(name)
@@ -171,7 +171,7 @@ def adapter_run(case, dt, grid):
 
 def refreshed_once_per_step(case, dt, grid):
     """What the adapter must not do: qfrc_applied refreshed from Python between steps, held through the stages."""
-    from harness.engines.mujoco import MujocoSimulation
+    from stereodyn.harness.engines.mujoco import MujocoSimulation
     sim = MujocoSimulation(case, "rk4", dt)
     torque = torques.torque_function(case.body)
     model, data = sim.model, sim.data

@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from reference import truth as truth_module
-from reference.body import RigidBody
-from reference.euler_poisson import rhs
-from reference.integrals import INTEGRALS, drift
-from reference.rotations import attitude_angle, matrix_to_quat, quat_to_matrix, zxz_to_matrix
-from reference.truth import TRUTH_TOL, TruthResult, taylor_integrator, truth, truth_error
+from stereodyn.reference import truth as truth_module
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.euler_poisson import rhs
+from stereodyn.reference.integrals import INTEGRALS, drift
+from stereodyn.reference.rotations import attitude_angle, matrix_to_quat, quat_to_matrix, zxz_to_matrix
+from stereodyn.reference.truth import TRUTH_TOL, TruthResult, taylor_integrator, truth, truth_error
 
 G = 9.81
 

@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from reference.body import RigidBody
-from reference.euler_poisson import downward_vertical
-from reference.exact import (Setup, free_motion, grioli_body, grioli_precession, hess_grioli_body, lagrange_precession,
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.euler_poisson import downward_vertical
+from stereodyn.reference.exact import (Setup, free_motion, grioli_body, grioli_precession, hess_grioli_body, lagrange_precession,
                              lagrange_rates, lyapunov_exponent, separatrix_distance, sleeping_top_threshold,
                              staude_rate_squared)
-from reference.rotations import matrix_to_quat, zxz_to_matrix
+from stereodyn.reference.rotations import matrix_to_quat, zxz_to_matrix
 
 CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
 HEADER = "# Written by tools/make_oracle_cases.py from reference.exact: edit that script and rerun it, not this file.\n"
@@ -227,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="compare with the committed files, write nothing")
     parser.add_argument("--out", type=Path, default=CASES_DIR, help=f"folder (default {CASES_DIR})")
     args = parser.parse_args(argv)
-    from harness.cases import load_case  # validates every file as the suite will, [expect] oracle included
+    from stereodyn.harness.cases import load_case  # validates every file as the suite will, [expect] oracle included
 
     stale = []
     for spec in specs():

@@ -4,13 +4,13 @@ from __future__ import annotations
 import importlib
 from functools import cache
 
-from harness.engines.base import Engine
+from stereodyn.harness.engines.base import Engine
 
 # name -> (module, class); the module is the only place its SDK is imported.
 _ENGINES: dict[str, tuple[str, str]] = {
-    "mujoco": ("harness.engines.mujoco", "MujocoEngine"),
-    "pinocchio": ("harness.engines.pinocchio", "PinocchioEngine"),
-    "reference": ("harness.engines.reference", "ReferenceEngine"),
+    "mujoco": ("stereodyn.harness.engines.mujoco", "MujocoEngine"),
+    "pinocchio": ("stereodyn.harness.engines.pinocchio", "PinocchioEngine"),
+    "reference": ("stereodyn.harness.engines.reference", "ReferenceEngine"),
 }
 
 

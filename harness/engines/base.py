@@ -7,11 +7,11 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from reference.torques import PRECESSION_SINGULAR_ANGLE, transverse_angle
+from stereodyn.reference.torques import PRECESSION_SINGULAR_ANGLE, transverse_angle
 
 if TYPE_CHECKING:
-    from harness.cases import Case
-    from harness.grid import TimeGrid
+    from stereodyn.harness.cases import Case
+    from stereodyn.harness.grid import TimeGrid
 
 
 class Status(str, enum.Enum):

@@ -21,11 +21,11 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from harness.cases import Case
-from harness.engines.base import (DIVERGENCE_FACTOR, LadderTrajectory, Status, Trajectory, diverged_trajectory,
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.base import (DIVERGENCE_FACTOR, LadderTrajectory, Status, Trajectory, diverged_trajectory,
                                   precession_singular)
-from harness.grid import TimeGrid
-from reference.torques import torque_function
+from stereodyn.harness.grid import TimeGrid
+from stereodyn.reference.torques import torque_function
 
 # harness name -> (MJCF option value, dynamics evaluations per step)
 INTEGRATORS: dict[str, tuple[str, int]] = {

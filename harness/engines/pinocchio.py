@@ -14,12 +14,12 @@ import functools
 import numpy as np
 import pinocchio as pin
 
-from harness import integrators
-from harness.cases import Case
-from harness.engines.base import Trajectory, precession_singular
-from harness.grid import TimeGrid
-from harness.integrators.ensemble import integrate_ensemble
-from reference.torques import torque_function
+from stereodyn.harness import integrators
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.base import Trajectory, precession_singular
+from stereodyn.harness.grid import TimeGrid
+from stereodyn.harness.integrators.ensemble import integrate_ensemble
+from stereodyn.reference.torques import torque_function
 
 
 class PinocchioSystem:

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import integrators
-from harness.cases import Case
-from harness.engines.base import Status, Trajectory, diverged_trajectory, precession_singular
-from harness.grid import TimeGrid
-from reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
-from reference.formulations import Chart, ChartSingularity, Formulation
+from stereodyn.harness import integrators
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.base import Status, Trajectory, diverged_trajectory, precession_singular
+from stereodyn.harness.grid import TimeGrid
+from stereodyn.reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
+from stereodyn.reference.formulations import Chart, ChartSingularity, Formulation
 
 TAYLOR = "taylor"
 STATE_SPACE = "vector"

@@ -17,8 +17,8 @@ from typing import Callable, ClassVar, Protocol
 
 import numpy as np
 
-from harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
-from harness.grid import TimeGrid
+from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
+from stereodyn.harness.grid import TimeGrid
 
 Stepper = Callable[[object, np.ndarray], tuple[object, np.ndarray]]
 

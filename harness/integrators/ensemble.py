@@ -11,9 +11,9 @@ from typing import Callable
 
 import numpy as np
 
-from harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
-from harness.grid import TimeGrid
-from harness.integrators.base import Stepper, _first_bad_step
+from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
+from stereodyn.harness.grid import TimeGrid
+from stereodyn.harness.integrators.base import Stepper, _first_bad_step
 
 
 def integrate_ensemble(step: Stepper, stages: int, g0: np.ndarray, v0: np.ndarray, grid: TimeGrid,

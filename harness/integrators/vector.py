@@ -12,10 +12,10 @@ from typing import ClassVar, Protocol
 
 import numpy as np
 
-from harness.engines.base import Trajectory
-from harness.grid import TimeGrid
-from harness.integrators.base import Integrator, Stepper
-from harness.integrators.lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
+from stereodyn.harness.engines.base import Trajectory
+from stereodyn.harness.grid import TimeGrid
+from stereodyn.harness.integrators.base import Integrator, Stepper
+from stereodyn.harness.integrators.lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
 
 
 class VectorSystem(Protocol):

@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness import checks as theory_checks
-from harness import workprecision
-from harness.report import figures, html
-from harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
-from harness.results import read_results, write_atomic
-from harness.store import read_manifest, read_records
+from stereodyn.harness import checks as theory_checks
+from stereodyn.harness import workprecision
+from stereodyn.harness.report import figures, html
+from stereodyn.harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
+from stereodyn.harness.results import read_results, write_atomic
+from stereodyn.harness.store import read_manifest, read_records
 
 FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")

@@ -7,7 +7,7 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from harness.environment import environment
+from stereodyn.harness.environment import environment
 
 TERMINAL_COLUMNS = ("engine", "formulation", "integrator", "dt", "status", "energy_drift", "momentum_drift",
                     "casimir_drift",

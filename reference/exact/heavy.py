@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reference.body import RigidBody
-from reference.exact._util import (CONDITION_RTOL, axis_angle_quat, continuous_signs, orthogonal_unit,
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.exact._util import (CONDITION_RTOL, axis_angle_quat, continuous_signs, orthogonal_unit,
                                    principal_axes, rotation_taking, unit)
-from reference.exact.pendulum import pendulum
-from reference.rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
+from stereodyn.reference.exact.pendulum import pendulum
+from stereodyn.reference.rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,7 +38,7 @@ class Setup:
 
     def motion(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(n,) s -> (quat (n, 4), omega (n, 3) rad/s body): the exact motion from this state."""
-        from reference.exact import ORACLES  # the registry imports this module
+        from stereodyn.reference.exact import ORACLES  # the registry imports this module
 
         return ORACLES[self.oracle].solve(self.body, self.quat0, self.omega0, np.asarray(times, dtype=float))
 

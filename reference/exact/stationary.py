@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from reference.body import RigidBody
-from reference.exact._util import principal_axes
+from stereodyn.reference.body import RigidBody
+from stereodyn.reference.exact._util import principal_axes
 
 
 def _triaxial_moments(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:

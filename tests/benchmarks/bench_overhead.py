@@ -25,10 +25,10 @@ import numpy as np
 import pinocchio as pin
 from mujoco import rollout
 
-from harness.cases import Case
-from harness.engines.mujoco import MujocoEngine
-from harness.engines.pinocchio import PinocchioEngine, build_model
-from harness.grid import time_grid
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines.mujoco import MujocoEngine
+from stereodyn.harness.engines.pinocchio import PinocchioEngine, build_model
+from stereodyn.harness.grid import time_grid
 
 DT = 1e-3
 MUJOCO_STEPS = 100_000      # 10 rollout chunks in the adapter; ~0.1 s a run

@@ -35,12 +35,12 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_overhead  # noqa: E402 - the overhead benchmarks live beside this file
 
-from harness import metrics, runner  # noqa: E402
-from harness.cases import find_case, with_overrides  # noqa: E402
-from harness.engines import get_engine  # noqa: E402
-from harness.engines.pinocchio import build_model  # noqa: E402
-from harness.grid import time_grid  # noqa: E402
-from harness.runner import run_sweep  # noqa: E402
+from stereodyn.harness import metrics, runner  # noqa: E402
+from stereodyn.harness.cases import find_case, with_overrides  # noqa: E402
+from stereodyn.harness.engines import get_engine  # noqa: E402
+from stereodyn.harness.engines.pinocchio import build_model  # noqa: E402
+from stereodyn.harness.grid import time_grid  # noqa: E402
+from stereodyn.harness.runner import run_sweep  # noqa: E402
 
 GENERAL_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
 
