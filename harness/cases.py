@@ -13,7 +13,7 @@ import numpy as np
 
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.exact import ORACLES as EXACT_SOLUTIONS
-from stereodyn.reference.ladder import Ladder, detachment_cosine
+from stereodyn.reference.sliding_ladder import Ladder, detachment_cosine
 from stereodyn.reference.torques import BodyTorque, CentralField, PrecessionTorque
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
@@ -102,7 +102,7 @@ class Case:
 @dataclass(frozen=True, eq=False)
 class LadderCase:
     """A sliding-ladder scene (kind "sliding_ladder", FORMULARY T5): a planar, constrained one-degree-of-freedom
-    rod, not a body with a fixed point; harness.ladder runs it. ladder: reference.ladder.Ladder."""
+    rod, not a body with a fixed point; harness.sliding_ladder runs it. ladder: reference.sliding_ladder.Ladder."""
 
     name: str
     description: str

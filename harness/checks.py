@@ -26,7 +26,7 @@ from numpy.polynomial import Polynomial
 from scipy.optimize import brentq
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import Status, Trajectory
+from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.harness.results import SORT_KEYS, write_atomic
 from stereodyn.reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
 from stereodyn.reference.rotations import quat_conj, quat_mul, quat_to_matrix

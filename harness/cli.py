@@ -65,15 +65,15 @@ def _parser() -> argparse.ArgumentParser:
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
     baseline.add_argument("dir", type=Path)
     baseline.add_argument("--out", type=Path, required=True, metavar="FILE", help="baseline file to write (JSON)")
-    check = commands.add_parser("check", help="exit 1 and print the rows of DIR that got worse than the baseline")
-    check.add_argument("dir", type=Path)
-    check.add_argument("--baseline", type=Path, required=True, metavar="FILE")
-    check.add_argument("--tolerances", type=Path, default=None, metavar="FILE.toml",
+    gate = commands.add_parser("check", help="exit 1 and print the rows of DIR that got worse than the baseline")
+    gate.add_argument("dir", type=Path)
+    gate.add_argument("--baseline", type=Path, required=True, metavar="FILE")
+    gate.add_argument("--tolerances", type=Path, default=None, metavar="FILE.toml",
                        help="[default] factor/floor, [metric.NAME] factor/floor, [time] factor")
-    check.add_argument("--factor", type=float, default=None,
+    gate.add_argument("--factor", type=float, default=None,
                        help="a drift or error may grow to factor * baseline + floor (default 2, every metric)")
-    check.add_argument("--floor", type=float, default=None, help="absolute floor (default 1e-12, every metric)")
-    check.add_argument("--time-factor", type=float, default=None,
+    gate.add_argument("--floor", type=float, default=None, help="absolute floor (default 1e-12, every metric)")
+    gate.add_argument("--time-factor", type=float, default=None,
                        help="also fail when us_per_step exceeds this factor times the baseline's")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
@@ -174,21 +174,21 @@ def cmd_report(args) -> int:
 
 
 def cmd_baseline(args) -> int:
-    from stereodyn.harness import check
+    from stereodyn.harness import gate
     from stereodyn.harness.store import read_manifest
 
     manifest = read_manifest(args.dir) or {}
-    rows = check.write_baseline(check.read_table(args.dir), args.out, manifest.get("environment"))
+    rows = gate.write_baseline(gate.read_table(args.dir), args.out, manifest.get("environment"))
     print(f"wrote {args.out} ({rows} rows)")
     return 0
 
 
 def cmd_check(args) -> int:
-    from stereodyn.harness import check
+    from stereodyn.harness import gate
 
-    tolerances = check.Tolerances()
+    tolerances = gate.Tolerances()
     if args.tolerances is not None:
-        tolerances = check.read_tolerances(args.tolerances)
+        tolerances = gate.read_tolerances(args.tolerances)
     for option, value in (("--factor", args.factor), ("--time-factor", args.time_factor)):
         if value is not None and not value >= 1.0:
             raise BadInput(f"{option}: must be >= 1, got {value:g}")
@@ -201,13 +201,13 @@ def cmd_check(args) -> int:
             per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
     if args.time_factor is not None:
         tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
-    baseline = check.read_baseline(args.baseline)
-    current = check.read_table(args.dir)
-    findings = check.compare(current, baseline, tolerances)
-    extra = check.new_rows(current, baseline)
+    baseline = gate.read_baseline(args.baseline)
+    current = gate.read_table(args.dir)
+    findings = gate.compare(current, baseline, tolerances)
+    extra = gate.new_rows(current, baseline)
     note = f"; {extra} rows not in the baseline (not checked)" if extra else ""
     if findings:
-        print(check.findings_table(findings))
+        print(gate.findings_table(findings))
         rows = len({f.key for f in findings})
         print(f"check failed: {rows} of {len(baseline)} baseline rows got worse than {args.baseline} allows{note}")
         return 1
@@ -229,7 +229,7 @@ def cmd_export(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from stereodyn.harness.check import GateError
+    from stereodyn.harness.gate import GateError
     from stereodyn.harness.distributed import ClusterError
     from stereodyn.harness.export import ExportError
     from stereodyn.harness.store import StoreBusy

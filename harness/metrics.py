@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import Trajectory
+from stereodyn.harness.trajectory import Trajectory
 from stereodyn.reference import torques
 from stereodyn.reference.integrals import INTEGRALS, drift
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix

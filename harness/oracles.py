@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import Trajectory
+from stereodyn.harness.trajectory import Trajectory
 from stereodyn.reference.exact import ORACLES
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 

@@ -17,11 +17,11 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks, ladder, metrics, oracles, series, timing
+from stereodyn.harness import checks, metrics, oracles, series, sliding_ladder, timing
 from stereodyn.harness import integrators as integrator_registry
 from stereodyn.harness.cases import SLIDING_LADDER, Case
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Status, Trajectory
+from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.harness.grid import TimeGrid, time_grid
 from stereodyn.harness.distributed import run_on_cluster
 from stereodyn.harness.environment import environment as current_environment
@@ -122,7 +122,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
     grid = truth_grid(spec.case) if spec.dt is None else time_grid(spec.case.t_end, spec.dt, spec.case.samples)
     row = _base_row(spec, grid)
     if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
-        return ladder.execute(spec, row)
+        return sliding_ladder.execute(spec, row)
     try:
         formulation = {"formulation": spec.formulation} if spec.formulation else {}
         engine = get_engine(spec.engine)
@@ -171,7 +171,7 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
         adaptive = getattr(engine, "adaptive", lambda integrator: False)
         for case in cases:
             if case.kind == SLIDING_LADDER:
-                ladder_specs, ladder_skipped = ladder.specs(case, name, engine_rank, chosen, RunSpec)
+                ladder_specs, ladder_skipped = sliding_ladder.specs(case, name, engine_rank, chosen, RunSpec)
                 specs += ladder_specs
                 skipped += ladder_skipped
                 continue
@@ -342,7 +342,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         with _local_pool(local_jobs, len(pending), tuple(engines)) as pool:
             truths = {}
             for case in cases:
-                if case.kind == SLIDING_LADDER:  # harness.ladder solves the equation in each run
+                if case.kind == SLIDING_LADDER:  # harness.sliding_ladder solves the equation in each run
                     truths[case.name] = None
                 elif any(s.case is case for s in pending):
                     progress.phase(f"truth {case.name}")

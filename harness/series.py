@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import Trajectory
+from stereodyn.harness.trajectory import Trajectory
 from stereodyn.reference import torques
 from stereodyn.reference.integrals import INTEGRALS
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix

@@ -23,7 +23,7 @@ from stereodyn.harness import integrators as registry
 from stereodyn.harness import metrics
 from stereodyn.harness.cases import Case, find_case, with_overrides
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Status
+from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators.base import Integrator
 from stereodyn.reference import truth as reference_truth

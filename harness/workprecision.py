@@ -39,7 +39,7 @@ import pandas as pd
 from stereodyn.harness import checks, metrics
 from stereodyn.harness.cases import Case
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Status
+from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
 from stereodyn.harness.results import write_atomic

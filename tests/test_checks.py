@@ -10,7 +10,7 @@ import pytest
 
 from stereodyn.harness import checks, cli
 from stereodyn.harness.cases import find_case
-from stereodyn.harness.engines.base import Status, Trajectory
+from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.harness.grid import time_grid
 from stereodyn.reference.exact import lyapunov_exponent, sleeping_top_threshold
 from stereodyn.reference.rotations import quat_exp

@@ -10,7 +10,7 @@ import pytest
 
 import stereodyn.harness.integrators as integrators
 from stereodyn.harness.cases import BodyTorque, Case, CentralField
-from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status
+from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
 from stereodyn.reference import truth as reference_truth

@@ -8,7 +8,7 @@ import pytest
 
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Status
+from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.pinocchio import build_model, retract_rows
 from stereodyn.harness.grid import time_grid
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import Status
+from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.reference import ReferenceEngine
 from stereodyn.harness.grid import time_grid
 from stereodyn.reference import euler_angles, formulations, truth

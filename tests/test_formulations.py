@@ -11,7 +11,7 @@ import pytest
 from stereodyn.harness import cli, runner
 from stereodyn.harness.cases import Case, find_case, load_suite
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Status
+from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.reference import FormulationSystem, ReferenceEngine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import get as get_integrator

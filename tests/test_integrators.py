@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import stereodyn.harness.integrators as integrators
-from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status
+from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, Integrator, get, names, register
 from stereodyn.harness.integrators.lie import RK4, CLASSICAL_RK4

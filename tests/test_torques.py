@@ -12,7 +12,7 @@ import pytest
 from stereodyn.harness import metrics
 from stereodyn.harness.cases import find_case, load_suite
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Status
+from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.runner import plan
 from stereodyn.reference import torques, truth

@@ -1,53 +1,16 @@
 """The engine protocol: build a case's model, roll it out with an integrator and a step, return a Trajectory."""
 from __future__ import annotations
 
-import enum
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from stereodyn.harness.trajectory import Trajectory
 from stereodyn.reference.torques import PRECESSION_SINGULAR_ANGLE, transverse_angle
 
 if TYPE_CHECKING:
     from stereodyn.harness.cases import Case
     from stereodyn.harness.grid import TimeGrid
-
-
-class Status(str, enum.Enum):
-    OK = "ok"
-    DIVERGED = "diverged"
-    FAILED = "failed"
-    SKIPPED = "skipped"
-
-
-# A state whose angular speed passes this many times the initial scale (plus 1 rad/s) counts as diverged:
-# no conservative motion of these scenes gets anywhere near it, and NaN follows soon after anyway.
-DIVERGENCE_FACTOR = 1e6
-
-
-@dataclass(frozen=True, eq=False)
-class Trajectory:
-    """States recorded on a TimeGrid's sample times.
-
-    times: (n,) s.
-    quat: (n, 4) attitude quaternion, scalar first (w, x, y, z), body -> world, as the engine left it (not renormalised).
-    omega: (n, 3) rad/s, body frame.
-    After a divergence the remaining samples are NaN and diverged_at (s) is the first time a state was bad.
-    steps: steps taken; rhs_evals: right-hand-side (dynamics) evaluations, where the engine counts them.
-    chart_changes: changes of attitude chart made by a formulation with charts (None where there are none).
-    """
-
-    times: np.ndarray
-    quat: np.ndarray
-    omega: np.ndarray
-    status: Status = Status.OK
-    message: str = ""
-    diverged_at: float = float("nan")
-    steps: int = 0
-    rhs_evals: int = 0
-    info: dict = field(default_factory=dict)
-    chart_changes: int | None = None
 
 
 class Simulation(Protocol):
@@ -74,27 +37,6 @@ class Engine(Protocol):
         """Build the model (not timed)."""
 
 
-def first_bad_sample(omega: np.ndarray, quat: np.ndarray, omega0: np.ndarray) -> int | None:
-    """Index of the first sample that is not finite or whose |omega| is beyond DIVERGENCE_FACTOR, else None."""
-    limit = DIVERGENCE_FACTOR * (1.0 + float(np.linalg.norm(omega0)))
-    with np.errstate(invalid="ignore"):
-        bad = ~np.isfinite(omega).all(axis=1) | ~np.isfinite(quat).all(axis=1) | (np.linalg.norm(omega, axis=1) > limit)
-    hits = np.flatnonzero(bad)
-    return int(hits[0]) if hits.size else None
-
-
-def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, bad: int, diverged_at: float,
-                        steps: int, rhs_evals: int = 0, message: str | None = None) -> Trajectory:
-    """A Trajectory whose samples from `bad` on are NaN, with status diverged and message (default: the divergence
-    rule's)."""
-    quat, omega = quat.copy(), omega.copy()
-    quat[bad:] = np.nan
-    omega[bad:] = np.nan
-    if message is None:
-        message = f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s"
-    return Trajectory(grid.times, quat, omega, Status.DIVERGED, message, diverged_at, steps, rhs_evals)
-
-
 def precession_singular(case: Case) -> str | None:
     """Torque (41) is singular at ω ∥ u = i3: a case starting within PRECESSION_SINGULAR_ANGLE of it is skipped."""
     if case.precession_torque is None:
@@ -104,24 +46,3 @@ def precession_singular(case: Case) -> str | None:
         return (f"[precession_torque] singular: omega0 within {angle:.3g} rad of u = i3 (torque (41) needs "
                 f">= {PRECESSION_SINGULAR_ANGLE:g} rad)")
     return None
-
-
-@dataclass(frozen=True, eq=False)
-class LadderTrajectory:
-    """The sliding ladder's recorded states (harness.ladder): not a body with a fixed point.
-
-    times: (n,) s. state: (n, 6) x, y (m, centre of the rod; wall x = 0, floor y = 0), θ (rad from the wall), and
-    their rates (m/s, rad/s). violation: (n,) m, how far the model's ends are off the wall and floor (bilateral:
-    the equality residual; unilateral: the contacts' penetration). detach_angle: rad, θ where the wall's push on the
-    top reached zero (NaN where not measured).
-    """
-
-    times: np.ndarray
-    state: np.ndarray
-    violation: np.ndarray
-    status: Status = Status.OK
-    message: str = ""
-    diverged_at: float = float("nan")
-    steps: int = 0
-    detach_angle: float = float("nan")
-    info: dict = field(default_factory=dict)

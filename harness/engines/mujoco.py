@@ -10,7 +10,7 @@ every RK4 stage included, with that stage's qpos, qvel and time. Refreshing qfrc
 instead would hold the torque through the stages and make RK4 first order (tests/test_torques.py shows it). Torqued
 scenes are stepped from Python with mj_step (the callback is process-global: set for the run, restored after).
 
-The sliding ladder (harness.ladder) is built here too, as planar rods: ladder_simulation().
+The sliding ladder (harness.sliding_ladder) is built here too, as planar rods: sliding_ladder_simulation().
 """
 from __future__ import annotations
 
@@ -22,8 +22,9 @@ import numpy as np
 from mujoco import rollout
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import (DIVERGENCE_FACTOR, LadderTrajectory, Status, Trajectory, diverged_trajectory,
-                                  precession_singular)
+from stereodyn.harness.trajectory import (DIVERGENCE_FACTOR, SlidingLadderTrajectory, Status, Trajectory,
+                                          diverged_trajectory)
+from stereodyn.harness.engines.base import precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.reference.torques import torque_function
 
@@ -246,7 +247,7 @@ class TorqueSimulation(MujocoSimulation):
         return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, self.stages * grid.steps)
 
 
-# The sliding ladder (harness.ladder, FORMULARY T5). Soft constraints and contacts relax on this time constant (s):
+# The sliding ladder (harness.sliding_ladder, FORMULARY T5). Soft constraints and contacts relax on this time constant (s):
 # the smallest MuJoCo keeps stable at the suite's steps (it clamps solref's time constant to >= 2 dt), so the
 # constraint violation it leaves is as small as MuJoCo allows.
 LADDER_SOLREF = 2e-3
@@ -360,7 +361,7 @@ class LadderSimulation:
         penetration = max(0.0, -(state[0] - l * s), -(state[1] - l * c))  # top inside the wall, foot in the floor
         return state, penetration
 
-    def run(self, grid: TimeGrid) -> LadderTrajectory:
+    def run(self, grid: TimeGrid) -> SlidingLadderTrajectory:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         self._start()
@@ -382,9 +383,9 @@ class LadderSimulation:
                 state[sample], violation[sample] = current, worst
                 worst, sample = 0.0, sample + 1
             if not math.isfinite(current[2] + current[5]):
-                return LadderTrajectory(grid.times, state, violation, Status.DIVERGED,
+                return SlidingLadderTrajectory(grid.times, state, violation, Status.DIVERGED,
                                         f"state not finite at t = {index * grid.dt:.6g} s", index * grid.dt, index)
-        return LadderTrajectory(grid.times, state, violation, Status.OK, "", math.nan, grid.steps,
+        return SlidingLadderTrajectory(grid.times, state, violation, Status.OK, "", math.nan, grid.steps,
                                 self._detachment(speed, angle))
 
     def _detachment(self, speed: np.ndarray, angle: np.ndarray) -> float:
@@ -421,9 +422,9 @@ class MujocoEngine:
             return TorqueSimulation(case, integrator, dt)
         return MujocoSimulation(case, integrator, dt)
 
-    def ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.ladder): rows name them in the formulation column."""
+    def sliding_ladder_models(self) -> tuple[str, ...]:
+        """The sliding ladder's models (harness.sliding_ladder): rows name them in the formulation column."""
         return LADDER_MODELS
 
-    def prepare_ladder(self, case, model: str, integrator: str, dt: float) -> LadderSimulation:
+    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float) -> LadderSimulation:
         return LadderSimulation(case.ladder, model, integrator, dt)

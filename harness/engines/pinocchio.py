@@ -16,7 +16,8 @@ import pinocchio as pin
 
 from stereodyn.harness import integrators
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import Trajectory, precession_singular
+from stereodyn.harness.trajectory import Trajectory
+from stereodyn.harness.engines.base import precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.ensemble import integrate_ensemble
 from stereodyn.reference.torques import torque_function

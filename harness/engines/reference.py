@@ -8,7 +8,8 @@ import numpy as np
 
 from stereodyn.harness import integrators
 from stereodyn.harness.cases import Case
-from stereodyn.harness.engines.base import Status, Trajectory, diverged_trajectory, precession_singular
+from stereodyn.harness.trajectory import Status, Trajectory, diverged_trajectory
+from stereodyn.harness.engines.base import precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
 from stereodyn.reference.formulations import Chart, ChartSingularity, Formulation

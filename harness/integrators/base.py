@@ -17,7 +17,7 @@ from typing import Callable, ClassVar, Protocol
 
 import numpy as np
 
-from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
+from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
 from stereodyn.harness.grid import TimeGrid
 
 Stepper = Callable[[object, np.ndarray], tuple[object, np.ndarray]]

@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-from stereodyn.harness.engines.base import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
+from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.base import Stepper, _first_bad_step
 

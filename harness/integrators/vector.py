@@ -12,7 +12,7 @@ from typing import ClassVar, Protocol
 
 import numpy as np
 
-from stereodyn.harness.engines.base import Trajectory
+from stereodyn.harness.trajectory import Trajectory
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.base import Integrator, Stepper
 from stereodyn.harness.integrators.lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau

@@ -5,7 +5,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from stereodyn.harness import check, cli, runner
+from stereodyn.harness import cli, gate, runner
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines import engine_names
 
@@ -34,7 +34,7 @@ def edited(source: Path, target: Path, edit) -> Path:
     return target
 
 
-def gate(directory: Path, baseline: Path, *options: str) -> int:
+def check(directory: Path, baseline: Path, *options: str) -> int:
     return cli.main(["check", str(directory), "--baseline", str(baseline), *options])
 
 
@@ -42,7 +42,7 @@ def test_an_unchanged_rerun_passes(baseline, tmp_path, capsys):
     _, path = baseline
     assert cli.main(["run", *SWEEP, "--out", str(tmp_path)]) == 0
     capsys.readouterr()
-    assert gate(tmp_path, path) == 0
+    assert check(tmp_path, path) == 0
     assert "check passed" in capsys.readouterr().out
 
 
@@ -57,7 +57,7 @@ def test_a_drift_ten_times_worse_fails_listing_that_row(baseline, tmp_path, caps
         df.loc[_row(df, "pinocchio", "rk4"), "energy_drift"] *= 10
         return df
 
-    assert gate(edited(out, tmp_path / "worse", worse), path) == 1
+    assert check(edited(out, tmp_path / "worse", worse), path) == 1
     printed = capsys.readouterr().out
     offending = [line for line in printed.splitlines() if "energy_drift" in line]
     assert len(offending) == 1
@@ -73,30 +73,30 @@ def test_a_status_that_got_worse_fails(baseline, tmp_path, capsys, status):
         df.loc[_row(df, "mujoco", "euler"), "status"] = status
         return df
 
-    assert gate(edited(out, tmp_path / "bad", broken), path) == 1
+    assert check(edited(out, tmp_path / "bad", broken), path) == 1
     line = next(line for line in capsys.readouterr().out.splitlines() if " status " in f" {line} ")
     assert "mujoco" in line and "euler" in line and status in line
 
 
 def test_a_missing_row_fails_and_a_new_row_does_not(baseline, tmp_path, capsys):
     out, path = baseline
-    assert gate(edited(out, tmp_path / "less", lambda df: df.drop(index=_row(df, "mujoco", "rk4"))), path) == 1
+    assert check(edited(out, tmp_path / "less", lambda df: df.drop(index=_row(df, "mujoco", "rk4"))), path) == 1
     assert "missing row" in capsys.readouterr().out
 
     def more(df):
         extra = df.loc[[_row(df, "mujoco", "rk4")]].assign(dt=5e-3)
         return pd.concat([df, extra], ignore_index=True)
 
-    assert gate(edited(out, tmp_path / "more", more), path) == 0
+    assert check(edited(out, tmp_path / "more", more), path) == 0
     assert "1 rows not in the baseline" in capsys.readouterr().out
 
 
 def test_timing_fails_only_when_asked(baseline, tmp_path):
     out, path = baseline
     slow = edited(out, tmp_path / "slow", lambda df: df.assign(us_per_step=df.us_per_step * 10))
-    assert gate(slow, path) == 0
-    assert gate(slow, path, "--time-factor", "3") == 1
-    assert gate(slow, path, "--time-factor", "20") == 0
+    assert check(slow, path) == 0
+    assert check(slow, path, "--time-factor", "3") == 1
+    assert check(slow, path, "--time-factor", "20") == 0
 
 
 def test_the_floor_absorbs_round_off_and_the_factor_is_configurable(baseline, tmp_path):
@@ -109,15 +109,15 @@ def test_the_floor_absorbs_round_off_and_the_factor_is_configurable(baseline, tm
         return edit
 
     # The truth's energy drift is ~1e-16: ten times that is still round-off, under the 1e-12 floor.
-    assert gate(edited(out, tmp_path / "roundoff", tenfold("energy_drift", "reference", "taylor")), path) == 0
+    assert check(edited(out, tmp_path / "roundoff", tenfold("energy_drift", "reference", "taylor")), path) == 0
     worse = edited(out, tmp_path / "worse", tenfold("attitude_err", "mujoco", "rk4"))
-    assert gate(worse, path) == 1
-    assert gate(worse, path, "--factor", "20") == 0
+    assert check(worse, path) == 1
+    assert check(worse, path, "--factor", "20") == 0
     tolerances = tmp_path / "tolerances.toml"
     tolerances.write_text("[default]\nfactor = 2.0\nfloor = 1e-12\n\n[metric.attitude_err]\nfactor = 20.0\n")
-    assert gate(worse, path, "--tolerances", str(tolerances)) == 0
+    assert check(worse, path, "--tolerances", str(tolerances)) == 0
     tolerances.write_text("[metric.energy_drift]\nfactor = 20.0\n")
-    assert gate(worse, path, "--tolerances", str(tolerances)) == 1
+    assert check(worse, path, "--tolerances", str(tolerances)) == 1
 
 
 @pytest.mark.parametrize("text, expected", [
@@ -130,18 +130,18 @@ def test_a_bad_tolerance_file_exits_2(baseline, tmp_path, capsys, text, expected
     out, path = baseline
     tolerances = tmp_path / "t.toml"
     tolerances.write_text(text)
-    assert gate(out, path, "--tolerances", str(tolerances)) == 2
+    assert check(out, path, "--tolerances", str(tolerances)) == 2
     err = capsys.readouterr().err
     assert expected in err and str(tolerances) in err and err.count("\n") == 1
 
 
 def test_bad_input_exits_2(baseline, tmp_path, capsys):
     out, path = baseline
-    assert gate(tmp_path, path) == 2  # no results.csv
+    assert check(tmp_path, path) == 2  # no results.csv
     (tmp_path / "not-a-baseline.json").write_text("[1, 2]")
-    assert gate(out, tmp_path / "not-a-baseline.json") == 2
-    assert gate(out, tmp_path / "absent.json") == 2
-    assert gate(out, path, "--factor", "0.5") == 2
+    assert check(out, tmp_path / "not-a-baseline.json") == 2
+    assert check(out, tmp_path / "absent.json") == 2
+    assert check(out, path, "--factor", "0.5") == 2
     assert "not a baseline file" in capsys.readouterr().err
 
 
@@ -149,19 +149,19 @@ def test_the_baseline_is_readable_json_with_one_row_per_line(baseline):
     out, path = baseline
     text = path.read_text()
     data = json.loads(text)
-    assert data["format"] == check.BASELINE_FORMAT and data["environment"]["mujoco"]
+    assert data["format"] == gate.BASELINE_FORMAT and data["environment"]["mujoco"]
     rows = pd.read_csv(out / "results.csv")
     assert len(data["rows"]) == len(rows) and text.count("\n  {") == len(rows)
 
 
 def test_the_committed_quick_baseline_matches_the_quick_suite():
     """reports/baselines/quick.json covers every run the quick suite plans (regenerate it when the plan changes)."""
-    rows = check.read_baseline(QUICK_BASELINE)
+    rows = gate.read_baseline(QUICK_BASELINE)
     dts = [float(dt) for dt in QUICK_DT.split(",")]
     cases = [with_overrides(find_case(name), t_end=float(QUICK_T_END), dt=dts) for name in QUICK_CASES]
     specs, skipped = runner.plan(cases, list(engine_names()), None)
-    planned = {check._key(runner._base_row(spec, None)) for spec in specs} | {check._key(row) for row in skipped}
-    assert {check._key(row) for row in rows} <= planned
+    planned = {gate._key(runner._base_row(spec, None)) for spec in specs} | {gate._key(row) for row in skipped}
+    assert {gate._key(row) for row in rows} <= planned
     assert {(key[0], key[1]) for key in planned} == {(row["case"], row["engine"]) for row in rows}
     assert all(row["status"] == "ok" for row in rows)
     ci = (REPO / ".ci" / "run").read_text()

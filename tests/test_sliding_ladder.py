@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from stereodyn.harness import ladder
+from stereodyn.harness import sliding_ladder
 from stereodyn.harness.cases import CaseError, LadderCase, find_case, load_case
 from stereodyn.harness.runner import RunSpec, _base_row, plan
 from stereodyn.harness.grid import time_grid
-from stereodyn.reference import ladder as ref_ladder
+from stereodyn.reference import sliding_ladder as ref_ladder
 
 LADDER = """kind = "sliding_ladder"
 [ladder]
@@ -28,7 +28,7 @@ samples = 161
 
 
 def write(tmp_path, text):
-    path = tmp_path / "ladder.toml"
+    path = tmp_path / "sliding_ladder.toml"
     path.write_text(text)
     return path
 
@@ -82,7 +82,7 @@ def test_ladder_rows_and_checks(monkeypatch, tmp_path):
     rows = {}
     for spec in specs:
         grid = None if spec.dt is None else time_grid(case.t_end, spec.dt, case.samples)
-        rows[(spec.engine, spec.formulation)] = ladder.execute(spec, _base_row(spec, grid))
+        rows[(spec.engine, spec.formulation)] = sliding_ladder.execute(spec, _base_row(spec, grid))
     assert set(rows) == {("reference", "theta"), ("mujoco", "bilateral"), ("mujoco", "unilateral")}
     for key, row in rows.items():
         assert row["status"] == "ok", row.get("message")

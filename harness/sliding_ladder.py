@@ -1,7 +1,7 @@
 """The sliding ladder in a sweep (kind "sliding_ladder", FORMULARY T5): its own runs, metrics and check rows, beside
 the rigid-body path of harness.runner (which routes a LadderCase here).
 
-Rows: the equation (engine reference, formulation "theta", integrator taylor: reference.ladder, whose heyoka event
+Rows: the equation (engine reference, formulation "theta", integrator taylor: reference.sliding_ladder, whose heyoka event
 gives the detachment), every MuJoCo model (formulation "bilateral" or "unilateral", harness.engines.mujoco) with each
 MuJoCo integrator and dt, and a skipped Pinocchio row. Columns: energy_drift (the rod's energy, ½ m|v_G|² +
 ½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
@@ -18,9 +18,9 @@ import numpy as np
 
 from stereodyn.harness import checks
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import LadderTrajectory, Status
+from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status
 from stereodyn.harness.grid import time_grid
-from stereodyn.reference import ladder as ref_ladder
+from stereodyn.reference import sliding_ladder as ref_ladder
 
 EQUATION, TAYLOR = "theta", "taylor"
 PINOCCHIO_REASON = ("Pinocchio adapter does not model the sliding ladder: its constraints (ends on the wall and the "
@@ -34,13 +34,13 @@ def specs(case, engine_name: str, engine_rank: int, chosen: list[str], spec_type
     if engine_name == "reference":
         return [spec_type(case, engine_name, TAYLOR, None, engine_rank, 0, EQUATION, 0)], []
     engine = get_engine(engine_name)
-    if not hasattr(engine, "ladder_models"):
+    if not hasattr(engine, "sliding_ladder_models"):
         reason = PINOCCHIO_REASON if engine_name == "pinocchio" else getattr(engine, "reason", None) or \
             f"{engine_name} adapter does not model the sliding ladder"
         return [], [skipped_row(spec_type(case, engine_name, "", None, engine_rank), reason)]
     runs = []
     for integrator_rank, integrator in enumerate(chosen):
-        for model_rank, model in enumerate(engine.ladder_models()):
+        for model_rank, model in enumerate(engine.sliding_ladder_models()):
             for dt in case.dt:
                 runs.append(spec_type(case, engine_name, integrator, dt, engine_rank, integrator_rank, model,
                                       model_rank))
@@ -52,15 +52,15 @@ def _grid(spec):
     return time_grid(case.t_end, case.t_end / (case.samples - 1) if spec.dt is None else spec.dt, case.samples)
 
 
-def run(spec) -> LadderTrajectory:
+def run(spec) -> SlidingLadderTrajectory:
     """The spec's untimed run."""
     case, grid = spec.case, _grid(spec)
     if spec.engine == "reference":
         motion = ref_ladder.solve(case.ladder, grid.times)
         state = ref_ladder.planar_state(case.ladder, motion.theta, motion.theta_dot)
-        return LadderTrajectory(grid.times, state, ref_ladder.constraint_violation(case.ladder, state),
+        return SlidingLadderTrajectory(grid.times, state, ref_ladder.constraint_violation(case.ladder, state),
                                 steps=grid.steps, detach_angle=motion.detach_angle)
-    return get_engine(spec.engine).prepare_ladder(case, spec.formulation, spec.integrator, spec.dt).run(grid)
+    return get_engine(spec.engine).prepare_sliding_ladder(case, spec.formulation, spec.integrator, spec.dt).run(grid)
 
 
 def execute(spec, base_row: dict) -> dict:
@@ -79,7 +79,7 @@ def execute(spec, base_row: dict) -> dict:
             if spec.engine == "reference":
                 wall = best_time(lambda: ref_ladder.solve(ladder, grid.times))
             else:
-                sim = get_engine(spec.engine).prepare_ladder(spec.case, spec.formulation, spec.integrator, spec.dt)
+                sim = get_engine(spec.engine).prepare_sliding_ladder(spec.case, spec.formulation, spec.integrator, spec.dt)
                 wall = best_time(lambda: sim.run(grid))
             row.update(wall_s=wall, us_per_step=wall / max(1, grid.steps) * 1e6)
     except Exception as exc:  # a run that breaks is data
@@ -87,7 +87,7 @@ def execute(spec, base_row: dict) -> dict:
     return row
 
 
-def metrics(spec, traj: LadderTrajectory, equation: ref_ladder.LadderMotion) -> dict:
+def metrics(spec, traj: SlidingLadderTrajectory, equation: ref_ladder.LadderMotion) -> dict:
     ladder = spec.case.ladder
     state = traj.state
     finite = np.isfinite(state).all(axis=1)
@@ -106,7 +106,7 @@ def metrics(spec, traj: LadderTrajectory, equation: ref_ladder.LadderMotion) -> 
     return out
 
 
-def check_rows(spec, traj: LadderTrajectory, row: dict) -> list[dict]:
+def check_rows(spec, traj: SlidingLadderTrajectory, row: dict) -> list[dict]:
     ladder = spec.case.ladder
     rows = [{"quantity": "energy_drift", "theory": 0.0, "measured": row["energy_drift"]},
             {"quantity": "constraint_violation", "theory": 0.0, "measured": row.pop("_violation")}]
