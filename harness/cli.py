@@ -9,7 +9,7 @@ from pathlib import Path
 
 from stereodyn.harness import cases as case_files
 from stereodyn.harness.cases import CaseError
-from stereodyn.harness.engines import engine_names
+from stereodyn.harness.engines import EngineError, engine_names
 
 DEFAULT_OUT = "out"
 
@@ -77,7 +77,7 @@ def _parser() -> argparse.ArgumentParser:
                        help="also fail when us_per_step exceeds this factor times the baseline's")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
-    export.add_argument("--format", required=True, choices=("mjcf", "urdf"))
+    export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
     export.add_argument("--out", type=Path, default=None, metavar="FILE", help="default: standard output")
     export.add_argument("--integrator", default=None, help="MJCF only: MuJoCo integrator (default rk4)")
     export.add_argument("--dt", type=float, default=None, help="MJCF only: timestep (default: the case's first dt)")
@@ -129,21 +129,23 @@ def cmd_run(args) -> int:
     from stereodyn.harness.progress import ProgressBar
     from stereodyn.harness.report.build import write_reports
     from stereodyn.harness.report.markdown import drift_table_text
-    from stereodyn.harness.runner import run_sweep
+    from stereodyn.harness.runner import run_sweep, worker_pool
 
     _check_names(args)
     chosen = _select_cases(args)
     progress = ProgressBar(enabled=not args.quiet)
-    df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
-                   progress=progress, resume=args.resume, scheduler=args.scheduler)
-    _work_precision(args, chosen, df)
+    # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
+    with worker_pool(args.jobs, tuple(args.engines)) as pool:
+        df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
+                       progress=progress, resume=args.resume, scheduler=args.scheduler, pool=pool)
+        _work_precision(args, chosen, df, pool)
     print(drift_table_text(df))
     markdown, html = write_reports(args.out, df)
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     return 0
 
 
-def _work_precision(args, chosen: list, df) -> None:
+def _work_precision(args, chosen: list, df, pool=None) -> None:
     """ladder.csv, convergence.csv, pareto.csv and the orders in checks.csv (harness.workprecision). The default
     suite (no CASE, no --case-file, no --dt) gets the small default ladder; --dt-ladder every family's."""
     from stereodyn.harness import workprecision
@@ -159,7 +161,7 @@ def _work_precision(args, chosen: list, df) -> None:
     if mode != "off" and not args.quiet:
         print(f"work–precision: {mode} dt ladder", file=sys.stderr)
     workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
-                          max_steps=args.ladder_max_steps, jobs=args.jobs)
+                          max_steps=args.ladder_max_steps, pool=pool)
 
 
 def cmd_report(args) -> int:
@@ -239,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
                 "check": cmd_check, "export": cmd_export}
     try:
         return commands[args.command](args)
-    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy) as exc:
+    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, EngineError) as exc:
         print(f"stereodyn: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

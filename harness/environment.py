@@ -6,14 +6,29 @@ import platform
 from importlib import metadata
 from pathlib import Path
 
-# The libraries whose version can change a result; a result is keyed by all of them (harness.store).
-PACKAGES = ("numpy", "scipy", "mujoco", "pin", "heyoka", "stereodyn")
+# The libraries whose version can change any result (heyoka: the truth); each engine adds its own (Engine.packages). A
+# result is keyed by all of them (harness.store).
+CORE_PACKAGES = ("numpy", "scipy")
+TRUTH_PACKAGES = ("heyoka", "stereodyn")
+
+
+def packages() -> tuple[str, ...]:
+    """CORE_PACKAGES, every registered engine's packages, then TRUTH_PACKAGES; each once."""
+    from stereodyn.harness.engines import EngineError, engine_names, get_engine
+
+    names = list(CORE_PACKAGES)
+    for name in engine_names():
+        try:
+            names += get_engine(name).packages
+        except EngineError:  # a broken plug-in fails where it is used, not in every sweep
+            continue
+    return tuple(dict.fromkeys(names + list(TRUTH_PACKAGES)))
 
 
 def library_versions() -> dict[str, str]:
-    """{"python": ..., package: version or "absent"} for PACKAGES."""
+    """{"python": ..., package: version or "absent"} for packages()."""
     versions = {"python": platform.python_version()}
-    for package in PACKAGES:
+    for package in packages():
         try:
             versions[package] = metadata.version(package)
         except metadata.PackageNotFoundError:

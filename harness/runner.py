@@ -9,7 +9,7 @@ import signal
 import time
 from collections.abc import Iterator
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -21,6 +21,7 @@ from stereodyn.harness import checks, metrics, oracles, series, sliding_ladder, 
 from stereodyn.harness import integrators as integrator_registry
 from stereodyn.harness.cases import SLIDING_LADDER, Case
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.plan import RunSpec, base_row, plan
 from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.harness.grid import TimeGrid, time_grid
 from stereodyn.harness.distributed import run_on_cluster
@@ -31,7 +32,6 @@ from stereodyn.harness.store import Store, run_key
 from stereodyn.harness.timing import best_time
 from stereodyn.reference import truth as reference_truth
 
-TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR = "reference", "quaternion", "taylor"
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
 
 
@@ -59,31 +59,6 @@ class CaseTruth:
         return self.quat[index], self.omega[index]
 
 
-@dataclass(frozen=True)
-class RunSpec:
-    """One run: a case on an engine with an integrator and a step (dt is None for adaptive integrators), and the
-    engine's formulation ("" for an engine without formulations)."""
-
-    case: Case
-    engine: str
-    integrator: str
-    dt: float | None
-    engine_rank: int = 0
-    integrator_rank: int = 0
-    formulation: str = ""
-    formulation_rank: int = 0
-
-    @property
-    def label(self) -> str:
-        dt = "" if self.dt is None else f" dt={self.dt:g}"
-        formulation = f" {self.formulation}" if self.formulation else ""
-        return f"{self.case.name} {self.engine}{formulation} {self.integrator}{dt}"
-
-    @property
-    def is_truth(self) -> bool:
-        return (self.engine, self.formulation, self.integrator) == (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR)
-
-
 def truth_grid(case: Case) -> TimeGrid:
     """The truth row's own grid: the case's samples evenly over [0, t_end]."""
     return time_grid(case.t_end, case.t_end / (case.samples - 1), case.samples)
@@ -103,24 +78,10 @@ def compute_truth(case: Case, dts: tuple[float, ...], certify: bool) -> CaseTrut
                      oracles.exact_attitude(case, times))
 
 
-def _base_row(spec: RunSpec, grid: TimeGrid | None) -> dict:
-    return {"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
-            "integrator": spec.integrator, "dt": math.nan if spec.dt is None else spec.dt,
-            "t_end": grid.t_end if grid is not None else spec.case.t_end,
-            "steps": grid.steps if grid is not None else math.nan,
-            "_engine_rank": spec.engine_rank, "_integrator_rank": spec.integrator_rank,
-            "_formulation_rank": spec.formulation_rank, "_dt_rank": -(spec.dt if spec.dt is not None else math.inf)}
-
-
-def skipped_row(spec: RunSpec, reason: str) -> dict:
-    grid = None if spec.dt is None else time_grid(spec.case.t_end, spec.dt, spec.case.samples)
-    return {**_base_row(spec, grid), "status": Status.SKIPPED.value, "message": reason}
-
-
 def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
     """Run one spec: an untimed accuracy run (also the warm-up), metrics, then timed runs. Never raises."""
     grid = truth_grid(spec.case) if spec.dt is None else time_grid(spec.case.t_end, spec.dt, spec.case.samples)
-    row = _base_row(spec, grid)
+    row = base_row(spec, grid)
     if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
         return sliding_ladder.execute(spec, row)
     try:
@@ -130,8 +91,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
         traj: Trajectory = sim.run(grid)
         row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
                    chart_changes=math.nan if traj.chart_changes is None else traj.chart_changes,
-                   torque_mode=traj.info.get("torque_mode") or getattr(engine, "torque_mode", lambda case: "none")(
-                       spec.case))
+                   torque_mode=traj.info.get("torque_mode") or engine.torque_mode(spec.case))
         if spec.dt is None:
             row["steps"] = traj.steps
         row.update(metrics.drifts(spec.case, traj, truth.applicable))
@@ -155,47 +115,11 @@ def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
     return row
 
 
-def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -> tuple[list[RunSpec], list[dict]]:
-    """The runs of a sweep, and the rows of runs skipped up front (engine cannot model the case).
-
-    An engine's adaptive integrators (Engine.adaptive) run once per case with dt None, the others once per dt of the
-    case; each runs every formulation of the engine (Engine.formulations; "" for an engine without).
-    """
-    specs, skipped = [], []
-    for engine_rank, name in enumerate(engines):
-        engine = get_engine(name)
-        chosen = [i for i in engine.integrators()
-                  if (integrators is None and integrator_registry.in_default_sweep(i))
-                  or (integrators is not None and i in integrators)]
-        formulations = tuple(getattr(engine, "formulations", tuple)()) or ("",)
-        adaptive = getattr(engine, "adaptive", lambda integrator: False)
-        for case in cases:
-            if case.kind == SLIDING_LADDER:
-                ladder_specs, ladder_skipped = sliding_ladder.specs(case, name, engine_rank, chosen, RunSpec)
-                specs += ladder_specs
-                skipped += ladder_skipped
-                continue
-            reason = engine.unsupported(case)
-            for integrator_rank, integrator in enumerate(chosen or ([""] if reason else [])):
-                dts = (None,) if integrator and adaptive(integrator) else case.dt
-                for formulation_rank, formulation in enumerate(formulations):
-                    for dt in dts:
-                        spec = RunSpec(case, name, integrator, dt, engine_rank, integrator_rank, formulation,
-                                       formulation_rank)
-                        # a formulation/integrator pair that cannot model the case (engine.unsupported_run)
-                        why = reason or (integrator and getattr(engine, "unsupported_run", lambda *a: None)(
-                            case, formulation, integrator))
-                        (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
-    return specs, skipped
-
-
 # The cost model of a run (execute), to start the longest runs first and to weigh the progress bar's ETA. Measured on
 # the suite's four general cases (t_end 5 and 20, every engine, 2-core AMD EPYC): one simulation pass costs about
-# PASS_US[engine] µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations 5.6-7.5), and
+# Engine.pass_us µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations 5.6-7.5), and
 # execute about 4.1-4.5 passes (the accuracy run, the timed runs, ~0.1-0.5 for metrics and check reruns) plus ~6-25 ms.
-# Only the ranking matters, so rough constants are enough; an engine not listed gets DEFAULT_PASS_US.
-PASS_US = {"mujoco": 1.5, "pinocchio": 2.6, "reference": 6.5}
-DEFAULT_PASS_US = 5.0
+# Only the ranking matters, so rough constants are enough: each engine declares its own (Engine.pass_us).
 RUN_OVERHEAD_S = 0.01   # prepare, metrics and the row, s
 CHECK_PASSES = 0.3      # mean extra passes of metrics and the checks' perturbed reruns
 
@@ -215,7 +139,7 @@ def _cost(spec: RunSpec) -> float:
     Taylor runs (measured 0.02-1 times that), since underestimating a long run is what leaves it alone at the end."""
     dt = min(spec.case.dt) if spec.dt is None else spec.dt
     steps = math.ceil(spec.case.t_end / dt - 1e-9)
-    one_pass = steps * _stages(spec.integrator) * PASS_US.get(spec.engine, DEFAULT_PASS_US) * 1e-6
+    one_pass = steps * _stages(spec.integrator) * get_engine(spec.engine).pass_us * 1e-6
     # timing.best_time repeats the run at most REPEATS times and stops once BUDGET_S is spent
     timed = min(timing.REPEATS * one_pass, timing.BUDGET_S + one_pass)
     return RUN_OVERHEAD_S + (1 + CHECK_PASSES) * one_pass + timed
@@ -225,7 +149,7 @@ def _worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
     """The row of a run whose worker process died (e.g. a crash inside an SDK) or whose task was lost. It is shown in
     results.csv but not stored (_lost), so --resume tries the run again: the cause may have been passing (an
     interrupt, the memory killer, a cluster going away)."""
-    return {**_base_row(spec, None), "status": Status.FAILED.value, "_lost": True,
+    return {**base_row(spec, None), "status": Status.FAILED.value, "_lost": True,
             "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
@@ -240,6 +164,13 @@ def _init_worker(engines: tuple[str, ...]) -> None:
             get_engine(name)
         except Exception:  # the runs that need the engine record why
             pass
+
+
+def worker_pool(jobs: int | None, engines: tuple[str, ...]):
+    """The local process pool of `stereodyn run`, shared by the sweep (run_sweep(pool=...)) and the dt ladders
+    (harness.workprecision.analyse(pool=...)); None when jobs is 1. A context manager: Ctrl-C inside it ends the
+    workers at once."""
+    return _local_pool(jobs or os.cpu_count() or 1, 2, engines)
 
 
 @contextmanager
@@ -290,12 +221,14 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
 
 def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | None, out_dir: Path,
               jobs: int | None = None, certify: bool = False, progress: ProgressBar | None = None,
-              resume: bool = False, scheduler: str | None = None) -> pd.DataFrame:
+              resume: bool = False, scheduler: str | None = None,
+              pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
     """Run everything and return the table.
 
     Every finished run is stored at once (harness.store: out_dir/store/<key>.json) and out_dir/results.csv is
     re-assembled from the store, atomically, after each; resume=True reuses the stored runs of this sweep instead of
     redoing them. scheduler: a Dask scheduler address to run on (harness.distributed) instead of local processes.
+    pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
@@ -339,7 +272,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         publish()
         pending = [s for s in specs if keys[id(s)] not in stored]
         local_jobs = 1 if scheduler else jobs or os.cpu_count() or 1
-        with _local_pool(local_jobs, len(pending), tuple(engines)) as pool:
+        own_pool = nullcontext(pool) if pool is not None and not scheduler else \
+            _local_pool(local_jobs, len(pending), tuple(engines))
+        with own_pool as pool:
             truths = {}
             for case in cases:
                 if case.kind == SLIDING_LADDER:  # harness.sliding_ladder solves the equation in each run
@@ -361,4 +296,4 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
 
 def _ranks(spec: RunSpec) -> dict:
     """The private sort keys of a spec's row (row order is not part of a stored run)."""
-    return {k: v for k, v in _base_row(spec, None).items() if k.startswith("_")}
+    return {k: v for k, v in base_row(spec, None).items() if k.startswith("_")}

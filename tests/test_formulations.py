@@ -8,7 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, runner
+from stereodyn.harness.fitting import order_slope
+from stereodyn.harness import cli, plan
 from stereodyn.harness.cases import Case, find_case, load_suite
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
@@ -175,7 +176,7 @@ def test_fixed_step_convergence_order_without_chart_changes(name, integrator, dt
         assert run.status is Status.OK and run.chart_changes in (None, 0)
         assert run.rhs_evals == get_integrator(integrator, "vector").stages * run.steps
         errors.append(float(angle(run.quat[-1], reference.quat[-1])))
-    order = float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+    order = order_slope(dts, errors)
     assert bounds[0] <= order <= bounds[1], (order, errors)
 
 
@@ -233,7 +234,7 @@ def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
 
 def test_plan_gives_every_formulation_its_rows():
     case = find_case("free-asymmetric")
-    specs, skipped = runner.plan([case], ["reference"], None)
+    specs, skipped = plan.plan([case], ["reference"], None)
     assert not skipped
     taylor = [s for s in specs if s.integrator == "taylor"]
     assert [s.formulation for s in taylor] == list(NAMES) and all(s.dt is None for s in taylor)

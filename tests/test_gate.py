@@ -5,7 +5,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, gate, runner
+from stereodyn.harness import cli, gate, plan
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines import engine_names
 
@@ -159,8 +159,8 @@ def test_the_committed_quick_baseline_matches_the_quick_suite():
     rows = gate.read_baseline(QUICK_BASELINE)
     dts = [float(dt) for dt in QUICK_DT.split(",")]
     cases = [with_overrides(find_case(name), t_end=float(QUICK_T_END), dt=dts) for name in QUICK_CASES]
-    specs, skipped = runner.plan(cases, list(engine_names()), None)
-    planned = {gate._key(runner._base_row(spec, None)) for spec in specs} | {gate._key(row) for row in skipped}
+    specs, skipped = plan.plan(cases, list(engine_names()), None)
+    planned = {gate._key(plan.base_row(spec, None)) for spec in specs} | {gate._key(row) for row in skipped}
     assert {gate._key(row) for row in rows} <= planned
     assert {(key[0], key[1]) for key in planned} == {(row["case"], row["engine"]) for row in rows}
     assert all(row["status"] == "ok" for row in rows)

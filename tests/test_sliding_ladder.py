@@ -10,7 +10,7 @@ import pytest
 
 from stereodyn.harness import sliding_ladder
 from stereodyn.harness.cases import CaseError, LadderCase, find_case, load_case
-from stereodyn.harness.runner import RunSpec, _base_row, plan
+from stereodyn.harness.plan import RunSpec, base_row as _base_row, plan
 from stereodyn.harness.grid import time_grid
 from stereodyn.reference import sliding_ladder as ref_ladder
 

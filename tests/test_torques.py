@@ -9,12 +9,13 @@ import mujoco
 import numpy as np
 import pytest
 
+from stereodyn.harness.fitting import order_slope
 from stereodyn.harness import metrics
 from stereodyn.harness.cases import find_case, load_suite
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
-from stereodyn.harness.runner import plan
+from stereodyn.harness.plan import plan
 from stereodyn.reference import torques, truth
 from stereodyn.reference.exact import ORACLES
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
@@ -138,7 +139,7 @@ ORDER_SPAN = 2.0
 
 
 def fitted_order(errors) -> float:
-    return float(np.polyfit(np.log(ORDER_DTS), np.log(errors), 1)[0])
+    return order_slope(ORDER_DTS, errors)
 
 
 def attitude_errors(case, run_one) -> list[float]:

@@ -17,7 +17,7 @@ import pinocchio as pin
 from stereodyn.harness import integrators
 from stereodyn.harness.cases import Case
 from stereodyn.harness.trajectory import Trajectory
-from stereodyn.harness.engines.base import precession_singular
+from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.ensemble import integrate_ensemble
 from stereodyn.reference.torques import torque_function
@@ -210,8 +210,22 @@ class PinocchioEnsemble:
                 for t in trajectories]
 
 
-class PinocchioEngine:
+class PinocchioEngine(Engine):
     name = "pinocchio"
+    state_space = "lie"
+    # measured on the suite's four general cases (2-core AMD EPYC): 2.4-2.9 µs per stage per step
+    pass_us = 2.6
+    linestyle = "--"
+    packages = ("pin",)
+    export_formats = ("urdf",)
+
+    def sliding_ladder_unsupported(self) -> str:
+        return ("Pinocchio adapter does not model the sliding ladder: its constraints (ends on the wall and the "
+                "floor, one of them unilateral) need a constrained-dynamics model the adapter does not build")
+
+    def export(self, case: Case, fmt: str, integrator: str | None, dt: float | None) -> str:
+        """URDF: the body, its ball joint as a three-joint gimbal (integrator and dt do not apply)."""
+        return urdf(case)
 
     def integrators(self) -> tuple[str, ...]:
         """The registry's Lie-group integrators: euler, symplectic_euler, rk4, rk4_naive, then plug-ins."""

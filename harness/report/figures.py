@@ -14,10 +14,19 @@ from matplotlib.ticker import NullFormatter
 
 DPI = 80
 PALETTE = 64  # colours of a figure's PNG: plenty for lines on white, and no visible banding
-LINESTYLES = {"mujoco": "-", "pinocchio": "--", "reference": ":"}
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
 LEGEND_COLUMN_IN = 2.7  # width of a legend column, inches: fits "reference rk4 (gibbs_hamiltonian)" at 8 pt
 QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift", "attitude_err": "attitude error (rad)"}
+
+
+def linestyle(engine: str) -> str:
+    """The engine's line style (Engine.linestyle); an engine no longer registered gets the base class's."""
+    from stereodyn.harness.engines import Engine, EngineError, get_engine
+
+    try:
+        return get_engine(engine).linestyle
+    except (KeyError, EngineError):
+        return Engine.linestyle
 
 
 def dt_key(dt) -> str:
@@ -70,7 +79,7 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
         order = np.argsort(cost.to_numpy())
         engine = runs["engine"].iloc[0]
         axes.plot(cost.to_numpy()[order], runs["attitude_err"].to_numpy()[order], marker="o", markersize=4,
-                  linestyle=LINESTYLES.get(engine, "-."), color=colours[label], label=label)
+                  linestyle=linestyle(engine), color=colours[label], label=label)
     axes.set_xscale("log")
     axes.set_yscale("log")
     axes.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short decade range
@@ -118,7 +127,7 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
                 y = np.array([np.nan if v is None else v for v in values[quantity]], dtype=float)
                 y[~(y > 0)] = np.nan  # a log axis has no place for the exact zero at t = 0
                 if np.isfinite(y).any():
-                    grid[line, column].plot(t, y, linestyle=LINESTYLES.get(row["engine"], "-."),
+                    grid[line, column].plot(t, y, linestyle=linestyle(row["engine"]),
                                             color="black" if adaptive else colours[label], linewidth=1.0,
                                             label=label)
         grid[0, column].set_title(f"dt = {dt:g} s" if math.isfinite(dt) else "adaptive")
