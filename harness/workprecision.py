@@ -57,7 +57,8 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: list[str],
             integrators: list[str] | None, ladder: str = "default", max_steps: int | None = None,
-            pool: ProcessPoolExecutor | None = None, progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+            pool: ProcessPoolExecutor | None = None,
+            progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep),
     "default" (DEFAULT_LADDER cases, DEFAULT_LADDER_FORMULATIONS) or "off". Writes ladder.csv, convergence.csv,
     pareto.csv and appends the orders to checks.csv; returns the paths written. pool: the sweep's worker pool

@@ -116,8 +116,8 @@ class ReferenceEngine(Engine):
 
     def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float | None) -> SlidingLadderEquation:
         if (model, integrator) != (SLIDING_LADDER_EQUATION, TAYLOR):
-            raise KeyError(f"the reference engine solves the sliding ladder's equation only ({SLIDING_LADDER_EQUATION!r} "
-                           f"with {TAYLOR!r}), not {model!r} with {integrator!r}")
+            raise KeyError(f"the reference engine solves the sliding ladder's equation only "
+                           f"({SLIDING_LADDER_EQUATION!r} with {TAYLOR!r}), not {model!r} with {integrator!r}")
         return SlidingLadderEquation(case.ladder)
 
     def formulations(self) -> tuple[str, ...]:
