@@ -68,7 +68,7 @@ def test_numpy_and_heyoka_right_hand_sides_agree_with_every_torque():
             quat = rng.normal(size=4)
             quat /= np.linalg.norm(quat)
             y = np.concatenate([quat, rng.normal(size=3)])
-            np.testing.assert_allclose(formulation.fast_rhs(chart, y), formulation.rhs(chart.down, y), atol=1e-13)
+            np.testing.assert_allclose(formulation.fast_rhs(0.0, chart, y), formulation.rhs(0.0, chart.down, y), atol=1e-13)
             scalar = torques.torque_function(case.body)(0.0, tuple(quat), tuple(y[4:]))
             np.testing.assert_allclose(scalar, torques.external_torque(case.body, quat, y[4:]), atol=1e-14)
             assert euler_poisson.omega_dot(case.body, quat, y[4:]).shape == (3,)
