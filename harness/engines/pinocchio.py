@@ -18,6 +18,7 @@ from stereodyn.harness.cases import Case
 from stereodyn.harness.trajectory import Trajectory
 from stereodyn.harness.engines.base import precession_singular
 from stereodyn.harness.grid import TimeGrid
+from stereodyn.harness.integrators.base import check_stepper
 from stereodyn.harness.integrators.ensemble import integrate_ensemble
 from stereodyn.reference.torques import torque_function
 
@@ -199,6 +200,8 @@ class PinocchioEnsemble:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         step = self.integrator.batch_stepper(self.batch, grid.dt)
+        if step is not None:
+            check_stepper(step, type(self.integrator), "batch_stepper")
         if step is None:
             trajectories = [self.integrator.integrate(self.single, q, v, grid, record)
                             for q, v in zip(self.q0, self.v0)]

@@ -13,6 +13,7 @@ right-hand-side evaluations.
 from __future__ import annotations
 
 import abc
+import inspect
 import math
 from typing import Callable, ClassVar, Protocol
 
@@ -113,6 +114,7 @@ class Integrator(abc.ABC):
         (4 floats) and body angular velocity (3 floats). A step that raises ArithmeticError (a system's way to say its
         coordinates became singular) ends the run as diverged at that step, with the exception's text as the message.
         Returns the trajectory and the g of the last good state."""
+        check_stepper(step, type(self))
         quat0, omega0 = observe(g0, v0)
         limit2 = divergence_limit2(omega0)
         # Samples go into flat lists of floats, made arrays once at the end: at one step per sample (1e3 steps, 1e3
@@ -144,6 +146,39 @@ class Integrator(abc.ABC):
         return Trajectory(grid.times, np.array(quats, dtype=float).reshape(n, 4),
                           np.array(omegas, dtype=float).reshape(n, 3), Status.OK, "", math.nan, grid.steps,
                           self.stages * grid.steps), g
+
+
+# What changed in 0.2.0, for the messages that refuse a plug-in written against 0.1.
+TIME_CHANGE = "stereodyn 0.2.0 passes time"
+
+
+def _positional(function) -> list[str] | None:
+    """The names of function's positional parameters (bound self excluded), or None when it takes *args or has no
+    signature to read."""
+    try:
+        parameters = inspect.signature(function).parameters.values()
+    except (TypeError, ValueError):
+        return None
+    if any(p.kind is p.VAR_POSITIONAL for p in parameters):
+        return None
+    return [p.name for p in parameters if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+
+
+def check_step_signature(cls: type) -> None:
+    """TypeError when cls.step takes the 0.1 arguments (system, g, v, h) instead of (system, t, g, v, h)."""
+    names = _positional(cls.step)
+    if names is not None and names[:1] == ["self"] and len(names) == 5:
+        old = ", ".join(names[1:])
+        raise TypeError(f"{cls.__module__}.{cls.__qualname__}.step({old}): {TIME_CHANGE}: "
+                        f"step({names[1]}, t, {', '.join(names[2:])})")
+
+
+def check_stepper(step: Stepper, cls: type, method: str = "stepper") -> None:
+    """TypeError when a stepper built by cls.method takes the 0.1 arguments (g, v) instead of (t, g, v)."""
+    names = _positional(step)
+    if names is not None and len(names) == 2:
+        raise TypeError(f"{cls.__module__}.{cls.__qualname__}.{method}(system, h) returns a step({', '.join(names)}): "
+                        f"{TIME_CHANGE}: step(t, {', '.join(names)})")
 
 
 def _padded(flat: list, width: int, n: int) -> np.ndarray:
