@@ -99,9 +99,9 @@ class Integrator(abc.ABC):
                   record: Callable[[object], tuple[float, float, float, float]]) -> Trajectory:
         """grid.steps steps of grid.dt from (g0, v0), recorded at grid.sample_steps.
 
-        record(g) gives the attitude quaternion (w, x, y, z) of g. A sample whose state is not finite or whose |v| is
-        beyond the limit of harness.trajectory's divergence rule stops the run; the steps since the previous sample are then replayed
-        one by one to find the exact step where the state went bad (diverged_at = that step * dt).
+        record(g) gives the attitude quaternion (w, x, y, z) of g. A sample that breaks the divergence rule of
+        harness.trajectory (not finite, or |v| beyond its limit) stops the run; the steps since the previous sample are
+        then replayed one by one to find the exact step where the state went bad (diverged_at = that step * dt).
         rhs_evals counts the evaluations of the run proper (stages * steps), not the replay.
         """
         trajectory, _ = self._run(self.stepper(system, grid.dt), g0, np.array(v0, dtype=float), grid,

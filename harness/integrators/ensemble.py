@@ -19,7 +19,8 @@ from stereodyn.harness.integrators.base import Stepper
 
 def integrate_ensemble(step: Stepper, stages: int, g0: np.ndarray, v0: np.ndarray, grid: TimeGrid,
                        quat_of: Callable[[np.ndarray], np.ndarray]) -> list[Trajectory]:
-    """grid.steps steps of the batched step(t, G, V) -> (G, V) (step k at t = k dt) from (g0 (N, ...), v0 (N, 3)), recorded at grid.sample_steps.
+    """grid.steps steps of the batched step(t, G, V) -> (G, V) (step k at t = k dt) from (g0 (N, ...), v0 (N, 3)),
+    recorded at grid.sample_steps.
 
     quat_of(g) gives the (M, 4) attitude quaternions (w, x, y, z) of M group elements. A member whose sample is not
     finite or whose |v| passes the divergence limit leaves the ensemble: its steps since the previous sample are

@@ -2,9 +2,10 @@
 coordinates), a Strang splitting around the exact torque-free flow, and the discrete Moser–Veselov scheme.
 
 Implicit midpoint on SO(3) x R^3 (left-trivialised, g' = g v, v' = a(t, g, v)):
-    v_bar = v_n + Δ/2,  Δ = h a(t_n + h/2, g_n exp(h v_bar / 2), v_bar),  g_{n+1} = g_n exp(h v_bar),  v_{n+1} = v_n + Δ.
+    v_bar = v_n + Δ/2,  Δ = h a(t_n + h/2, g_n exp(h v_bar / 2), v_bar),
+    g_{n+1} = g_n exp(h v_bar),  v_{n+1} = v_n + Δ.
 It is symmetric (the step from (g_{n+1}, v_{n+1}) with -h has the same v_bar and midpoint attitude and returns to the
-start), hence of even order, 2. For the torque-free body a(g, v) = σ⁻¹(σv × v) does not depend on g: the velocity
+start), hence of even order, 2. For the torque-free body a(t, g, v) = σ⁻¹(σv × v) does not depend on g: the velocity
 update is the midpoint rule on Euler's equations, which conserves every quadratic invariant (energy ½ vᵀσv and |σv|²)
 exactly and is a Lie–Poisson integrator (Austin, Krishnaprasad and Wang 1993); with gravity the energy error stays
 bounded (no drift), as for a symmetric method on a reversible system. Δ is solved by fixed-point iteration from an

@@ -35,8 +35,8 @@ class VectorSystem(Protocol):
 
 
 class VectorRK(Integrator):
-    """Explicit Runge–Kutta driven by `tableau`: k_i = f(t + c_i h, chart, y + h sum_j a_ij k_j), y + h sum_i b_i k_i, then the
-    system re-charts. A subclass sets the tableau and the metadata."""
+    """Explicit Runge–Kutta driven by `tableau`: k_i = f(t + c_i h, chart, y + h sum_j a_ij k_j), y + h sum_i b_i k_i,
+    then the system re-charts. A subclass sets the tableau and the metadata."""
 
     tableau: ClassVar[ButcherTableau]
     state_space = "vector"
