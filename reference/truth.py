@@ -26,7 +26,6 @@ from stereodyn.reference.body import RigidBody
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 from stereodyn.reference.torque_models import (body_torque_components, gravity_gradient_components,
                                                precession_components)
-from stereodyn.reference.torques import field_direction_world
 
 TRUTH_TOL = 1e-16       # double precision; the issue requires <= 1e-15
 TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)

@@ -184,8 +184,9 @@ def test_turning_central_field_is_fourth_order_with_rk4(engine, extra):
 
 @pytest.mark.slow
 def test_run_central_field_turning_has_no_skipped_pinocchio_or_quaternion_row(tmp_path):
-    """The acceptance command (~1-2 min under load): every Pinocchio and reference-quaternion row runs, and the
-    fitted rk4 orders of convergence.csv lie in [3.7, 4.3] (measured 3.990 Pinocchio, 4.003 reference)."""
+    """The acceptance command (31 s here, most of it the truth's compilation; slow for that): every Pinocchio and
+    reference-quaternion row runs, and the fitted rk4 orders of convergence.csv lie in [3.7, 4.3] (measured 3.990
+    Pinocchio, 4.003 reference)."""
     out = tmp_path / "out"
     result = subprocess.run([sys.executable, "-m", "stereodyn", "run", "central-field-turning", "--engines",
                              "pinocchio,reference", "--out", str(out), "--quiet"], capture_output=True, text=True,
