@@ -7,6 +7,7 @@ import ast
 import io
 import re
 import tokenize
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -31,6 +32,7 @@ def _sources() -> list[Path]:
     return files + [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]
 
 
+@cache
 def texts(path: Path) -> list[tuple[int, str]]:
     """(line, text) of every comment and string constant (docstrings included) of a Python file; the whole text of
     any other file."""
