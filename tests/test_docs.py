@@ -165,7 +165,8 @@ def test_no_text_cites_a_file_the_repository_lacks():
         if path == Path(__file__).resolve():
             continue
         for line, text in texts(path):
-            bad += [f"{path.relative_to(ROOT)}:{line}: {name}" for name in NAMED_FILE.findall(text) if name not in names]
+            bad += [f"{path.relative_to(ROOT)}:{line}: {name}" for name in NAMED_FILE.findall(text)
+                    if name not in names]
     assert not bad, "files cited but not in the repository:\n" + "\n".join(bad)
 
 
