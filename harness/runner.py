@@ -253,7 +253,7 @@ def _cost(spec: RunSpec) -> float:
     dt = min(spec.case.dt) if spec.dt is None else spec.dt
     steps = math.ceil(spec.case.t_end / dt - 1e-9)
     one_pass = steps * _stages(spec.integrator) * PASS_US.get(spec.engine, DEFAULT_PASS_US) * 1e-6
-    # timing.best_time repeats the run at most REPEATS times and stops once BUDGET_S is spent
+    # the timing phase (time_spec, timing.measure) repeats the run at most REPEATS times within BUDGET_S
     timed = min(timing.REPEATS * one_pass, timing.BUDGET_S + one_pass)
     return RUN_OVERHEAD_S + (1 + CHECK_PASSES) * one_pass + timed
 

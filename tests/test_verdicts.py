@@ -9,7 +9,7 @@ import pytest
 
 from stereodyn.harness import cli, runner, timing, verdicts, workprecision
 from stereodyn.harness import integrators as registry
-from stereodyn.harness.cases import find_case
+from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
 
 HEUN = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
@@ -217,3 +217,24 @@ def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypat
     # evaluations per simulated second: exactly stages / dt, whatever the machine's load
     expected = ok.integrator.map({"rk4": 4, "euler": 1}) / ok.dt
     np.testing.assert_allclose(ok.rhs_per_sim_s, expected, rtol=1e-12)
+
+
+def test_ladder_points_are_timed_after_the_accuracy_runs(monkeypatch):
+    """The ladder's points run untimed (in the pool, when there is one); time_points then times each ok point alone,
+    with its spread, and rhs_per_sim_s is exactly stages / dt (the engine counts its evaluations)."""
+    timed_flags = []
+    real_measure = workprecision.measure
+
+    def spy(family, dt, timed=True, with_truth=True):
+        timed_flags.append(timed)
+        return real_measure(family, dt, timed, with_truth)
+
+    monkeypatch.setattr(workprecision, "measure", spy)
+    case = with_overrides(find_case("free-asymmetric"), t_end=1.0)
+    family = workprecision.Family(case, "pinocchio", "", "rk4")
+    points, rows = workprecision.run_ladders([family], max_steps=200, jobs=1)
+    assert timed_flags and not any(timed_flags)
+    ladder = pd.DataFrame(points)
+    ok = ladder[ladder.status == "ok"]
+    assert len(ok) >= 5 and np.isfinite(ok.us_per_sim_s).all() and (ok.us_per_sim_s_spread >= 0).all()
+    np.testing.assert_allclose(ok.rhs_per_sim_s, 4 * ok.steps / ok.t_end, rtol=1e-12)
