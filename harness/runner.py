@@ -130,9 +130,9 @@ def rhs_per_sim_s(spec: RunSpec, rhs_evals: int, steps: float, t_end: float) -> 
     return steps * _stages(spec.integrator) / t_end
 
 
-def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = True) -> dict:
+def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict:
     """Run one spec: an untimed accuracy run (also the warm-up), metrics, then, when timed, timed runs. Never raises.
-    The sweep runs it with timed False and times every run afterwards, alone (time_spec)."""
+    The sweep runs it untimed and times every run afterwards, alone (time_spec)."""
     grid = _grid(spec)
     row = _base_row(spec, grid)
     if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
@@ -313,9 +313,9 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
     completes."""
     if pool is None:
         for spec in specs:
-            finished(spec, execute(spec, truths[spec.case.name], False))
+            finished(spec, execute(spec, truths[spec.case.name]))
         return
-    futures: dict[Future, RunSpec] = {pool.submit(execute, s, truths[s.case.name], False): s for s in specs}
+    futures: dict[Future, RunSpec] = {pool.submit(execute, s, truths[s.case.name]): s for s in specs}
     for future in as_completed(futures):
         spec = futures[future]
         try:
@@ -387,7 +387,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
             try:
                 if scheduler:
-                    run_on_cluster(scheduler, pending, truths, untimed_execute, finished, _worker_failed_row)
+                    run_on_cluster(scheduler, pending, truths, execute, finished, _worker_failed_row)
                 else:
                     _run_local(pending, truths, pool, finished)
             finally:
@@ -395,8 +395,6 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                 progress.close()
         # The timing phase: every accuracy run is done and the pool is gone, so each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
-        if untimed:
-            progress.phase(f"timing {len(untimed)} runs, one at a time")
         for spec in untimed:
             key = keys[id(spec)]
             row = stored[key]
@@ -406,11 +404,6 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         if untimed:
             publish()
         return table()
-
-
-def untimed_execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
-    """execute without its timed runs (the sweep times every run afterwards, alone)."""
-    return execute(spec, truth, timed=False)
 
 
 def _needs_timing(row: dict) -> bool:

@@ -204,7 +204,7 @@ def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypat
     timed_in_execute = []
     real_execute = runner.execute
 
-    def spy(spec, truth, timed=True):
+    def spy(spec, truth, timed=False):
         timed_in_execute.append(timed)
         return real_execute(spec, truth, timed)
 
