@@ -31,12 +31,12 @@ from stereodyn.harness.cases import Case
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.fitting import declared_order, fit
 from stereodyn.harness.grid import time_grid
-from stereodyn.harness.timing import best_time
+from stereodyn.harness import timing
 from stereodyn.harness.trajectory import Status
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
-                  "state_err", "wall_s", "us_per_sim_s")
+                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s")
 LADDER_POINTS = 10
 TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
 STABLE_ENERGY_DRIFT = 1.0    # energy off by its whole scale: the run has blown up even if |ω| is not yet 1e6 x
@@ -74,7 +74,8 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
     try:
         sim = _prepare(family, dt)
         traj = sim.run(grid)
-        row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals)
+        row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals,
+                   rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan)
         drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
         row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
         if with_truth:
@@ -86,11 +87,32 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
             row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
                 if math.isfinite(row["attitude_err"]) else math.nan
         if timed and traj.status is Status.OK:
-            wall = best_time(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S)
-            row.update(wall_s=wall, us_per_sim_s=wall / grid.t_end * 1e6)
+            row.update(_timed(sim, grid))
     except Exception as exc:  # a point that breaks is data, as in the sweep
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
+
+
+def _timed(sim, grid) -> dict:
+    measured = timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S)
+    return {"wall_s": measured.best, "us_per_sim_s": measured.best / grid.t_end * 1e6,
+            "us_per_sim_s_spread": measured.spread / grid.t_end * 1e6}
+
+
+def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
+    """The ladders' timing phase: every ok point timed in this process, one at a time, after all the accuracy runs
+    (harness.timing: a timed run shares the cores with no other run). Updates the points in place."""
+    for row in points:
+        if row.get("status") != Status.OK.value:
+            continue
+        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        try:
+            sim = _prepare(family, row["dt"])
+            grid = time_grid(family.case.t_end, row["dt"], family.case.samples)
+            sim.run(grid)  # the warm-up
+            row.update(_timed(sim, grid))
+        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
+            pass
 
 
 def _stable(row: dict) -> bool:
@@ -158,7 +180,7 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     start = max(case.dt)
     stable_dt, stability_note = stability_limit(is_stable, start, cap, floor)
     top = stable_dt if math.isfinite(stable_dt) else (cap if "stable up to" in stability_note else start)
-    points = [measure(family, dt) for dt in ladder_dts(top, floor)]
+    points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
     frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
            "integrator": family.integrator, "stable_dt_max": stable_dt, "source": "ladder", **fit(frame, declared)}
@@ -191,8 +213,9 @@ def _failed_family(family: Family, exc: BaseException) -> tuple[list[dict], dict
 
 def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor | None = None,
                 progress: Callable[[str], None] | None = None) -> tuple[list[dict], list[dict]]:
-    """Every family's ladder, in this process (pool None) or on the sweep's pool. Returns (points, convergence
-    rows), in the order of `chosen` whatever order the families finish in."""
+    """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
+    timed here (time_points). Returns (points, convergence rows), in the order of `chosen` whatever order the families
+    finish in."""
     results: dict[int, tuple[list[dict], dict]] = {}
     if pool is None or len(chosen) <= 1:
         for index, family in enumerate(chosen):
@@ -213,4 +236,6 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor 
     for index in range(len(chosen)):
         points += results[index][0]
         rows.append(results[index][1])
+    # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
+    time_points(points, {(f.case.name, f.engine, f.formulation, f.integrator): f for f in chosen})
     return points, rows

@@ -16,12 +16,13 @@ import pandas as pd
 
 from stereodyn.harness import checks
 from stereodyn.harness.engines import EngineError, get_engine
+from stereodyn.harness.report.markdown import number as _num
 from stereodyn.harness.trajectory import Status
 
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")
 PARETO_COLUMNS = ("case", "target", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
-                  "steps", "source")
+                  "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "ties", "not_recommended")
 ORDER_QUANTITY = "convergence_order"
 
 # A state error above this (rad, or relative for ω) is pre-asymptotic: higher-order terms and the saturation of the
@@ -125,29 +126,84 @@ def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(records, columns=list(checks.COLUMNS))
 
 
-def pareto(results: pd.DataFrame, ladder: pd.DataFrame) -> pd.DataFrame:
-    """Per case and accuracy target, the cheapest fixed-step run (sweep or ladder) whose attitude_err reaches it."""
+# Two candidates tie when their costs differ by no more than the timing noise: the sum of their spreads (slowest
+# minus fastest of their timed runs), and at least TIE_RTOL of the cheaper cost. The floor stands for the noise that
+# repeats inside one process do not show and two runs of the sweep do (clock boost, cache and memory placement); 5% is
+# the usual run-to-run scatter of a micro-benchmark on an idle machine, an assumption to be checked by two runs there.
+TIE_RTOL = 0.05
+
+
+def pareto(results: pd.DataFrame, ladder: pd.DataFrame, failed: set | None = None) -> pd.DataFrame:
+    """Per case and accuracy target, the cheapest fixed-step run (sweep or ladder) whose attitude_err reaches it, with
+    ties and the runs not recommended (pareto_table)."""
     sweep = results[results["dt"].notna()].copy()
     sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
+    sweep["us_per_sim_s_spread"] = sweep["us_per_step_spread"] * sweep["steps"] / sweep["t_end"]
     sweep["source"] = "sweep"
     ladder = ladder.copy()
     ladder["source"] = "ladder"
-    columns = ["case", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s", "steps", "source",
-               "status"]
+    columns = ["case", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
+               "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "status"]
+    for frame_ in (sweep, ladder):
+        for column in columns:
+            if column not in frame_:
+                frame_[column] = math.nan
     both = pd.concat([sweep[columns], ladder[columns]] if len(ladder) else [sweep[columns]], ignore_index=True)
-    both = both[(both["status"] == Status.OK.value) & np.isfinite(both["attitude_err"].astype(float))
-                & np.isfinite(both["us_per_sim_s"].astype(float))].fillna({"formulation": ""})
+    return pareto_table(both, list(dict.fromkeys(results["case"])), failed or set())
+
+
+def _candidate(row) -> str:
+    return f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
+
+
+def is_failed(failed_set: set[tuple[str, str, str]], engine: str, formulation: str, integrator: str) -> bool:
+    """Whether a run's integrator failed a verdict (harness.verdicts.failed_integrators; "*" matches any engine and
+    formulation)."""
+    return (engine, formulation, integrator) in failed_set or ("*", "*", integrator) in failed_set
+
+
+def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()) -> pd.DataFrame:
+    """The Pareto table from candidate runs (columns case, engine, formulation, integrator, dt, attitude_err,
+    us_per_sim_s, us_per_sim_s_spread, rhs_per_sim_s, steps, source, status).
+
+    Per case and target: among the ok runs reaching the target whose integrator passed its verdicts (failed: a set of
+    (engine, formulation, integrator), harness.verdicts.failed_integrators), the cheapest; every run within the timing
+    noise of it (TIE_RTOL, the spreads) is a tie, listed in `ties`, and the winner among the tied is the one with the
+    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest.
+    `not_recommended` names the cheaper runs left out because their integrator failed a verdict."""
+    runs = runs.fillna({"formulation": ""})
+    runs = runs[(runs["status"] == Status.OK.value) & np.isfinite(runs["attitude_err"].astype(float))
+                & np.isfinite(runs["us_per_sim_s"].astype(float))]
+    bad = np.array([is_failed(set(failed), r.engine, r.formulation, r.integrator) for r in runs.itertuples()],
+                   dtype=bool)
     records = []
-    for case in dict.fromkeys(results["case"]):
-        runs = both[both["case"] == case]
+    for case in cases:
+        in_case = (runs["case"] == case).to_numpy()
         for target in ACCURACY_TARGETS:
-            good = runs[runs["attitude_err"] <= target]
+            reach = in_case & (runs["attitude_err"] <= target).to_numpy()
+            good, excluded = runs[reach & ~bad], runs[reach & bad]
             if good.empty:
                 records.append({"case": case, "target": target, "engine": "", "formulation": "", "integrator": "",
-                                "source": "none reached it"})
+                                "source": "none reached it" if excluded.empty else "only runs that failed a verdict",
+                                "ties": "", "not_recommended": "; ".join(_candidate(r) for _, r in
+                                                                          excluded.nsmallest(3, "us_per_sim_s")
+                                                                          .iterrows())})
                 continue
-            best = good.loc[good["us_per_sim_s"].idxmin()]
-            records.append({"case": case, "target": target, **{c: best[c] for c in PARETO_COLUMNS[2:]}})
+            cheapest = good.loc[good["us_per_sim_s"].idxmin()]
+            noise = np.maximum(good["us_per_sim_s_spread"].fillna(0.0).to_numpy(float)
+                               + (0.0 if not math.isfinite(cheapest["us_per_sim_s_spread"])
+                                  else cheapest["us_per_sim_s_spread"]),
+                               TIE_RTOL * cheapest["us_per_sim_s"])
+            tied = good[(good["us_per_sim_s"].to_numpy(float) - cheapest["us_per_sim_s"]) <= noise]
+            rhs = tied["rhs_per_sim_s"].astype(float).fillna(math.inf)
+            best = tied.loc[tied.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
+            cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
+            records.append({"case": case, "target": target, **{c: best[c] for c in PARETO_COLUMNS[2:12]},
+                            "ties": "; ".join(_candidate(r) for i, r in tied.iterrows() if i != best.name),
+                            "not_recommended": "; ".join(_candidate(r) for _, r in
+                                                         cheaper_bad.nsmallest(3, "us_per_sim_s").iterrows())})
     return pd.DataFrame(records, columns=list(PARETO_COLUMNS))
 
 
+def _name(row) -> str:
+    return " ".join(str(x) for x in (row["engine"], row["formulation"], row["integrator"]) if isinstance(x, str) and x)

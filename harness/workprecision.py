@@ -23,13 +23,13 @@ from stereodyn.harness.cases import Case
 from stereodyn.harness.dt_ladders import (LADDER_COLUMNS, MIN_STEPS, STABLE_ENERGY_DRIFT, Family, families,
                                           run_ladders)
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, convergence_table,
-                                       order_checks, pareto, sweep_orders)
+from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, TIE_RTOL, _name,
+                                       convergence_table, order_checks, pareto, pareto_table, sweep_orders)
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
 from stereodyn.harness.results import write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "MIN_STEPS", "analyse", "read_optional",
-           "report_lines"]
+           "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
 
 LADDER_FILE, CONVERGENCE_FILE, PARETO_FILE = "ladder.csv", "convergence.csv", "pareto.csv"
 FULL_MAX_STEPS = 200_000     # --dt-ladder: rk4 reaches its round-off floor on the suite's cases well before this
@@ -49,6 +49,14 @@ def _ladder_cost(family: Family) -> float:
     engine = get_engine(family.engine)
     order = engine.declared_order(family.integrator)
     return engine.pass_us * (order if math.isfinite(order) else 1.0)
+
+
+def rewrite_pareto(out_dir: Path, results: pd.DataFrame, failed: set) -> None:
+    """pareto.csv again, leaving out the runs of the integrators that failed a verdict (harness.verdicts)."""
+    ladder = read_optional(Path(out_dir) / LADDER_FILE, ("formulation", "engine", "integrator", "message"))
+    if ladder is None:
+        ladder = pd.DataFrame(columns=list(LADDER_COLUMNS))
+    _write(pareto(results, ladder, failed), Path(out_dir) / PARETO_FILE)
 
 
 def _write(df: pd.DataFrame, path: Path) -> None:
@@ -106,20 +114,21 @@ def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) 
     return df.fillna({c: "" for c in text_columns if c in df})
 
 
-def _name(row) -> str:
-    return " ".join(str(x) for x in (row["engine"], row["formulation"], row["integrator"]) if isinstance(x, str) and x)
-
-
 def report_lines(out_dir: Path) -> list[str]:
     """The report's "What to use" and "Convergence" sections, from pareto.csv and convergence.csv (empty without)."""
     lines: list[str] = []
-    pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source"))
+    pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source", "ties",
+                                                             "not_recommended"))
     if pareto_df is not None and len(pareto_df):
         lines += ["## What to use", "",
                   "Per case and accuracy target (max attitude error, rad, up to the case's horizon): the cheapest "
                   "fixed-step run that reaches it, over the sweep's runs and the dt ladders (pareto.csv); cost in µs of "
                   "stepping per simulated second. Adaptive runs (heyoka) are the truth and its relatives, not "
-                  "contenders. Timings are comparable within one report only.", ""]
+                  "contenders. Timings are comparable within one report only; each run is timed alone (best of up "
+                  "to 3). '**tie** with N': N other runs cost the same within the timing noise (pareto.csv `ties`, "
+                  f"the sum of their spreads, at least {TIE_RTOL:.0%}); the one shown needs "
+                  "the fewest right-hand-side evaluations per simulated second. A run whose integrator failed a "
+                  "verdict is never shown; a cheaper one is named as not recommended.", ""]
         targets = sorted(pareto_df["target"].unique(), reverse=True)
         header = ["case"] + [f"≤ {t:.0e}" for t in targets]
         rows = []
@@ -129,9 +138,16 @@ def report_lines(out_dir: Path) -> list[str]:
                 hit = group[group["target"] == target]
                 row = hit.iloc[0] if len(hit) else None
                 if row is None or not row["engine"]:
-                    cells.append("-")
+                    cell = "-"
                 else:
-                    cells.append(f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)")
+                    cell = f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
+                    ties = row.get("ties", "")
+                    if isinstance(ties, str) and ties:
+                        cell += f" **tie** with {ties.count(';') + 1}"
+                failed_runs = row.get("not_recommended", "") if row is not None else ""
+                if isinstance(failed_runs, str) and failed_runs:
+                    cell += f" (cheaper, not recommended: {failed_runs.split(';')[0]}, failed a verdict)"
+                cells.append(cell)
             rows.append(cells)
         lines += _md(header, rows) + [""]
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
