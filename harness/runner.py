@@ -328,7 +328,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             finally:
                 publish()
                 progress.close()
-        # The timing phase: every accuracy run is done and the pool idle (or gone), so each timed run has the cores alone.
+        # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         for spec in untimed:
             key = keys[id(spec)]

@@ -1,6 +1,6 @@
 """Engine registry: engines are plug-ins of the entry-point group `stereodyn.engines` (name = "module:Class", the
-class a subclass of harness.engines.base.Engine); the built-ins register there in pyproject.toml exactly as a third party
-would. Entry points are listed without importing anything and loaded on first use, so a missing SDK only makes its
+class a subclass of harness.engines.base.Engine); the built-ins register there in pyproject.toml exactly as a third
+party would. Entry points are listed without importing anything and loaded on first use, so a missing SDK only makes its
 own runs `skipped`; a broken or old-style plug-in raises EngineError naming it."""
 from __future__ import annotations
 
