@@ -224,10 +224,13 @@ def cmd_check(args) -> int:
         for line in gate.summary(findings + order_findings):
             print(line)
         print(gate.findings_table(findings + order_findings))
-        rows = len({f.key for f in findings})
+        worse = len({f.key for f in findings if f.what != "missing"})
+        gone = sum(f.what == "missing" for f in findings)
         parts = []
-        if findings:
-            parts.append(f"{rows} of {len(baseline)} baseline rows got worse than {args.baseline} allows")
+        if worse:
+            parts.append(f"{worse} of {len(baseline)} baseline rows got worse than {args.baseline} allows")
+        if gone:
+            parts.append(f"{gone} of {len(baseline)} baseline rows missing")
         if order_findings:
             parts.append(f"{len(order_findings)} of {len(base.orders)} fitted orders fell")
         print(f"check failed: {'; '.join(parts)}{note}")
