@@ -346,7 +346,13 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                     truths[case.name] = None
                 elif any(s.case is case for s in pending):
                     progress.phase(f"truth {case.name}")
-                    truths[case.name] = compute_truth(case, case.dt, certify)
+                    try:
+                        truths[case.name] = compute_truth(case, case.dt, certify)
+                    except Exception as exc:  # a truth that cannot be computed fails its case's runs, as data
+                        reason = f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]
+                        for spec in [s for s in pending if s.case is case]:
+                            finished(spec, {**_base_row(spec, None), "status": Status.FAILED.value, "message": reason})
+                        pending = [s for s in pending if s.case is not case]
             progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
             try:
                 if scheduler:

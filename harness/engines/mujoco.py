@@ -17,6 +17,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from xml.sax.saxutils import quoteattr
+
 import mujoco
 import numpy as np
 from mujoco import rollout
@@ -100,7 +102,7 @@ def _scene(case: Case, integrator: str, dt: float) -> str:
                          f"(principal moments {moments})")
     gravity = body.gravity * np.asarray(body.gravity_direction, dtype=float)
     full_inertia = (inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2])
-    return f"""<mujoco model="{case.name}">
+    return f"""<mujoco model={quoteattr(case.name)}>
   <option timestep="{float(dt)!r}" gravity="{_numbers(gravity)}" integrator="{INTEGRATORS[integrator][0]}">
     <flag contact="disable" constraint="disable" equality="disable" frictionloss="disable" limit="disable"
           damper="disable" autoreset="disable"/>

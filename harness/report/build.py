@@ -6,6 +6,7 @@ invariant series, harness.store), checks.csv when some check wrote it (DESIGN §
 from __future__ import annotations
 
 import datetime
+import hashlib
 import math
 import multiprocessing
 import os
@@ -83,10 +84,18 @@ def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool
         if png is None:
             lines += [missing[kind], ""]
             continue
-        path = f"{FIGURES_DIR}/{html.slug(case)}-{kind}.png"
+        path = f"{FIGURES_DIR}/{figure_stem(case)}-{kind}.png"
         images[path] = png
         lines += [f"![{case}: {kind.replace('-', '–')}]({path})", ""]
     return work + drift, images
+
+
+def figure_stem(case: str) -> str:
+    """A figure's file name for a case: safe (ASCII slug), bounded (<= 40 + 9 characters) and unique (the slug alone
+    maps every non-ASCII name to "", and two names to one file; the hash of the whole name tells them apart)."""
+    digest = hashlib.sha256(str(case).encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    stem = html.slug(str(case))[:40].strip("-")
+    return f"{stem}-{digest}" if stem else digest
 
 
 def _render(task: tuple) -> bytes | None:
