@@ -41,6 +41,7 @@ from stereodyn.harness.cases import Case
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
+from stereodyn.harness.processes import exit_with_parent
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
 from stereodyn.harness.results import write_atomic
 from stereodyn.harness.timing import best_time
@@ -288,7 +289,7 @@ def run_ladders(chosen: list[Family], max_steps: int, jobs: int | None = None,
                 progress(family.label)
         return points, rows
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=exit_with_parent) as pool:
         futures = {pool.submit(_ladder_task, f, max_steps): f for f in chosen}
         for future in as_completed(futures):
             family = futures[future]

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 
 from xml.sax.saxutils import quoteattr
 
@@ -29,6 +30,24 @@ from stereodyn.harness.trajectory import (DIVERGENCE_FACTOR, SlidingLadderTrajec
 from stereodyn.harness.engines.base import precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.reference.torques import torque_function
+
+# Where MuJoCo's warnings outside a run go (a run collects its own, MuJoCoSimulation.run): the file named by this
+# environment variable (`stereodyn run` sets DIR/MUJOCO_LOG.TXT), never stderr nor the working directory's
+# MUJOCO_LOG.TXT, which MuJoCo's default handler appends to.
+LOG_ENV = "STEREODYN_MUJOCO_LOG"
+
+
+def _log_warning(message: str) -> None:
+    path = os.environ.get(LOG_ENV)
+    if path:
+        try:
+            with open(path, "a", encoding="utf-8") as log:
+                log.write(f"WARNING: {message}\n")
+        except OSError:
+            pass  # a log that cannot be written loses a warning, never a run
+
+
+mujoco.set_mju_user_warning(_log_warning)
 
 # harness name -> (MJCF option value, dynamics evaluations per step)
 INTEGRATORS: dict[str, tuple[str, int]] = {

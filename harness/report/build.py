@@ -20,6 +20,7 @@ from stereodyn.harness import checks as theory_checks
 from stereodyn.harness import workprecision
 from stereodyn.harness.report import figures, html
 from stereodyn.harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
+from stereodyn.harness.processes import exit_with_parent
 from stereodyn.harness.results import read_results, write_atomic
 from stereodyn.harness.store import read_manifest, read_records
 
@@ -109,7 +110,8 @@ def _render_all(tasks: list[tuple]) -> list[bytes | None]:
     if workers < 2:
         return [_render(task) for task in tasks]
     # spawn, not fork: the caller may hold heyoka's LLVM state and threads (a report at the end of a sweep).
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=exit_with_parent) as pool:
         return list(pool.map(_render, tasks))
 
 
