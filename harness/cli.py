@@ -366,7 +366,10 @@ def main(argv: list[str] | None = None) -> int:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
 
-    args = _parser().parse_args(argv)
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
+        return exc.code if isinstance(exc.code, int) else 2
     commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
                 "check": cmd_check, "export": cmd_export}
     try:

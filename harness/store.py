@@ -47,25 +47,31 @@ class StoreBusy(RuntimeError):
 # The folders under DIR that stereodyn writes with write_atomic (DIR itself, the store, the figures): where a killed
 # process may have left a .NAME.*.tmp. Not the whole tree under DIR: `--out .` must never delete a user's files.
 TEMPORARY_FOLDERS = (".", STORE_DIR, "figures")
-# Locks held by this process: resolved DIR -> [descriptor, depth]. flock conflicts between two descriptors even in one
-# process, so the command's lock and the sweep's Store share one descriptor and nest.
+# Locks held by this process: resolved DIR/store -> [descriptor, open Stores]. flock conflicts between two descriptors
+# even in one process, so the command's lock and the sweep's Store share one descriptor and nest.
 _HELD: dict[str, list[int]] = {}
 
 
 @contextmanager
-def folder_lock(out_dir: Path) -> Iterator[None]:
-    """Hold DIR's exclusive lock (on DIR/store) for the block; StoreBusy when another process holds it. Re-entrant in
-    one process: `stereodyn run` takes it for the whole command (sweep, work–precision, report), the sweep inside."""
+def folder_lock(out_dir: Path, store: bool = False) -> Iterator[None]:
+    """Hold DIR's exclusive lock (on DIR/store) for the block; StoreBusy when another process holds it. `stereodyn
+    run` takes it for the whole command (sweep, work–precision, report) and the sweep's Store (store=True) inside
+    it; in one process a second Store of the folder is still refused."""
     out_dir = Path(out_dir)
     root = out_dir / STORE_DIR
     root.mkdir(parents=True, exist_ok=True)
     name = os.path.realpath(root)
+    busy = StoreBusy(f"{out_dir}: another stereodyn command is writing to this folder (try again when it has "
+                     f"written its report)")
     if name in _HELD:
-        _HELD[name][1] += 1
+        held = _HELD[name]
+        if store and held[1]:
+            raise busy
+        held[1] += store
         try:
             yield
         finally:
-            _HELD[name][1] -= 1
+            held[1] -= store
         return
     fd = None
     if fcntl is not None:
@@ -74,9 +80,8 @@ def folder_lock(out_dir: Path) -> Iterator[None]:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
-            raise StoreBusy(f"{out_dir}: another stereodyn command is writing to this folder (try again when it "
-                            f"has written its report)") from None
-    _HELD[name] = [fd if fd is not None else -1, 1]
+            raise busy from None
+    _HELD[name] = [-1 if fd is None else fd, int(store)]
     try:
         remove_partial_files(out_dir)
         yield
@@ -182,7 +187,7 @@ class Store:
         self.versions = library_versions()
 
     def __enter__(self) -> "Store":
-        self._lock = folder_lock(self.out_dir)
+        self._lock = folder_lock(self.out_dir, store=True)
         self._lock.__enter__()
         return self
 

@@ -66,8 +66,8 @@ def test_report_md_has_every_section(reported):
     assert positions == sorted(positions)  # in this order; the environment is the footer
     assert "diverged at t = " in text
     for case in CASES:
-        assert f"![{case}: work–precision](figures/{case}-work-precision.png)" in text
-        assert f"![{case}: invariants](figures/{case}-invariants.png)" in text
+        assert f"![{case}: work–precision](figures/{build.figure_stem(case)}-work-precision.png)" in text
+        assert f"![{case}: invariants](figures/{build.figure_stem(case)}-invariants.png)" in text
     assert "precession_rate" in text and "convergence_order" in text
     footer = text.split("## Environment")[1]
     for key in ("python", "numpy", "scipy", "mujoco", "pin", "heyoka", "cpu", "date", "git commit"):
