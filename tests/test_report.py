@@ -95,7 +95,7 @@ def test_every_figure_is_a_non_empty_image(reported):
         assert pixels.shape[0] > 100 and pixels.shape[1] > 100
         assert pixels[..., :3].std() > 0.05  # not a blank canvas: lines, labels and legends
     assert sorted(p.name for p in (reported / "figures").glob("*.png")) == sorted(
-        f"{case}-{kind}.png" for case in CASES for kind in ("invariants", "work-precision"))
+        f"{build.figure_stem(case)}-{kind}.png" for case in CASES for kind in ("invariants", "work-precision"))
 
 
 def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):
