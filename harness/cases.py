@@ -527,7 +527,9 @@ def _describe(value: Any) -> str:
 
 def _short(value: Any) -> str:
     """A value for a message, at most 40 characters (a 10^5-digit integer must not become a 10^5-character line)."""
-    text = repr(value) if not isinstance(value, int) or abs(value) < 10 ** 30 else f"{float(value):g}"
+    if isinstance(value, int) and abs(value) >= 10 ** 30:  # float() overflows and repr() refuses > 4300 digits
+        return f"{'-' if value < 0 else ''}an integer of {int(math.log10(abs(value))) + 1} digits"
+    text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
 
 

@@ -266,6 +266,7 @@ def _work_precision(args, chosen: list, df) -> None:
 def cmd_report(args) -> int:
     from stereodyn.harness.report.build import write_reports
 
+    from stereodyn.harness.results import TableError
     from stereodyn.harness.store import folder_lock
 
     results = args.dir / "results.csv"
