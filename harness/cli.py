@@ -354,8 +354,10 @@ def _load() -> None:
 def main(argv: list[str] | None = None) -> int:
     # Numeric warnings (overflow in a diverging run, which is data) and MuJoCo's are not for stderr; the workers
     # inherit the environment variable.
+    # A case name in a script the plot font lacks (CJK) is drawn as boxes; matplotlib's warning about it is noise too.
     warnings.filterwarnings("ignore", category=RuntimeWarning)
-    os.environ.setdefault("PYTHONWARNINGS", "ignore::RuntimeWarning")
+    warnings.filterwarnings("ignore", message="Glyph .* missing from font", category=UserWarning)
+    os.environ.setdefault("PYTHONWARNINGS", "ignore::RuntimeWarning,ignore:Glyph:UserWarning")
     try:
         _load()
         from stereodyn.harness.gate import GateError
