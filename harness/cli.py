@@ -2,14 +2,28 @@
 """
 from __future__ import annotations
 
-import argparse
-import dataclasses
-import math
 import os
+import signal
 import sys
-import tempfile
-import warnings
-from pathlib import Path
+
+
+def _interrupted_while_loading(signum, frame) -> None:
+    sys.stderr.write("stereodyn: interrupted\n")
+    os._exit(130)
+
+
+# Started as the command (the `stereodyn` script, python -m stereodyn or this file), Ctrl-C while the modules below
+# load ends in one line; main() puts Python's handler back once they are in. Imported as a library: untouched.
+if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or __name__ == "__main__"
+                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))):
+    signal.signal(signal.SIGINT, _interrupted_while_loading)
+
+import argparse  # noqa: E402  (after the handler, on purpose)
+import dataclasses  # noqa: E402
+import math  # noqa: E402
+import tempfile  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 # The command's modules (numpy, the SDKs behind them) are imported by main() inside its Ctrl-C handling (_load), so an
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
@@ -379,6 +393,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
+    if signal.getsignal(signal.SIGINT) is _interrupted_while_loading:
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # loaded: KeyboardInterrupt, handled below
 
     try:
         args = _parser().parse_args(argv)
