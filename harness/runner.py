@@ -26,6 +26,7 @@ from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.harness.grid import TimeGrid, time_grid
 from stereodyn.harness.distributed import run_on_cluster
 from stereodyn.harness.environment import environment as current_environment
+from stereodyn.harness.processes import exit_with_parent
 from stereodyn.harness.progress import ProgressBar
 from stereodyn.harness.results import frame, write_results
 from stereodyn.harness.store import Store, run_key
@@ -196,6 +197,7 @@ def _init_worker(engines: tuple[str, ...]) -> None:
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
     # must not die mid-run on it and send back a traceback instead of a row.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_with_parent()
     for name in engines:
         try:
             get_engine(name)
@@ -218,6 +220,7 @@ def _local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proc
     if jobs == 1 or runs <= 1:
         yield None
         return
+    jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
     # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
                                initializer=_init_worker, initargs=(engines,))
@@ -318,7 +321,13 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                     truths[case.name] = None
                 elif any(s.case is case for s in pending):
                     progress.phase(f"truth {case.name}")
-                    truths[case.name] = compute_truth(case, case.dt, certify)
+                    try:
+                        truths[case.name] = compute_truth(case, case.dt, certify)
+                    except Exception as exc:  # a truth that cannot be computed fails its case's runs, as data
+                        reason = f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]
+                        for spec in [s for s in pending if s.case is case]:
+                            finished(spec, {**_base_row(spec, None), "status": Status.FAILED.value, "message": reason})
+                        pending = [s for s in pending if s.case is not case]
             progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
             try:
                 if scheduler:

@@ -6,8 +6,10 @@ finishes, so an interrupted sweep loses nothing already computed and never leave
 the records whose key matches. results.csv and DIR/runs.json (the sweep's keys and environment) are assembled from the
 records.
 
-A sweep holds an exclusive lock on DIR/store while it runs, so two sweeps never write one folder, and any temporary
-file found there is the leftover of a killed process: it is removed when the next sweep opens the store.
+A command holds an exclusive lock on DIR/store while it writes the folder (folder_lock: `stereodyn run` for the
+sweep, work–precision and the report; `report` for the report), so two commands never write one folder, and any
+temporary file found there (TEMPORARY_FOLDERS) is the leftover of a killed process: it is removed when the next
+command takes the lock.
 """
 from __future__ import annotations
 
@@ -16,6 +18,8 @@ import hashlib
 import json
 import math
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +27,8 @@ import numpy as np
 
 from stereodyn.harness.cases import Case
 from stereodyn.harness.environment import library_versions
-from stereodyn.harness.results import write_atomic
+from stereodyn.harness.results import COLUMNS, write_atomic
+from stereodyn.harness.trajectory import Status
 
 STORE_DIR = "store"
 MANIFEST = "runs.json"
@@ -37,6 +42,62 @@ except ImportError:  # not POSIX: no lock; the store still never holds a partial
 
 class StoreBusy(RuntimeError):
     """Another sweep holds the folder's lock."""
+
+
+# The folders under DIR that stereodyn writes with write_atomic (DIR itself, the store, the figures): where a killed
+# process may have left a .NAME.*.tmp. Not the whole tree under DIR: `--out .` must never delete a user's files.
+TEMPORARY_FOLDERS = (".", STORE_DIR, "figures")
+# Locks held by this process: resolved DIR/store -> [descriptor, open Stores]. flock conflicts between two descriptors
+# even in one process, so the command's lock and the sweep's Store share one descriptor and nest.
+_HELD: dict[str, list[int]] = {}
+
+
+@contextmanager
+def folder_lock(out_dir: Path, store: bool = False) -> Iterator[None]:
+    """Hold DIR's exclusive lock (on DIR/store) for the block; StoreBusy when another process holds it. `stereodyn
+    run` takes it for the whole command (sweep, work–precision, report) and the sweep's Store (store=True) inside
+    it; in one process a second Store of the folder is still refused."""
+    out_dir = Path(out_dir)
+    root = out_dir / STORE_DIR
+    root.mkdir(parents=True, exist_ok=True)
+    name = os.path.realpath(root)
+    busy = StoreBusy(f"{out_dir}: another stereodyn command is writing to this folder (try again when it has "
+                     f"written its report)")
+    if name in _HELD:
+        held = _HELD[name]
+        if store and held[1]:
+            raise busy
+        held[1] += store
+        try:
+            yield
+        finally:
+            held[1] -= store
+        return
+    fd = None
+    if fcntl is not None:
+        fd = os.open(root, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise busy from None
+    _HELD[name] = [-1 if fd is None else fd, int(store)]
+    try:
+        remove_partial_files(out_dir)
+        yield
+    finally:
+        del _HELD[name]
+        if fd is not None:
+            os.close(fd)  # closing the descriptor releases the lock
+
+
+def remove_partial_files(out_dir: Path) -> list[Path]:
+    """Delete the temporary files of interrupted atomic writes (harness.results.write_atomic's .NAME.*.tmp) in the
+    folders stereodyn writes under DIR (TEMPORARY_FOLDERS)."""
+    leftovers = [path for folder in TEMPORARY_FOLDERS for path in (Path(out_dir) / folder).glob(".*.tmp")]
+    for path in leftovers:
+        path.unlink(missing_ok=True)
+    return leftovers
 
 
 def _plain(value: Any) -> Any:
@@ -98,6 +159,25 @@ def _row_from_json(row: dict) -> dict:
     return out
 
 
+_STATUSES = frozenset(status.value for status in Status)
+_NUMERIC_COLUMNS = frozenset(COLUMNS) - {*_TEXT_COLUMNS, "torque_mode"}
+
+
+def _valid_row(row: Any) -> bool:
+    """A stored row as put() writes it: a status of Status, text in the text columns, numbers (or null, or "inf" /
+    "-inf") in results.csv's numeric columns. Other columns (the checks, columns added later) are not judged here."""
+    if not isinstance(row, dict) or row.get("status") not in _STATUSES:
+        return False
+    for column, value in row.items():
+        if column in _TEXT_COLUMNS:
+            if not isinstance(value, (str, type(None))):
+                return False
+        elif column in _NUMERIC_COLUMNS and not (value is None or value in ("inf", "-inf") or (
+                isinstance(value, (int, float)) and not isinstance(value, bool))):
+            return False
+    return True
+
+
 class Store:
     """The records under DIR/store. Use as a context manager: it takes the folder's lock and clears leftovers."""
 
@@ -105,34 +185,22 @@ class Store:
         self.out_dir = Path(out_dir)
         self.root = self.out_dir / STORE_DIR
         self.versions = library_versions()
-        self._lock_fd: int | None = None
 
     def __enter__(self) -> "Store":
-        self.root.mkdir(parents=True, exist_ok=True)
-        if fcntl is not None:
-            fd = os.open(self.root, os.O_RDONLY)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                raise StoreBusy(f"{self.out_dir}: another sweep is writing to this folder") from None
-            self._lock_fd = fd
-        self.remove_partial_files()
+        self._lock = folder_lock(self.out_dir, store=True)
+        self._lock.__enter__()
         return self
 
     def __exit__(self, *exc) -> None:
-        if exc[0] is not None:  # interrupted: an atomic write cut short between mkstemp and its try may leave one
-            self.remove_partial_files()
-        if self._lock_fd is not None:
-            os.close(self._lock_fd)  # closing the descriptor releases the lock
-            self._lock_fd = None
+        try:
+            if exc[0] is not None:  # interrupted: an atomic write cut short between mkstemp and its try may leave one
+                self.remove_partial_files()
+        finally:
+            self._lock.__exit__(*exc)
 
     def remove_partial_files(self) -> list[Path]:
-        """Delete the temporary files of interrupted atomic writes (harness.results.write_atomic's .NAME.*.tmp)."""
-        leftovers = [*self.root.glob(".*.tmp"), *self.out_dir.glob(".*.tmp")]
-        for path in leftovers:
-            path.unlink(missing_ok=True)
-        return leftovers
+        """Delete the temporary files of interrupted atomic writes under DIR (remove_partial_files)."""
+        return remove_partial_files(self.out_dir)
 
     def identity(self, case: Case, engine: str, formulation: str, integrator: str, dt: float | None,
                  certify: bool) -> dict:
@@ -148,8 +216,9 @@ class Store:
             record = json.loads(self.path(key).read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
-        if not isinstance(record, dict) or record.get("format") != FORMAT or "row" not in record:
-            return None
+        if not isinstance(record, dict) or record.get("format") != FORMAT or not _valid_row(record.get("row")) \
+                or record.get("key", key) != key or not isinstance(record.get("series"), (dict, type(None))):
+            return None  # not a record this version wrote: recompute the run
         record["row"] = _row_from_json(record["row"])
         return record
 
@@ -172,7 +241,13 @@ def read_manifest(out_dir: Path) -> dict | None:
         manifest = json.loads((Path(out_dir) / MANIFEST).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    return manifest if isinstance(manifest, dict) and manifest.get("format") == FORMAT else None
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+        return None
+    runs, environment = manifest.get("runs", []), manifest.get("environment")
+    if not (isinstance(runs, list) and all(isinstance(key, str) for key in runs)
+            and isinstance(environment, (dict, type(None)))):
+        return None  # not a manifest this version wrote: as if the folder had none
+    return manifest
 
 
 def read_records(out_dir: Path) -> list[dict]:

@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+
+from xml.sax.saxutils import quoteattr
 
 import mujoco
 import numpy as np
@@ -27,6 +30,24 @@ from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Traje
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.reference.torques import torque_function
+
+# Where MuJoCo's warnings outside a run go (a run collects its own, MuJoCoSimulation.run): the file named by this
+# environment variable (`stereodyn run` sets DIR/MUJOCO_LOG.TXT), never stderr nor the working directory's
+# MUJOCO_LOG.TXT, which MuJoCo's default handler appends to.
+LOG_ENV = "STEREODYN_MUJOCO_LOG"
+
+
+def _log_warning(message: str) -> None:
+    path = os.environ.get(LOG_ENV)
+    if path:
+        try:
+            with open(path, "a", encoding="utf-8") as log:
+                log.write(f"WARNING: {message}\n")
+        except OSError:
+            pass  # a log that cannot be written loses a warning, never a run
+
+
+mujoco.set_mju_user_warning(_log_warning)
 
 # harness name -> (MJCF option value, dynamics evaluations per step)
 INTEGRATORS: dict[str, tuple[str, int]] = {
@@ -100,7 +121,7 @@ def _scene(case: Case, integrator: str, dt: float) -> str:
                          f"(principal moments {moments})")
     gravity = body.gravity * np.asarray(body.gravity_direction, dtype=float)
     full_inertia = (inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2])
-    return f"""<mujoco model="{case.name}">
+    return f"""<mujoco model={quoteattr(case.name)}>
   <option timestep="{float(dt)!r}" gravity="{_numbers(gravity)}" integrator="{INTEGRATORS[integrator][0]}">
     <flag contact="disable" constraint="disable" equality="disable" frictionloss="disable" limit="disable"
           damper="disable" autoreset="disable"/>

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 import pinocchio as pin
@@ -104,6 +105,11 @@ def build_model(case: Case) -> "pin.Model":
     return model
 
 
+def _comment(name: str) -> str:
+    """A case name inside an XML comment, which may not hold "--" (nor end in "-")."""
+    return '"' + name.replace("-", "\N{HYPHEN}") + '"' if "--" in name or name.endswith("-") else f'"{name}"'
+
+
 def urdf(case: Case) -> str:
     """build_model's body as URDF, to open in Pinocchio (buildModelFromUrdf) or other URDF tools.
 
@@ -135,11 +141,11 @@ def urdf(case: Case) -> str:
                       f'    <child link="{child}"/>\n    <origin xyz="0 0 0" rpy="0 0 0"/>\n'
                       f'    <axis xyz="{axis}"/>\n  </joint>')
     return f"""<?xml version="1.0"?>
-<!-- stereodyn case "{case.name}": a rigid body with a fixed point O at the world origin.
+<!-- stereodyn case {_comment(case.name)}: a rigid body with a fixed point O at the world origin.
      The ball joint at O is a gimbal of three continuous joints (yaw about z, pitch about y, roll about x:
      R = Rz Ry Rx, body -> world) through two massless links; the body's frame is the case's body frame.
      Gravity to set in the tool (URDF has none), world frame, m/s^2: {vector(gravity)} -->
-<robot name="{case.name}">
+<robot name={quoteattr(case.name)}>
   <link name="world"/>
   <link name="gimbal_yaw"/>
   <link name="gimbal_pitch"/>
