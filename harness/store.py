@@ -1,9 +1,11 @@
 """The result store: one JSON file per run, DIR/store/<key>.json, written atomically.
 
 A run's key hashes everything its row depends on: the case's content, engine, formulation, integrator, dt, whether
-the truth is certified, and the library versions. A record is written (temporary file, fsync, rename) the moment its run
+the truth is certified, the library versions, and the code: a fingerprint of stereodyn's installed source files and,
+for the run's engine and integrator classes, their distribution, version and source hash (harness.environment), so a
+changed line of code, even without a new version, is never served from the store. A record is written (temporary file, fsync, rename) the moment its run
 finishes, so an interrupted sweep loses nothing already computed and never leaves a partial record; `--resume` reuses
-the records whose key matches. results.csv and DIR/runs.json (the sweep's keys and environment) are assembled from the
+the records whose key matches and whose shape is right (anything else counts as absent and is redone). results.csv and DIR/runs.json (the sweep's keys and environment) are assembled from the
 records.
 
 A sweep holds an exclusive lock on DIR/store while it runs, so two sweeps never write one folder, and any temporary
@@ -22,8 +24,10 @@ from typing import Any
 import numpy as np
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.environment import library_versions
-from stereodyn.harness.results import write_atomic
+from stereodyn.harness.environment import code_origin, library_versions, source_fingerprint
+from stereodyn.harness.checks import ROW_KEY
+from stereodyn.harness.results import COLUMNS, write_atomic
+from stereodyn.harness.trajectory import Status
 
 STORE_DIR = "store"
 MANIFEST = "runs.json"
@@ -69,9 +73,23 @@ def case_content(case: Case) -> dict:
 
 
 def run_identity(case: Case, engine: str, formulation: str, integrator: str, dt: float | None, certify: bool,
-                 versions: dict[str, str]) -> dict:
+                 versions: dict[str, str], code: dict | None = None) -> dict:
+    """Everything a run's row depends on. code: the fingerprints of the code that runs it (Store.code)."""
     return {"case": case_content(case), "engine": engine, "formulation": formulation, "integrator": integrator,
-            "dt": None if dt is None else float(dt), "certify": bool(certify), "versions": versions}
+            "dt": None if dt is None else float(dt), "certify": bool(certify), "versions": versions, "code": code}
+
+
+def integrator_classes(name: str) -> list[type]:
+    """Every registered class called `name`, one per state space (an engine picks the one of its space)."""
+    from stereodyn.harness import integrators
+
+    return [integrators.get(name, space) for space in integrators.state_spaces() if name in integrators.names(space)]
+
+
+def engine_class(name: str) -> type:
+    from stereodyn.harness.engines import get_engine
+
+    return type(get_engine(name))
 
 
 def run_key(identity: dict) -> str:
@@ -81,6 +99,37 @@ def run_key(identity: dict) -> str:
 
 
 _TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "status", "message")
+_KEY_COLUMNS = ("case", "engine", "formulation", "integrator")
+_STATUSES = frozenset(s.value for s in Status)
+
+
+def _is_number(value: Any) -> bool:
+    """A number column's JSON value: a number, null (NaN) or "inf"/"-inf" (as _plain writes them)."""
+    return value is None or value in ("inf", "-inf") or (isinstance(value, (int, float)) and not isinstance(value, bool))
+
+
+def well_formed(record: Any, key: str) -> bool:
+    """Whether a stored record has the shape Store.put writes: the format, its own key, an identity, a row whose
+    status is a Status, whose text columns are text and whose other columns are numbers, and series/checks of the
+    right container type. A record failing this is treated as absent (redone, never copied into results.csv)."""
+    if not (isinstance(record, dict) and record.get("format") == FORMAT and record.get("key") == key
+            and isinstance(record.get("identity"), dict) and isinstance(record.get("row"), dict)
+            and isinstance(record.get("series"), (dict, type(None)))):
+        return False
+    row = record["row"]
+    if row.get("status") not in _STATUSES or not all(isinstance(row.get(c), str) for c in ("case", "engine")):
+        return False
+    identity = record["identity"]
+    if any(c in identity and c in row and row[c] != identity[c] for c in _KEY_COLUMNS[1:]):
+        return False
+    for column in COLUMNS:
+        value = row.get(column)
+        if column in _TEXT_COLUMNS or column == "torque_mode":
+            if not isinstance(value, (str, type(None))):
+                return False
+        elif not _is_number(value):
+            return False
+    return isinstance(row.get(ROW_KEY), (list, type(None)))
 
 
 def _row_from_json(row: dict) -> dict:
@@ -105,6 +154,8 @@ class Store:
         self.out_dir = Path(out_dir)
         self.root = self.out_dir / STORE_DIR
         self.versions = library_versions()
+        self.source = source_fingerprint()
+        self._origins: dict[tuple[str, str], Any] = {}  # ("engine"|"integrator", name) -> code_origin(s)
         self._lock_fd: int | None = None
 
     def __enter__(self) -> "Store":
@@ -134,21 +185,39 @@ class Store:
             path.unlink(missing_ok=True)
         return leftovers
 
+    def code(self, engine: str, integrator: str) -> dict:
+        """The code fingerprints of a run: stereodyn's source, its engine's class and every class registered under its
+        integrator's name (an engine's own integrator, e.g. MuJoCo's implicit, has none: the engine's version holds)."""
+        if ("engine", engine) not in self._origins:
+            self._origins["engine", engine] = code_origin(engine_class(engine))
+        if ("integrator", integrator) not in self._origins:
+            self._origins["integrator", integrator] = [code_origin(c) for c in integrator_classes(integrator)]
+        return {"stereodyn": self.source, "engine": self._origins["engine", engine],
+                "integrator": self._origins["integrator", integrator]}
+
     def identity(self, case: Case, engine: str, formulation: str, integrator: str, dt: float | None,
                  certify: bool) -> dict:
-        return run_identity(case, engine, formulation, integrator, dt, certify, self.versions)
+        return run_identity(case, engine, formulation, integrator, dt, certify, self.versions,
+                            self.code(engine, integrator))
+
+    def code_manifest(self) -> dict:
+        """runs.json's "code": stereodyn's source fingerprint and the origin of each engine and integrator used."""
+        listed: dict[str, Any] = {"stereodyn source": self.source, "engines": {}, "integrators": {}}
+        for (kind, name), origin in sorted(self._origins.items()):
+            listed[f"{kind}s"][name] = origin
+        return listed
 
     def path(self, key: str) -> Path:
         return self.root / f"{key}.json"
 
     def get(self, key: str) -> dict | None:
-        """The record {"identity", "row", "series"} of a finished run, or None. An unreadable record counts as absent
-        (it is rewritten when the run is redone)."""
+        """The record {"identity", "row", "series"} of a finished run, or None. An unreadable record, or one of the
+        wrong shape (well_formed), counts as absent (it is rewritten when the run is redone)."""
         try:
             record = json.loads(self.path(key).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+        except (OSError, ValueError, UnicodeDecodeError):
             return None
-        if not isinstance(record, dict) or record.get("format") != FORMAT or "row" not in record:
+        if not well_formed(record, key):
             return None
         record["row"] = _row_from_json(record["row"])
         return record
@@ -161,9 +230,11 @@ class Store:
         write_atomic(self.path(key), json.dumps(record, separators=(",", ":")) + "\n")
 
     def write_manifest(self, keys: list[str], environment: dict) -> None:
-        """DIR/runs.json: the store keys behind results.csv, and the environment of the sweep."""
+        """DIR/runs.json: the store keys behind results.csv, the environment of the sweep, and the code fingerprints
+        in its keys ("code": code_manifest())."""
         write_atomic(self.out_dir / MANIFEST, json.dumps({"format": FORMAT, "environment": environment,
-                                                          "runs": keys}, indent=1) + "\n")
+                                                          "code": self.code_manifest(), "runs": keys},
+                                                         indent=1) + "\n")
 
 
 def read_manifest(out_dir: Path) -> dict | None:
