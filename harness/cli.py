@@ -46,7 +46,14 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--t-end", type=float, default=None, help="simulated span, replacing each case's t_end")
     run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
     run.add_argument("--jobs", type=int, default=None, help="local worker processes (default: all cores)")
-    run.add_argument("--certify", action="store_true", help="bound the truth's error by a quadruple-precision rerun")
+    run.add_argument("--no-certify", action="store_true",
+                     help="skip the quadruple-precision rerun (~0.2 s a case) that bounds each truth's error "
+                          "(truth_err, truth_omega_err are then empty)")
+    run.add_argument("--certify", action="store_true", help="accepted for old scripts: certifying is the default")
+    run.add_argument("--save-trajectories", action="store_true",
+                     help="also write each run's recorded states, the truth's included, to "
+                          "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body; case, engine, "
+                          "formulation, integrator, dt)")
     run.add_argument("--quiet", action="store_true", help="no progress bar (there is none when stderr is not a TTY)")
     run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
     run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
@@ -132,10 +139,13 @@ def cmd_run(args) -> int:
     from stereodyn.harness.runner import run_sweep
 
     _check_names(args)
+    if args.certify and args.no_certify:
+        raise BadInput("--certify and --no-certify: give one (certifying is the default)")
     chosen = _select_cases(args)
     progress = ProgressBar(enabled=not args.quiet)
-    df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
-                   progress=progress, resume=args.resume, scheduler=args.scheduler)
+    df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=not args.no_certify,
+                   progress=progress, resume=args.resume, scheduler=args.scheduler,
+                   save_trajectories=args.save_trajectories)
     _work_precision(args, chosen, df)
     print(drift_table_text(df))
     markdown, html = write_reports(args.out, df)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
 import math
 import os
@@ -30,6 +31,7 @@ from stereodyn.harness.results import COLUMNS, write_atomic
 from stereodyn.harness.trajectory import Status
 
 STORE_DIR = "store"
+TRAJECTORIES_DIR = "trajectories"  # stereodyn run --save-trajectories: DIR/trajectories/<key>.npz
 MANIFEST = "runs.json"
 FORMAT = 1
 
@@ -180,7 +182,8 @@ class Store:
 
     def remove_partial_files(self) -> list[Path]:
         """Delete the temporary files of interrupted atomic writes (harness.results.write_atomic's .NAME.*.tmp)."""
-        leftovers = [*self.root.glob(".*.tmp"), *self.out_dir.glob(".*.tmp")]
+        leftovers = [*self.root.glob(".*.tmp"), *self.out_dir.glob(".*.tmp"),
+                     *(self.out_dir / TRAJECTORIES_DIR).glob(".*.tmp")]
         for path in leftovers:
             path.unlink(missing_ok=True)
         return leftovers
@@ -228,6 +231,22 @@ class Store:
         record = {"format": FORMAT, "key": key, "identity": identity, "row": _plain(public),
                   "series": _plain(series)}
         write_atomic(self.path(key), json.dumps(record, separators=(",", ":")) + "\n")
+
+    def states_path(self, key: str) -> Path:
+        return self.out_dir / TRAJECTORIES_DIR / f"{key}.npz"
+
+    def put_states(self, key: str, row: dict, states: dict) -> None:
+        """Write a run's recorded states atomically to DIR/trajectories/<key>.npz: arrays times (n,) s, quat (n, 4)
+        wxyz body -> world, omega (n, 3) rad/s body frame (NaN after a divergence), and the row's case, engine,
+        formulation, integrator (0-d strings) and dt (0-d float, NaN for an adaptive integrator)."""
+        buffer = io.BytesIO()
+        np.savez(buffer, times=np.asarray(states["times"], dtype=float), quat=np.asarray(states["quat"], dtype=float),
+                 omega=np.asarray(states["omega"], dtype=float),
+                 **{c: np.str_(row.get(c) or "") for c in ("case", "engine", "formulation", "integrator")},
+                 dt=np.float64(row.get("dt", math.nan)))
+        path = self.states_path(key)
+        path.parent.mkdir(exist_ok=True)
+        write_atomic(path, buffer.getvalue())
 
     def write_manifest(self, keys: list[str], environment: dict) -> None:
         """DIR/runs.json: the store keys behind results.csv, the environment of the sweep, and the code fingerprints
