@@ -29,8 +29,9 @@ DEFINITIONS = """\
   code for every engine, never from an engine's own energy.
 - attitude_err / attitude_err_end: max / final geodesic angle (rad) between the run's attitude and the truth's at the
   same times, up to the case's horizon; omega_err: max |omega - omega_truth| / max |omega_truth|.
-- truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err is the largest angle
-  between it and a quadruple-precision rerun (only with --certify).
+- truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err (rad) and
+  truth_omega_err (relative) bound its attitude and omega errors: its difference from a quadruple-precision rerun plus
+  an allowance for a float64 comparison's rounding (none with --no-certify).
 - us_per_step: stepping time only, best of up to 3 timed runs after an untimed accuracy run (which is the warm-up),
   metrics off. Runs share the machine's cores (--jobs), so compare timings within one report.
 - formulation (engine reference): the state and equations integrated. quaternion: Euler-Poisson with a quaternion;
