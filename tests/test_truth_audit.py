@@ -1,6 +1,7 @@
 """The truth can be audited: with --save-trajectories the truth row's states are on disk, and its truth_err /
 truth_omega_err bound their error against an independent 40-digit Taylor integration (mpmath) done here."""
 import math
+import shutil
 
 import mpmath as mp
 import numpy as np
@@ -174,3 +175,23 @@ def test_every_truth_row_is_certified_by_default_and_not_with_no_certify(tmp_pat
     fast = pd.read_csv(tmp_path / "fast" / "results.csv")
     assert fast.truth_err.isna().all() and fast.truth_omega_err.isna().all()
     assert cli.main(["run", *SMALL, "--certify", "--no-certify", "--out", str(tmp_path / "both")]) == 2
+
+
+def test_resume_with_save_trajectories_redoes_only_the_runs_whose_states_are_missing(audited_run, tmp_path):
+    out = tmp_path / "copy"
+    shutil.copytree(audited_run, out)
+    states = sorted((out / "trajectories").glob("*.npz"))
+    assert len(states) == len(read_manifest(out)["runs"]) >= 2
+    records = {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
+    states[0].unlink()
+    argv = ["run", "free-asymmetric", "--engines", "reference", "--integrators", "taylor", "--t-end", str(T_END),
+            "--jobs", "1", "--quiet", "--out", str(out), "--resume"]
+    assert cli.main(argv) == 0  # without --save-trajectories the stored runs serve as they are
+    assert not states[0].exists()
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")} == records
+    assert cli.main([*argv, "--save-trajectories"]) == 0
+    assert states[0].exists()
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
+    redone = {name for name in records if after[name] != records[name]}
+    assert redone == {states[0].name.replace(".npz", ".json")}
+    assert not list(out.rglob(".*.tmp"))
