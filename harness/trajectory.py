@@ -5,6 +5,7 @@ Integrators, engines, metrics and the store all import this module; it imports n
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -50,13 +51,48 @@ class Trajectory:
     chart_changes: int | None = None
 
 
+def divergence_limit2(omega0) -> float:
+    """The square of the divergence rule's limit on |omega| (rad/s)^2 for a run that starts at omega0 (3,)."""
+    w0, w1, w2 = (float(w) for w in omega0)
+    return (DIVERGENCE_FACTOR * (1.0 + math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)))**2
+
+
+def sample_good(quat, omega, limit2: float) -> bool:
+    """The divergence rule on one sample (4 and 3 floats), in float arithmetic: cheap enough for the per-sample hot
+    path of harness.integrators.base. A sample is good when |omega|^2 <= limit2 and the quaternion is finite."""
+    w0, w1, w2 = omega
+    # NaN and inf fail the comparison, so it also catches a non-finite omega; a sum of the quaternion's components is
+    # finite exactly when all of them are (inf - inf is NaN).
+    return w0 * w0 + w1 * w1 + w2 * w2 <= limit2 and math.isfinite(quat[0] + quat[1] + quat[2] + quat[3])
+
+
+def samples_good(quat: np.ndarray, omega: np.ndarray, limit2) -> np.ndarray:
+    """sample_good row by row: quat (n, 4), omega (n, 3), limit2 a float or (n,); a bool (n,) array."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        return (np.einsum("ij,ij->i", omega, omega) <= limit2) & np.isfinite(quat.sum(axis=1))
+
+
 def first_bad_sample(omega: np.ndarray, quat: np.ndarray, omega0: np.ndarray) -> int | None:
-    """Index of the first sample that is not finite or whose |omega| is beyond DIVERGENCE_FACTOR, else None."""
-    limit = DIVERGENCE_FACTOR * (1.0 + float(np.linalg.norm(omega0)))
-    with np.errstate(invalid="ignore"):
-        bad = ~np.isfinite(omega).all(axis=1) | ~np.isfinite(quat).all(axis=1) | (np.linalg.norm(omega, axis=1) > limit)
-    hits = np.flatnonzero(bad)
+    """Index of the first sample that breaks the divergence rule (not finite, or |omega| beyond DIVERGENCE_FACTOR
+    times (1 + |omega0|)), else None."""
+    hits = np.flatnonzero(~samples_good(np.asarray(quat, dtype=float), np.asarray(omega, dtype=float),
+                                        divergence_limit2(omega0)))
     return int(hits[0]) if hits.size else None
+
+
+def first_bad_step(step, observe, g, v, start: int, end: int, dt: float, limit2: float) -> tuple[int, object]:
+    """Replay a stepper step(t, g, v) -> (g, v) from the last good sample (step index start, state (g, v)) to the
+    first step whose state breaks the rule (observe(g, v) gives its quaternion and omega floats) or whose step raises
+    ArithmeticError: that step's index, and the g of the state before it. Step k starts at t = k * dt."""
+    for index in range(start + 1, end + 1):
+        try:
+            g_next, v = step((index - 1) * dt, g, v)
+        except ArithmeticError:
+            return index, g
+        if not sample_good(*observe(g_next, v), limit2):
+            return index, g
+        g = g_next
+    return end, g  # not reached for a deterministic step; the sample itself is the bound
 
 
 def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, bad: int, diverged_at: float,

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereodyn.reference.torques import BodyTorque, CentralField, PrecessionTorque
+from stereodyn.reference.torque_models import BodyTorque, CentralField, PrecessionTorque
 
 
 @dataclass(frozen=True, eq=False)

@@ -124,8 +124,9 @@ class Formulation(abc.ABC):
         """(..., 3) angular velocity, body frame, rad/s."""
 
     @abc.abstractmethod
-    def rhs(self, down: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """ẏ at y, with the downward vertical `down` (3,) in the chart's reference axes."""
+    def rhs(self, t: float, down: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """ẏ at time t (s) and y, with the downward vertical `down` (3,) in the chart's reference axes. Only the
+        quaternion formulation has the external torques (unsupported_torque), so only it depends on t."""
 
     @classmethod
     @abc.abstractmethod
@@ -133,8 +134,9 @@ class Formulation(abc.ABC):
         """heyoka (variables, right-hand sides, chart measure expression or None) in reference.expressions'
         parameters."""
 
-    def fast_rhs(self, chart: Chart, y: np.ndarray) -> np.ndarray:
-        """ẏ at one state y (size,) in chart, from the heyoka equations compiled to a function (compiled_rhs(name)):
+    def fast_rhs(self, t: float, chart: Chart, y: np.ndarray) -> np.ndarray:
+        """ẏ at time t (s; unused: these equations do not depend on time) and one state y (size,) in chart, from the
+        heyoka equations compiled to a function (compiled_rhs(name)):
         the same right-hand side as the Taylor integrator's, a few µs a call against ~100 µs for rhs() on one state.
         Not thread-safe (it caches the last chart's parameters)."""
         if chart is not self._compiled_chart:
@@ -249,16 +251,15 @@ class Quaternion(Formulation):
     def _local_one(self, y):
         return tuple(y[:4]), tuple(y[4:])
 
-    def rhs(self, down, y):
-        quat_dot, omega_dot = euler_poisson.rhs(self.body, y[..., :4], y[..., 4:])
+    def rhs(self, t, down, y):
+        quat_dot, omega_dot = euler_poisson.rhs(self.body, y[..., :4], y[..., 4:], t)
         return np.concatenate([quat_dot, omega_dot], axis=-1)
 
-    def fast_rhs(self, chart: Chart, y: np.ndarray) -> np.ndarray:
-        """As Formulation.fast_rhs, at time 0: the only term that depends on time is a turning central field, which
-        fixed-step runs do not model (harness.engines.reference skips them; the Taylor truth sees the time)."""
+    def fast_rhs(self, t: float, chart: Chart, y: np.ndarray) -> np.ndarray:
+        """As Formulation.fast_rhs, at time t (s): a turning central field depends on it (heyoka's time variable)."""
         if chart is not self._compiled_chart:
             self._compiled_chart, self._compiled_pars = chart, self.rhs_parameters(chart)
-        return compiled_rhs(self.name)(y, pars=self._compiled_pars, time=0.0)
+        return compiled_rhs(self.name)(y, pars=self._compiled_pars, time=t)
 
     def rhs_parameters(self, chart):
         """stereodyn.reference.truth's parameters: the body's, the unused threshold slot, the torques (reference.torques)."""
@@ -330,7 +331,7 @@ class Gibbs(_Gibbs):
         omega = (c * (d1 - (q2 * d3 - q3 * d2)), c * (d2 - (q3 * d1 - q1 * d3)), c * (d3 - (q1 * d2 - q2 * d1)))
         return self._quat_one(q1, q2, q3), omega
 
-    def rhs(self, down, y):
+    def rhs(self, t, down, y):
         q, qdot = y[..., :3], y[..., 3:]
         return np.concatenate([qdot, gibbs.lagrangian_acceleration(q, qdot, self.sigma, self.weight_moment, down,
                                                                    self.sigma_inv)], axis=-1)
@@ -362,7 +363,7 @@ class GibbsHamiltonian(_Gibbs):
         omega = tuple(0.5 * (row[0] * b[0] + row[1] * b[1] + row[2] * b[2]) for row in self._sigma_inv_rows)
         return self._quat_one(q1, q2, q3), omega
 
-    def rhs(self, down, y):
+    def rhs(self, t, down, y):
         qdot, pdot = gibbs.hamiltonian_rhs(y[..., :3], y[..., 3:], self.sigma_inv, self.weight_moment, down)
         return np.concatenate([qdot, pdot], axis=-1)
 
@@ -425,7 +426,7 @@ class EulerZXZ(ChartedFormulation):
         omega = (phid * st * sp + thetad * cp, phid * st * cp - thetad * sp, phid * ct + psid)  # C4
         return quat, omega
 
-    def rhs(self, down, y):
+    def rhs(self, t, down, y):
         angles, rates = y[..., :3], y[..., 3:]
         return np.concatenate([rates, euler_angles.lagrange_acceleration(angles, rates, self.sigma,
                                                                          self.weight_moment, down, self.sigma_inv)],

@@ -24,7 +24,8 @@ import numpy as np
 
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
-from stereodyn.reference.torques import field_direction_world
+from stereodyn.reference.torque_models import (body_torque_components, gravity_gradient_components,
+                                               precession_components)
 
 TRUTH_TOL = 1e-16       # double precision; the issue requires <= 1e-15
 TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)
@@ -114,25 +115,21 @@ def _body_components(w, v, vector) -> list:
 
 
 def torque_expressions(w, v, omega, sigma) -> list:
-    """The torques of reference.torques (body frame) in the parameters TORQUE_OFFSET.. (layout above)."""
+    """The torques of reference.torque_models (body frame) as heyoka expressions of the parameters TORQUE_OFFSET..
+    (layout above): the same formulas the engines and the numpy forms evaluate."""
     par = hy.par
     o = TORQUE_OFFSET
     axis = [par[o], par[o + 1], par[o + 2]]
-    magnitude = par[o + 3] + par[o + 4] * _dot(omega, omega)
+    body = body_torque_components(axis, par[o + 3], par[o + 4], omega)
     phase = par[o + 15] * hy.time
     cos_phase, sin_phase = hy.cos(phase), hy.sin(phase)
     direction = [cos_phase * par[o + 6 + i] + sin_phase * par[o + 9 + i] + par[o + 12 + i] for i in range(3)]
-    h = _body_components(w, v, direction)
-    sigma_h = [_dot(sigma[i], h) for i in range(3)]
-    gradient = _cross(h, sigma_h)
-    p1, p2, p3 = omega
-    a1, a2, a3 = sigma[0][0], sigma[1][1], sigma[2][2]
+    gradient = gravity_gradient_components(par[o + 5], sigma, _body_components(w, v, direction))
+    p1, p2, _ = omega
     cot, ell, m3, on, eps = (par[o + 16 + i] for i in range(5))
     rho = hy.sqrt(p1 * p1 + p2 * p2 + eps)
-    precession = [on * (((a3 - a2 + a1) * p3 - cot * a1 * rho) * p2 + ell * p1 / a2),
-                  on * (((a1 - a3 - a2) * p3 + cot * a2 * rho) * p1 + ell * p2 / a1),
-                  on * m3]
-    return [magnitude * axis[i] + par[o + 5] * gradient[i] + precession[i] for i in range(3)]
+    precession = precession_components(sigma[0][0], sigma[1][1], sigma[2][2], cot, ell, m3, omega, rho)
+    return [body[i] + gradient[i] + on * precession[i] for i in range(3)]
 
 
 def torque_parameters(body: RigidBody, frame_matrix: np.ndarray | None = None) -> np.ndarray:

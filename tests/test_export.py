@@ -90,7 +90,7 @@ def test_the_exported_urdf_has_the_adapters_dynamics(tmp_path, name):
         pin.forwardKinematics(model, data, q, rates, accelerations)
         close(data.v[body].angular, omega)
         w, x, y, z = matrix_to_quat(rotation)
-        close(data.a[body].angular, adapter.accel(np.array([x, y, z, w]), omega))
+        close(data.a[body].angular, adapter.accel(0.0, np.array([x, y, z, w]), omega))
 
 
 def test_export_to_standard_output(capsys):

@@ -34,7 +34,7 @@ class QuaternionSystem:
         self.body = body
         self.accel_calls = 0
 
-    def accel(self, g, v):
+    def accel(self, t, g, v):
         self.accel_calls += 1
         return omega_dot(self.body, g, v)
 
@@ -131,7 +131,7 @@ def test_register_as_decorator_and_name_conflicts(scratch_registry):
         register(Impostor)
 
     class NoMetadata(Integrator):
-        def step(self, system, g, v, h):
+        def step(self, system, t, g, v, h):
             return g, v
 
     with pytest.raises(TypeError, match="lacks metadata"):
@@ -217,7 +217,7 @@ def test_step_is_the_step_integrate_takes(name):
     run = integrator.integrate(system, QUAT0, OMEGA0, grid, record)
     g, v = QUAT0, OMEGA0
     for k in range(1, grid.steps + 1):
-        g, v = integrator.step(system, g, v, grid.dt)
+        g, v = integrator.step(system, (k - 1) * grid.dt, g, v, grid.dt)
         np.testing.assert_array_equal(run.quat[k], g)
         np.testing.assert_array_equal(run.omega[k], v)
 
@@ -239,7 +239,7 @@ class Runaway:
 
     rate = 50.0
 
-    def accel(self, g, v):
+    def accel(self, t, g, v):
         return self.rate * v
 
     def retract(self, g, theta):
@@ -270,7 +270,7 @@ def test_divergence_stops_early_at_the_exact_step():
 class NotANumber(Runaway):
     """Finite until the speed passes 10, then NaN: the non-finite branch of the rule."""
 
-    def accel(self, g, v):
+    def accel(self, t, g, v):
         return np.full(3, np.nan) if v @ v > 100.0 else self.rate * v
 
 
@@ -290,7 +290,7 @@ class LinearSystem:
 
     matrix = np.array([[0.0, 1.0], [-1.0, 0.0]])
 
-    def rhs(self, chart, y):
+    def rhs(self, t, chart, y):
         return self.matrix @ y
 
     def rechart(self, chart, y):
@@ -345,7 +345,7 @@ def test_vector_step_is_the_step_integrate_takes():
     run = integrator.integrate(system, 0, np.array([1.0, 0.0]), grid)
     chart, y = 0, np.array([1.0, 0.0])
     for k in range(1, grid.steps + 1):
-        chart, y = integrator.step(system, chart, y, grid.dt)
+        chart, y = integrator.step(system, (k - 1) * grid.dt, chart, y, grid.dt)
         np.testing.assert_array_equal(run.omega[k, :2], y)
     assert run.chart_changes == chart == grid.steps  # re-charted (counted) after every step
 

@@ -62,8 +62,9 @@ def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
 '''
 
 MODULE = '''
-"""Heun's method (explicit trapezoidal rule), as a user would add it: one tableau, both state spaces."""
-from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, VectorRK
+"""Heun's method (explicit trapezoidal rule), as a user would add it: one tableau, both state spaces; and the explicit
+midpoint rule written as a step, with the 0.2.0 signature (time first)."""
+from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, Integrator, VectorRK
 
 HEUN = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
 
@@ -82,7 +83,16 @@ class HeunVector(VectorRK):
     description = "Heun's method on a formulation's coordinates"
 
 
-INTEGRATORS = (HeunLie, HeunVector)
+class MidpointLie(Integrator):
+    name, order, stages, symplectic, geometric = "midpoint_plugin", 2, 2, False, True
+    description = "explicit midpoint on the group, a hand-written step"
+
+    def step(self, system, t, g, v, h):
+        g_half, v_half = system.retract(g, 0.5 * h * v), v + 0.5 * h * system.accel(t, g, v)
+        return system.retract(g, h * v_half), v + h * system.accel(t + 0.5 * h, g_half, v_half)
+
+
+INTEGRATORS = (HeunLie, HeunVector, MidpointLie)
 '''
 
 
@@ -112,13 +122,17 @@ def _env(target: Path) -> dict:
 def test_plugin_runs_by_name_on_pinocchio_and_reference(installed, tmp_path):
     out = tmp_path / "out"
     result = subprocess.run([sys.executable, "-m", "stereodyn.harness.cli", "run", "free-asymmetric", "--engines",
-                             "pinocchio,reference", "--integrators", "heun_plugin", "--t-end", "1", "--dt", "0.01",
+                             "pinocchio,reference", "--integrators", "heun_plugin,midpoint_plugin", "--t-end", "1",
+                             "--dt", "0.01",
                              "--out", str(out), "--quiet", "--jobs", "1"],
                             capture_output=True, text=True, env=_env(installed), cwd=tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     df = pd.read_csv(out / "results.csv").fillna({"formulation": ""})
     rows = df[df["integrator"] == "heun_plugin"]
     assert set(rows["engine"]) == {"pinocchio", "reference"}
+    midpoint = df[df["integrator"] == "midpoint_plugin"]
+    assert set(midpoint["engine"]) == {"pinocchio"} and (midpoint["status"] == "ok").all()
+    assert (midpoint["attitude_err"] < 1e-3).all()  # 2nd order, dt = 0.01 over 1 s, as Heun
     assert (rows["status"] == "ok").all(), rows[["engine", "formulation", "status", "message"]]
     assert (rows["attitude_err"] < 1e-3).all()  # a 2nd-order method at dt = 0.01 over 1 s: ~1e-5 rad
 

@@ -22,8 +22,8 @@ import numpy as np
 from mujoco import rollout
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.trajectory import (DIVERGENCE_FACTOR, SlidingLadderTrajectory, Status, Trajectory,
-                                          diverged_trajectory)
+from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
+                                          diverged_trajectory, sample_good, samples_good)
 from stereodyn.harness.engines.base import precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.reference.torques import torque_function
@@ -131,7 +131,7 @@ class MujocoSimulation:
         # Offsets of qpos and qvel in the full-physics state vector (time comes first).
         self._qpos = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_TIME.value)
         self._qvel = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_TIME | mujoco.mjtState.mjSTATE_QPOS)
-        self.limit2 = (DIVERGENCE_FACTOR * (1.0 + float(np.linalg.norm(case.omega0))))**2
+        self.limit2 = divergence_limit2(case.omega0)
 
     def run(self, grid: TimeGrid) -> Trajectory:
         """Roll out grid.steps steps. MuJoCo's warnings (e.g. the bad-QACC one of a divergence) are collected into
@@ -179,12 +179,8 @@ class MujocoSimulation:
         return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, self.stages * grid.steps)
 
     def _first_bad_row(self, rows: np.ndarray, iq: int, iv: int) -> int | None:
-        """The divergence rule of harness.engines.base.first_bad_sample, on every step of a chunk."""
-        w = rows[:, iv:iv + 3]
-        with np.errstate(invalid="ignore", over="ignore"):
-            # NaN fails <=, so a non-finite omega is caught too; a non-finite quaternion has a non-finite sum.
-            ok = np.einsum("ij,ij->i", w, w) <= self.limit2
-            ok &= np.isfinite(rows[:, iq:iq + 4].sum(axis=1))
+        """The divergence rule (harness.trajectory.samples_good) on every step of a chunk."""
+        ok = samples_good(rows[:, iq:iq + 4], rows[:, iv:iv + 3], self.limit2)
         if ok.all():
             return None
         return int(np.argmin(ok))
@@ -241,8 +237,7 @@ class TorqueSimulation(MujocoSimulation):
                 step(model, data)
             done = target
             quat[index], omega[index] = data.qpos, data.qvel
-            w = omega[index]
-            if not (w @ w <= self.limit2 and np.isfinite(quat[index]).all()):
+            if not sample_good(quat[index].tolist(), omega[index].tolist(), self.limit2):
                 return diverged_trajectory(grid, quat, omega, index, done * grid.dt, done, self.stages * done)
         return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, self.stages * grid.steps)
 

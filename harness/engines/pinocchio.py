@@ -2,9 +2,8 @@
 
 Pinocchio has no time stepper; it supplies the dynamics (articulated-body algorithm) and the group operation.
 Its configuration q is a quaternion stored (x, y, z, w); v and tau are body-frame angular velocity and torque.
-External torques (reference.torques) enter as tau, evaluated at every stage of the integrator (torque_mode "stage").
-The harness's Lie-group integrators pass no time to a stage, so a torque that depends on time (a central field whose
-direction turns) is not modelled: such runs are skipped.
+External torques (reference.torques) enter as tau, evaluated at every stage of the integrator at the stage's time
+t + c_i h (torque_mode "stage"), so a torque that depends on time (a central field whose direction turns) is modelled.
 """
 from __future__ import annotations
 
@@ -19,6 +18,7 @@ from stereodyn.harness.cases import Case
 from stereodyn.harness.trajectory import Trajectory
 from stereodyn.harness.engines.base import precession_singular
 from stereodyn.harness.grid import TimeGrid
+from stereodyn.harness.integrators.base import check_stepper
 from stereodyn.harness.integrators.ensemble import integrate_ensemble
 from stereodyn.reference.torques import torque_function
 
@@ -35,14 +35,14 @@ class PinocchioSystem:
         self.data = data = model.createData()
         tau, aba, array = np.zeros(model.nv), pin.aba, np.array
 
-        def accel(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        def accel(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
             """v' (3,) rad/s^2, body frame. pin.aba returns a fresh array (not a view of data.ddq)."""
             return aba(model, data, q, v, tau)
 
-        def accel_torqued(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-            """As accel, with the external torque of this stage's state as tau (time-independent torques only)."""
+        def accel_torqued(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+            """As accel, with the external torque of this stage's time and state as tau."""
             x, y, z, w = q.tolist()
-            return aba(model, data, q, v, array(torque(0.0, (w, x, y, z), v.tolist())))
+            return aba(model, data, q, v, array(torque(t, (w, x, y, z), v.tolist())))
 
         if torque is not None:
             accel = accel_torqued
@@ -60,12 +60,12 @@ class PinocchioBatchSystem:
         pool = pin.ModelPool(model, threads)
         aba = pin.abaInParallel
 
-        def accel(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        def accel(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
             # abaInParallel wants (nq, N) column-major blocks: the transpose of a C-ordered (N, nq) array is one,
             # without a copy, and writing into out.T fills out.
             q, v = np.ascontiguousarray(q), np.ascontiguousarray(v)
             tau = np.zeros_like(v) if torque is None else np.array(
-                [torque(0.0, (w, x, y, z), omega) for (x, y, z, w), omega in zip(q.tolist(), v.tolist())])
+                [torque(t, (w, x, y, z), omega) for (x, y, z, w), omega in zip(q.tolist(), v.tolist())])
             out = np.empty_like(v)
             aba(threads, pool, q.T, v.T, tau.T, out.T)
             return out
@@ -200,6 +200,8 @@ class PinocchioEnsemble:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         step = self.integrator.batch_stepper(self.batch, grid.dt)
+        if step is not None:
+            check_stepper(step, type(self.integrator), "batch_stepper")
         if step is None:
             trajectories = [self.integrator.integrate(self.single, q, v, grid, record)
                             for q, v in zip(self.q0, self.v0)]
@@ -218,9 +220,6 @@ class PinocchioEngine:
         return integrators.names(state_space="lie")
 
     def unsupported(self, case: Case) -> str | None:
-        if case.central_field is not None and case.central_field.orbit_rate != 0.0:
-            return ("Pinocchio adapter does not model a turning [central_field] (orbit_rate != 0): the harness's "
-                    "Lie-group integrators give a stage no time")
         return precession_singular(case)
 
     def prepare(self, case: Case, integrator: str | type[integrators.Integrator], dt: float) -> PinocchioSimulation:

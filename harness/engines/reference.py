@@ -32,7 +32,7 @@ class FormulationSystem:
         self.enabled = chart_changes
         numpy_rhs = formulation.rhs
         # bound once: it is the hot path
-        self.rhs = formulation.fast_rhs if compiled else (lambda chart, y: numpy_rhs(chart.down, y))
+        self.rhs = formulation.fast_rhs if compiled else (lambda t, chart, y: numpy_rhs(t, chart.down, y))
 
     def rechart(self, chart: Chart, y: np.ndarray) -> tuple[Chart, np.ndarray]:
         return self.formulation.check_chart(chart, y, self.enabled)
@@ -100,15 +100,8 @@ class ReferenceEngine:
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         """Why one formulation/integrator pair cannot model the case exactly (the run is `skipped`), or None:
-        only quaternion Euler–Poisson has the external torques, and fixed steps give a stage no time (a turning
-        central field needs it; the Taylor truth has it)."""
-        reason = ref_formulations.unsupported_torque(formulation, case.body)
-        if reason:
-            return reason
-        if integrator != TAYLOR and case.central_field is not None and case.central_field.orbit_rate != 0.0:
-            return (f"reference {integrator} does not model a turning [central_field] (orbit_rate != 0): the "
-                    f"harness's fixed-step integrators give a stage no time")
-        return None
+        only quaternion Euler–Poisson has the external torques."""
+        return ref_formulations.unsupported_torque(formulation, case.body)
 
     def torque_mode(self, case: Case) -> str:
         return "rhs" if case.body.has_external_torque else "none"

@@ -14,7 +14,7 @@ from __future__ import annotations
 import warnings
 from importlib.metadata import entry_points
 
-from stereodyn.harness.integrators.base import Integrator, LieSystem
+from stereodyn.harness.integrators.base import Integrator, LieSystem, check_step_signature
 from stereodyn.harness.integrators.geometric import GEOMETRIC
 from stereodyn.harness.integrators.lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEuler
 from stereodyn.harness.integrators.vector import VectorEuler, VectorRK, VectorRK4, VectorSystem
@@ -77,6 +77,7 @@ def _check(cls: type) -> type[Integrator]:
     abstract = sorted(getattr(cls, "__abstractmethods__", ()))
     if abstract:
         raise TypeError(f"integrator {cls.__qualname__} does not implement {', '.join(abstract)}")
+    check_step_signature(cls)  # a plug-in written for 0.1 (no time argument) is refused, saying what changed
     return cls
 
 

@@ -1,9 +1,11 @@
 """Fixed-step integrators and their bookkeeping.
 
-Two state spaces. "lie": ODEs on SO(3) x R^3 in left-trivialised form, g' = g exp-direction v, v' = accel(g, v); the
+Two state spaces. "lie": ODEs on SO(3) x R^3 in left-trivialised form, g' = g exp-direction v, v' = accel(t, g, v); the
 engine owns the group element g (any object: a quaternion in its own layout, a matrix, ...), the integrator only moves
 it through `retract` and reads it through the engine's `record`. "vector" (harness.integrators.vector): an ODE
-y' = f(chart, y) on R^n in a chart that the system may change between steps.
+y' = f(t, chart, y) on R^n in a chart that the system may change between steps. Time t (s) comes first in every
+right-hand side and stepper: a Runge–Kutta stage is evaluated at t + c_i h, and the bookkeeping starts step k at
+t = k dt (a product, not an accumulated sum).
 
 The base class owns the bookkeeping: stepping on a TimeGrid, recording the samples, detecting divergence and counting
 right-hand-side evaluations.
@@ -11,23 +13,25 @@ right-hand-side evaluations.
 from __future__ import annotations
 
 import abc
+import inspect
 import math
-from itertools import repeat
 from typing import Callable, ClassVar, Protocol
 
 import numpy as np
 
-from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status, Trajectory, diverged_trajectory
+from stereodyn.harness.trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
+                                          sample_good)
 from stereodyn.harness.grid import TimeGrid
 
-Stepper = Callable[[object, np.ndarray], tuple[object, np.ndarray]]
+# step(t, g, v) -> (g, v): one step from the state (g, v) at time t (s).
+Stepper = Callable[[float, object, np.ndarray], tuple[object, np.ndarray]]
 
 
 class LieSystem(Protocol):
     """The dynamics as an engine exposes them. g values are treated as immutable: neither method may modify one."""
 
-    def accel(self, g: object, v: np.ndarray) -> np.ndarray:
-        """v' (3,), body frame, at the state (g, v); v: (3,) body frame. Returns a fresh array."""
+    def accel(self, t: float, g: object, v: np.ndarray) -> np.ndarray:
+        """v' (3,), body frame, at time t (s) and the state (g, v); v: (3,) body frame. Returns a fresh array."""
 
     def retract(self, g: object, theta: np.ndarray) -> object:
         """g (x) exp(theta): theta (3,) a rotation vector in body components (rad). Returns a new g."""
@@ -37,8 +41,8 @@ class BatchLieSystem(Protocol):
     """LieSystem for an ensemble of N states stepped together: g (N, ...) the engine's array of group elements,
     v and the results (N, 3) body frame. Rows are independent: row i of a result depends on row i of the inputs only."""
 
-    def accel(self, g: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """v' (N, 3) rad/s^2 at the states (g, v); a fresh array."""
+    def accel(self, t: float, g: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """v' (N, 3) rad/s^2 at time t (s, one for all rows) and the states (g, v); a fresh array."""
 
     def retract(self, g: np.ndarray, theta: np.ndarray) -> np.ndarray:
         """g (x) exp(theta) row by row: theta (N, 3) rad, body components; a new array."""
@@ -74,16 +78,16 @@ class Integrator(abc.ABC):
             cls.stages = tableau.stages
 
     @abc.abstractmethod
-    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        """One step of size h (s) from (g, v); returns the new (g, v)."""
+    def step(self, system: LieSystem, t: float, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
+        """One step of size h (s) from (g, v) at time t (s); returns the new (g, v) (at t + h)."""
 
     def stepper(self, system: LieSystem, h: float) -> Stepper:
-        """A function (g, v) -> (g, v) doing one step of size h on system."""
+        """A function (t, g, v) -> (g, v) doing one step of size h on system from time t."""
         step = self.step
-        return lambda g, v: step(system, g, v, h)
+        return lambda t, g, v: step(system, t, g, v, h)
 
     def batch_stepper(self, system: "BatchLieSystem", h: float) -> Stepper | None:
-        """A function (G, V) -> (G, V) doing one step of size h on every member of an ensemble at once, or None when
+        """A function (t, G, V) -> (G, V) doing one step of size h on every member of an ensemble at once, or None when
         the method has no batched form (harness.integrators.ensemble then runs the members one by one).
 
         G: the engine's (N, ...) array of group elements; V: (N, 3). Row i of the result must depend on row i of the
@@ -95,9 +99,9 @@ class Integrator(abc.ABC):
                   record: Callable[[object], tuple[float, float, float, float]]) -> Trajectory:
         """grid.steps steps of grid.dt from (g0, v0), recorded at grid.sample_steps.
 
-        record(g) gives the attitude quaternion (w, x, y, z) of g. A sample whose state is not finite or whose |v| is
-        beyond the limit of harness.engines.base stops the run; the steps since the previous sample are then replayed
-        one by one to find the exact step where the state went bad (diverged_at = that step * dt).
+        record(g) gives the attitude quaternion (w, x, y, z) of g. A sample that breaks the divergence rule of
+        harness.trajectory (not finite, or |v| beyond its limit) stops the run; the steps since the previous sample are
+        then replayed one by one to find the exact step where the state went bad (diverged_at = that step * dt).
         rhs_evals counts the evaluations of the run proper (stages * steps), not the replay.
         """
         trajectory, _ = self._run(self.stepper(system, grid.dt), g0, np.array(v0, dtype=float), grid,
@@ -110,60 +114,71 @@ class Integrator(abc.ABC):
         (4 floats) and body angular velocity (3 floats). A step that raises ArithmeticError (a system's way to say its
         coordinates became singular) ends the run as diverged at that step, with the exception's text as the message.
         Returns the trajectory and the g of the last good state."""
+        check_stepper(step, type(self))
         quat0, omega0 = observe(g0, v0)
-        limit2 = (DIVERGENCE_FACTOR * (1.0 + math.sqrt(sum(w * w for w in omega0))))**2
+        limit2 = divergence_limit2(omega0)
         # Samples go into flat lists of floats, made arrays once at the end: at one step per sample (1e3 steps, 1e3
         # samples) the per-sample bookkeeping is a third of a Pinocchio step, so it is kept to a few operations.
         quats, omegas = list(quat0), list(omega0)
-        g, v, done = g0, v0, 0
+        g, v, done, dt = g0, v0, 0, grid.dt
         n = grid.sample_steps.size
-        isfinite = math.isfinite
+        good = sample_good
         with np.errstate(all="ignore"):  # overflow on the way to a divergence is an outcome, reported as one
             for target in grid.sample_steps[1:].tolist():
                 g_last, v_last, start = g, v, done
                 try:
-                    for _ in repeat(None, target - done):
-                        g, v = step(g, v)
+                    for k in range(done, target):
+                        g, v = step(k * dt, g, v)  # t = k dt, not a running sum: no drift of t over 1e6 steps
                 except ArithmeticError as exc:
-                    bad_step, g_good = _first_bad_step(step, observe, g_last, v_last, start, target, limit2)
+                    bad_step, g_good = first_bad_step(step, observe, g_last, v_last, start, target, dt, limit2)
                     return diverged_trajectory(grid, _padded(quats, 4, n), _padded(omegas, 3, n), len(omegas) // 3,
-                                               bad_step * grid.dt, bad_step - 1, self.stages * (bad_step - 1),
-                                               f"{exc} at t = {bad_step * grid.dt:.6g} s"), g_good
+                                               bad_step * dt, bad_step - 1, self.stages * (bad_step - 1),
+                                               f"{exc} at t = {bad_step * dt:.6g} s"), g_good
                 done = target
                 quat, omega = observe(g, v)
                 quats += quat
                 omegas += omega
-                w0, w1, w2 = omega  # _good, inline: NaN fails the comparison; the sum is finite iff every term is
-                if not (w0 * w0 + w1 * w1 + w2 * w2 <= limit2 and isfinite(quat[0] + quat[1] + quat[2] + quat[3])):
-                    bad_step, g_good = _first_bad_step(step, observe, g_last, v_last, start, target, limit2)
+                if not good(quat, omega, limit2):
+                    bad_step, g_good = first_bad_step(step, observe, g_last, v_last, start, target, dt, limit2)
                     trajectory = diverged_trajectory(grid, _padded(quats, 4, n), _padded(omegas, 3, n),
-                                                     len(omegas) // 3 - 1, bad_step * grid.dt, done, self.stages * done)
+                                                     len(omegas) // 3 - 1, bad_step * dt, done, self.stages * done)
                     return trajectory, g_good
         return Trajectory(grid.times, np.array(quats, dtype=float).reshape(n, 4),
                           np.array(omegas, dtype=float).reshape(n, 3), Status.OK, "", math.nan, grid.steps,
                           self.stages * grid.steps), g
 
 
-def _good(quat, omega, limit2: float) -> bool:
-    """The divergence rule of harness.engines.base.first_bad_sample, on one sample, in float arithmetic (cheap)."""
-    w0, w1, w2 = omega
-    # NaN and inf fail the comparison, so it also catches a non-finite omega; a sum of the quaternion's components is
-    # finite exactly when all of them are (inf - inf is NaN).
-    return w0 * w0 + w1 * w1 + w2 * w2 <= limit2 and math.isfinite(quat[0] + quat[1] + quat[2] + quat[3])
+# What changed in 0.2.0, for the messages that refuse a plug-in written against 0.1.
+TIME_CHANGE = "stereodyn 0.2.0 passes time"
 
 
-def _first_bad_step(step: Stepper, observe, g, v, start: int, end: int, limit2: float) -> tuple[int, object]:
-    """Replay from the last good sample (at step index start) to the first step whose state breaks the rule or
-    whose step raises ArithmeticError: its index, and the g of the state before it."""
-    for index in range(start + 1, end + 1):
-        try:
-            g_next, v = step(g, v)
-        except ArithmeticError:
-            return index, g
-        if not _good(*observe(g_next, v), limit2):
-            return index, g
-        g = g_next
-    return end, g  # not reached for a deterministic step; the sample itself is the bound
+def _positional(function) -> list[str] | None:
+    """The names of function's positional parameters (bound self excluded), or None when it takes *args or has no
+    signature to read."""
+    try:
+        parameters = inspect.signature(function).parameters.values()
+    except (TypeError, ValueError):
+        return None
+    if any(p.kind is p.VAR_POSITIONAL for p in parameters):
+        return None
+    return [p.name for p in parameters if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+
+
+def check_step_signature(cls: type) -> None:
+    """TypeError when cls.step takes the 0.1 arguments (system, g, v, h) instead of (system, t, g, v, h)."""
+    names = _positional(cls.step)
+    if names is not None and names[:1] == ["self"] and len(names) == 5:
+        old = ", ".join(names[1:])
+        raise TypeError(f"{cls.__module__}.{cls.__qualname__}.step({old}): {TIME_CHANGE}: "
+                        f"step({names[1]}, t, {', '.join(names[2:])})")
+
+
+def check_stepper(step: Stepper, cls: type, method: str = "stepper") -> None:
+    """TypeError when a stepper built by cls.method takes the 0.1 arguments (g, v) instead of (t, g, v)."""
+    names = _positional(step)
+    if names is not None and len(names) == 2:
+        raise TypeError(f"{cls.__module__}.{cls.__qualname__}.{method}(system, h) returns a step({', '.join(names)}): "
+                        f"{TIME_CHANGE}: step(t, {', '.join(names)})")
 
 
 def _padded(flat: list, width: int, n: int) -> np.ndarray:
@@ -178,9 +193,9 @@ class StepperIntegrator(Integrator):
     """An integrator written as a stepper factory, which precomputes what depends only on the system and h;
     step() builds it for a single step."""
 
-    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        return self.stepper(system, h)(g, v)
+    def step(self, system: LieSystem, t: float, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
+        return self.stepper(system, h)(t, g, v)
 
     @abc.abstractmethod
     def stepper(self, system: LieSystem, h: float) -> Stepper:
-        """A function (g, v) -> (g, v) doing one step of size h on system."""
+        """A function (t, g, v) -> (g, v) doing one step of size h on system from time t."""

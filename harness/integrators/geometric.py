@@ -1,10 +1,11 @@
 """Geometric integrators beyond the explicit anchors: implicit midpoint (on the group and on a formulation's
 coordinates), a Strang splitting around the exact torque-free flow, and the discrete Moser–Veselov scheme.
 
-Implicit midpoint on SO(3) x R^3 (left-trivialised, g' = g v, v' = a(g, v)):
-    v_bar = v_n + Δ/2,  Δ = h a(g_n exp(h v_bar / 2), v_bar),  g_{n+1} = g_n exp(h v_bar),  v_{n+1} = v_n + Δ.
+Implicit midpoint on SO(3) x R^3 (left-trivialised, g' = g v, v' = a(t, g, v)):
+    v_bar = v_n + Δ/2,  Δ = h a(t_n + h/2, g_n exp(h v_bar / 2), v_bar),
+    g_{n+1} = g_n exp(h v_bar),  v_{n+1} = v_n + Δ.
 It is symmetric (the step from (g_{n+1}, v_{n+1}) with -h has the same v_bar and midpoint attitude and returns to the
-start), hence of even order, 2. For the torque-free body a(g, v) = σ⁻¹(σv × v) does not depend on g: the velocity
+start), hence of even order, 2. For the torque-free body a(t, g, v) = σ⁻¹(σv × v) does not depend on g: the velocity
 update is the midpoint rule on Euler's equations, which conserves every quadratic invariant (energy ½ vᵀσv and |σv|²)
 exactly and is a Lie–Poisson integrator (Austin, Krishnaprasad and Wang 1993); with gravity the energy error stays
 bounded (no drift), as for a symmetric method on a reversible system. Δ is solved by fixed-point iteration from an
@@ -77,12 +78,13 @@ class ImplicitMidpoint(StepperIntegrator):
         half = 0.5 * h
         carry = [0.0, 0.0, 0.0]  # Kahan compensation of v; a fresh stepper (a fresh run) starts from zero
 
-        def step(g, v):
+        def step(t, g, v):
             v0, v1, v2 = v.tolist()
-            d0, d1, d2 = (h * a for a in accel(g, v).tolist())  # explicit Euler predictor
+            d0, d1, d2 = (h * a for a in accel(t, g, v).tolist())  # explicit Euler predictor
+            mid = t + half
             for _ in range(MAX_ITERATIONS):
                 m0, m1, m2 = v0 + 0.5 * d0, v1 + 0.5 * d1, v2 + 0.5 * d2
-                n0, n1, n2 = (h * a for a in accel(retract(g, array((half * m0, half * m1, half * m2))),
+                n0, n1, n2 = (h * a for a in accel(mid, retract(g, array((half * m0, half * m1, half * m2))),
                                                      array((m0, m1, m2))).tolist())
                 change = abs(n0 - d0) + abs(n1 - d1) + abs(n2 - d2)
                 d0, d1, d2 = n0, n1, n2
@@ -106,7 +108,7 @@ class ImplicitMidpoint(StepperIntegrator):
 
 
 class ImplicitMidpointVector(VectorRK):
-    """Implicit midpoint on a formulation's coordinates: y + Δ, Δ = h f(chart, y + Δ/2). On gibbs_hamiltonian
+    """Implicit midpoint on a formulation's coordinates: y + Δ, Δ = h f(t + h/2, chart, y + Δ/2). On gibbs_hamiltonian
     (canonical coordinates) it is symplectic; on the quaternion formulation it conserves |q|² and, for the free body,
     the energy exactly (quadratic invariants)."""
 
@@ -124,10 +126,11 @@ class ImplicitMidpointVector(VectorRK):
         rhs, rechart = system.rhs, system.rechart
         state = {"chart": None, "carry": None}
 
-        def step(chart, y):
-            delta = h * rhs(chart, y)
+        def step(t, chart, y):
+            delta = h * rhs(t, chart, y)
+            mid = t + 0.5 * h
             for _ in range(MAX_ITERATIONS):
-                new = h * rhs(chart, y + 0.5 * delta)
+                new = h * rhs(mid, chart, y + 0.5 * delta)
                 change = float(np.abs(new - delta).sum())
                 delta = new
                 size = float(np.abs(delta).sum())
@@ -151,7 +154,7 @@ class ImplicitMidpointVector(VectorRK):
 
 class StrangSplitting(StepperIntegrator):
     """Strang splitting: half a gravity kick, the exact torque-free flow over h (reference.exact.free_motion), half a
-    kick. The kick is exact (the gravity torque depends on the attitude only: v += τ σ⁻¹ τ_g(g) = τ a(g, 0)).
+    kick. The kick is exact (the gravity torque depends on the attitude only: v += τ σ⁻¹ τ_g(g) = τ a(t, g, 0)).
     Symmetric, order 2; exact (to round-off) for the torque-free body."""
 
     name = "strang_free_flow"
@@ -170,14 +173,14 @@ class StrangSplitting(StepperIntegrator):
         accel, retract, zero = system.accel, system.retract, np.zeros(3)
         times = np.array([h])
 
-        def step(g, v):
+        def step(t, g, v):
             if heavy:
-                v = v + 0.5 * h * accel(g, zero)
+                v = v + 0.5 * h * accel(t, g, zero)
             quat, omega = free_motion(free, IDENTITY_WXYZ, v).evaluate(times)
             g = retract(g, _quat_to_rotvec(*quat[0].tolist()))
             v = np.array(omega[0], dtype=float)
             if heavy:
-                v = v + 0.5 * h * accel(g, zero)
+                v = v + 0.5 * h * accel(t + h, g, zero)
             return g, v
 
         return step
@@ -206,7 +209,7 @@ class MoserVeselov(StepperIntegrator):
         sigma_inv = np.linalg.inv(sigma)
         retract = system.retract
 
-        def step(g, v):
+        def step(t, g, v):  # torque-free: nothing depends on t
             m = sigma @ v
             half_hm = 0.5 * h * m
             u = sigma_inv @ half_hm  # s = 1, no cross term: the first-order guess

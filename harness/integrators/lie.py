@@ -56,7 +56,7 @@ CLASSICAL_RK4 = ButcherTableau(
 class ExplicitRK(StepperIntegrator):
     """Explicit Runge–Kutta on the group, driven by `tableau`; `munthe_kaas` selects the dexp^-1 correction.
 
-    Stage i: theta_i = h sum_j a_ij T_j, Y_i = (g exp(theta_i), v + h sum_j a_ij K_j), K_i = accel(Y_i),
+    Stage i: theta_i = h sum_j a_ij T_j, Y_i = (g exp(theta_i), v + h sum_j a_ij K_j), K_i = accel(t + c_i h, Y_i),
     T_i = dexp^-1_{theta_i}(v_i) (or v_i when munthe_kaas is False). Step: g exp(h sum b_i T_i), v + h sum b_i K_i.
     A subclass sets the tableau and the metadata; `stages` defaults to the tableau's.
     """
@@ -74,20 +74,23 @@ class ExplicitRK(StepperIntegrator):
         accel, retract, array = system.accel, system.retract, np.array
         # Per stage, then once more for the update: the combination sum_j c_j (T_j, K_j) over the non-zero
         # coefficients c_j = h a_ij (or h b_j) as its first (j, c_j) and the rest (zeros cost nothing; the first term
-        # initialises the sums), and whether it is the update. A stage with no terms (theta = 0) has j = None.
+        # initialises the sums), the stage's time offset c_i h (the update's is unused), and whether it is the update.
+        # A stage with no terms (theta = 0) has j = None.
         plan = []
-        for coefficients, is_update in [(row, False) for row in self.tableau.a] + [(self.tableau.b, True)]:
+        nodes = self.tableau.c + (1.0,)
+        for (coefficients, is_update), node in zip([(row, False) for row in self.tableau.a] + [(self.tableau.b, True)],
+                                                   nodes):
             pairs = [(j, h * a) for j, a in enumerate(coefficients) if a != 0.0] or [(None, 0.0)]
-            plan.append((*pairs[0], tuple(pairs[1:]), is_update))
+            plan.append((*pairs[0], tuple(pairs[1:]), node * h, is_update))
         plan = tuple(plan)
         munthe_kaas = self.munthe_kaas
 
-        def step(g, v):
+        def step(t, g, v):
             v0, v1, v2 = v.tolist()
             slopes = []  # per stage: (T_i, K_i) as 6 floats
-            for j, c, rest, is_update in plan:
+            for j, c, rest, offset, is_update in plan:
                 if j is None:  # theta = 0, dv = 0: the stage is the current state itself, T = v
-                    k0, k1, k2 = accel(g, v).tolist()
+                    k0, k1, k2 = accel(t + offset, g, v).tolist()
                     slopes.append((v0, v1, v2, k0, k1, k2))
                     continue
                 s0, s1, s2, s3, s4, s5 = slopes[j]  # theta = sum c T_j, dv = sum c K_j
@@ -103,7 +106,7 @@ class ExplicitRK(StepperIntegrator):
                 if is_update:
                     break
                 u0, u1, u2 = v0 + d0, v1 + d1, v2 + d2
-                k0, k1, k2 = accel(retract(g, array((t0, t1, t2))), array((u0, u1, u2))).tolist()
+                k0, k1, k2 = accel(t + offset, retract(g, array((t0, t1, t2))), array((u0, u1, u2))).tolist()
                 if munthe_kaas:  # T = dexp^-1_theta(u) = u + 1/2 theta x u + 1/12 theta x (theta x u)
                     c0, c1, c2 = t1 * u2 - t2 * u1, t2 * u0 - t0 * u2, t0 * u1 - t1 * u0
                     e0, e1, e2 = t1 * c2 - t2 * c1, t2 * c0 - t0 * c2, t0 * c1 - t1 * c0
@@ -117,15 +120,16 @@ class ExplicitRK(StepperIntegrator):
         # The same stages in numpy arithmetic on (N, 3) arrays: for a large ensemble the fixed cost of each numpy call
         # is shared by all members, and the N accelerations of a stage are one call into the engine.
         accel, retract, cross = system.accel, system.retract, np.cross
-        plan = tuple((tuple((j, h * a) for j, a in enumerate(coefficients) if a != 0.0), is_update)
-                     for coefficients, is_update in [(row, False) for row in self.tableau.a] + [(self.tableau.b, True)])
+        plan = tuple((tuple((j, h * a) for j, a in enumerate(coefficients) if a != 0.0), node * h, is_update)
+                     for (coefficients, is_update), node in zip(
+                         [(row, False) for row in self.tableau.a] + [(self.tableau.b, True)], self.tableau.c + (1.0,)))
         munthe_kaas = self.munthe_kaas
 
-        def step(g, v):
+        def step(t, g, v):
             slopes = []  # per stage: (T_i, K_i), each (N, 3)
-            for pairs, is_update in plan:
+            for pairs, offset, is_update in plan:
                 if not pairs:  # theta = 0, dv = 0: the stage is the current state itself, T = v
-                    slopes.append((v, accel(g, v)))
+                    slopes.append((v, accel(t + offset, g, v)))
                     continue
                 (j, c), rest = pairs[0], pairs[1:]
                 theta, dv = c * slopes[j][0], c * slopes[j][1]
@@ -135,7 +139,7 @@ class ExplicitRK(StepperIntegrator):
                 if is_update:
                     return retract(g, theta), v + dv
                 u = v + dv
-                k = accel(retract(g, theta), u)
+                k = accel(t + offset, retract(g, theta), u)
                 if munthe_kaas:  # T = dexp^-1_theta(u) = u + 1/2 theta x u + 1/12 theta x (theta x u)
                     c1 = cross(theta, u)
                     u = u + 0.5 * c1 + cross(theta, c1) / 12.0
@@ -149,7 +153,7 @@ class Euler(ExplicitRK):
     name = "euler"
     order = 1
     tableau = EULER_TABLEAU
-    description = "explicit Euler on the group: g exp(h v), v + h a(g, v)"
+    description = "explicit Euler on the group: g exp(h v), v + h a(t, g, v)"
 
 
 class RK4(ExplicitRK):
@@ -177,11 +181,11 @@ class SymplecticEuler(Integrator):
     # is explicit Euler on the Lie–Poisson part (for a free body |I v| grows by O(h^2) each step).
     symplectic = False
     geometric = True
-    description = "semi-implicit Euler, velocity first: v + h a(g, v), then g exp(h v_new) (MuJoCo's Euler)"
+    description = "semi-implicit Euler, velocity first: v + h a(t, g, v), then g exp(h v_new) (MuJoCo's Euler)"
 
-    def step(self, system: LieSystem, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        v = v + h * system.accel(g, v)
+    def step(self, system: LieSystem, t: float, g: object, v: np.ndarray, h: float) -> tuple[object, np.ndarray]:
+        v = v + h * system.accel(t, g, v)
         return system.retract(g, h * v), v
 
     def batch_stepper(self, system: BatchLieSystem, h: float) -> Stepper:
-        return lambda g, v: self.step(system, g, v, h)  # the same numpy expressions serve (N, 3) arrays
+        return lambda t, g, v: self.step(system, t, g, v, h)  # the same numpy expressions serve (N, 3) arrays

@@ -1,4 +1,4 @@
-"""Fixed-step explicit Runge–Kutta on the "vector" state space: y' = f(chart, y), y in R^n, in a chart of the
+"""Fixed-step explicit Runge–Kutta on the "vector" state space: y' = f(t, chart, y), y in R^n, in a chart of the
 attitude that the system may change between steps (a formulation of reference.formulations).
 
 The same ButcherTableau drives these and the Lie-group methods of harness.integrators.lie: one class here, VectorRK,
@@ -21,8 +21,8 @@ from stereodyn.harness.integrators.lie import CLASSICAL_RK4, EULER_TABLEAU, Butc
 class VectorSystem(Protocol):
     """An ODE on R^n in charts. Charts are immutable objects; no method may modify a chart or a y it is given."""
 
-    def rhs(self, chart: object, y: np.ndarray) -> np.ndarray:
-        """y' (n,) at y (n,) in chart. Returns a fresh array."""
+    def rhs(self, t: float, chart: object, y: np.ndarray) -> np.ndarray:
+        """y' (n,) at time t (s) and y (n,) in chart. Returns a fresh array."""
 
     def rechart(self, chart: object, y: np.ndarray) -> tuple[object, np.ndarray]:
         """After a step: (chart, y) unchanged, or a new chart and y's coordinates in it. May raise ArithmeticError."""
@@ -35,21 +35,24 @@ class VectorSystem(Protocol):
 
 
 class VectorRK(Integrator):
-    """Explicit Runge–Kutta driven by `tableau`: k_i = f(chart, y + h sum_j a_ij k_j), y + h sum_i b_i k_i, then the
-    system re-charts. A subclass sets the tableau and the metadata."""
+    """Explicit Runge–Kutta driven by `tableau`: k_i = f(t + c_i h, chart, y + h sum_j a_ij k_j), y + h sum_i b_i k_i,
+    then the system re-charts. A subclass sets the tableau and the metadata."""
 
     tableau: ClassVar[ButcherTableau]
     state_space = "vector"
     symplectic = False
     geometric = False  # nothing keeps a quaternion state on the unit sphere
 
-    def step(self, system: VectorSystem, chart: object, y: np.ndarray, h: float) -> tuple[object, np.ndarray]:
-        return self.stepper(system, h)(chart, y)
+    def step(self, system: VectorSystem, t: float, chart: object, y: np.ndarray,
+             h: float) -> tuple[object, np.ndarray]:
+        return self.stepper(system, h)(t, chart, y)
 
     def stepper(self, system: VectorSystem, h: float) -> Stepper:
         rhs, rechart = system.rhs, system.rechart
-        # Per stage, and for the update: the non-zero coefficients h a_ij (h b_j) with their stage j.
+        # Per stage, and for the update: the non-zero coefficients h a_ij (h b_j) with their stage j; per stage its
+        # time offset c_i h.
         stages = tuple(tuple((j, h * a) for j, a in enumerate(row) if a != 0.0) for row in self.tableau.a)
+        offsets = tuple(node * h for node in self.tableau.c)
         update = tuple((j, h * b) for j, b in enumerate(self.tableau.b) if b != 0.0)
 
         def combine(y: np.ndarray, terms: tuple, slopes: list) -> np.ndarray:
@@ -59,10 +62,10 @@ class VectorRK(Integrator):
                 out += c * slopes[j]
             return out
 
-        def step(chart, y):
+        def step(t, chart, y):
             slopes = []
-            for terms in stages:
-                slopes.append(rhs(chart, combine(y, terms, slopes) if terms else y))
+            for terms, offset in zip(stages, offsets):
+                slopes.append(rhs(t + offset, chart, combine(y, terms, slopes) if terms else y))
             return rechart(chart, combine(y, update, slopes))
 
         return step
