@@ -3,10 +3,11 @@
 A run's key hashes everything its row depends on: the case's content, engine, formulation, integrator, dt, whether
 the truth is certified, the library versions, and the code: a fingerprint of stereodyn's installed source files and,
 for the run's engine and integrator classes, their distribution, version and source hash (harness.environment), so a
-changed line of code, even without a new version, is never served from the store. A record is written (temporary file, fsync, rename) the moment its run
-finishes, so an interrupted sweep loses nothing already computed and never leaves a partial record; `--resume` reuses
-the records whose key matches and whose shape is right (anything else counts as absent and is redone). results.csv and DIR/runs.json (the sweep's keys and environment) are assembled from the
-records.
+changed line of code, even without a new version, is never served from the store. A record is written (temporary
+file, fsync, rename) the moment its run finishes, so an interrupted sweep loses nothing already computed and never
+leaves a partial record; `--resume` reuses the records whose key matches and whose shape is right (anything else
+counts as absent and is redone). results.csv and DIR/runs.json (the sweep's keys, environment and code fingerprints)
+are assembled from the records.
 
 A sweep holds an exclusive lock on DIR/store while it runs, so two sweeps never write one folder, and any temporary
 file found there is the leftover of a killed process: it is removed when the next sweep opens the store.
@@ -101,13 +102,15 @@ def run_key(identity: dict) -> str:
 
 
 _TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "status", "message")
-_KEY_COLUMNS = ("case", "engine", "formulation", "integrator")
+_IDENTITY_COLUMNS = ("engine", "formulation", "integrator")  # in both the identity and the row
 _STATUSES = frozenset(s.value for s in Status)
 
 
 def _is_number(value: Any) -> bool:
     """A number column's JSON value: a number, null (NaN) or "inf"/"-inf" (as _plain writes them)."""
-    return value is None or value in ("inf", "-inf") or (isinstance(value, (int, float)) and not isinstance(value, bool))
+    if isinstance(value, bool):
+        return False
+    return value is None or value in ("inf", "-inf") or isinstance(value, (int, float))
 
 
 def well_formed(record: Any, key: str) -> bool:
@@ -122,7 +125,7 @@ def well_formed(record: Any, key: str) -> bool:
     if row.get("status") not in _STATUSES or not all(isinstance(row.get(c), str) for c in ("case", "engine")):
         return False
     identity = record["identity"]
-    if any(c in identity and c in row and row[c] != identity[c] for c in _KEY_COLUMNS[1:]):
+    if any(c in identity and c in row and row[c] != identity[c] for c in _IDENTITY_COLUMNS):
         return False
     for column in COLUMNS:
         value = row.get(column)
