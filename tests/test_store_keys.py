@@ -147,5 +147,5 @@ def test_a_malformed_record_is_redone_and_not_reported(tmp_path, damage):
     redone = json.loads(path.read_text())
     assert redone["row"]["status"] == "ok" and redone["row"]["engine"] == "pinocchio"
     assert isinstance(redone["row"]["attitude_err"], float)
-    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv").drop(columns=["wall_s", "us_per_step"]),
-                                  good.drop(columns=["wall_s", "us_per_step"]))
+    timings = ["wall_s", "us_per_step", "us_per_step_spread"]  # measured anew, so not equal
+    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv").drop(columns=timings), good.drop(columns=timings))
