@@ -106,7 +106,14 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing each case's t_end")
     run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
     run.add_argument("--jobs", type=_count, default=None, help="local worker processes (default: all cores)")
-    run.add_argument("--certify", action="store_true", help="bound the truth's error by a quadruple-precision rerun")
+    run.add_argument("--no-certify", action="store_true",
+                     help="skip the quadruple-precision rerun (~0.2 s a case) that bounds each truth's error "
+                          "(truth_err, truth_omega_err are then empty)")
+    run.add_argument("--certify", action="store_true", help="accepted for old scripts: certifying is the default")
+    run.add_argument("--save-trajectories", action="store_true",
+                     help="also write each run's recorded states, the truth's included, to "
+                          "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body; case, engine, "
+                          "formulation, integrator, dt)")
     run.add_argument("--quiet", action="store_true", help="no progress bar (there is none when stderr is not a TTY)")
     run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
     run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
@@ -242,6 +249,8 @@ def cmd_run(args) -> int:
     from stereodyn.harness.store import folder_lock
 
     _check_names(args)
+    if args.certify and args.no_certify:
+        raise BadInput("--certify and --no-certify: give one (certifying is the default)")
     chosen = _select_cases(args)
     progress = ProgressBar(enabled=not args.quiet)
     _output_folder(args.out, "--out")
@@ -249,8 +258,9 @@ def cmd_run(args) -> int:
     with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
         # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
         with worker_pool(args.jobs, tuple(args.engines)) as pool:
-            df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
-                           progress=progress, resume=args.resume, scheduler=args.scheduler, pool=pool)
+            df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs,
+                           certify=not args.no_certify, progress=progress, resume=args.resume,
+                           scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool)
             _work_precision(args, chosen, df, pool)
         found = verdicts.evaluate(args.out, df, chosen)
         # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)

@@ -26,6 +26,7 @@ class RunSpec:
     integrator_rank: int = 0
     formulation: str = ""
     formulation_rank: int = 0
+    keep_states: bool = False  # return the recorded states with the row ("_states"), for --save-trajectories
 
     @property
     def label(self) -> str:

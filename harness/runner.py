@@ -2,6 +2,7 @@
 exceptions."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import multiprocessing
 import os
@@ -40,7 +41,9 @@ class CaseTruth:
     """The truth of one case on the union of every run's sample times.
 
     times: (n,) s, sorted; quat: (n, 4) wxyz body -> world; omega: (n, 3) rad/s body frame.
-    truth_err: rad, the double-versus-quadruple-precision bound (NaN unless certified).
+    truth_err: rad, a bound on the truth's attitude error up to the case's horizon; truth_omega_err: a bound on its
+    relative omega error (reference.truth.truth_bound: a quadruple-precision rerun plus the rounding of a float64
+    comparison); both NaN when not certified (--no-certify).
     exact_quat: (n, 4) the case's exact solution (harness.oracles) at the same times, or None without an oracle.
     """
 
@@ -50,6 +53,7 @@ class CaseTruth:
     truth_err: float
     applicable: tuple[str, ...]
     exact_quat: np.ndarray | None = None
+    truth_omega_err: float = math.nan
 
     def on(self, grid: TimeGrid) -> tuple[np.ndarray, np.ndarray]:
         """The truth at exactly the grid's sample times."""
@@ -68,14 +72,14 @@ def compute_truth(case: Case, dts: tuple[float, ...], certify: bool) -> CaseTrut
     grids = [time_grid(case.t_end, dt, case.samples) for dt in dts] + [truth_grid(case)]
     times = np.unique(np.concatenate([g.times for g in grids]))
     result = reference_truth.truth(case.body, case.quat0, case.omega0, times)
-    truth_err = math.nan
+    bound = reference_truth.TruthBound(math.nan, math.nan)
     if certify:
         horizon = case.horizon if case.horizon is not None else case.t_end
         certified = truth_grid(case).times
-        truth_err = reference_truth.truth_error(case.body, case.quat0, case.omega0,
-                                                certified[certified <= horizon * (1 + 1e-12)])
-    return CaseTruth(times, result.quat, result.omega, truth_err, metrics.applicable_integrals(case),
-                     oracles.exact_attitude(case, times))
+        bound = reference_truth.truth_bound(case.body, case.quat0, case.omega0,
+                                            certified[certified <= horizon * (1 + 1e-12)])
+    return CaseTruth(times, result.quat, result.omega, bound.attitude, metrics.applicable_integrals(case),
+                     oracles.exact_attitude(case, times), bound.omega)
 
 
 def _grid(spec: RunSpec) -> TimeGrid:
@@ -110,6 +114,8 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         if spec.dt is None:
             row["steps"] = traj.steps
         row["rhs_per_sim_s"] = rhs_per_sim_s(spec, traj.rhs_evals, row["steps"], grid.t_end)
+        if spec.keep_states:
+            row["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega}
         row.update(metrics.drifts(spec.case, traj, truth.applicable))
         row.update(metrics.torque_metrics(spec.case, traj))
         row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
@@ -117,12 +123,10 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         # theory checks; the perturbed reruns some of them need are untimed, like the accuracy run
         row[checks.ROW_KEY] = checks.measure(spec.case, traj, lambda case: get_engine(spec.engine).prepare(
             case, spec.integrator, spec.dt, **formulation).run(grid))
-        if spec.is_truth:
-            row["truth_err"] = truth.truth_err
-        else:
+        if not spec.is_truth:
             truth_quat, truth_omega = truth.on(grid)
             row.update(metrics.errors(traj, truth_quat, truth_omega, spec.case.horizon))
-            row["truth_err"] = truth.truth_err
+        row.update(truth_err=truth.truth_err, truth_omega_err=truth.truth_omega_err)
         if timed and traj.status is Status.OK:
             row.update(_timing_columns(timing.measure(lambda: sim.run(grid)), row["steps"]))
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
@@ -260,8 +264,8 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
 
 
 def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | None, out_dir: Path,
-              jobs: int | None = None, certify: bool = False, progress: ProgressBar | None = None,
-              resume: bool = False, scheduler: str | None = None,
+              jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
+              resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
               pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
     """Run everything and return the table.
 
@@ -269,10 +273,15 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     re-assembled from the store, atomically, after each; resume=True reuses the stored runs of this sweep instead of
     redoing them. scheduler: a Dask scheduler address to run on (harness.distributed) instead of local processes.
     pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
+    certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
+    save_trajectories: also write each run's recorded states to out_dir/trajectories/<key>.npz (Store.put_states);
+    with resume, a stored run without its file is redone.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
     specs, skipped_rows = plan(cases, engines, integrators)
+    if save_trajectories:  # the sliding ladder records another state (harness.sliding_ladder): none to save
+        specs = [dataclasses.replace(s, keep_states=True) if s.case.kind != SLIDING_LADDER else s for s in specs]
     specs.sort(key=_cost, reverse=True)
     results_path = out_dir / "results.csv"
     with Store(out_dir) as store:
@@ -281,7 +290,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
         stored: dict[str, dict] = {}  # key -> row of every run of this sweep done so far
         if resume:
-            stored = {key: record["row"] for key in keys.values() if (record := store.get(key)) is not None}
+            stored = {keys[id(s)]: record["row"] for s in specs if (record := store.get(keys[id(s)])) is not None
+                      and not (s.keep_states and record["row"]["status"] != Status.FAILED.value
+                               and not store.states_path(keys[id(s)]).is_file())}
         environment = current_environment()
 
         def table() -> pd.DataFrame:
@@ -300,7 +311,10 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         def finished(spec: RunSpec, row: dict) -> None:
             key = keys[id(spec)]
             series = row.pop("_series", None)
+            states = row.pop("_states", None)
             if not row.get("_lost"):
+                if states is not None:  # before the record: a stored record means its states are there too
+                    store.put_states(key, row, states)
                 store.put(key, identities[id(spec)], row, series)
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
             # The run is safe in the store already; re-assembling the tables after every run was quadratic in the
@@ -326,7 +340,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                     except Exception as exc:  # a truth that cannot be computed fails its case's runs, as data
                         reason = f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]
                         for spec in [s for s in pending if s.case is case]:
-                            finished(spec, {**_base_row(spec, None), "status": Status.FAILED.value, "message": reason})
+                            finished(spec, {**base_row(spec, None), "status": Status.FAILED.value, "message": reason})
                         pending = [s for s in pending if s.case is not case]
             progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
             try:

@@ -221,7 +221,7 @@ def reference_sweep(tmp_path_factory):
 
 def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
     _, df = reference_sweep
-    assert COLUMNS[COLUMNS.index("truth_err") + 1] == "chart_changes" and tuple(df.columns) == COLUMNS
+    assert COLUMNS[COLUMNS.index("truth_omega_err") + 1] == "chart_changes" and tuple(df.columns) == COLUMNS
     assert len(df) == 4 + 2 * 4 * 3 and set(df.status) == {"ok"}
     truth_row = df[(df.formulation == "quaternion") & (df.integrator == "taylor")]
     assert len(truth_row) == 1 and truth_row.dt.isna().all() and truth_row.attitude_err.isna().all()

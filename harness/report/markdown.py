@@ -29,8 +29,9 @@ DEFINITIONS = """\
   code for every engine, never from an engine's own energy.
 - attitude_err / attitude_err_end: max / final geodesic angle (rad) between the run's attitude and the truth's at the
   same times, up to the case's horizon; omega_err: max |omega - omega_truth| / max |omega_truth|.
-- truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err is the largest angle
-  between it and a quadruple-precision rerun (only with --certify).
+- truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err (rad) and
+  truth_omega_err (relative) bound its attitude and omega errors: its difference from a quadruple-precision rerun plus
+  an allowance for a float64 comparison's rounding (none with --no-certify).
 - us_per_step: stepping time only, best of 2 or 3 timed runs after an untimed warm-up run, metrics off; every run is
   timed alone, in a phase after all the accuracy runs, so no timed run shares the cores with another run. Compare
   timings within one report. us_per_step_spread: the second-best timed run minus the best (µs per step), the noise of
