@@ -112,7 +112,7 @@ def test_quaternion_formulation_equations_match_euler_poisson():
     states = np.concatenate([to_quat(rng.uniform(0, 3, (50, 3))), rng.normal(size=(50, 3))], axis=1)
     pars = np.repeat(formulation.rhs_parameters(chart)[:, None], len(states), axis=1)
     compiled = formulations.compiled_rhs("quaternion")(states.T.copy(), pars=pars, time=np.zeros(len(states))).T
-    np.testing.assert_allclose(compiled, formulation.rhs(0.0, chart.down, states), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(compiled, formulation.rhs(0.0, chart, states), rtol=0, atol=1e-13)
 
 
 # ------------------------------------------------------------------------------- the formulations check each other
