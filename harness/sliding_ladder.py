@@ -3,7 +3,8 @@ the rigid-body path of harness.runner (which routes a LadderCase here).
 
 Rows: the equation (engine reference, formulation "theta", integrator taylor: reference.sliding_ladder, whose heyoka event
 gives the detachment), every MuJoCo model (formulation "bilateral" or "unilateral", harness.engines.mujoco) with each
-MuJoCo integrator and dt, and a skipped Pinocchio row. Columns: energy_drift (the rod's energy, ½ m|v_G|² +
+MuJoCo integrator and dt, Pinocchio's bilateral model (its constrained dynamics, harness.engines.pinocchio) with each
+of its integrators that works on a vector state (sliding_ladder_integrators) and dt. Columns: energy_drift (the rod's energy, ½ m|v_G|² +
 ½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
 omega_err (|θ̇ − θ̇_equation| / max |θ̇_equation|) — for the unilateral model only up to the equation's detachment,
 after which the equation (both ends on the axes) no longer describes it. checks.csv: detachment_angle (the
@@ -23,8 +24,6 @@ from stereodyn.harness.grid import time_grid
 from stereodyn.reference import sliding_ladder as ref_ladder
 
 EQUATION, TAYLOR = "theta", "taylor"
-PINOCCHIO_REASON = ("Pinocchio adapter does not model the sliding ladder: its constraints (ends on the wall and the "
-                    "floor, one of them unilateral) need a constrained-dynamics model the adapter does not build")
 
 
 def specs(case, engine_name: str, engine_rank: int, chosen: list[str], spec_type) -> tuple[list, list]:
@@ -35,9 +34,11 @@ def specs(case, engine_name: str, engine_rank: int, chosen: list[str], spec_type
         return [spec_type(case, engine_name, TAYLOR, None, engine_rank, 0, EQUATION, 0)], []
     engine = get_engine(engine_name)
     if not hasattr(engine, "sliding_ladder_models"):
-        reason = PINOCCHIO_REASON if engine_name == "pinocchio" else getattr(engine, "reason", None) or \
-            f"{engine_name} adapter does not model the sliding ladder"
+        reason = getattr(engine, "reason", None) or f"{engine_name} adapter does not model the sliding ladder"
         return [], [skipped_row(spec_type(case, engine_name, "", None, engine_rank), reason)]
+    if hasattr(engine, "sliding_ladder_integrators"):  # an engine whose ladder takes only some of its integrators
+        usable = set(engine.sliding_ladder_integrators())
+        chosen = [integrator for integrator in chosen if integrator in usable]
     runs = []
     for integrator_rank, integrator in enumerate(chosen):
         for model_rank, model in enumerate(engine.sliding_ladder_models()):
