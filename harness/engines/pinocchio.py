@@ -320,7 +320,8 @@ class PinocchioLadderSimulation:
 
     def __init__(self, ladder, model: str, integrator: str, dt: float):
         if model not in LADDER_MODELS:
-            raise KeyError(f"unknown ladder model {model!r} for the Pinocchio adapter; valid: {', '.join(LADDER_MODELS)}")
+            raise KeyError(f"unknown ladder model {model!r} for the Pinocchio adapter; "
+                           f"valid: {', '.join(LADDER_MODELS)}")
         self.ladder, self.kind, self.dt = ladder, model, float(dt)
         self.integrator = integrators.get(integrator, state_space="vector")()
         self.system = LadderSystem(ladder)
