@@ -58,6 +58,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--no-ladder", action="store_true", help="no dt ladder at all (orders from the dt lists only)")
     run.add_argument("--ladder-max-steps", type=int, default=None, metavar="N",
                      help="smallest ladder dt = t_end / N (default 200000 with --dt-ladder, 40000 otherwise)")
+    run.add_argument("--strict", action="store_true",
+                     help="exit 1 when a verdict fails (declared against fitted order, bounded energy, the truth's "
+                          "invariants, oracle and theory checks), one line per failed verdict")
     run.add_argument("--extremes", action="store_true",
                      help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
@@ -129,6 +132,7 @@ def cmd_run(args) -> int:
     from stereodyn.harness.progress import ProgressBar
     from stereodyn.harness.report.build import write_reports
     from stereodyn.harness.report.markdown import drift_table_text
+    from stereodyn.harness import verdicts, workprecision
     from stereodyn.harness.runner import run_sweep
 
     _check_names(args)
@@ -137,9 +141,16 @@ def cmd_run(args) -> int:
     df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
                    progress=progress, resume=args.resume, scheduler=args.scheduler)
     _work_precision(args, chosen, df)
+    found = verdicts.evaluate(args.out, df, chosen)
+    # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
+    workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
+    print("\n".join(verdicts.summary_lines(found)))
     print(drift_table_text(df))
     markdown, html = write_reports(args.out, df)
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
+    if args.strict and verdicts.failed(found):
+        print("\n".join(verdicts.summary_lines(found)[1:]), file=sys.stderr)
+        return 1
     return 0
 
 

@@ -10,8 +10,8 @@ import pandas as pd
 from stereodyn.harness.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
-           "wall_s", "us_per_step", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err", "truth_err", "chart_changes",
-           "torque_mode", "precession_axis_drift")
+           "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
+           "truth_err", "chart_changes", "torque_mode", "precession_axis_drift")
 
 # Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
 # them, formulations as the engine lists them, dt descending.

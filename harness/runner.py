@@ -28,7 +28,6 @@ from stereodyn.harness.environment import environment as current_environment
 from stereodyn.harness.progress import ProgressBar
 from stereodyn.harness.results import frame, write_results
 from stereodyn.harness.store import Store, run_key
-from stereodyn.harness.timing import best_time
 from stereodyn.reference import truth as reference_truth
 
 TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR = "reference", "quaternion", "taylor"
@@ -117,12 +116,27 @@ def skipped_row(spec: RunSpec, reason: str) -> dict:
     return {**_base_row(spec, grid), "status": Status.SKIPPED.value, "message": reason}
 
 
-def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
-    """Run one spec: an untimed accuracy run (also the warm-up), metrics, then timed runs. Never raises."""
-    grid = truth_grid(spec.case) if spec.dt is None else time_grid(spec.case.t_end, spec.dt, spec.case.samples)
+def _grid(spec: RunSpec) -> TimeGrid:
+    return truth_grid(spec.case) if spec.dt is None else time_grid(spec.case.t_end, spec.dt, spec.case.samples)
+
+
+def rhs_per_sim_s(spec: RunSpec, rhs_evals: int, steps: float, t_end: float) -> float:
+    """Right-hand-side evaluations per simulated second: the engine's count, or for a fixed-step run of an engine that
+    does not count them, steps x the integrator's stages (_stages); NaN for an adaptive run that does not count."""
+    if rhs_evals:
+        return rhs_evals / t_end
+    if spec.dt is None or not math.isfinite(steps):
+        return math.nan
+    return steps * _stages(spec.integrator) / t_end
+
+
+def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict:
+    """Run one spec: an untimed accuracy run (also the warm-up), metrics, then, when timed, timed runs. Never raises.
+    The sweep runs it untimed and times every run afterwards, alone (time_spec)."""
+    grid = _grid(spec)
     row = _base_row(spec, grid)
     if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
-        return sliding_ladder.execute(spec, row)
+        return sliding_ladder.execute(spec, row, timed)
     try:
         formulation = {"formulation": spec.formulation} if spec.formulation else {}
         engine = get_engine(spec.engine)
@@ -134,6 +148,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
                        spec.case))
         if spec.dt is None:
             row["steps"] = traj.steps
+        row["rhs_per_sim_s"] = rhs_per_sim_s(spec, traj.rhs_evals, row["steps"], grid.t_end)
         row.update(metrics.drifts(spec.case, traj, truth.applicable))
         row.update(metrics.torque_metrics(spec.case, traj))
         row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
@@ -147,12 +162,34 @@ def execute(spec: RunSpec, truth: CaseTruth | None) -> dict:
             truth_quat, truth_omega = truth.on(grid)
             row.update(metrics.errors(traj, truth_quat, truth_omega, spec.case.horizon))
             row["truth_err"] = truth.truth_err
-        if traj.status is Status.OK:
-            wall = best_time(lambda: sim.run(grid))
-            row.update(wall_s=wall, us_per_step=wall / max(1, row["steps"]) * 1e6)
+        if timed and traj.status is Status.OK:
+            row.update(_timing_columns(timing.measure(lambda: sim.run(grid)), row["steps"]))
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
+
+
+def _timing_columns(measured: timing.Timing, steps: float) -> dict:
+    per_step = 1e6 / max(1, steps)
+    return {"wall_s": measured.best, "us_per_step": measured.best * per_step,
+            "us_per_step_spread": measured.spread * per_step}
+
+
+def time_spec(spec: RunSpec, steps: float) -> dict:
+    """The timing columns of one finished ok run: a fresh preparation, an untimed warm-up run, then timing.measure.
+    Run alone (the sweep's timing phase), so that no other run shares the cores. {} when the run fails here."""
+    grid = _grid(spec)
+    try:
+        if spec.case.kind == SLIDING_LADDER:
+            run = sliding_ladder.timed_run(spec, sliding_ladder._grid(spec))
+        else:
+            formulation = {"formulation": spec.formulation} if spec.formulation else {}
+            sim = get_engine(spec.engine).prepare(spec.case, spec.integrator, spec.dt, **formulation)
+            run = lambda: sim.run(grid)  # noqa: E731
+        run()  # the warm-up: caches, lazily compiled code
+        return _timing_columns(timing.measure(run), steps)
+    except Exception:  # it ran ok untimed: a failure here leaves the row untimed rather than breaking the sweep
+        return {}
 
 
 def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -> tuple[list[RunSpec], list[dict]]:
@@ -216,7 +253,7 @@ def _cost(spec: RunSpec) -> float:
     dt = min(spec.case.dt) if spec.dt is None else spec.dt
     steps = math.ceil(spec.case.t_end / dt - 1e-9)
     one_pass = steps * _stages(spec.integrator) * PASS_US.get(spec.engine, DEFAULT_PASS_US) * 1e-6
-    # timing.best_time repeats the run at most REPEATS times and stops once BUDGET_S is spent
+    # the timing phase (time_spec, timing.measure) repeats the run at most REPEATS times within BUDGET_S
     timed = min(timing.REPEATS * one_pass, timing.BUDGET_S + one_pass)
     return RUN_OVERHEAD_S + (1 + CHECK_PASSES) * one_pass + timed
 
@@ -356,7 +393,23 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             finally:
                 publish()
                 progress.close()
+        # The timing phase: every accuracy run is done and the pool is gone, so each timed run has the cores alone.
+        untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
+        for spec in untimed:
+            key = keys[id(spec)]
+            row = stored[key]
+            row.update(time_spec(spec, row.get("steps", math.nan)))
+            record = store.get(key)
+            store.put(key, identities[id(spec)], row, record.get("series") if record else None)
+        if untimed:
+            publish()
         return table()
+
+
+def _needs_timing(row: dict) -> bool:
+    wall = row.get("wall_s", math.nan)
+    return row.get("status") == Status.OK.value and not row.get("_lost") and not (
+        isinstance(wall, float) and math.isfinite(wall))
 
 
 def _ranks(spec: RunSpec) -> dict:

@@ -64,9 +64,17 @@ def run(spec) -> SlidingLadderTrajectory:
     return get_engine(spec.engine).prepare_sliding_ladder(case, spec.formulation, spec.integrator, spec.dt).run(grid)
 
 
-def execute(spec, base_row: dict) -> dict:
-    """One ladder run's row (metrics, checks, timing); never raises."""
-    from stereodyn.harness.timing import best_time
+def timed_run(spec, grid):
+    """A fresh, prepared run of the spec for timing: a function of no arguments."""
+    if spec.engine == "reference":
+        return lambda: ref_ladder.solve(spec.case.ladder, grid.times)
+    sim = get_engine(spec.engine).prepare_sliding_ladder(spec.case, spec.formulation, spec.integrator, spec.dt)
+    return lambda: sim.run(grid)
+
+
+def execute(spec, base_row: dict, timed: bool = True) -> dict:
+    """One ladder run's row (metrics, checks, and timing when timed); never raises."""
+    from stereodyn.harness import timing
     row = dict(base_row)
     try:
         ladder, grid = spec.case.ladder, _grid(spec)
@@ -76,13 +84,10 @@ def execute(spec, base_row: dict) -> dict:
         equation = ref_ladder.solve(ladder, grid.times)
         row.update(metrics(spec, traj, equation))
         row[checks.ROW_KEY] = check_rows(spec, traj, row)
-        if traj.status is Status.OK:
-            if spec.engine == "reference":
-                wall = best_time(lambda: ref_ladder.solve(ladder, grid.times))
-            else:
-                sim = get_engine(spec.engine).prepare_sliding_ladder(spec.case, spec.formulation, spec.integrator, spec.dt)
-                wall = best_time(lambda: sim.run(grid))
-            row.update(wall_s=wall, us_per_step=wall / max(1, grid.steps) * 1e6)
+        if timed and traj.status is Status.OK:
+            measured = timing.measure(timed_run(spec, grid))
+            row.update(wall_s=measured.best, us_per_step=measured.best / max(1, grid.steps) * 1e6,
+                       us_per_step_spread=measured.spread / max(1, grid.steps) * 1e6)
     except Exception as exc:  # a run that breaks is data
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row

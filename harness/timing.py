@@ -1,31 +1,52 @@
-"""Stepping time, measured apart from accuracy (DESIGN §6.4): best of N timed runs after a warm-up, metrics off."""
+"""Stepping time, measured apart from accuracy (DESIGN §6.4): best of N timed runs after a warm-up, metrics off, with
+the spread of the N recorded so that a ranking can tell a difference from noise. The sweep and the dt ladders time
+their runs in a phase of their own, one run at a time, after every accuracy run (harness.runner, harness.workprecision):
+a timed run never shares the machine's cores with another run."""
 from __future__ import annotations
 
 import gc
 import time
-from typing import Callable
+from typing import Callable, NamedTuple
 
 REPEATS = 3          # timed runs at most
-BUDGET_S = 2.0       # stop repeating once the timed runs have taken this long (at least one always runs)
+MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
+BUDGET_S = 2.0       # stop repeating once the timed runs have taken this long (after MIN_REPEATS)
 
 
-def best_time(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S) -> float:
-    """Best wall time (s) of up to `repeats` calls of run(), within `budget_s`; the caller has already warmed it up.
+class Timing(NamedTuple):
+    """best: the fastest timed run (s); spread: the second fastest minus the fastest (s), how far the best is from
+    being reproduced (the slowest would mostly measure the one repeat another process preempted); repeats: how many
+    ran."""
+
+    best: float
+    spread: float
+    repeats: int
+
+
+def measure(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S,
+            min_repeats: int = MIN_REPEATS) -> Timing:
+    """Time up to `repeats` calls of run() (at least min(min_repeats, repeats)), stopping once `budget_s` is spent;
+    the caller has already warmed it up.
 
     The garbage collector is off while timing (as timeit does) so a collection does not land in one repeat.
     """
-    best, spent = float("inf"), 0.0
+    times: list[float] = []
     enabled = gc.isenabled()
     gc.disable()
     try:
-        for _ in range(max(1, repeats)):
+        for i in range(max(1, repeats)):
             start = time.perf_counter()
             run()
-            elapsed = time.perf_counter() - start
-            best, spent = min(best, elapsed), spent + elapsed
-            if spent >= budget_s:
+            times.append(time.perf_counter() - start)
+            if i + 1 >= min_repeats and sum(times) >= budget_s:
                 break
     finally:
         if enabled:
             gc.enable()
-    return best
+    ordered = sorted(times)
+    return Timing(ordered[0], (ordered[1] if len(ordered) > 1 else ordered[0]) - ordered[0], len(ordered))
+
+
+def best_time(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S) -> float:
+    """Best wall time (s) of measure(run, repeats, budget_s)."""
+    return measure(run, repeats, budget_s).best

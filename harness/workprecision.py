@@ -43,16 +43,16 @@ from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
 from stereodyn.harness.results import write_atomic
-from stereodyn.harness.timing import best_time
+from stereodyn.harness import timing
 
 LADDER_FILE, CONVERGENCE_FILE, PARETO_FILE = "ladder.csv", "convergence.csv", "pareto.csv"
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
-                  "state_err", "wall_s", "us_per_sim_s")
+                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s")
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")
 PARETO_COLUMNS = ("case", "target", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
-                  "steps", "source")
+                  "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "ties", "not_recommended")
 ORDER_QUANTITY = "convergence_order"
 
 LADDER_POINTS = 10
@@ -129,7 +129,8 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
     try:
         sim = _prepare(family, dt)
         traj = sim.run(grid)
-        row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals)
+        row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals,
+                   rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan)
         drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
         row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
         if with_truth:
@@ -141,11 +142,32 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
             row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
                 if math.isfinite(row["attitude_err"]) else math.nan
         if timed and traj.status is Status.OK:
-            wall = best_time(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S)
-            row.update(wall_s=wall, us_per_sim_s=wall / grid.t_end * 1e6)
+            row.update(_timed(sim, grid))
     except Exception as exc:  # a point that breaks is data, as in the sweep
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
+
+
+def _timed(sim, grid) -> dict:
+    measured = timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S)
+    return {"wall_s": measured.best, "us_per_sim_s": measured.best / grid.t_end * 1e6,
+            "us_per_sim_s_spread": measured.spread / grid.t_end * 1e6}
+
+
+def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
+    """The ladders' timing phase: every ok point timed in this process, one at a time, after all the accuracy runs
+    (harness.timing: a timed run shares the cores with no other run). Updates the points in place."""
+    for row in points:
+        if row.get("status") != Status.OK.value:
+            continue
+        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        try:
+            sim = _prepare(family, row["dt"])
+            grid = time_grid(family.case.t_end, row["dt"], family.case.samples)
+            sim.run(grid)  # the warm-up
+            row.update(_timed(sim, grid))
+        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
+            pass
 
 
 def _stable(row: dict) -> bool:
@@ -246,7 +268,7 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     start = max(case.dt)
     stable_dt, stability_note = stability_limit(is_stable, start, cap, floor)
     top = stable_dt if math.isfinite(stable_dt) else (cap if "stable up to" in stability_note else start)
-    points = [measure(family, dt) for dt in ladder_dts(top, floor)]
+    points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
     frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
            "integrator": family.integrator, "stable_dt_max": stable_dt, "source": "ladder", **fit(frame, declared)}
@@ -277,6 +299,14 @@ def _ladder_task(family: Family, max_steps: int) -> tuple[list[dict], dict]:
 def run_ladders(chosen: list[Family], max_steps: int, jobs: int | None = None,
                 progress: Callable[[str], None] | None = None) -> tuple[list[dict], list[dict]]:
     """Every family's ladder, on `jobs` processes (spawned, as the sweep's). Returns (points, convergence rows)."""
+    points, rows = _accuracy_ladders(chosen, max_steps, jobs, progress)
+    time_points(points, {(f.case.name, f.engine, f.formulation, f.integrator): f for f in chosen})
+    return points, rows
+
+
+def _accuracy_ladders(chosen: list[Family], max_steps: int, jobs: int | None,
+                      progress: Callable[[str], None] | None) -> tuple[list[dict], list[dict]]:
+    """run_ladders without the timing: every family's untimed points and convergence row."""
     points, rows = [], []
     jobs = jobs or os.cpu_count() or 1
     if jobs == 1 or len(chosen) <= 1:
@@ -347,30 +377,87 @@ def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(records, columns=list(checks.COLUMNS))
 
 
-def pareto(results: pd.DataFrame, ladder: pd.DataFrame) -> pd.DataFrame:
-    """Per case and accuracy target, the cheapest fixed-step run (sweep or ladder) whose attitude_err reaches it."""
+# Two candidates tie when their costs differ by no more than the timing noise: the sum of their spreads (slowest
+# minus fastest of their timed runs), and at least TIE_RTOL of the cheaper cost. The floor stands for the noise that
+# repeats inside one process do not show and two runs of the sweep do (clock boost, cache and memory placement); 5% is
+# the usual run-to-run scatter of a micro-benchmark on an idle machine, an assumption to be checked by two runs there.
+TIE_RTOL = 0.05
+
+
+def pareto(results: pd.DataFrame, ladder: pd.DataFrame, failed: set | None = None) -> pd.DataFrame:
+    """Per case and accuracy target, the cheapest fixed-step run (sweep or ladder) whose attitude_err reaches it, with
+    ties and the runs not recommended (pareto_table)."""
     sweep = results[results["dt"].notna()].copy()
     sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
+    sweep["us_per_sim_s_spread"] = sweep["us_per_step_spread"] * sweep["steps"] / sweep["t_end"]
     sweep["source"] = "sweep"
     ladder = ladder.copy()
     ladder["source"] = "ladder"
-    columns = ["case", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s", "steps", "source",
-               "status"]
+    columns = ["case", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
+               "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "status"]
+    for frame_ in (sweep, ladder):
+        for column in columns:
+            if column not in frame_:
+                frame_[column] = math.nan
     both = pd.concat([sweep[columns], ladder[columns]] if len(ladder) else [sweep[columns]], ignore_index=True)
-    both = both[(both["status"] == Status.OK.value) & np.isfinite(both["attitude_err"].astype(float))
-                & np.isfinite(both["us_per_sim_s"].astype(float))].fillna({"formulation": ""})
+    return pareto_table(both, list(dict.fromkeys(results["case"])), failed or set())
+
+
+def _candidate(row) -> str:
+    return f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
+
+
+def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()) -> pd.DataFrame:
+    """The Pareto table from candidate runs (columns case, engine, formulation, integrator, dt, attitude_err,
+    us_per_sim_s, us_per_sim_s_spread, rhs_per_sim_s, steps, source, status).
+
+    Per case and target: among the ok runs reaching the target whose integrator passed its verdicts (failed: a set of
+    (engine, formulation, integrator), harness.verdicts.failed_integrators), the cheapest; every run within the timing
+    noise of it (TIE_RTOL, the spreads) is a tie, listed in `ties`, and the winner among the tied is the one with the
+    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest.
+    `not_recommended` names the cheaper runs left out because their integrator failed a verdict."""
+    from stereodyn.harness.verdicts import is_failed
+
+    runs = runs.fillna({"formulation": ""})
+    runs = runs[(runs["status"] == Status.OK.value) & np.isfinite(runs["attitude_err"].astype(float))
+                & np.isfinite(runs["us_per_sim_s"].astype(float))]
+    bad = np.array([is_failed(set(failed), r.engine, r.formulation, r.integrator) for r in runs.itertuples()],
+                   dtype=bool)
     records = []
-    for case in dict.fromkeys(results["case"]):
-        runs = both[both["case"] == case]
+    for case in cases:
+        in_case = (runs["case"] == case).to_numpy()
         for target in ACCURACY_TARGETS:
-            good = runs[runs["attitude_err"] <= target]
+            reach = in_case & (runs["attitude_err"] <= target).to_numpy()
+            good, excluded = runs[reach & ~bad], runs[reach & bad]
             if good.empty:
                 records.append({"case": case, "target": target, "engine": "", "formulation": "", "integrator": "",
-                                "source": "none reached it"})
+                                "source": "none reached it" if excluded.empty else "only runs that failed a verdict",
+                                "ties": "", "not_recommended": "; ".join(_candidate(r) for _, r in
+                                                                          excluded.nsmallest(3, "us_per_sim_s")
+                                                                          .iterrows())})
                 continue
-            best = good.loc[good["us_per_sim_s"].idxmin()]
-            records.append({"case": case, "target": target, **{c: best[c] for c in PARETO_COLUMNS[2:]}})
+            cheapest = good.loc[good["us_per_sim_s"].idxmin()]
+            noise = np.maximum(good["us_per_sim_s_spread"].fillna(0.0).to_numpy(float)
+                               + (0.0 if not math.isfinite(cheapest["us_per_sim_s_spread"])
+                                  else cheapest["us_per_sim_s_spread"]),
+                               TIE_RTOL * cheapest["us_per_sim_s"])
+            tied = good[(good["us_per_sim_s"].to_numpy(float) - cheapest["us_per_sim_s"]) <= noise]
+            rhs = tied["rhs_per_sim_s"].astype(float).fillna(math.inf)
+            best = tied.loc[tied.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
+            cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
+            records.append({"case": case, "target": target, **{c: best[c] for c in PARETO_COLUMNS[2:12]},
+                            "ties": "; ".join(_candidate(r) for i, r in tied.iterrows() if i != best.name),
+                            "not_recommended": "; ".join(_candidate(r) for _, r in
+                                                         cheaper_bad.nsmallest(3, "us_per_sim_s").iterrows())})
     return pd.DataFrame(records, columns=list(PARETO_COLUMNS))
+
+
+def rewrite_pareto(out_dir: Path, results: pd.DataFrame, failed: set) -> None:
+    """pareto.csv again, leaving out the runs of the integrators that failed a verdict (harness.verdicts)."""
+    ladder = read_optional(Path(out_dir) / LADDER_FILE, ("formulation", "engine", "integrator", "message"))
+    if ladder is None:
+        ladder = pd.DataFrame(columns=list(LADDER_COLUMNS))
+    _write(pareto(results, ladder, failed), Path(out_dir) / PARETO_FILE)
 
 
 def _write(df: pd.DataFrame, path: Path) -> None:
@@ -433,13 +520,18 @@ def _name(row) -> str:
 def report_lines(out_dir: Path) -> list[str]:
     """The report's "What to use" and "Convergence" sections, from pareto.csv and convergence.csv (empty without)."""
     lines: list[str] = []
-    pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source"))
+    pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source", "ties",
+                                                             "not_recommended"))
     if pareto_df is not None and len(pareto_df):
         lines += ["## What to use", "",
                   "Per case and accuracy target (max attitude error, rad, up to the case's horizon): the cheapest "
                   "fixed-step run that reaches it, over the sweep's runs and the dt ladders (pareto.csv); cost in µs of "
                   "stepping per simulated second. Adaptive runs (heyoka) are the truth and its relatives, not "
-                  "contenders. Timings are comparable within one report only.", ""]
+                  "contenders. Timings are comparable within one report only; each run is timed alone (best of up "
+                  "to 3). '**tie** with N': N other runs cost the same within the timing noise (pareto.csv `ties`, "
+                  f"the sum of their spreads, at least {TIE_RTOL:.0%}); the one shown needs "
+                  "the fewest right-hand-side evaluations per simulated second. A run whose integrator failed a "
+                  "verdict is never shown; a cheaper one is named as not recommended.", ""]
         targets = sorted(pareto_df["target"].unique(), reverse=True)
         header = ["case"] + [f"≤ {t:.0e}" for t in targets]
         rows = []
@@ -449,9 +541,16 @@ def report_lines(out_dir: Path) -> list[str]:
                 hit = group[group["target"] == target]
                 row = hit.iloc[0] if len(hit) else None
                 if row is None or not row["engine"]:
-                    cells.append("-")
+                    cell = "-"
                 else:
-                    cells.append(f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)")
+                    cell = f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
+                    ties = row.get("ties", "")
+                    if isinstance(ties, str) and ties:
+                        cell += f" **tie** with {ties.count(';') + 1}"
+                failed_runs = row.get("not_recommended", "") if row is not None else ""
+                if isinstance(failed_runs, str) and failed_runs:
+                    cell += f" (cheaper, not recommended: {failed_runs.split(';')[0]}, failed a verdict)"
+                cells.append(cell)
             rows.append(cells)
         lines += _md(header, rows) + [""]
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))

@@ -179,7 +179,10 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, 
     if env is not None:
         env["report rendered"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
     sections = workprecision.report_lines(out_dir) + sections
-    markdown = report_markdown(df, summary=summary_lines(df), sections=sections + checks_lines(df, out_dir), env=env)
+    from stereodyn.harness import verdicts
+
+    markdown = report_markdown(df, summary=summary_lines(df), sections=sections + checks_lines(df, out_dir), env=env,
+                               verdicts=verdicts.report_lines(out_dir))
     figures_dir = out_dir / FIGURES_DIR
     figures_dir.mkdir(exist_ok=True)
     for path, png in images.items():

@@ -31,8 +31,11 @@ DEFINITIONS = """\
   same times, up to the case's horizon; omega_err: max |omega - omega_truth| / max |omega_truth|.
 - truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err is the largest angle
   between it and a quadruple-precision rerun (only with --certify).
-- us_per_step: stepping time only, best of up to 3 timed runs after an untimed accuracy run (which is the warm-up),
-  metrics off. Runs share the machine's cores (--jobs), so compare timings within one report.
+- us_per_step: stepping time only, best of 2 or 3 timed runs after an untimed warm-up run, metrics off; every run is
+  timed alone, in a phase after all the accuracy runs, so no timed run shares the cores with another run. Compare
+  timings within one report. us_per_step_spread: the second-best timed run minus the best (µs per step), the noise of
+  the figure. rhs_per_sim_s: right-hand-side evaluations per simulated second, a cost noise cannot touch (steps x
+  stages for an engine that does not count them; empty for an adaptive run that does not).
 - formulation (engine reference): the state and equations integrated. quaternion: Euler-Poisson with a quaternion;
   gibbs: Ferrarese's Lagrangian in the Gibbs vector, with Christoffel symbols; gibbs_hamiltonian: his Hamiltonian form;
   euler_zxz: Lagrange's equations in ZXZ Euler angles. taylor integrates them by heyoka, the fixed-step integrators
@@ -122,11 +125,11 @@ def _markdown_table(cells: list[list[str]]) -> str:
 
 
 def report_markdown(df: pd.DataFrame, summary: Sequence[str] = (), sections: Sequence[str] = (),
-                    env: dict[str, str] | None = None) -> str:
+                    env: dict[str, str] | None = None, verdicts: Sequence[str] = ()) -> str:
     """report.md. summary: lines appended to the summary; sections: lines (whole sections) before the definitions;
-    env: the environment of the sweep (default: this process's)."""
+    env: the environment of the sweep (default: this process's); verdicts: the Verdicts section, first."""
     counts = df["status"].value_counts()
-    lines = ["# stereodyn report", "", "## Summary", "",
+    lines = ["# stereodyn report", "", *verdicts, "## Summary", "",
              f"{len(df)} runs over {df['case'].nunique()} cases: "
              + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "", *summary]
     problems = df[df["status"].isin(["failed", "skipped"])]

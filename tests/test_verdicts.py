@@ -1,0 +1,240 @@
+"""Verdicts (harness.verdicts, `stereodyn run --strict`), honest timings (harness.timing, the sweep's timing phase,
+rhs_per_sim_s) and the Pareto table's ties and exclusions (harness.workprecision.pareto_table)."""
+import math
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from stereodyn.harness import cli, runner, timing, verdicts, workprecision
+from stereodyn.harness import integrators as registry
+from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
+
+HEUN = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
+KUTTA3 = ButcherTableau(a=((0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (-1.0, 2.0, 0.0)), b=(1 / 6, 2 / 3, 1 / 6),
+                        c=(0.0, 0.5, 1.0))
+
+
+class HeunClaimsFour(ExplicitRK):
+    """Heun's second-order method, declared fourth order: the claim is wrong."""
+    name = "heun_claims_4"
+    order = 4
+    tableau = HEUN
+    description = "Heun's method with a wrong declared order"
+
+
+class Kutta3(ExplicitRK):
+    """Kutta's third-order method, declared third order: the claim is right."""
+    name = "kutta3"
+    order = 3
+    tableau = KUTTA3
+    description = "Kutta's third-order method"
+
+
+@pytest.fixture
+def plugins(monkeypatch):
+    """Both classes in the registry for this test only (the run is in-process: --jobs 1, no worker to tell)."""
+    registry.names()  # load the entry-point plug-ins first, as a run would
+    for cls in (HeunClaimsFour, Kutta3):
+        monkeypatch.setitem(registry._registry, (cls.state_space, cls.name), cls)
+
+
+def _run(out, integrators, extra=()):
+    # Two non-chaotic cases, three dt: every error in the asymptotic range (Heun 1e-5..1e-3, Kutta 1e-7..1e-4 rad)
+    return cli.main(["run", "free-asymmetric", "lagrange-top", "--engines", "pinocchio", "--integrators", integrators,
+                     "--t-end", "2", "--dt", "0.04,0.02,0.01", "--jobs", "1", "--quiet", "--out", str(out), *extra])
+
+
+def test_strict_fails_an_integrator_whose_declared_order_is_wrong(plugins, tmp_path, capsys):
+    assert _run(tmp_path / "out", "heun_claims_4,rk4", ["--strict"]) == 1
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if x.startswith("verdict failed:"))
+    assert "heun_claims_4" in line and "declares order 4" in line, err
+    fitted = [float(x) for x in re.search(r"fitted ([\d.]+)(?:–([\d.]+))?", line).groups() if x]
+    # Heun's order is 2: measured 1.99-2.00 on these cases
+    assert all(abs(order - 2.0) <= 0.1 for order in fitted), line
+    assert len([x for x in err.splitlines() if x.startswith("verdict failed:")]) == 1, err  # rk4 passes
+    pareto = pd.read_csv(tmp_path / "out" / "pareto.csv", keep_default_na=False)
+    assert "heun_claims_4" not in set(pareto["integrator"])  # never recommended ...
+    assert pareto["not_recommended"].str.contains("heun_claims_4").any()  # ... but named where it was cheaper
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert report.index("## Verdicts") < report.index("## Summary") and "**FAIL**" in report
+
+
+def test_without_strict_a_failed_verdict_is_reported_but_exits_0(plugins, tmp_path, capsys):
+    assert _run(tmp_path / "out", "heun_claims_4") == 0
+    assert "verdict failed: integrator pinocchio heun_claims_4 declares order 4" in capsys.readouterr().out
+
+
+def test_strict_passes_a_correct_third_order_method(plugins, tmp_path, capsys):
+    assert _run(tmp_path / "out", "kutta3", ["--strict"]) == 0
+    table = pd.read_csv(tmp_path / "out" / "verdicts.csv", keep_default_na=False)
+    order = table[(table.verdict == "order") & (table.integrator == "kutta3")]
+    assert list(order.status) == ["pass"]
+    fitted = [float(x) for x in re.findall(r"\d\.\d\d", order.detail.iloc[0])]
+    assert all(abs(x - 3.0) <= 0.15 for x in fitted), order.detail.iloc[0]  # measured 2.99-3.01
+
+
+# ------------------------------------------------------------------------------------------------ the rules
+
+def _convergence(orders: dict[str, float], declared: float) -> pd.DataFrame:
+    return pd.DataFrame([{"case": c, "engine": "pinocchio", "formulation": "", "integrator": "m", "order": o,
+                          "declared_order": declared} for c, o in orders.items()])
+
+
+def test_order_rule_median_and_single_cases():
+    def status(orders, excluded=()):
+        return verdicts.order_verdicts(_convergence(orders, 4.0), excluded)[0].status
+
+    assert status({"a": 4.05, "b": 3.95, "c": 4.1}) == "pass"
+    assert status({"a": 2.0, "b": 2.02, "c": 1.99}) == "fail"
+    assert status({"a": 4.0, "b": 4.0, "c": 3.41}) == "pass"     # one pre-asymptotic fit, within 1 of 4
+    assert status({"a": 4.0, "b": 4.0, "c": 2.9}) == "fail"      # one case a whole order off
+    assert status({"a": 4.0, "b": 4.0, "c": 4.31}) == "pass"     # the median is 4.0
+    assert status({"a": 4.0, "b": 4.35, "c": 4.35}) == "fail"    # the median is off by 0.35
+    assert status({"a": 4.0, "chaos": 1.0}, ["chaos"]) == "pass"  # a chaotic case is not held against it
+    assert status({"chaos": 1.0}, ["chaos"]) == "not measured"
+    assert verdicts.order_verdicts(_convergence({"a": 1.0}, math.nan), ()) == []  # no claim, no verdict
+
+
+def _truth_row(case="c", **values) -> dict:
+    row = {"case": case, "engine": "reference", "formulation": "quaternion", "integrator": "taylor", "status": "ok",
+           "message": "", "energy_drift": 1e-15, "casimir_drift": 4e-16, "oracle_err": 7e-14}
+    return {**row, **values}
+
+
+def test_truth_verdicts():
+    results = pd.DataFrame([_truth_row("good"), _truth_row("drifts", energy_drift=2e-11),
+                            _truth_row("far", oracle_err=2e-10),
+                            {**_truth_row("engine"), "engine": "pinocchio", "energy_drift": 1.0}])
+    checks_table = pd.DataFrame([
+        {**_truth_row("good"), "dt": math.nan, "quantity": "period", "theory": 1.0, "measured": 1.0, "error": 1e-12},
+        {**_truth_row("far"), "dt": math.nan, "quantity": "period", "theory": 1.0, "measured": 1.0, "error": 2e-10},
+        {**_truth_row("drifts"), "dt": math.nan, "quantity": "period", "theory": 1.0, "measured": math.nan,
+         "error": math.nan}])
+    found = {(v.verdict, v.case): v.status for v in verdicts.truth_verdicts(results, checks_table)}
+    assert found == {("truth_invariants", "good"): "pass", ("truth_oracle", "good"): "pass",
+                     ("truth_invariants", "drifts"): "fail", ("truth_oracle", "drifts"): "pass",
+                     ("truth_invariants", "far"): "pass", ("truth_oracle", "far"): "fail",
+                     ("truth_checks", "good"): "pass", ("truth_checks", "far"): "fail",
+                     ("truth_checks", "drifts"): "not measured"}  # the engine row is no truth: not judged
+
+
+def test_energy_verdict_on_a_bounded_method():
+    results = pd.DataFrame([{"integrator": "implicit_midpoint", "status": "ok"}])
+    found = verdicts.energy_verdicts(results)
+    assert {(v.engine, v.status) for v in found} == {("pinocchio", "pass"), ("reference", "pass")}
+    growth = [float(re.search(r"\(([\d.]+)x\)", v.detail).group(1)) for v in found]
+    assert all(g <= 2.0 for g in growth), [v.detail for v in found]
+
+
+def test_energy_verdict_fails_a_drifting_method(monkeypatch):
+    """Euler's energy error grows about linearly in time: declared bounded, it fails (measured ~20x over 20x)."""
+    euler = registry.get("euler", "lie")
+    monkeypatch.setattr(euler, "energy_bounded", True)
+    found = [v for v in verdicts.energy_verdicts(pd.DataFrame([{"integrator": "euler", "status": "ok"}]))
+             if v.engine == "pinocchio"]
+    assert [v.status for v in found] == ["fail"] and verdicts.failed_integrators(found) == {("*", "*", "euler")}
+
+
+# ------------------------------------------------------------------------------------------------ Pareto ties
+
+def _candidates(rows) -> pd.DataFrame:
+    return pd.DataFrame([{"case": "c", "engine": e, "formulation": "", "integrator": i, "dt": 0.01,
+                          "attitude_err": err, "us_per_sim_s": cost, "us_per_sim_s_spread": spread,
+                          "rhs_per_sim_s": rhs, "steps": 100, "source": "sweep", "status": "ok"}
+                         for e, i, err, cost, spread, rhs in rows])
+
+
+def test_pareto_marks_ties_within_the_spread_and_picks_by_rhs_evaluations():
+    runs = _candidates([("mujoco", "rk4", 1e-9, 100.0, 3.0, 400.0),
+                        ("pinocchio", "rk4", 1e-9, 104.0, 2.0, 400.0),   # within 3 + 2 (and 5%): a tie
+                        ("pinocchio", "euler", 1e-2, 98.0, 1.0, 100.0),   # cheapest, but only reaches 1e-2
+                        ("reference", "rk4", 1e-9, 200.0, 1.0, 400.0)])  # clearly dearer
+    table = workprecision.pareto_table(runs, ["c"]).set_index("target")
+    cell = table.loc[1e-9]
+    assert (cell.engine, cell.integrator) == ("mujoco", "rk4")
+    assert "pinocchio rk4" in cell.ties and "reference" not in cell.ties
+    at_1e2 = table.loc[1e-2]
+    # euler (98) and mujoco rk4 (100) tie within 3 + 1: euler needs 4x fewer evaluations, so it is shown
+    assert (at_1e2.engine, at_1e2.integrator) == ("pinocchio", "euler") and "mujoco rk4" in at_1e2.ties
+
+
+def test_pareto_without_spread_ties_only_within_the_floor():
+    rtol = workprecision.TIE_RTOL
+    runs = _candidates([("a", "m", 1e-9, 100.0, 0.0, 400.0), ("b", "m", 1e-9, 100.0 * (1 + 0.9 * rtol), 0.0, 100.0),
+                        ("c", "m", 1e-9, 100.0 * (1 + 1.1 * rtol), 0.0, 10.0)])
+    cell = workprecision.pareto_table(runs, ["c"]).set_index("target").loc[1e-9]
+    assert cell.engine == "b" and cell.ties.startswith("a m") and "c m" not in cell.ties
+
+
+def test_pareto_never_recommends_a_failed_integrator():
+    runs = _candidates([("pinocchio", "bad", 1e-9, 50.0, 0.0, 200.0), ("pinocchio", "rk4", 1e-9, 100.0, 0.0, 400.0)])
+    table = workprecision.pareto_table(runs, ["c"], {("pinocchio", "", "bad")}).set_index("target")
+    assert table.loc[1e-9].integrator == "rk4" and "pinocchio bad" in table.loc[1e-9].not_recommended
+    only_bad = workprecision.pareto_table(runs[runs.integrator == "bad"], ["c"], {("*", "*", "bad")})
+    reached = only_bad.target >= 1e-9
+    assert (only_bad.engine == "").all() and (only_bad.source[reached] == "only runs that failed a verdict").all()
+    assert (only_bad.source[~reached] == "none reached it").all()
+
+
+# ------------------------------------------------------------------------------------------------ timing
+
+def test_measure_reports_best_and_second_best_spread(monkeypatch):
+    durations = iter([0.5, 0.1, 0.13])
+    clock = [0.0]
+
+    def perf_counter():
+        return clock[0]
+
+    def run():
+        clock[0] += next(durations)
+
+    monkeypatch.setattr(timing.time, "perf_counter", perf_counter)
+    measured = timing.measure(run, repeats=3, budget_s=10.0)
+    assert measured.best == pytest.approx(0.1) and measured.spread == pytest.approx(0.03) and measured.repeats == 3
+    durations = iter([5.0, 5.0, 5.0])
+    assert timing.measure(run, repeats=3, budget_s=1.0).repeats == timing.MIN_REPEATS  # over budget: 2 for a spread
+
+
+def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypatch):
+    """execute runs untimed in the sweep; the timing phase then times each ok run in the parent, one at a time."""
+    timed_in_execute = []
+    real_execute = runner.execute
+
+    def spy(spec, truth, timed=False):
+        timed_in_execute.append(timed)
+        return real_execute(spec, truth, timed)
+
+    monkeypatch.setattr(runner, "execute", spy)
+    case = find_case("free-asymmetric")
+    df = runner.run_sweep([case], ["pinocchio"], ["rk4", "euler"], tmp_path, jobs=1)
+    assert timed_in_execute and not any(timed_in_execute)
+    ok = df[df.status == "ok"]
+    assert np.isfinite(ok.wall_s).all() and (ok.us_per_step_spread >= 0).all()
+    # evaluations per simulated second: exactly stages / dt, whatever the machine's load
+    expected = ok.integrator.map({"rk4": 4, "euler": 1}) / ok.dt
+    np.testing.assert_allclose(ok.rhs_per_sim_s, expected, rtol=1e-12)
+
+
+def test_ladder_points_are_timed_after_the_accuracy_runs(monkeypatch):
+    """The ladder's points run untimed (in the pool, when there is one); time_points then times each ok point alone,
+    with its spread, and rhs_per_sim_s is exactly stages / dt (the engine counts its evaluations)."""
+    timed_flags = []
+    real_measure = workprecision.measure
+
+    def spy(family, dt, timed=True, with_truth=True):
+        timed_flags.append(timed)
+        return real_measure(family, dt, timed, with_truth)
+
+    monkeypatch.setattr(workprecision, "measure", spy)
+    case = with_overrides(find_case("free-asymmetric"), t_end=1.0)
+    family = workprecision.Family(case, "pinocchio", "", "rk4")
+    points, rows = workprecision.run_ladders([family], max_steps=200, jobs=1)
+    assert timed_flags and not any(timed_flags)
+    ladder = pd.DataFrame(points)
+    ok = ladder[ladder.status == "ok"]
+    assert len(ok) >= 5 and np.isfinite(ok.us_per_sim_s).all() and (ok.us_per_sim_s_spread >= 0).all()
+    np.testing.assert_allclose(ok.rhs_per_sim_s, 4 * ok.steps / ok.t_end, rtol=1e-12)
