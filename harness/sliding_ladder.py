@@ -3,8 +3,9 @@ the rigid-body path of harness.runner (which routes a LadderCase here).
 
 Rows: the equation (engine reference, formulation "theta", integrator taylor: reference.sliding_ladder, whose heyoka event
 gives the detachment), every MuJoCo model (formulation "bilateral" or "unilateral", harness.engines.mujoco) with each
-MuJoCo integrator and dt, and a skipped Pinocchio row. Columns: energy_drift (the rod's energy, ½ m|v_G|² +
-½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
+MuJoCo integrator and dt, Pinocchio's bilateral model (its constrained dynamics, harness.engines.pinocchio) with
+each of its integrators that works on a vector state (sliding_ladder_integrators) and dt. Columns: energy_drift
+(the rod's energy, ½ m|v_G|² + ½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
 omega_err (|θ̇ − θ̇_equation| / max |θ̇_equation|) — for the unilateral model only up to the equation's detachment,
 after which the equation (both ends on the axes) no longer describes it. checks.csv: detachment_angle (the
 equation's event and the unilateral model's wall push, against arccos((2/3) cos θ0 + 4ℓθ̇0²/(9g))), energy_drift

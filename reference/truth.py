@@ -46,7 +46,7 @@ _SYMMETRIC_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 #   35 cot θ, 36 l, 37 M3, 38 on (1/0), 39 ε       torque (41); ρ = √(p1² + p2² + ε): ε = 1 when the torque is off, so
 #                                                   the Taylor series of √ never meets 0 on a motion with ω ∥ i3
 TORQUE_OFFSET = 19
-_N_PARS = 40
+N_PARS = 40  # every formulation's heyoka systems take this layout (reference.formulations)
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,17 +118,24 @@ def _body_components(w, v, vector) -> list:
     return [scalar * vector[i] + 2.0 * v_dot_x * v[i] - 2.0 * w * v_cross_x[i] for i in range(3)]
 
 
-def torque_expressions(w, v, omega, sigma) -> list:
-    """The torques of reference.torque_models (body frame) as heyoka expressions of the parameters TORQUE_OFFSET..
-    (layout above): the same formulas the engines and the numpy forms evaluate."""
+def field_direction_expression() -> list:
+    """D(t), the unit vector centre -> O in the coordinates' frame, as heyoka expressions of the parameters
+    TORQUE_OFFSET + 6.. and heyoka's time (layout above)."""
+    par, o = hy.par, TORQUE_OFFSET
+    phase = par[o + 15] * hy.time
+    cos_phase, sin_phase = hy.cos(phase), hy.sin(phase)
+    return [cos_phase * par[o + 6 + i] + sin_phase * par[o + 9 + i] + par[o + 12 + i] for i in range(3)]
+
+
+def body_torque_expressions(h, omega, sigma) -> list:
+    """The torques of reference.torque_models (body frame) as heyoka expressions, given H (the body components of
+    field_direction_expression()), ω and σ (body frame): the same formulas the engines and the numpy forms evaluate.
+    Every formulation's equations take them from here (reference.gibbs, reference.euler_angles)."""
     par = hy.par
     o = TORQUE_OFFSET
     axis = [par[o], par[o + 1], par[o + 2]]
     body = body_torque_components(axis, par[o + 3], par[o + 4], omega)
-    phase = par[o + 15] * hy.time
-    cos_phase, sin_phase = hy.cos(phase), hy.sin(phase)
-    direction = [cos_phase * par[o + 6 + i] + sin_phase * par[o + 9 + i] + par[o + 12 + i] for i in range(3)]
-    gradient = gravity_gradient_components(par[o + 5], sigma, _body_components(w, v, direction))
+    gradient = gravity_gradient_components(par[o + 5], sigma, h)
     p1, p2, _ = omega
     cot, ell, m3, on, eps = (par[o + 16 + i] for i in range(5))
     rho = hy.sqrt(p1 * p1 + p2 * p2 + eps)
@@ -136,10 +143,15 @@ def torque_expressions(w, v, omega, sigma) -> list:
     return [body[i] + gradient[i] + on * precession[i] for i in range(3)]
 
 
+def torque_expressions(w, v, omega, sigma) -> list:
+    """body_torque_expressions() with H = Rᵀ D(t) from the quaternion (w, v) (homogeneous in q)."""
+    return body_torque_expressions(_body_components(w, v, field_direction_expression()), omega, sigma)
+
+
 def torque_parameters(body: RigidBody, frame_matrix: np.ndarray | None = None) -> np.ndarray:
     """The 21 torque parameters (layout above, float64); frame_matrix (3, 3): the coordinates' frame in the world
     (identity for the quaternion formulation)."""
-    out = np.zeros(_N_PARS - TORQUE_OFFSET)
+    out = np.zeros(N_PARS - TORQUE_OFFSET)
     out[20] = 1.0  # ε: the torque (41) is off
     if body.body_torque is not None:
         out[0:3] = body.body_torque.axis
@@ -179,7 +191,7 @@ def taylor_integrator(precision: str = "double") -> tuple[object, threading.Lock
         equations(),
         np.array([1.0, 0, 0, 0, 0, 0, 0]).astype(fp_type),
         tol=fp_type(_TOLERANCE[precision]),
-        pars=np.zeros(_N_PARS).astype(fp_type),
+        pars=np.zeros(N_PARS).astype(fp_type),
         compact_mode=True,
         fp_type=fp_type,
     )

@@ -70,7 +70,7 @@ def test_every_oracle_case_has_oracle_err_within_the_bound(truth_sweep):
     assert df[df.case == "free-asymmetric"].oracle_err.isna().all()
     ran = df[~df.case.isin([*WITHOUT_ORACLE, "free-asymmetric"]) & (df.status == "ok")]
     assert np.isfinite(ran.oracle_err).all()
-    # only the charted formulations are skipped, on the self-excited cases (they do not model [body_torque])
+    # every formulation models every torque (issue 13): a skipped row would name the feature it lacks
     assert df[df.status == "skipped"].message.str.contains("[body_torque]", regex=False).all()
 
 

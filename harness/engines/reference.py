@@ -32,9 +32,8 @@ class FormulationSystem:
     def __init__(self, formulation: Formulation, chart_changes: bool = True, compiled: bool = True):
         self.formulation = formulation
         self.enabled = chart_changes
-        numpy_rhs = formulation.rhs
         # bound once: it is the hot path
-        self.rhs = formulation.fast_rhs if compiled else (lambda t, chart, y: numpy_rhs(t, chart.down, y))
+        self.rhs = formulation.fast_rhs if compiled else formulation.rhs
 
     def rechart(self, chart: Chart, y: np.ndarray) -> tuple[Chart, np.ndarray]:
         return self.formulation.check_chart(chart, y, self.enabled)
@@ -131,11 +130,6 @@ class ReferenceEngine(Engine):
 
     def unsupported(self, case: Case) -> str | None:
         return precession_singular(case)
-
-    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        """Why one formulation/integrator pair cannot model the case exactly (the run is `skipped`), or None:
-        only quaternion Euler–Poisson has the external torques."""
-        return ref_formulations.unsupported_torque(formulation, case.body)
 
     def torque_mode(self, case: Case) -> str:
         return "rhs" if case.body.has_external_torque else "none"
