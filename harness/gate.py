@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from stereodyn.harness.results import read_results, write_atomic
+from stereodyn.harness.results import TableError, read_results, write_atomic
 
 KEY = ("case", "engine", "formulation", "integrator", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
@@ -130,6 +130,8 @@ def read_table(results_dir: Path, required: tuple = (*KEY, "status")) -> pd.Data
         raise GateError(f"{path}: empty file (not a results table)") from None
     except UnicodeDecodeError as exc:
         raise GateError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except TableError as exc:  # read_results names the file and the problem already
+        raise GateError(str(exc)) from None
     except (OSError, ValueError, pd.errors.ParserError) as exc:
         raise GateError(f"{path}: not a results table ({' '.join(str(exc).split())})") from None
     missing = [column for column in required if column not in df.columns]

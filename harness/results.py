@@ -65,12 +65,14 @@ def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.
     try:
         df = pd.read_csv(path, **options)
     except pd.errors.EmptyDataError:
-        raise TableError(f"{path}: malformed table: the file is empty") from None
-    except (pd.errors.ParserError, ValueError, UnicodeDecodeError) as exc:
+        raise TableError(f"{path}: empty file (not a table)") from None
+    except UnicodeDecodeError as exc:
+        raise TableError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except (pd.errors.ParserError, ValueError) as exc:
         raise TableError(f"{path}: malformed table: {' '.join(str(exc).split())[:200]}") from None
     missing = [c for c in required if c not in df.columns]
     if missing:
-        raise TableError(f"{path}: malformed table: column {', '.join(missing)} missing")
+        raise TableError(f"{path}: missing columns {', '.join(missing)} (not a stereodyn table)")
     return df
 
 

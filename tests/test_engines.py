@@ -18,8 +18,8 @@ from stereodyn.reference import truth as reference_truth
 from stereodyn.reference.euler_poisson import omega_dot
 from stereodyn.reference.rotations import attitude_angle, quat_mul, quat_to_matrix
 
-mujoco_engine = pytest.importorskip("stereodyn.harness.engines.mujoco")
-pinocchio_engine = pytest.importorskip("stereodyn.harness.engines.pinocchio")
+from stereodyn.harness.engines import mujoco as mujoco_engine  # noqa: E402  (base dependencies: a broken
+from stereodyn.harness.engines import pinocchio as pinocchio_engine  # noqa: E402  adapter must fail, not skip)
 MUJOCO = mujoco_engine.MujocoEngine()
 PINOCCHIO = pinocchio_engine.PinocchioEngine()
 ENGINES = {"mujoco": MUJOCO, "pinocchio": PINOCCHIO}
