@@ -47,7 +47,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
     run.add_argument("--jobs", type=int, default=None, help="local worker processes (default: all cores)")
     run.add_argument("--certify", action="store_true", help="bound the truth's error by a quadruple-precision rerun")
-    run.add_argument("--quiet", action="store_true", help="no progress bar (there is none when stderr is not a TTY)")
+    run.add_argument("--quiet", action="store_true",
+                     help="no progress (a bar on a terminal, one line per phase otherwise, on stderr)")
+    run.add_argument("--verbose", action="store_true", help="also print every case's drift table")
     run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
     run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
                      help="run on this Dask scheduler's cluster (needs stereodyn[dask]) instead of local processes")
@@ -132,7 +134,7 @@ def cmd_run(args) -> int:
     from stereodyn.harness.progress import ProgressBar
     from stereodyn.harness.report.build import write_reports
     from stereodyn.harness.report.markdown import drift_table_text
-    from stereodyn.harness import verdicts, workprecision
+    from stereodyn.harness import summary, verdicts, workprecision
     from stereodyn.harness.runner import run_sweep
 
     _check_names(args)
@@ -140,13 +142,15 @@ def cmd_run(args) -> int:
     progress = ProgressBar(enabled=not args.quiet)
     df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs, certify=args.certify,
                    progress=progress, resume=args.resume, scheduler=args.scheduler)
-    _work_precision(args, chosen, df)
+    _work_precision(args, chosen, df, progress)
     found = verdicts.evaluate(args.out, df, chosen)
     # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
     workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
-    print("\n".join(verdicts.summary_lines(found)))
-    print(drift_table_text(df))
+    if args.verbose:
+        print(drift_table_text(df))
+    progress.stage("report: report.md, figures, report.html")
     markdown, html = write_reports(args.out, df)
+    print("\n".join(summary.terminal_lines(df, found, args.out, html)))
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     if args.strict and verdicts.failed(found):
         print("\n".join(verdicts.summary_lines(found)[1:]), file=sys.stderr)
@@ -154,7 +158,7 @@ def cmd_run(args) -> int:
     return 0
 
 
-def _work_precision(args, chosen: list, df) -> None:
+def _work_precision(args, chosen: list, df, progress=None) -> None:
     """ladder.csv, convergence.csv, pareto.csv and the orders in checks.csv (harness.workprecision). The default
     suite (no CASE, no --case-file, no --dt) gets the small default ladder; --dt-ladder every family's."""
     from stereodyn.harness import workprecision
@@ -167,8 +171,8 @@ def _work_precision(args, chosen: list, df) -> None:
         mode = "off"
     else:
         mode = "default"
-    if mode != "off" and not args.quiet:
-        print(f"work–precision: {mode} dt ladder", file=sys.stderr)
+    if mode != "off" and progress is not None:
+        progress.stage(f"work–precision: {mode} dt ladder")
     workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
                           max_steps=args.ladder_max_steps, jobs=args.jobs)
 

@@ -378,6 +378,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         local_jobs = 1 if scheduler else jobs or os.cpu_count() or 1
         with _local_pool(local_jobs, len(pending), tuple(engines)) as pool:
             truths = {}
+            progress.stage(f"truths of {len(cases)} cases, then {len(pending)} runs on {local_jobs} workers")
             for case in cases:
                 if case.kind == SLIDING_LADDER:  # harness.sliding_ladder solves the equation in each run
                     truths[case.name] = None
@@ -395,6 +396,8 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                 progress.close()
         # The timing phase: every accuracy run is done and the pool is gone, so each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
+        if untimed:
+            progress.stage(f"timing {len(untimed)} runs, one at a time")
         for spec in untimed:
             key = keys[id(spec)]
             row = stored[key]
