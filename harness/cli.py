@@ -80,6 +80,13 @@ def _parser() -> argparse.ArgumentParser:
     gate.add_argument("--floor", type=float, default=None, help="absolute floor (default 1e-12, every metric)")
     gate.add_argument("--time-factor", type=float, default=None,
                        help="also fail when us_per_step exceeds this factor times the baseline's")
+    compare = commands.add_parser("compare", help="two runs side by side: environments, then every row's metrics as "
+                                                   "ratios B/A, largest changes first (compare.md, compare.html)")
+    compare.add_argument("a", type=Path, metavar="A", help="result directory or baseline file (the reference)")
+    compare.add_argument("b", type=Path, metavar="B", help="result directory or baseline file (the new run)")
+    compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
+    commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
+                                            "and origin (built in, or the plug-in's distribution)")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
     export.add_argument("--format", required=True, choices=("mjcf", "urdf"))
@@ -230,6 +237,22 @@ def cmd_check(args) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    from stereodyn.harness.compare import compare
+
+    markdown, html, head = compare(args.a, args.b, args.out)
+    print("\n".join(head))
+    print(f"wrote {markdown} and {html}")
+    return 0
+
+
+def cmd_integrators(args) -> int:
+    from stereodyn.harness.report.method import integrator_rows, listing
+
+    print(listing(integrator_rows()))
+    return 0
+
+
 def cmd_export(args) -> int:
     from stereodyn.harness.export import export
     from stereodyn.harness.results import write_atomic
@@ -248,13 +271,14 @@ def main(argv: list[str] | None = None) -> int:
     from stereodyn.harness.distributed import ClusterError
     from stereodyn.harness.export import ExportError
     from stereodyn.harness.store import StoreBusy
+    from stereodyn.harness.compare import CompareError
 
     args = _parser().parse_args(argv)
     commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
-                "check": cmd_check, "export": cmd_export}
+                "check": cmd_check, "export": cmd_export, "compare": cmd_compare, "integrators": cmd_integrators}
     try:
         return commands[args.command](args)
-    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy) as exc:
+    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, CompareError) as exc:
         print(f"stereodyn: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

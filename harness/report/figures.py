@@ -155,6 +155,19 @@ def _legend(frame: pd.DataFrame) -> tuple[list, list[str]]:
     return handles, labels
 
 
+def _truth_for(adaptive: pd.DataFrame, panel: pd.DataFrame) -> pd.DataFrame:
+    """The one adaptive run drawn in a panel: the panel's own formulation's when it has one, else the truth
+    (reference quaternion taylor), else the first."""
+    if adaptive.empty:
+        return adaptive
+    formulations = adaptive.apply(_formulation, axis=1)
+    wanted = set(panel.apply(_formulation, axis=1)) if len(panel) else set()
+    for choice in (formulations.isin(wanted - {""}), formulations == "quaternion"):
+        if choice.any():
+            return adaptive[choice.to_numpy()].head(1)
+    return adaptive.head(1)
+
+
 def _series_dt(found: list) -> float:
     """The dt whose runs the invariants figure shows: the middle of the fixed-step dt values (NaN: adaptive only)."""
     dts = sorted({float(row["dt"]) for row, _ in found if dt_key(row["dt"])}, reverse=True)
@@ -185,13 +198,13 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
     # the truth is drawn in every panel: one series fewer for the runs
     panels = facets(frame[frame["dt"].notna()], limit=MAX_SERIES - 1) if frame["dt"].notna().any() else [("adaptive", adaptive)]
     columns = len(panels)
-    width, height = columns * 3.4 + 2.4, 1.7 * len(quantities) + 1.0
+    width, height = columns * 2.9 + 2.3, 1.45 * len(quantities) + 1.0
     figure = Figure(figsize=(width, height))
     figure.subplots_adjust(left=0.8 / width, right=1 - 2.3 / width, bottom=0.5 / height, top=1 - 0.6 / height,
                            wspace=0.12, hspace=0.12)
     grid = figure.subplots(len(quantities), columns, squeeze=False, sharex=True, sharey="row")
     for column, (title, panel) in enumerate(panels):
-        members = pd.concat([panel, adaptive]).drop_duplicates("_index")
+        members = pd.concat([panel, _truth_for(adaptive, panel)]).drop_duplicates("_index")
         for _, row in members.iterrows():
             values = shown[int(row["_index"])][1]
             is_truth = not dt_key(row["dt"])
