@@ -168,6 +168,12 @@ def _truth_for(adaptive: pd.DataFrame, panel: pd.DataFrame) -> pd.DataFrame:
     return adaptive.head(1)
 
 
+def figure_quantities(series: list[dict]) -> list[str]:
+    """The rows of an invariants figure: each quantity of QUANTITIES that some shown series recorded (a special
+    integral only where the case meets its conditions, harness.series)."""
+    return [q for q in QUANTITIES if any(q in s and any(v is not None for v in s[q]) for s in series)]
+
+
 def _series_dt(found: list) -> float:
     """The dt whose runs the invariants figure shows: the middle of the fixed-step dt values (NaN: adaptive only)."""
     dts = sorted({float(row["dt"]) for row, _ in found if dt_key(row["dt"])}, reverse=True)
@@ -189,7 +195,7 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
         return None
     dt = _series_dt(found)
     shown = [(row, s) for row, s in found if not dt_key(row["dt"]) or float(row["dt"]) == dt]
-    quantities = [q for q in QUANTITIES if any(q in s and any(v is not None for v in s[q]) for _, s in shown)]
+    quantities = figure_quantities([s for _, s in shown])
     if not quantities:
         return None
     frame = pd.DataFrame([row for row, _ in shown])
