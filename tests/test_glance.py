@@ -2,13 +2,17 @@
 import contextlib
 import io
 import json
+import os
 import re
 import shutil
+import subprocess
 from html.parser import HTMLParser
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from matplotlib import image as mpimg
 
 from stereodyn.harness import cli, summary, testing
 from stereodyn.harness.report import figures
@@ -215,3 +219,47 @@ def test_the_helpers_take_a_case_name_or_a_list():
     assert testing.measured_order("rk4", ["lagrange-top"], dts) == {"lagrange-top": one}
     assert 3.7 < one < 4.3  # RKMK4 on the Lagrange top over 2 s: 3.99 measured
     assert testing.assert_order("rk4", "lagrange-top", dts) == {"lagrange-top": one}
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+# Appended to a copy of the page: after load, every <img> decoded with a size and every '#' link's target present,
+# written into the title, which --dump-dom prints.
+CHECK = """<script>window.addEventListener('load', function () {
+  var broken = Array.prototype.filter.call(document.images, function (i) {
+    return !(i.complete && i.naturalWidth > 100 && i.naturalHeight > 100); }).length;
+  var links = document.querySelectorAll('a[href^="#"]');
+  var dangling = Array.prototype.filter.call(links, function (a) {
+    return !document.getElementById(a.getAttribute('href').slice(1)); }).length;
+  document.title = 'CHECK images=' + document.images.length + ' broken=' + broken + ' links=' + links.length
+    + ' dangling=' + dangling; });</script>"""
+
+
+def _chromium(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                           "--virtual-time-budget=5000", *args], capture_output=True, text=True, timeout=180)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on PATH to render the page (apt-get install chromium)")
+def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
+    """Screenshots: the top of the page, and the page with every case opened (its figures shown); set
+    STEREODYN_SCREENSHOTS=DIR to keep them."""
+    out, _, _ = ran
+    page = tmp_path / "report.html"
+    page.write_text((out / "report.html").read_text().replace("</body>", CHECK + "\n</body>"))
+    dom = _chromium("--dump-dom", page.as_uri())
+    title = re.search(r"<title>(CHECK [^<]*)</title>", dom.stdout)
+    assert title, dom.stderr[-2000:]
+    found = dict(item.split("=") for item in title.group(1).split()[1:])
+    assert found["broken"] == "0" and found["dangling"] == "0"
+    assert int(found["images"]) == 2 * len(CASES) and int(found["links"]) >= 8 + len(CASES)
+    keep = os.environ.get("STEREODYN_SCREENSHOTS")
+    opened = tmp_path / "opened.html"
+    opened.write_text(page.read_text().replace("<details ", "<details open "))
+    for name, address, height in (("top", page.as_uri(), 2000), ("opened", opened.as_uri(), 6000)):
+        shot = tmp_path / f"{name}.png"
+        _chromium(f"--window-size=1400,{height}", f"--screenshot={shot}", address)
+        pixels = mpimg.imread(shot)
+        assert pixels.shape[:2] == (height, 1400)
+        assert np.mean(pixels[..., :3] < 0.9) > 0.02  # text, tables and figures, not an empty page
+        if keep:
+            shutil.copy(shot, Path(keep) / f"{name}.png")

@@ -16,8 +16,8 @@ from stereodyn.harness import cli
 from stereodyn.harness.report import build
 from stereodyn.harness.report.html import render
 
-SECTIONS = {"summary": "## Summary", "drift-tables": "## Drift tables", "work-precision": "## Work–precision",
-            "invariants-against-time": "## Invariants against time",
+SECTIONS = {"summary": "## Summary", "each-integrator-your-method": "## Each integrator (your method)",
+            "runs-that-did-not-complete": "## Runs that did not complete", "cases": "## Cases",
             "oracle-and-theory-checks": "## Oracle and theory checks", "environment": "## Environment"}
 CASES = ("lagrange-top", "heavy-asymmetric")
 CHECKS = pd.DataFrame([
@@ -79,7 +79,7 @@ def test_report_html_is_self_contained_with_every_section(reported):
     text = (reported / "report.html").read_text()
     page.feed(text)
     assert set(SECTIONS) <= set(page.sections)
-    assert page.external == [] and not {"script", "link", "iframe"} & page.tags
+    assert page.external == [] and not {"link", "iframe"} & page.tags  # the one script is inline
     assert len(page.images) == 2 * len(CASES)
     assert page.graded > 50  # drift and error cells and statuses carry colours
     assert "precession_rate" in text and "git commit" in text
@@ -103,7 +103,7 @@ def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):
     assert cli.main(["report", str(tmp_path)]) == 0
     text = (tmp_path / "report.md").read_text()
     assert all(heading + "\n" in text for heading in SECTIONS.values())
-    assert "No stored series" in text and "No checks.csv" in text
+    assert "No invariants figure: no stored series in this folder" in text and "No checks.csv" in text
 
 
 def test_figures_drawn_in_parallel_are_the_same(reported, tmp_path, monkeypatch):

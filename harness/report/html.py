@@ -60,7 +60,7 @@ document.querySelectorAll('table').forEach(function (table) {
   }
 });
 function openTarget() { var e = location.hash && document.getElementById(location.hash.slice(1));
-  if (e && e.tagName === 'DETAILS') { e.open = true; e.scrollIntoView(); } }
+  if (e && e.tagName === 'DETAILS' && !e.open) { e.open = true; e.scrollIntoView(); } }
 window.addEventListener('hashchange', openTarget); openTarget();
 """ % FILTER_ROWS
 # The level-2 section whose level-3 subsections (one per case) fold away as <details>.
