@@ -58,7 +58,9 @@ def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
     lines = ["cheapest fixed-step run reaching an accuracy (max attitude error), pareto.csv:"]
     cases = pareto["case"].nunique()
     for target in targets:
-        hit = pareto[np.isclose(pareto["target"], target, rtol=1e-9) & (pareto["engine"] != "")]
+        # atol 0: np.isclose's default 1e-8 would take 1e-9 .. 1e-12 for one target
+        hit = pareto[np.isclose(pareto["target"], target, rtol=1e-9, atol=0.0) & (pareto["engine"] != "")]
+        hit = hit.drop_duplicates("case")
         if hit.empty:
             lines.append(f"  <= {target:.0e}: no case reaches it")
             continue
@@ -92,8 +94,8 @@ def terminal_lines(df: pd.DataFrame, found: list, out_dir: Path, report: Path | 
     if entries:
         lines.append("did not complete, by reason (numbers elided; every run in results.csv):")
         for entry in entries[:TERMINAL_REASONS]:
-            example = entry["runs"][0] + (f" and {entry['count'] - 1} more" if entry["count"] > 1 else "")
-            lines.append(f"  {entry['count']:4d} {entry['status']}: {entry['reason']} (e.g. {example})")
+            more = f", +{entry['count'] - 1}" if entry["count"] > 1 else ""
+            lines.append(f"  {entry['count']:4d} {entry['status']}: {entry['reason']} ({entry['runs'][0]}{more})")
         if len(entries) > TERMINAL_REASONS:
             rest = entries[TERMINAL_REASONS:]
             lines.append(f"  ... and {len(rest)} more reasons ({sum(e['count'] for e in rest)} runs): "

@@ -46,7 +46,7 @@ def test_the_terminal_is_a_short_summary(ran):
     assert any(line.startswith("verdicts: ") for line in lines)
     # Divergences grouped by reason, their times elided, counted
     grouped = [line for line in lines if "diverged: state not finite" in line]
-    assert len(grouped) == 1 and "at t = … s" in grouped[0] and "(e.g. " in grouped[0]
+    assert len(grouped) == 1 and "at t = … s" in grouped[0] and re.search(r"\(\S+ \S+ euler dt=0\.3, \+3\)$", grouped[0])
     assert any(line.startswith("report: ") and line.endswith("(drift tables: --verbose, or report.md)")
                for line in lines)
     assert not any(line.startswith("== ") for line in lines)  # no drift table without --verbose
@@ -118,6 +118,20 @@ def test_skip_and_divergence_reasons_are_grouped_with_counts():
     assert [(e["status"], e["count"], e["reason"]) for e in entries] == [
         ("diverged", 2, "state not finite at t = … s"), ("skipped", 2, "no model of x")]
     assert entries[1]["runs"] == ["c pinocchio rk4 dt=0.1", "d pinocchio rk4 dt=0.1"]
+
+
+def test_cheapest_runs_per_target_count_each_case_once(tmp_path):
+    rows = [{"case": case, "target": target, "engine": "mujoco", "formulation": "", "integrator": "rk4", "dt": dt,
+             "us_per_sim_s": cost} for case, cost in (("a", 100.0), ("b", 300.0))
+            for target, dt in ((1e-3, 0.01), (1e-6, 0.002), (1e-9, 0.001), (1e-10, 0.0005), (1e-11, 0.0002))]
+    rows.append({"case": "b", "target": 1e-9, "engine": "", "formulation": "", "integrator": "", "dt": None,
+                 "us_per_sim_s": None})
+    pd.DataFrame(rows[::-1]).to_csv(tmp_path / "pareto.csv", index=False)  # smallest targets first
+    lines = summary.cheapest_lines(tmp_path)
+    assert lines[1:] == [
+        "  <= 1e-03: 2/2 cases; most often mujoco rk4 (2); dearest b: mujoco rk4 dt=0.01 (300 µs/s)",
+        "  <= 1e-06: 2/2 cases; most often mujoco rk4 (2); dearest b: mujoco rk4 dt=0.002 (300 µs/s)",
+        "  <= 1e-09: 2/2 cases; most often mujoco rk4 (2); dearest b: mujoco rk4 dt=0.001 (300 µs/s)"]
 
 
 def test_panels_hold_at_most_eight_series():

@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
 DPI = 80
-PALETTE = 64  # colours of a figure's PNG: plenty for lines on white, and no visible banding
+PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
 LINESTYLES = {"mujoco": "-", "pinocchio": "--", "reference": ":"}
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
 LEGEND_COLUMN_IN = 2.7  # width of a legend column, inches: fits "reference rk4 (gibbs_hamiltonian)" at 8 pt
@@ -112,13 +112,13 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
     if rows.empty:
         return None
     panels = facets(rows)
-    figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.9)
+    figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
     for axes, (title, panel) in zip(grid.flat, panels):
         for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
             runs = runs.sort_values("dt", ascending=False, na_position="last")  # along dt: no zig-zag
             colour, marker = integrator_style(runs["integrator"].iloc[0])
             engine = runs["engine"].iloc[0]
-            short = label[len(engine) + 1:] if label.startswith(f"{engine} ") else label
+            short = str(runs["integrator"].iloc[0])  # the panel's title names the engine and formulation
             axes.plot((runs["wall_s"] / runs["t_end"] * 1e6).to_numpy(), runs["attitude_err"].to_numpy(),
                       marker=marker, markersize=4, linestyle=LINESTYLES.get(engine, "-."), color=colour,
                       linewidth=1.0, label=short)
@@ -204,7 +204,7 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
     # the truth is drawn in every panel: one series fewer for the runs
     panels = facets(frame[frame["dt"].notna()], limit=MAX_SERIES - 1) if frame["dt"].notna().any() else [("adaptive", adaptive)]
     columns = len(panels)
-    width, height = columns * 2.9 + 2.3, 1.45 * len(quantities) + 1.0
+    width, height = columns * 2.5 + 2.3, 1.3 * len(quantities) + 1.0
     figure = Figure(figsize=(width, height))
     figure.subplots_adjust(left=0.8 / width, right=1 - 2.3 / width, bottom=0.5 / height, top=1 - 0.6 / height,
                            wspace=0.12, hspace=0.12)

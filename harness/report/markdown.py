@@ -124,6 +124,7 @@ def _markdown_table(cells: list[list[str]]) -> str:
     return "\n".join(markdown_table(cells[0], cells[1:]))
 
 
+PROBLEMS = "Runs that did not complete"
 # Runs named per reason in "Runs that did not complete" (the CSV files hold every row).
 REASON_EXAMPLES = 3
 
@@ -140,7 +141,7 @@ def problem_lines(df: pd.DataFrame) -> list[str]:
                                                        if e["count"] > REASON_EXAMPLES else "")]
             for e in entries]
     total = sum(e["count"] for e in entries)
-    return ["## Runs that did not complete", "",
+    return [f"## {PROBLEMS}", "",
             f"{total} runs, grouped by status and reason (numbers in the message elided); results.csv has each "
             "run's message.", "", *markdown_table(["status", "runs", "reason", "for example"], rows), ""]
 
@@ -149,9 +150,15 @@ def case_lines(case: str, group: pd.DataFrame, extras: Sequence[str] = ()) -> li
     """A case's section: its drift table, its divergences, then `extras` (its figures)."""
     columns = TERMINAL_COLUMNS[:-2] + ("attitude_err_end", "truth_err", "chart_changes", "wall_s", "us_per_step")
     counts = group["status"].value_counts()
+    # Skipped runs have no numbers: counted here, their reasons grouped in "Runs that did not complete" (results.csv
+    # has each row).
+    ran = group[group["status"] != "skipped"]
+    skipped = f"; the skipped ones are in {PROBLEMS} (grouped by reason)" if counts.get("skipped", 0) else ""
     lines = [f"### {case}", "", f"{len(group)} runs: " + ", ".join(
-        f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped") if counts.get(s, 0)), "",
-             _markdown_table(_table(group, _shown_columns(group, columns))), ""]
+        f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped") if counts.get(s, 0)) + skipped,
+             ""]
+    if len(ran):
+        lines += [_markdown_table(_table(ran, _shown_columns(ran, columns))), ""]
     diverged = group[group["status"] == "diverged"]
     for _, row in diverged.iterrows():
         formulation = row.get("formulation", "")
