@@ -71,13 +71,16 @@ def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool
                "No invariants figure: no stored series in this folder (DIR/runs.json and DIR/store/ are written by "
                "`stereodyn run`)."}
     lines: dict[str, list[str]] = {}
-    for (kind, case, _, _), png in zip(tasks, _render_all(tasks)):
+    for (kind, case, group, _), png in zip(tasks, _render_all(tasks)):
         if png is None:
             lines.setdefault(case, []).extend([missing[kind], ""])
             continue
         path = f"{FIGURES_DIR}/{html.slug(case)}-{kind}.png"
         images[path] = png
         lines.setdefault(case, []).extend([f"![{case}: {kind.replace('-', '–')}]({path})", ""])
+        if kind == "invariants":
+            rows = figures.invariant_rows(group, series, case)
+            lines[case].extend([f"Rows of the invariants figure: {'; '.join(rows)}.", ""])
     return lines, images
 
 

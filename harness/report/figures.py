@@ -180,6 +180,22 @@ def _series_dt(found: list) -> float:
     return dts[len(dts) // 2] if dts else math.nan
 
 
+def _shown(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> tuple[float, list]:
+    """(dt, [(row, series)]): the runs the invariants figure draws, at its dt, and the adaptive ones."""
+    found = [(row, series.get((case, row["engine"], row["formulation"], row["integrator"], dt_key(row["dt"]))))
+             for _, row in group.iterrows()]
+    found = [(row, s) for row, s in found if s]
+    if not found:
+        return math.nan, []
+    dt = _series_dt(found)
+    return dt, [(row, s) for row, s in found if not dt_key(row["dt"]) or float(row["dt"]) == dt]
+
+
+def invariant_rows(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> list[str]:
+    """The axis labels of the invariants figure's rows, top to bottom (for its caption)."""
+    return [QUANTITIES[q] for q in figure_quantities([s for _, s in _shown(group, series, case)[1]])]
+
+
 def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> bytes | None:
     """Deviation of each conserved quantity the case has (energy, momentum, and its special integral: Lagrange,
     Kovalevskaya, Goryachev–Chaplygin, Hess, self-excited) and the attitude error against time: a row per quantity, a
@@ -188,13 +204,7 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
     series: (case, engine, formulation, integrator, dt_key) -> {"t": [...], quantity: [...]}. None when no run of
     the case has a stored series.
     """
-    found = [(row, series.get((case, row["engine"], row["formulation"], row["integrator"], dt_key(row["dt"]))))
-             for _, row in group.iterrows()]
-    found = [(row, s) for row, s in found if s]
-    if not found:
-        return None
-    dt = _series_dt(found)
-    shown = [(row, s) for row, s in found if not dt_key(row["dt"]) or float(row["dt"]) == dt]
+    dt, shown = _shown(group, series, case)
     quantities = figure_quantities([s for _, s in shown])
     if not quantities:
         return None
