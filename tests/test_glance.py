@@ -277,3 +277,15 @@ def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
         assert np.mean(pixels[..., :3] < 0.9) > 0.02  # text, tables and figures, not an empty page
         if keep:
             shutil.copy(shot, Path(keep) / f"{name}.png")
+
+
+def test_the_default_suites_summary_fits_in_80_lines():
+    """On the committed default suite (reports/default: 998 runs, 11 reasons for the 115 that did not complete)."""
+    from stereodyn.harness import verdicts
+    from stereodyn.harness.results import read_results
+
+    folder = Path(__file__).resolve().parents[1] / "reports" / "default"
+    df = read_results(folder / "results.csv")
+    lines = summary.terminal_lines(df, verdicts.read(folder) or [], folder, folder / "report.html")
+    assert len(lines) <= 80 and len(summary.grouped_reasons(df)) > summary.TERMINAL_REASONS  # 17 lines measured
+    assert lines[-1].startswith("report: ") and sum(line.startswith("  <= 1e-") for line in lines) == 3
