@@ -16,7 +16,6 @@ DPI = 80
 PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
 LINESTYLES = {"mujoco": "-", "pinocchio": "--", "reference": ":"}
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
-LEGEND_COLUMN_IN = 2.7  # width of a legend column, inches: fits "reference rk4 (gibbs_hamiltonian)" at 8 pt
 QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift", "lagrange": "Lagrange ω₃ drift",
               "kovalevskaya": "Kovalevskaya integral", "chaplygin": "Goryachev–Chaplygin",
               "hess": "Hess K·k drift", "self_excited": "self-excited (36)", "attitude_err": "attitude error (rad)"}
