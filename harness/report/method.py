@@ -141,6 +141,10 @@ def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | No
     builtin = {name for name, row in catalogue.items() if str(row["origin"]).startswith("built in")}
     convergence = workprecision.read_optional(Path(out_dir) / workprecision.CONVERGENCE_FILE,
                                               ("formulation", "note", "source"))
+    if convergence is not None:  # a table with no fitted value reads as text: the numbers as numbers
+        numeric = ("order", "floor_dt", "floor_err", "stable_dt_max", "declared_order")
+        convergence = convergence.assign(**{c: pd.to_numeric(convergence[c], errors="coerce")
+                                            for c in numeric if c in convergence})
     ladder = workprecision.read_optional(Path(out_dir) / workprecision.LADDER_FILE)
     runs = df if ladder is None or ladder.empty else pd.concat(
         [df, ladder[[c for c in ladder.columns if c in df.columns]]], ignore_index=True)
