@@ -36,8 +36,17 @@ class CompareError(ValueError):
 
 
 def load(path: Path) -> tuple[pd.DataFrame, dict]:
-    """(table, environment) of a result directory or a baseline file."""
-    path = Path(path)
+    """(table, environment) of a result directory or a baseline file; CompareError when the table lacks the key
+    columns or the status."""
+    table, env = _load(Path(path))
+    missing = [c for c in (*gate.KEY, "status") if c not in table.columns]
+    if missing:
+        name = Path(path) / "results.csv" if Path(path).is_dir() else Path(path)
+        raise CompareError(f"{name}: no column {', '.join(missing)} (a row is keyed by {', '.join(gate.KEY)})")
+    return table.fillna({"formulation": ""}), env
+
+
+def _load(path: Path) -> tuple[pd.DataFrame, dict]:
     try:
         if path.is_dir():
             table = gate.read_table(path)
@@ -184,12 +193,12 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, 
     from stereodyn.harness.report import html
     from stereodyn.harness.results import write_atomic
 
-    table_a, env_a = load(path_a)
-    table_b, env_b = load(path_b)
     if out is None:
-        if not Path(path_b).is_dir():
+        if Path(path_b).is_file():
             raise CompareError(f"{path_b}: a baseline file, not a directory: give --out DIR for compare.md")
         out = Path(path_b)
+    table_a, env_a = load(path_a)
+    table_b, env_b = load(path_b)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     changes = row_changes(table_a, table_b)

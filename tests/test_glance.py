@@ -201,12 +201,15 @@ def test_compare_names_the_environment_first_then_the_changed_row(ran, tmp_path)
 @pytest.mark.parametrize("argv, message", [
     (["missing-dir", "B"], "missing-dir: no such result directory or baseline file"),
     (["A", "base.json"], "base.json: a baseline file, not a directory: give --out DIR for compare.md"),
+    (["A", "bad"], "bad/results.csv: no column status (a row is keyed by case, engine, formulation, integrator, dt)"),
 ])
 def test_compare_bad_input_is_one_line_exit_2(ran, tmp_path, argv, message):
     out, _, _ = ran
     shutil.copytree(out, tmp_path / "A")
     shutil.copytree(out, tmp_path / "B")
     (tmp_path / "base.json").write_text(json.dumps({"format": "stereodyn-baseline/1", "rows": []}))
+    (tmp_path / "bad").mkdir()
+    pd.read_csv(out / "results.csv").drop(columns="status").to_csv(tmp_path / "bad" / "results.csv", index=False)
     code, stdout, stderr = _main(["compare", *(str(tmp_path / x) for x in argv)])
     assert code == 2 and stdout == ""
     assert stderr.splitlines() == [f"stereodyn: error: {tmp_path}/{message}"]
