@@ -27,6 +27,7 @@ GROUPS = ((1.0, "changed 10x or more"), (math.log10(2.0), "changed 2x to 10x"),
 # Environment keys that differ between any two runs (not a difference in what ran).
 EXPECTED = ("date", "report rendered")
 TIMING = "us_per_step"
+DIFFERS = "DIFFERS"
 LISTED = 40      # rows listed per group (compare.csv holds every row)
 FIGURE_ROWS = 20
 
@@ -72,7 +73,7 @@ def environment_rows(a: dict, b: dict) -> list[list[str]]:
     rows = [[k, str(a.get(k, "-")), str(b.get(k, "-"))] for k in keys]
     differs = lambda r: r[1] != r[2]  # noqa: E731
     rank = lambda r: (0 if differs(r) and r[0] not in EXPECTED else 1 if differs(r) else 2)  # noqa: E731
-    return [r + ["**differs**" if rank(r) == 0 else "differs (expected)" if rank(r) == 1 else ""]
+    return [r + [DIFFERS if rank(r) == 0 else "differs (expected)" if rank(r) == 1 else ""]
             for r in sorted(rows, key=rank)]
 
 
@@ -133,7 +134,7 @@ def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes:
     """compare.md."""
     lines = ["# stereodyn compare", "", f"A: `{path_a}`", "", f"B: `{path_b}`", "", "## Environment", ""]
     env = environment_rows(env_a, env_b)
-    differing = [r[0] for r in env if r[3] == "**differs**"]
+    differing = [r[0] for r in env if r[3] == DIFFERS]
     lines += [("Differs: " + ", ".join(differing) + ".") if differing else "Same environment (the date aside).", ""]
     lines += markdown_table(["key", "A", "B", ""], env) + [""]
     groups = changes.apply(_group, axis=1) if len(changes) else pd.Series([], dtype=str)
@@ -153,7 +154,9 @@ def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes:
         rows = [[_label(r), r["status_a"], r["status_b"], r["metric"] or "-",
                  *[_ratio(r[m]) for m in shown]] for _, r in members.head(LISTED).iterrows()]
         lines += [f"### {name} ({len(members)} rows)", "",
-                  *markdown_table(["row", "status A", "status B", "largest change", *shown], rows), ""]
+                  # "B/A" in the header: a ratio, not a drift (the page colours drift columns on their scale)
+                  *markdown_table(["row", "status A", "status B", "largest change", *(f"{m} B/A" for m in shown)],
+                                  rows), ""]
         if len(members) > LISTED:
             lines += [f"... and {len(members) - LISTED} more in compare.csv.", ""]
     if figure:
@@ -212,7 +215,7 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, 
     write_atomic(out / "compare.md", markdown)
     write_atomic(out / "compare.html", html.render(markdown, {figure_path: png} if png else {}, out))
     write_atomic(out / "compare.csv", changes.to_csv(index=False, float_format="%.6g"))
-    differing = [f"{r[0]} {r[1]} -> {r[2]}" for r in environment_rows(env_a, env_b) if r[3] == "**differs**"]
+    differing = [f"{r[0]} {r[1]} -> {r[2]}" for r in environment_rows(env_a, env_b) if r[3] == DIFFERS]
     head = ["environment differs: " + ", ".join(differing) if differing else "environment: the same (the date aside)"]
     groups = changes.apply(_group, axis=1) if len(changes) else pd.Series([], dtype=str)
     for name in ["status changed", *(n for _, n in GROUPS), "only in A", "only in B"]:
