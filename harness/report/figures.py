@@ -211,7 +211,8 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
     frame["_index"] = range(len(shown))
     adaptive = frame[frame["dt"].isna()]
     # the truth is drawn in every panel: one series fewer for the runs
-    panels = facets(frame[frame["dt"].notna()], limit=MAX_SERIES - 1) if frame["dt"].notna().any() else [("adaptive", adaptive)]
+    fixed = frame[frame["dt"].notna()]
+    panels = facets(fixed, limit=MAX_SERIES - 1) if len(fixed) else [("adaptive", adaptive)]
     columns = len(panels)
     width, height = columns * 2.5 + 2.3, 1.3 * len(quantities) + 1.0
     figure = Figure(figsize=(width, height))
