@@ -29,6 +29,17 @@ DEFAULT_SAMPLES = 1000
 UNIT_TOL = 1e-9            # |v| within this of 1 is normalised, further off is an error (DESIGN §3)
 SYMMETRY_RTOL = 1e-12      # relative to the largest inertia entry
 TRIANGLE_RTOL = 1e-12      # relative to the largest principal moment at O: round-off of Huygens–Steiner, planar bodies
+# The numeric ranges a double computation of one body carries (docs/limits.md). Every number of a case file has
+# |x| <= MAX_MAGNITUDE; the scales (mass, principal moments about O, lengths, the field's mu and radius, t_end, dt,
+# horizon) are >= MIN_SCALE. Within these the worst products of the equations (I ω × ω ~ 1e18, 3 μ / r³ ~ 1e33, the
+# inverse inertia ~ 1e9 times a torque ~ 1e18) stay ~1e270 below overflow and their squares far above underflow; what
+# such a body does (a truth of too many steps, a run that diverges) is then data, not an exception.
+MAX_MAGNITUDE = 1e6
+MIN_SCALE = 1e-9
+MAX_SAMPLES = 100_000      # recorded states per run
+MAX_STEPS = 10_000_000     # t_end / dt per run: 10x the extremes' long horizon (1e6 steps)
+MAX_DTS = 32               # steps in one dt list: the truth samples the union of their grids, <= 3.2e6 states (180 MB)
+MIN_SIN_THETA = 1e-9       # torque (41): cot θ stays <= 1e9
 
 _TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     # table: (allowed keys, required keys)
@@ -136,11 +147,14 @@ def load_case(path: str | Path) -> Case | LadderCase:
     except OSError as exc:
         raise CaseError(path, "-", f"cannot read file ({exc.strerror or exc})") from None
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
+        # utf-8-sig: a byte-order mark (as some editors write) is accepted and dropped
+        data = tomllib.loads(raw.decode("utf-8-sig"))
     except UnicodeDecodeError:
         raise CaseError(path, "-", "invalid TOML: not UTF-8 text") from None
     except tomllib.TOMLDecodeError as exc:
-        raise CaseError(path, "-", "invalid TOML: " + " ".join(str(exc).split())) from None
+        raise CaseError(path, "-", "invalid TOML: " + " ".join(str(exc).split())[:300]) from None
+    except RecursionError:  # tomllib recurses once per nesting level: thousands of [[[...]]] exhaust the stack
+        raise CaseError(path, "-", "invalid TOML: arrays or tables nested too deep") from None
     return _Parser(path).case(data)
 
 
@@ -224,13 +238,18 @@ class _Parser:
         except OverflowError:
             result = math.inf
         if not math.isfinite(result):
-            raise self.fail(key, f"must be finite, got {value}")
+            raise self.fail(key, f"must be finite, got {_short(value)}")
+        if abs(result) > MAX_MAGNITUDE:
+            raise self.fail(key, f"must be within +-{MAX_MAGNITUDE:g} (docs/limits.md), got {result:g}")
         return result
 
     def positive(self, value: Any, key: str) -> float:
+        """A scale: > 0, and >= MIN_SCALE so that its inverse and square stay far from overflow and underflow."""
         result = self.number(value, key)
         if result <= 0.0:
             raise self.fail(key, f"must be > 0, got {result:g}")
+        if result < MIN_SCALE:
+            raise self.fail(key, f"must be >= {MIN_SCALE:g} (docs/limits.md), got {result:g}")
         return result
 
     def vector(self, value: Any, key: str, n: int) -> np.ndarray:
@@ -255,6 +274,8 @@ class _Parser:
         if isinstance(value, list):
             if not value:
                 raise self.fail(key, "must not be empty")
+            if len(value) > MAX_DTS:
+                raise self.fail(key, f"must hold at most {MAX_DTS} steps, got {len(value)}")
             keys = [f"{key}[{i}]" for i in range(len(value))]
         else:
             value, keys = [value], [key]
@@ -263,6 +284,9 @@ class _Parser:
             step = self.positive(item, item_key)
             if step > t_end:
                 raise self.fail(item_key, f"dt must be <= t_end ({step:g} > {t_end:g})")
+            if t_end / step > MAX_STEPS:
+                raise self.fail(item_key, f"t_end / dt must be <= {MAX_STEPS:.0e} steps (docs/limits.md), "
+                                          f"got {t_end / step:.3g}")
             result.append(step)
         return tuple(result)
 
@@ -317,6 +341,8 @@ class _Parser:
         name = self.string(data["name"], "name") if "name" in data else Path(self.path).stem
         if not name.strip():
             raise self.fail("name", "must not be empty")
+        if not name.isprintable():  # XML (MJCF, URDF) cannot carry control characters, and a table row breaks on them
+            raise self.fail("name", f"must hold printable characters only, got {_short(name)}")
         description = self.string(data.get("description", ""), "description")
         tags = data.get("tags", [])
         if not isinstance(tags, list):
@@ -348,6 +374,9 @@ class _Parser:
         theta = self.number(data["theta"], "precession_torque.theta")
         if not 0.0 < theta < math.pi:
             raise self.fail("precession_torque.theta", f"must be in (0, pi) rad, got {theta:g}")
+        if math.sin(theta) < MIN_SIN_THETA:
+            raise self.fail("precession_torque.theta", f"sin theta must be >= {MIN_SIN_THETA:g} (cot theta is a "
+                                                       f"coefficient of the torque), got theta = {theta:.17g}")
         return PrecessionTorque(theta=theta, l=self.number(data["l"], "precession_torque.l"),
                                 m3=self.number(data["m3"], "precession_torque.m3"))
 
@@ -370,6 +399,9 @@ class _Parser:
         moments_o = np.linalg.eigvalsh(inertia)
         if moments_o[0] <= 0.0:
             raise self.fail(key, f"inertia must be positive definite (eigenvalues {_fmt(moments_o)})")
+        if moments_o[0] < MIN_SCALE:
+            raise self.fail(key, f"principal moments about O must be >= {MIN_SCALE:g} (docs/limits.md; eigenvalues "
+                                 f"{_fmt(moments_o)})")
         scale = float(moments_o[-1])
         self.triangle(moments_o, scale, key, "about O")
         inertia_g = inertia - mass * (com @ com * np.eye(3) - np.outer(com, com))
@@ -442,7 +474,9 @@ class _Parser:
         if isinstance(samples, bool) or not isinstance(samples, int):
             raise self.fail("run.samples", f"must be an integer, got {_describe(samples)}")
         if samples < 2:
-            raise self.fail("run.samples", f"must be >= 2 (t = 0 and t_end), got {samples}")
+            raise self.fail("run.samples", f"must be >= 2 (t = 0 and t_end), got {_short(samples)}")
+        if samples > MAX_SAMPLES:
+            raise self.fail("run.samples", f"must be <= {MAX_SAMPLES} (docs/limits.md), got {_short(samples)}")
         return t_end, dt, samples
 
     def expect(self, data: Any, t_end: float) -> tuple[str | None, float | None]:
@@ -489,6 +523,14 @@ def _describe(value: Any) -> str:
     if len(text) > 40:
         text = text[:37] + "..."
     return f"{type(value).__name__} {text}"
+
+
+def _short(value: Any) -> str:
+    """A value for a message, at most 40 characters (a 10^5-digit integer must not become a 10^5-character line)."""
+    if isinstance(value, int) and abs(value) >= 10 ** 30:  # float() overflows and repr() refuses > 4300 digits
+        return f"{'-' if value < 0 else ''}an integer of {int(math.log10(abs(value))) + 1} digits"
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _fmt(values: np.ndarray) -> str:

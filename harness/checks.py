@@ -412,7 +412,10 @@ def read_checks(path: Path) -> pd.DataFrame:
 # ------------------------------------------------------------------------------------------------- the report
 
 def _truth_mask(df: pd.DataFrame) -> pd.Series:
-    return (df["engine"] == "reference") & (df["formulation"] == "quaternion") & (df["integrator"] == "taylor")
+    from stereodyn.harness.engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
+
+    return ((df["engine"] == TRUTH_ENGINE) & (df["formulation"] == TRUTH_FORMULATION)
+            & (df["integrator"] == TRUTH_INTEGRATOR))
 
 
 def _label(row) -> str:

@@ -1,24 +1,144 @@
-"""The environment a sweep ran in: library versions (part of every result's store key), CPU, date, git commit."""
+"""The environment a sweep ran in: library versions and code fingerprints (part of every result's store key), CPU,
+date, git commit."""
 from __future__ import annotations
 
 import datetime
+import functools
+import hashlib
+import importlib
+import inspect
 import platform
+import sys
 from importlib import metadata
 from pathlib import Path
 
-# The libraries whose version can change a result; a result is keyed by all of them (harness.store).
-PACKAGES = ("numpy", "scipy", "mujoco", "pin", "heyoka", "stereodyn")
+# The libraries whose version can change any result (heyoka: the truth); each engine adds its own (Engine.packages). A
+# result is keyed by all of them (harness.store).
+CORE_PACKAGES = ("numpy", "scipy")
+TRUTH_PACKAGES = ("heyoka", "stereodyn")
+
+
+def packages() -> tuple[str, ...]:
+    """CORE_PACKAGES, every registered engine's packages, then TRUTH_PACKAGES; each once."""
+    from stereodyn.harness.engines import EngineError, engine_names, get_engine
+
+    names = list(CORE_PACKAGES)
+    for name in engine_names():
+        try:
+            names += get_engine(name).packages
+        except EngineError:  # a broken plug-in fails where it is used, not in every sweep
+            continue
+    return tuple(dict.fromkeys(names + list(TRUTH_PACKAGES)))
 
 
 def library_versions() -> dict[str, str]:
-    """{"python": ..., package: version or "absent"} for PACKAGES."""
+    """{"python": ..., package: version or "absent"} for packages()."""
     versions = {"python": platform.python_version()}
-    for package in PACKAGES:
+    for package in packages():
         try:
             versions[package] = metadata.version(package)
         except metadata.PackageNotFoundError:
             versions[package] = "absent"
     return versions
+
+
+# The import packages whose files make up stereodyn (pyproject.toml maps each to its own folder, so walking the top
+# package alone would miss them in an editable install).
+SOURCE_PACKAGES = ("stereodyn", "stereodyn.harness", "stereodyn.reference", "stereodyn.cases")
+# Files of those folders that are not code a row depends on alone: caches, and the case files (*.toml under
+# stereodyn.cases), whose content is in each run's key already (harness.store.case_content); hashing them here would
+# redo every case's runs when one case changes.
+_IGNORED_SUFFIXES = (".pyc", ".pyo")
+
+
+def source_roots() -> list[tuple[str, Path]]:
+    """(package name, folder) of each of SOURCE_PACKAGES as imported, i.e. the installed copy that runs."""
+    roots = []
+    for name in SOURCE_PACKAGES:
+        for folder in importlib.import_module(name).__path__:
+            roots.append((name, Path(folder).resolve()))
+    return roots
+
+
+def _tree_files(roots: list[tuple[str, Path]]) -> dict[str, Path]:
+    """{label: file} of every file under the roots but caches and case files; a file under two roots (a wheel nests
+    the subpackages in stereodyn/) is labelled from the deepest, so an editable and a wheel install agree."""
+    files: dict[Path, tuple[str, Path]] = {}
+    for name, root in sorted(roots, key=lambda item: len(item[1].parts)):
+        for path in root.rglob("*"):
+            if (not path.is_file() or "__pycache__" in path.parts or path.suffix in _IGNORED_SUFFIXES
+                    or (name.startswith("stereodyn.cases") and path.suffix == ".toml")):
+                continue
+            files[path] = (name, root)  # the deeper root, sorted last, wins
+    return {f"{name}/{path.relative_to(root).as_posix()}": path for path, (name, root) in files.items()}
+
+
+def _hash_files(files: dict[str, Path]) -> str:
+    digest = hashlib.sha256()
+    for label in sorted(files):
+        digest.update(label.encode() + b"\0" + files[label].read_bytes() + b"\0")
+    return digest.hexdigest()[:24]
+
+
+@functools.cache
+def _source_fingerprint(roots: tuple[tuple[str, Path], ...]) -> str:
+    return _hash_files(_tree_files(list(roots)))
+
+
+def source_fingerprint() -> str:
+    """sha256 (24 hex digits) of every source and data file of the running stereodyn (SOURCE_PACKAGES, case files
+    excepted), so a result is keyed by the code that computed it, not only by its version string. Computed once per
+    process (~70 files, a few ms)."""
+    return _source_fingerprint(tuple(source_roots()))
+
+
+@functools.cache
+def _distributions() -> dict[str, list[str]]:
+    return metadata.packages_distributions()
+
+
+@functools.cache
+def _module_tree_hash(top: str) -> str:
+    """sha256 of the .py files of a top-level module or package (its folder), or of its one file."""
+    module = sys.modules.get(top) or importlib.import_module(top)
+    paths = [Path(p).resolve() for p in getattr(module, "__path__", ())]
+    if paths:
+        files = {f"{top}/{f.relative_to(root).as_posix()}": f for root in paths for f in root.rglob("*.py")
+                 if "__pycache__" not in f.parts}
+    else:
+        file = getattr(module, "__file__", None)
+        files = {top: Path(file)} if file else {}
+    if not files:  # no file to read (built in, or made at run time): what inspect can still see
+        return hashlib.sha256(repr(sorted(vars(module))).encode()).hexdigest()[:24]
+    return _hash_files(files)
+
+
+def code_origin(cls: type) -> dict[str, str]:
+    """Where a class (a plug-in integrator or engine) comes from: {"distribution", "version", "source"}.
+
+    distribution and version: the installed distribution that provides the class's top-level module ("none" and "" for
+    a module on sys.path that no distribution owns); source: a hash of that top-level module's .py files, so a change
+    to a plug-in's code without a new version still changes every key that uses it. stereodyn's own classes get its
+    source_fingerprint().
+    """
+    top = cls.__module__.split(".")[0]
+    if top == "stereodyn":
+        return {"distribution": "stereodyn", "version": _version("stereodyn"), "source": source_fingerprint()}
+    names = _distributions().get(top) or []
+    distribution = names[0] if names else "none"
+    version = _version(distribution) if names else ""
+    try:
+        source = _module_tree_hash(top)
+    except ImportError:  # e.g. a class defined in __main__ of another process
+        source = hashlib.sha256(inspect.getsource(cls).encode()).hexdigest()[:24]
+    return {"distribution": distribution, "version": version, "source": source}
+
+
+def clear_fingerprints() -> None:
+    """Forget the fingerprints computed so far (what a new process would see); for tests."""
+    _source_fingerprint.cache_clear()
+    _module_tree_hash.cache_clear()
+    _distributions.cache_clear()
 
 
 def cpu_name() -> str:

@@ -1,34 +1,44 @@
 """`stereodyn export`: the engine model of a case, to open in the engines' own tools.
 
-mjcf: the MuJoCo adapter's scene (harness.engines.mujoco.mjcf), with an integrator and a timestep in its <option>.
-urdf: the Pinocchio adapter's body (harness.engines.pinocchio.urdf), its ball joint as a three-joint gimbal.
+Each engine lists the formats it writes (Engine.export_formats) and writes them (Engine.export): the built-ins give
+mjcf (the MuJoCo adapter's scene, with an integrator and a timestep in its <option>) and urdf (the Pinocchio adapter's
+body, its ball joint as a three-joint gimbal).
 """
 from __future__ import annotations
 
-import importlib
-
 from stereodyn.harness.cases import Case
-
-FORMATS = ("mjcf", "urdf")
-DEFAULT_MJCF_INTEGRATOR = "rk4"
 
 
 class ExportError(ValueError):
     """The case cannot be exported in that format (its adapter cannot model it, or its SDK is missing): exit 2."""
 
 
+def formats() -> dict[str, str]:
+    """format -> the name of the engine that writes it, over every registered engine that loads."""
+    from stereodyn.harness.engines import EngineError, engine_names, get_engine
+
+    found: dict[str, str] = {}
+    for name in engine_names():
+        try:
+            found.update((fmt, name) for fmt in get_engine(name).export_formats if fmt not in found)
+        except EngineError:
+            continue
+    return found
+
+
 def export(case: Case, fmt: str, integrator: str | None = None, dt: float | None = None) -> str:
-    """The model text. integrator and dt (default rk4 and the case's first dt) only go into MJCF's <option>."""
-    if fmt not in FORMATS:
-        raise ExportError(f"--format: unknown format {fmt!r}; valid: {', '.join(FORMATS)}")
-    module = {"mjcf": "stereodyn.harness.engines.mujoco", "urdf": "stereodyn.harness.engines.pinocchio"}[fmt]
+    """The model text. integrator and dt (default: the engine's choice and the case's first dt) apply to formats
+    whose model holds a stepper (MJCF's <option>)."""
+    from stereodyn.harness.engines import UnavailableEngine, get_engine
+
+    writers = formats()
+    if fmt not in writers:
+        from stereodyn.harness.engines import engine_names
+
+        unavailable = [n for n in engine_names() if isinstance(get_engine(n), UnavailableEngine)]
+        hint = f" (unavailable engines: {', '.join(get_engine(n).reason for n in unavailable)})" if unavailable else ""
+        raise ExportError(f"--format: unknown format {fmt!r}; valid: {', '.join(writers)}{hint}")
     try:
-        adapter = importlib.import_module(module)
-    except ImportError as exc:
-        raise ExportError(f"{fmt} export needs the engine's SDK: {exc}") from None
-    try:
-        if fmt == "mjcf":
-            return adapter.mjcf(case, integrator or DEFAULT_MJCF_INTEGRATOR, case.dt[0] if dt is None else dt)
-        return adapter.urdf(case)
+        return get_engine(writers[fmt]).export(case, fmt, integrator, dt)
     except (KeyError, ValueError) as exc:
         raise ExportError(str(exc).strip("'\"")) from None

@@ -6,6 +6,8 @@ A row is identified by (case, engine, formulation, integrator, dt). It fails the
 - one of its drifts or errors (every *_drift, *_err, *_err_end column), on a row that was ok and still is, exceeds
   factor * baseline + floor, or became NaN where the baseline had a number;
 - with a time factor only: us_per_step exceeds time_factor * baseline (timings differ between machines and runs).
+A convergence row (convergence.csv: case, engine, formulation, integrator) fails when its fitted order fell more than
+ORDER_DROP below the baseline's, or became NaN where the baseline had a number.
 
 The tolerance model, per metric: factor * baseline + floor. The default factor 2 passes round-off, which moves the
 drifts of these deterministic integrators by far less than 1 % on a machine of the same kind, and fails any real loss
@@ -28,7 +30,14 @@ from stereodyn.harness.results import read_results, write_atomic
 KEY = ("case", "engine", "formulation", "integrator", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
 METRIC_SUFFIXES = ("_drift", "_err", "_err_end")
-BASELINE_FORMAT = "stereodyn-baseline/1"
+BASELINE_FORMAT = "stereodyn-baseline/1"  # "orders" (the fitted convergence orders) is optional: older files lack it
+CONVERGENCE_FILE = "convergence.csv"  # written by harness.workprecision
+ORDER_KEY = ("case", "engine", "formulation", "integrator")
+# A fitted order may fall this much below the baseline's. The fits are deterministic: on one machine kind round-off
+# moves them by < 0.01; a method that lost an order (MuJoCo 3.17's ball-joint RK4: 2.00 against 4.07) moves >= 1.
+ORDER_DROP = 0.5
+# Environment entries that differ on every run and say nothing about the numbers.
+_VOLATILE = ("date", "git commit")
 
 
 class GateError(ValueError):
@@ -58,13 +67,25 @@ class Tolerances:
 
 @dataclass(frozen=True)
 class Finding:
-    """One reason a row fails the gate."""
+    """One reason a row fails the gate. ratio: current / baseline of a metric (nan otherwise); message: the run's
+    message, for a status change."""
 
     key: tuple
     what: str
     baseline: str
     current: str
     allowed: str
+    ratio: float = math.nan
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A baseline file: its rows, the environment it was made in, and the fitted orders (may be empty)."""
+
+    rows: list
+    environment: dict
+    orders: list
 
 
 def metric_columns(columns) -> list[str]:
@@ -97,15 +118,64 @@ def _fmt(value: float) -> str:
 
 # ------------------------------------------------------------------------------------------------------- files
 
-def read_table(results_dir: Path) -> pd.DataFrame:
+def read_table(results_dir: Path, required: tuple = (*KEY, "status")) -> pd.DataFrame:
+    """DIR/results.csv; GateError (one line naming the file) when it is absent, empty, undecodable, has no rows or
+    lacks one of the required columns."""
     path = Path(results_dir) / "results.csv"
     if not path.is_file():
         raise GateError(f"{path}: file not found")
-    return read_results(path)
+    try:
+        df = read_results(path)
+    except pd.errors.EmptyDataError:
+        raise GateError(f"{path}: empty file (not a results table)") from None
+    except UnicodeDecodeError as exc:
+        raise GateError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise GateError(f"{path}: not a results table ({' '.join(str(exc).split())})") from None
+    missing = [column for column in required if column not in df.columns]
+    if missing:
+        raise GateError(f"{path}: missing columns {', '.join(missing)} (not a stereodyn results table)")
+    if df.empty:
+        raise GateError(f"{path}: no rows (a header only)")
+    return df
 
 
-def write_baseline(df: pd.DataFrame, path: Path, environment: dict | None = None) -> int:
-    """Write the baseline of a results table (JSON, one row per line); return the number of rows."""
+def read_orders(results_dir: Path) -> pd.DataFrame | None:
+    """DIR/convergence.csv (the fitted orders), or None when the run wrote none."""
+    path = Path(results_dir) / CONVERGENCE_FILE
+    if not path.is_file():
+        return None
+    try:
+        df = pd.read_csv(path, keep_default_na=True, dtype={"formulation": str, "integrator": str})
+    except pd.errors.EmptyDataError:
+        raise GateError(f"{path}: empty file (not a convergence table)") from None
+    except UnicodeDecodeError as exc:
+        raise GateError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise GateError(f"{path}: not a convergence table ({' '.join(str(exc).split())})") from None
+    missing = [column for column in (*ORDER_KEY, "order") if column not in df.columns]
+    if missing:
+        raise GateError(f"{path}: missing columns {', '.join(missing)} (not a stereodyn convergence table)")
+    return df.fillna({"formulation": ""})
+
+
+def _order_rows(convergence: pd.DataFrame | None) -> list[dict]:
+    if convergence is None:
+        return []
+    rows = []
+    for row in convergence.to_dict("records"):
+        entry = {column: str(row[column] or "") for column in ORDER_KEY}
+        for column, name in (("order", "fitted"), ("declared_order", "declared")):
+            value = _number(row.get(column))
+            entry[name] = None if math.isnan(value) else value
+        rows.append(entry)
+    return rows
+
+
+def write_baseline(df: pd.DataFrame, path: Path, environment: dict | None = None,
+                   convergence: pd.DataFrame | None = None) -> int:
+    """Write the baseline of a results table and its fitted orders (JSON, one row per line); return the number of
+    rows."""
     columns = [*KEY, "status", *metric_columns(df.columns), "us_per_step"]
     rows = []
     for _, row in df.iterrows():
@@ -118,22 +188,74 @@ def write_baseline(df: pd.DataFrame, path: Path, environment: dict | None = None
         rows.append(entry)
     head = {"format": BASELINE_FORMAT, "environment": environment or {}}
     text = json.dumps(head, indent=1)[:-2] + ',\n "rows": [\n'
-    text += ",\n".join("  " + json.dumps(row, separators=(",", ":")) for row in rows) + "\n ]\n}\n"
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(Path(path), text)
+    text += ",\n".join("  " + json.dumps(row, separators=(",", ":")) for row in rows) + "\n ]"
+    orders = _order_rows(convergence)
+    if orders:
+        text += ',\n "orders": [\n'
+        text += ",\n".join("  " + json.dumps(row, separators=(",", ":")) for row in orders) + "\n ]"
+    text += "\n}\n"
+    try:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(Path(path), text)
+    except OSError as exc:
+        raise GateError(f"{path}: cannot write ({exc.strerror or exc})") from None
     return len(rows)
 
 
-def read_baseline(path: Path) -> list[dict]:
+def _is_number(value) -> bool:
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+
+
+def _validate_rows(path: Path, name: str, rows, required: tuple, text: tuple, numbers) -> None:
+    """Every entry of the list `name` is an object with the required keys; text keys hold strings (or null where
+    allowed below), number keys (numbers(key)) hold numbers or null."""
+    for index, row in enumerate(rows):
+        where = f"{path}: {name}[{index}]"
+        if not isinstance(row, dict):
+            raise GateError(f"{where}: must be an object, got {json.dumps(row)[:40]}")
+        for key in required:
+            if key not in row:
+                raise GateError(f"{where}: missing key {key!r}")
+        for key in text:
+            if key in row and not isinstance(row[key], str) and not (row[key] is None and key == "formulation"):
+                raise GateError(f"{where}.{key}: must be a string, got {json.dumps(row[key])[:40]}")
+        for key, value in row.items():
+            if numbers(key) and not _is_number(value):
+                raise GateError(f"{where}.{key}: must be a number or null, got {json.dumps(value)[:40]}")
+            if numbers(key) and value is not None and not math.isfinite(value):
+                raise GateError(f"{where}.{key}: must be finite, got {value}")
+
+
+def read_baseline_file(path: Path) -> Baseline:
+    """A baseline file, validated: GateError (one line naming the file, the entry and the rule) on anything else."""
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise GateError(f"{path}: file not found") from None
+    except UnicodeDecodeError as exc:
+        raise GateError(f"{path}: not a baseline file (not UTF-8 text: {exc.reason} at byte {exc.start})") from None
     except (OSError, ValueError) as exc:
-        raise GateError(f"{path}: not a baseline file ({exc})") from None
+        raise GateError(f"{path}: not a baseline file ({' '.join(str(exc).split())})") from None
     if not isinstance(data, dict) or data.get("format") != BASELINE_FORMAT or not isinstance(data.get("rows"), list):
         raise GateError(f"{path}: not a baseline file (format must be {BASELINE_FORMAT!r} with a list of rows)")
-    return data["rows"]
+    rows, orders, environment = data["rows"], data.get("orders", []), data.get("environment", {})
+    if not rows:
+        raise GateError(f"{path}: rows: empty (a baseline must hold at least one row)")
+    _validate_rows(path, "rows", rows, ("case", "engine", "integrator", "status"),
+                   ("case", "engine", "formulation", "integrator", "status"),
+                   lambda key: key.endswith(METRIC_SUFFIXES) or key in ("dt", "us_per_step"))
+    if not isinstance(orders, list):
+        raise GateError(f"{path}: orders: must be a list")
+    _validate_rows(path, "orders", orders, (*ORDER_KEY, "fitted"), ORDER_KEY,
+                   lambda key: key in ("fitted", "declared"))
+    if not isinstance(environment, dict):
+        raise GateError(f"{path}: environment: must be an object")
+    return Baseline(rows, environment, orders)
+
+
+def read_baseline(path: Path) -> list[dict]:
+    """The rows of a baseline file (validated as read_baseline_file does)."""
+    return read_baseline_file(path).rows
 
 
 def read_tolerances(path: Path, base: Tolerances = Tolerances()) -> Tolerances:
@@ -172,8 +294,8 @@ def read_tolerances(path: Path, base: Tolerances = Tolerances()) -> Tolerances:
     if "time" in data:
         time = data["time"]
         if not isinstance(time, dict) or set(time) != {"factor"} or not isinstance(time["factor"], (int, float)) \
-                or isinstance(time["factor"], bool) or not time["factor"] >= 1.0:
-            raise GateError(f"{path}: time: must be a table with only factor (a number >= 1)")
+                or isinstance(time["factor"], bool) or not math.isfinite(time["factor"]) or not time["factor"] >= 1.0:
+            raise GateError(f"{path}: time: must be a table with only factor (a finite number >= 1)")
         time_factor = float(time["factor"])
     return Tolerances(default, tuple(per_metric.items()), time_factor)
 
@@ -188,12 +310,14 @@ def compare(current: pd.DataFrame, baseline: list[dict], tolerances: Tolerances 
         key = _key(old)
         new = now.get(key)
         if new is None:
-            findings.append(Finding(key, "missing row", str(old.get("status")), "-", "present"))
+            findings.append(Finding(key, "missing", str(old.get("status")), "-", "present"))
             continue
         old_status, new_status = str(old.get("status")), str(new.get("status"))
         old_rank, new_rank = STATUS_RANK.get(old_status, 3), STATUS_RANK.get(new_status, 3)
         if new_rank > old_rank:
-            findings.append(Finding(key, "status", old_status, new_status, old_status))
+            message = new.get("message")
+            message = "" if not isinstance(message, str) else " ".join(message.split())
+            findings.append(Finding(key, "status", old_status, new_status, old_status, message=message))
             continue
         if old_status != "ok" or new_status != "ok":
             continue  # the metrics of runs that did not complete are not comparable
@@ -203,13 +327,56 @@ def compare(current: pd.DataFrame, baseline: list[dict], tolerances: Tolerances 
                 continue
             limit = tolerances.of(metric).allowed(before)
             if math.isnan(after) or after > limit:
-                findings.append(Finding(key, metric, _fmt(before), _fmt(after), f"<= {_fmt(limit)}"))
+                ratio = after / before if before > 0 else math.inf if after > 0 else math.nan
+                findings.append(Finding(key, metric, _fmt(before), _fmt(after), f"<= {_fmt(limit)}", ratio))
         if tolerances.time_factor is not None:
             before, after = _number(old.get("us_per_step")), _number(new.get("us_per_step"))
             if not math.isnan(before) and not math.isnan(after) and after > tolerances.time_factor * before:
                 findings.append(Finding(key, "us_per_step", f"{before:.3g}", f"{after:.3g}",
-                                        f"<= {tolerances.time_factor * before:.3g}"))
+                                        f"<= {tolerances.time_factor * before:.3g}", after / before))
     return findings
+
+
+def compare_orders(current: pd.DataFrame | None, orders: list[dict]) -> list[Finding]:
+    """Fitted orders that fell more than ORDER_DROP below the baseline's (or became NaN), or whose convergence row
+    is gone. Keys are (case, engine, formulation, integrator, "order")."""
+    if not orders:
+        return []
+    now = {tuple(row[c] for c in ORDER_KEY): row for row in _order_rows(current)}
+    findings = []
+    for old in orders:
+        key = tuple(str(old[c] or "") for c in ORDER_KEY)
+        before = _number(old.get("fitted"))
+        if math.isnan(before):
+            continue
+        declared = _number(old.get("declared"))
+        declared_text = "-" if math.isnan(declared) else f"{declared:g}"
+        new = now.get(key)
+        if new is None:
+            findings.append(Finding((*key, "order"), "missing order", f"{before:.2f}", "-", "present",
+                                    message=f"declared {declared_text}"))
+            continue
+        after = _number(new.get("fitted"))
+        if math.isnan(after) or after < before - ORDER_DROP:
+            findings.append(Finding((*key, "order"), "order", f"{before:.2f}", "NaN" if math.isnan(after)
+                                    else f"{after:.2f}", f">= {before - ORDER_DROP:.2f}",
+                                    message=f"declared {declared_text}"))
+    return findings
+
+
+def environment_changes(baseline: dict, current: dict | None) -> list[str]:
+    """'name old -> new' for every environment entry (library versions, CPU, platform) that differs between the
+    baseline and the run; the date and the git commit are left out (they differ every time)."""
+    if not current:
+        return ["run environment unknown (no runs.json beside results.csv)"] if baseline else []
+    changes = []
+    for name in [*baseline, *(k for k in current if k not in baseline)]:
+        if name in _VOLATILE:
+            continue
+        before, after = baseline.get(name, "-"), current.get(name, "-")
+        if str(before) != str(after):
+            changes.append(f"{name} {before} -> {after}")
+    return changes
 
 
 def new_rows(current: pd.DataFrame, baseline: list[dict]) -> int:
@@ -218,9 +385,49 @@ def new_rows(current: pd.DataFrame, baseline: list[dict]) -> int:
     return sum(_key(row) not in known for row in current.to_dict("records"))
 
 
+def _ratio(value: float) -> str:
+    return "-" if math.isnan(value) else "inf" if math.isinf(value) else f"{value:.3g}x"
+
+
+def summary(findings: list[Finding]) -> list[str]:
+    """One line per group of findings (engine, integrator, kind): '8 rows: mujoco rk4, attitude_err up to 1.4e6x'."""
+    groups: dict[tuple, list[Finding]] = {}
+    for f in findings:
+        kind = f.what if f.what in ("missing", "status", "order", "missing order", "us_per_step") else "metric"
+        groups.setdefault((f.key[1], f.key[3], kind), []).append(f)
+    lines = []
+    for (engine, integrator, kind), group in groups.items():
+        rows = len({f.key for f in group})
+        head = f"{rows} row{'s' if rows != 1 else ''}: {engine} {integrator}".rstrip()
+        if kind == "metric":
+            parts = []
+            for metric in dict.fromkeys(f.what for f in group):
+                mine = [f for f in group if f.what == metric]
+                if any(f.current == "NaN" for f in mine):
+                    parts.append(f"{metric} NaN")
+                else:
+                    parts.append(f"{metric} up to {_ratio(max(f.ratio for f in mine))}")
+            lines.append(f"{head}, {', '.join(parts)}")
+        elif kind == "status":
+            changes = sorted({f"{f.baseline} -> {f.current}" for f in group})
+            lines.append(f"{head}, status {', '.join(changes)}")
+        elif kind in ("order", "missing order"):
+            f = min(group, key=lambda x: _number(x.current))
+            lines.append(f"{engine} {integrator}: fitted {f.current}, baseline {f.baseline}, {f.message}"
+                         f" ({rows} case{'s' if rows != 1 else ''})" if kind == "order"
+                         else f"{head}: convergence rows missing")
+        elif kind == "missing":
+            lines.append(f"{head}, missing")
+        else:
+            lines.append(f"{head}, us_per_step up to {_ratio(max(f.ratio for f in group))}")
+    return lines
+
+
 def findings_table(findings: list[Finding]) -> str:
-    """A fixed-width table of the findings, for the terminal and CI logs."""
-    header = [*KEY, "what", "baseline", "current", "allowed"]
-    cells = [header] + [[*f.key, f.what, f.baseline, f.current, f.allowed] for f in findings]
+    """A fixed-width table of the findings, for the terminal and CI logs: each row's ratio, and for a status change
+    or an order the run's message."""
+    header = [*KEY, "what", "baseline", "current", "allowed", "ratio", "message"]
+    cells = [header] + [[*(f.key[:5] if f.key[-1] != "order" else (*f.key[:4], "")), f.what, f.baseline, f.current,
+                         f.allowed, _ratio(f.ratio), f.message] for f in findings]
     widths = [max(len(row[i]) for row in cells) for i in range(len(header))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in cells)

@@ -11,7 +11,7 @@ from stereodyn.harness.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
            "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
-           "truth_err", "chart_changes", "torque_mode", "precession_axis_drift")
+           "truth_err", "truth_omega_err", "chart_changes", "torque_mode", "precession_axis_drift")
 
 # Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
 # them, formulations as the engine lists them, dt descending.
@@ -52,6 +52,32 @@ def write_results(df: pd.DataFrame, path: Path) -> None:
     write_atomic(path, df.to_csv(index=False, float_format="%.10g"))
 
 
+class TableError(ValueError):
+    """A table file that is not what stereodyn writes (empty, not CSV, columns missing): one line, exit 2."""
+
+
+REQUIRED_COLUMNS = ("case", "engine", "integrator", "status")
+
+
+def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.DataFrame:
+    """pd.read_csv, with every way a file can be malformed (empty, garbage, a required column missing) a TableError
+    naming the file."""
+    try:
+        df = pd.read_csv(path, **options)
+    except pd.errors.EmptyDataError:
+        raise TableError(f"{path}: malformed table: the file is empty") from None
+    except (pd.errors.ParserError, ValueError, UnicodeDecodeError) as exc:
+        raise TableError(f"{path}: malformed table: {' '.join(str(exc).split())[:200]}") from None
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise TableError(f"{path}: malformed table: column {', '.join(missing)} missing")
+    return df
+
+
 def read_results(path: Path) -> pd.DataFrame:
     text = ("integrator", "formulation", "message")  # empty means "none" here, not a missing number
-    return pd.read_csv(path, keep_default_na=True, dtype=dict.fromkeys(text, str)).fillna(dict.fromkeys(text, ""))
+    df = read_csv_table(path, REQUIRED_COLUMNS, keep_default_na=True, dtype=dict.fromkeys(text, str))
+    for column in ("formulation", "message"):  # optional text columns a results.csv of an older version may lack
+        if column not in df:
+            df[column] = ""
+    return df.fillna(dict.fromkeys(text, ""))

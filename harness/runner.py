@@ -2,6 +2,7 @@
 exceptions."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import multiprocessing
 import os
@@ -9,7 +10,7 @@ import signal
 import time
 from collections.abc import Iterator
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -21,16 +22,17 @@ from stereodyn.harness import checks, metrics, oracles, series, sliding_ladder, 
 from stereodyn.harness import integrators as integrator_registry
 from stereodyn.harness.cases import SLIDING_LADDER, Case
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.plan import RunSpec, base_row, plan
 from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.harness.grid import TimeGrid, time_grid
 from stereodyn.harness.distributed import run_on_cluster
 from stereodyn.harness.environment import environment as current_environment
+from stereodyn.harness.processes import exit_with_parent
 from stereodyn.harness.progress import ProgressBar
 from stereodyn.harness.results import frame, write_results
 from stereodyn.harness.store import Store, run_key
 from stereodyn.reference import truth as reference_truth
 
-TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR = "reference", "quaternion", "taylor"
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
 
 
@@ -39,7 +41,9 @@ class CaseTruth:
     """The truth of one case on the union of every run's sample times.
 
     times: (n,) s, sorted; quat: (n, 4) wxyz body -> world; omega: (n, 3) rad/s body frame.
-    truth_err: rad, the double-versus-quadruple-precision bound (NaN unless certified).
+    truth_err: rad, a bound on the truth's attitude error up to the case's horizon; truth_omega_err: a bound on its
+    relative omega error (reference.truth.truth_bound: a quadruple-precision rerun plus the rounding of a float64
+    comparison); both NaN when not certified (--no-certify).
     exact_quat: (n, 4) the case's exact solution (harness.oracles) at the same times, or None without an oracle.
     """
 
@@ -49,6 +53,7 @@ class CaseTruth:
     truth_err: float
     applicable: tuple[str, ...]
     exact_quat: np.ndarray | None = None
+    truth_omega_err: float = math.nan
 
     def on(self, grid: TimeGrid) -> tuple[np.ndarray, np.ndarray]:
         """The truth at exactly the grid's sample times."""
@@ -56,31 +61,6 @@ class CaseTruth:
         if not np.array_equal(self.times[index], grid.times):
             raise ValueError("truth was not evaluated on this grid's sample times")
         return self.quat[index], self.omega[index]
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """One run: a case on an engine with an integrator and a step (dt is None for adaptive integrators), and the
-    engine's formulation ("" for an engine without formulations)."""
-
-    case: Case
-    engine: str
-    integrator: str
-    dt: float | None
-    engine_rank: int = 0
-    integrator_rank: int = 0
-    formulation: str = ""
-    formulation_rank: int = 0
-
-    @property
-    def label(self) -> str:
-        dt = "" if self.dt is None else f" dt={self.dt:g}"
-        formulation = f" {self.formulation}" if self.formulation else ""
-        return f"{self.case.name} {self.engine}{formulation} {self.integrator}{dt}"
-
-    @property
-    def is_truth(self) -> bool:
-        return (self.engine, self.formulation, self.integrator) == (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR)
 
 
 def truth_grid(case: Case) -> TimeGrid:
@@ -92,28 +72,14 @@ def compute_truth(case: Case, dts: tuple[float, ...], certify: bool) -> CaseTrut
     grids = [time_grid(case.t_end, dt, case.samples) for dt in dts] + [truth_grid(case)]
     times = np.unique(np.concatenate([g.times for g in grids]))
     result = reference_truth.truth(case.body, case.quat0, case.omega0, times)
-    truth_err = math.nan
+    bound = reference_truth.TruthBound(math.nan, math.nan)
     if certify:
         horizon = case.horizon if case.horizon is not None else case.t_end
         certified = truth_grid(case).times
-        truth_err = reference_truth.truth_error(case.body, case.quat0, case.omega0,
-                                                certified[certified <= horizon * (1 + 1e-12)])
-    return CaseTruth(times, result.quat, result.omega, truth_err, metrics.applicable_integrals(case),
-                     oracles.exact_attitude(case, times))
-
-
-def _base_row(spec: RunSpec, grid: TimeGrid | None) -> dict:
-    return {"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
-            "integrator": spec.integrator, "dt": math.nan if spec.dt is None else spec.dt,
-            "t_end": grid.t_end if grid is not None else spec.case.t_end,
-            "steps": grid.steps if grid is not None else math.nan,
-            "_engine_rank": spec.engine_rank, "_integrator_rank": spec.integrator_rank,
-            "_formulation_rank": spec.formulation_rank, "_dt_rank": -(spec.dt if spec.dt is not None else math.inf)}
-
-
-def skipped_row(spec: RunSpec, reason: str) -> dict:
-    grid = None if spec.dt is None else time_grid(spec.case.t_end, spec.dt, spec.case.samples)
-    return {**_base_row(spec, grid), "status": Status.SKIPPED.value, "message": reason}
+        bound = reference_truth.truth_bound(case.body, case.quat0, case.omega0,
+                                            certified[certified <= horizon * (1 + 1e-12)])
+    return CaseTruth(times, result.quat, result.omega, bound.attitude, metrics.applicable_integrals(case),
+                     oracles.exact_attitude(case, times), bound.omega)
 
 
 def _grid(spec: RunSpec) -> TimeGrid:
@@ -134,7 +100,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
     """Run one spec: an untimed accuracy run (also the warm-up), metrics, then, when timed, timed runs. Never raises.
     The sweep runs it untimed and times every run afterwards, alone (time_spec)."""
     grid = _grid(spec)
-    row = _base_row(spec, grid)
+    row = base_row(spec, grid)
     if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
         return sliding_ladder.execute(spec, row, timed)
     try:
@@ -144,11 +110,12 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         traj: Trajectory = sim.run(grid)
         row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
                    chart_changes=math.nan if traj.chart_changes is None else traj.chart_changes,
-                   torque_mode=traj.info.get("torque_mode") or getattr(engine, "torque_mode", lambda case: "none")(
-                       spec.case))
+                   torque_mode=traj.info.get("torque_mode") or engine.torque_mode(spec.case))
         if spec.dt is None:
             row["steps"] = traj.steps
         row["rhs_per_sim_s"] = rhs_per_sim_s(spec, traj.rhs_evals, row["steps"], grid.t_end)
+        if spec.keep_states:
+            row["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega}
         row.update(metrics.drifts(spec.case, traj, truth.applicable))
         row.update(metrics.torque_metrics(spec.case, traj))
         row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
@@ -156,12 +123,10 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         # theory checks; the perturbed reruns some of them need are untimed, like the accuracy run
         row[checks.ROW_KEY] = checks.measure(spec.case, traj, lambda case: get_engine(spec.engine).prepare(
             case, spec.integrator, spec.dt, **formulation).run(grid))
-        if spec.is_truth:
-            row["truth_err"] = truth.truth_err
-        else:
+        if not spec.is_truth:
             truth_quat, truth_omega = truth.on(grid)
             row.update(metrics.errors(traj, truth_quat, truth_omega, spec.case.horizon))
-            row["truth_err"] = truth.truth_err
+        row.update(truth_err=truth.truth_err, truth_omega_err=truth.truth_omega_err)
         if timed and traj.status is Status.OK:
             row.update(_timing_columns(timing.measure(lambda: sim.run(grid)), row["steps"]))
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
@@ -192,47 +157,11 @@ def time_spec(spec: RunSpec, steps: float) -> dict:
         return {}
 
 
-def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -> tuple[list[RunSpec], list[dict]]:
-    """The runs of a sweep, and the rows of runs skipped up front (engine cannot model the case).
-
-    An engine's adaptive integrators (Engine.adaptive) run once per case with dt None, the others once per dt of the
-    case; each runs every formulation of the engine (Engine.formulations; "" for an engine without).
-    """
-    specs, skipped = [], []
-    for engine_rank, name in enumerate(engines):
-        engine = get_engine(name)
-        chosen = [i for i in engine.integrators()
-                  if (integrators is None and integrator_registry.in_default_sweep(i))
-                  or (integrators is not None and i in integrators)]
-        formulations = tuple(getattr(engine, "formulations", tuple)()) or ("",)
-        adaptive = getattr(engine, "adaptive", lambda integrator: False)
-        for case in cases:
-            if case.kind == SLIDING_LADDER:
-                ladder_specs, ladder_skipped = sliding_ladder.specs(case, name, engine_rank, chosen, RunSpec)
-                specs += ladder_specs
-                skipped += ladder_skipped
-                continue
-            reason = engine.unsupported(case)
-            for integrator_rank, integrator in enumerate(chosen or ([""] if reason else [])):
-                dts = (None,) if integrator and adaptive(integrator) else case.dt
-                for formulation_rank, formulation in enumerate(formulations):
-                    for dt in dts:
-                        spec = RunSpec(case, name, integrator, dt, engine_rank, integrator_rank, formulation,
-                                       formulation_rank)
-                        # a formulation/integrator pair that cannot model the case (engine.unsupported_run)
-                        why = reason or (integrator and getattr(engine, "unsupported_run", lambda *a: None)(
-                            case, formulation, integrator))
-                        (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
-    return specs, skipped
-
-
 # The cost model of a run (execute), to start the longest runs first and to weigh the progress bar's ETA. Measured on
 # the suite's four general cases (t_end 5 and 20, every engine, 2-core AMD EPYC): one simulation pass costs about
-# PASS_US[engine] µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations 5.6-7.5), and
+# Engine.pass_us µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations 5.6-7.5), and
 # execute about 4.1-4.5 passes (the accuracy run, the timed runs, ~0.1-0.5 for metrics and check reruns) plus ~6-25 ms.
-# Only the ranking matters, so rough constants are enough; an engine not listed gets DEFAULT_PASS_US.
-PASS_US = {"mujoco": 1.5, "pinocchio": 2.6, "reference": 6.5}
-DEFAULT_PASS_US = 5.0
+# Only the ranking matters, so rough constants are enough: each engine declares its own (Engine.pass_us).
 RUN_OVERHEAD_S = 0.01   # prepare, metrics and the row, s
 CHECK_PASSES = 0.3      # mean extra passes of metrics and the checks' perturbed reruns
 
@@ -252,7 +181,7 @@ def _cost(spec: RunSpec) -> float:
     Taylor runs (measured 0.02-1 times that), since underestimating a long run is what leaves it alone at the end."""
     dt = min(spec.case.dt) if spec.dt is None else spec.dt
     steps = math.ceil(spec.case.t_end / dt - 1e-9)
-    one_pass = steps * _stages(spec.integrator) * PASS_US.get(spec.engine, DEFAULT_PASS_US) * 1e-6
+    one_pass = steps * _stages(spec.integrator) * get_engine(spec.engine).pass_us * 1e-6
     # the timing phase (time_spec, timing.measure) repeats the run at most REPEATS times within BUDGET_S
     timed = min(timing.REPEATS * one_pass, timing.BUDGET_S + one_pass)
     return RUN_OVERHEAD_S + (1 + CHECK_PASSES) * one_pass + timed
@@ -262,7 +191,7 @@ def _worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
     """The row of a run whose worker process died (e.g. a crash inside an SDK) or whose task was lost. It is shown in
     results.csv but not stored (_lost), so --resume tries the run again: the cause may have been passing (an
     interrupt, the memory killer, a cluster going away)."""
-    return {**_base_row(spec, None), "status": Status.FAILED.value, "_lost": True,
+    return {**base_row(spec, None), "status": Status.FAILED.value, "_lost": True,
             "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
@@ -272,11 +201,19 @@ def _init_worker(engines: tuple[str, ...]) -> None:
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
     # must not die mid-run on it and send back a traceback instead of a row.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_with_parent()
     for name in engines:
         try:
             get_engine(name)
         except Exception:  # the runs that need the engine record why
             pass
+
+
+def worker_pool(jobs: int | None, engines: tuple[str, ...]):
+    """The local process pool of `stereodyn run`, shared by the sweep (run_sweep(pool=...)) and the dt ladders
+    (harness.workprecision.analyse(pool=...)); None when jobs is 1. A context manager: Ctrl-C inside it ends the
+    workers at once."""
+    return _local_pool(jobs or os.cpu_count() or 1, 2, engines)
 
 
 @contextmanager
@@ -287,6 +224,7 @@ def _local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proc
     if jobs == 1 or runs <= 1:
         yield None
         return
+    jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
     # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
                                initializer=_init_worker, initargs=(engines,))
@@ -326,17 +264,24 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
 
 
 def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | None, out_dir: Path,
-              jobs: int | None = None, certify: bool = False, progress: ProgressBar | None = None,
-              resume: bool = False, scheduler: str | None = None) -> pd.DataFrame:
+              jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
+              resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
+              pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
     """Run everything and return the table.
 
     Every finished run is stored at once (harness.store: out_dir/store/<key>.json) and out_dir/results.csv is
     re-assembled from the store, atomically, after each; resume=True reuses the stored runs of this sweep instead of
     redoing them. scheduler: a Dask scheduler address to run on (harness.distributed) instead of local processes.
+    pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
+    certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
+    save_trajectories: also write each run's recorded states to out_dir/trajectories/<key>.npz (Store.put_states);
+    with resume, a stored run without its file is redone.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
     specs, skipped_rows = plan(cases, engines, integrators)
+    if save_trajectories:  # the sliding ladder records another state (harness.sliding_ladder): none to save
+        specs = [dataclasses.replace(s, keep_states=True) if s.case.kind != SLIDING_LADDER else s for s in specs]
     specs.sort(key=_cost, reverse=True)
     results_path = out_dir / "results.csv"
     with Store(out_dir) as store:
@@ -345,7 +290,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
         stored: dict[str, dict] = {}  # key -> row of every run of this sweep done so far
         if resume:
-            stored = {key: record["row"] for key in keys.values() if (record := store.get(key)) is not None}
+            stored = {keys[id(s)]: record["row"] for s in specs if (record := store.get(keys[id(s)])) is not None
+                      and not (s.keep_states and record["row"]["status"] != Status.FAILED.value
+                               and not store.states_path(keys[id(s)]).is_file())}
         environment = current_environment()
 
         def table() -> pd.DataFrame:
@@ -364,7 +311,10 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         def finished(spec: RunSpec, row: dict) -> None:
             key = keys[id(spec)]
             series = row.pop("_series", None)
+            states = row.pop("_states", None)
             if not row.get("_lost"):
+                if states is not None:  # before the record: a stored record means its states are there too
+                    store.put_states(key, row, states)
                 store.put(key, identities[id(spec)], row, series)
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
             # The run is safe in the store already; re-assembling the tables after every run was quadratic in the
@@ -376,7 +326,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         publish()
         pending = [s for s in specs if keys[id(s)] not in stored]
         local_jobs = 1 if scheduler else jobs or os.cpu_count() or 1
-        with _local_pool(local_jobs, len(pending), tuple(engines)) as pool:
+        own_pool = nullcontext(pool) if pool is not None and not scheduler else \
+            _local_pool(local_jobs, len(pending), tuple(engines))
+        with own_pool as pool:
             truths = {}
             progress.stage(f"truths of {len(cases)} cases, then {len(pending)} runs on {local_jobs} workers")
             for case in cases:
@@ -384,7 +336,13 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                     truths[case.name] = None
                 elif any(s.case is case for s in pending):
                     progress.phase(f"truth {case.name}")
-                    truths[case.name] = compute_truth(case, case.dt, certify)
+                    try:
+                        truths[case.name] = compute_truth(case, case.dt, certify)
+                    except Exception as exc:  # a truth that cannot be computed fails its case's runs, as data
+                        reason = f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]
+                        for spec in [s for s in pending if s.case is case]:
+                            finished(spec, {**base_row(spec, None), "status": Status.FAILED.value, "message": reason})
+                        pending = [s for s in pending if s.case is not case]
             progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
             try:
                 if scheduler:
@@ -394,7 +352,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             finally:
                 publish()
                 progress.close()
-        # The timing phase: every accuracy run is done and the pool is gone, so each timed run has the cores alone.
+        # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
             progress.stage(f"timing {len(untimed)} runs, one at a time")
@@ -417,4 +375,4 @@ def _needs_timing(row: dict) -> bool:
 
 def _ranks(spec: RunSpec) -> dict:
     """The private sort keys of a spec's row (row order is not part of a stored run)."""
-    return {k: v for k, v in _base_row(spec, None).items() if k.startswith("_")}
+    return {k: v for k, v in base_row(spec, None).items() if k.startswith("_")}

@@ -3,8 +3,9 @@ the rigid-body path of harness.runner (which routes a LadderCase here).
 
 Rows: the equation (engine reference, formulation "theta", integrator taylor: reference.sliding_ladder, whose heyoka event
 gives the detachment), every MuJoCo model (formulation "bilateral" or "unilateral", harness.engines.mujoco) with each
-MuJoCo integrator and dt, and a skipped Pinocchio row. Columns: energy_drift (the rod's energy, ½ m|v_G|² +
-½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
+MuJoCo integrator and dt, Pinocchio's bilateral model (its constrained dynamics, harness.engines.pinocchio) with
+each of its integrators that works on a vector state (sliding_ladder_integrators) and dt. Columns: energy_drift
+(the rod's energy, ½ m|v_G|² + ½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
 omega_err (|θ̇ − θ̇_equation| / max |θ̇_equation|) — for the unilateral model only up to the equation's detachment,
 after which the equation (both ends on the axes) no longer describes it. checks.csv: detachment_angle (the
 equation's event and the unilateral model's wall push, against arccos((2/3) cos θ0 + 4ℓθ̇0²/(9g))), energy_drift
@@ -22,29 +23,9 @@ from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.reference import sliding_ladder as ref_ladder
 
-EQUATION, TAYLOR = "theta", "taylor"
-PINOCCHIO_REASON = ("Pinocchio adapter does not model the sliding ladder: its constraints (ends on the wall and the "
-                    "floor, one of them unilateral) need a constrained-dynamics model the adapter does not build")
-
-
-def specs(case, engine_name: str, engine_rank: int, chosen: list[str], spec_type) -> tuple[list, list]:
-    """(runs, skipped rows) of one ladder case on one engine with its chosen integrators; spec_type:
-    harness.runner.RunSpec."""
-    from stereodyn.harness.runner import skipped_row
-    if engine_name == "reference":
-        return [spec_type(case, engine_name, TAYLOR, None, engine_rank, 0, EQUATION, 0)], []
-    engine = get_engine(engine_name)
-    if not hasattr(engine, "sliding_ladder_models"):
-        reason = PINOCCHIO_REASON if engine_name == "pinocchio" else getattr(engine, "reason", None) or \
-            f"{engine_name} adapter does not model the sliding ladder"
-        return [], [skipped_row(spec_type(case, engine_name, "", None, engine_rank), reason)]
-    runs = []
-    for integrator_rank, integrator in enumerate(chosen):
-        for model_rank, model in enumerate(engine.sliding_ladder_models()):
-            for dt in case.dt:
-                runs.append(spec_type(case, engine_name, integrator, dt, engine_rank, integrator_rank, model,
-                                      model_rank))
-    return runs, []
+# The models whose rows get a detachment_angle check: the equation's event (the reference engine's "theta") and the
+# unilateral model's wall push (MuJoCo's); a bilateral model never leaves the wall.
+DETACHING_MODELS = ("theta", "unilateral")
 
 
 def _grid(spec):
@@ -52,22 +33,19 @@ def _grid(spec):
     return time_grid(case.t_end, case.t_end / (case.samples - 1) if spec.dt is None else spec.dt, case.samples)
 
 
+def prepare(spec):
+    """The spec's model (Engine.prepare_sliding_ladder; not timed)."""
+    return get_engine(spec.engine).prepare_sliding_ladder(spec.case, spec.formulation, spec.integrator, spec.dt)
+
+
 def run(spec) -> SlidingLadderTrajectory:
     """The spec's untimed run."""
-    case, grid = spec.case, _grid(spec)
-    if spec.engine == "reference":
-        motion = ref_ladder.solve(case.ladder, grid.times)
-        state = ref_ladder.planar_state(case.ladder, motion.theta, motion.theta_dot)
-        return SlidingLadderTrajectory(grid.times, state, ref_ladder.constraint_violation(case.ladder, state),
-                                steps=grid.steps, detach_angle=motion.detach_angle)
-    return get_engine(spec.engine).prepare_sliding_ladder(case, spec.formulation, spec.integrator, spec.dt).run(grid)
+    return prepare(spec).run(_grid(spec))
 
 
 def timed_run(spec, grid):
     """A fresh, prepared run of the spec for timing: a function of no arguments."""
-    if spec.engine == "reference":
-        return lambda: ref_ladder.solve(spec.case.ladder, grid.times)
-    sim = get_engine(spec.engine).prepare_sliding_ladder(spec.case, spec.formulation, spec.integrator, spec.dt)
+    sim = prepare(spec)
     return lambda: sim.run(grid)
 
 
@@ -77,14 +55,15 @@ def execute(spec, base_row: dict, timed: bool = True) -> dict:
     row = dict(base_row)
     try:
         ladder, grid = spec.case.ladder, _grid(spec)
-        traj = run(spec)
+        sim = prepare(spec)
+        traj: SlidingLadderTrajectory = sim.run(grid)
         row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
                    torque_mode="none")
         equation = ref_ladder.solve(ladder, grid.times)
         row.update(metrics(spec, traj, equation))
         row[checks.ROW_KEY] = check_rows(spec, traj, row)
         if timed and traj.status is Status.OK:
-            measured = timing.measure(timed_run(spec, grid))
+            measured = timing.measure(lambda: sim.run(grid))
             row.update(wall_s=measured.best, us_per_step=measured.best / max(1, grid.steps) * 1e6,
                        us_per_step_spread=measured.spread / max(1, grid.steps) * 1e6)
     except Exception as exc:  # a run that breaks is data
@@ -115,7 +94,7 @@ def check_rows(spec, traj: SlidingLadderTrajectory, row: dict) -> list[dict]:
     ladder = spec.case.ladder
     rows = [{"quantity": "energy_drift", "theory": 0.0, "measured": row["energy_drift"]},
             {"quantity": "constraint_violation", "theory": 0.0, "measured": row.pop("_violation")}]
-    if spec.engine == "reference" or spec.formulation == "unilateral":
+    if spec.formulation in DETACHING_MODELS:
         rows.append({"quantity": "detachment_angle", "theory": ref_ladder.detachment_angle(ladder),
                      "measured": traj.detach_angle})
     ok = traj.status is Status.OK

@@ -1,31 +1,42 @@
 """The result store: one JSON file per run, DIR/store/<key>.json, written atomically.
 
 A run's key hashes everything its row depends on: the case's content, engine, formulation, integrator, dt, whether
-the truth is certified, and the library versions. A record is written (temporary file, fsync, rename) the moment its run
-finishes, so an interrupted sweep loses nothing already computed and never leaves a partial record; `--resume` reuses
-the records whose key matches. results.csv and DIR/runs.json (the sweep's keys and environment) are assembled from the
-records.
+the truth is certified, the library versions, and the code: a fingerprint of stereodyn's installed source files and,
+for the run's engine and integrator classes, their distribution, version and source hash (harness.environment), so a
+changed line of code, even without a new version, is never served from the store. A record is written (temporary
+file, fsync, rename) the moment its run finishes, so an interrupted sweep loses nothing already computed and never
+leaves a partial record; `--resume` reuses the records whose key matches and whose shape is right (anything else
+counts as absent and is redone). results.csv and DIR/runs.json (the sweep's keys, environment and code fingerprints)
+are assembled from the records.
 
-A sweep holds an exclusive lock on DIR/store while it runs, so two sweeps never write one folder, and any temporary
-file found there is the leftover of a killed process: it is removed when the next sweep opens the store.
+A command holds an exclusive lock on DIR/store while it writes the folder (folder_lock: `stereodyn run` for the
+sweep, work–precision and the report; `report` for the report), so two commands never write one folder, and any
+temporary file found there (TEMPORARY_FOLDERS) is the leftover of a killed process: it is removed when the next
+command takes the lock.
 """
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
 import math
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from stereodyn.harness.cases import Case
-from stereodyn.harness.environment import library_versions
-from stereodyn.harness.results import write_atomic
+from stereodyn.harness.environment import code_origin, library_versions, source_fingerprint
+from stereodyn.harness.checks import ROW_KEY
+from stereodyn.harness.results import COLUMNS, write_atomic
+from stereodyn.harness.trajectory import Status
 
 STORE_DIR = "store"
+TRAJECTORIES_DIR = "trajectories"  # stereodyn run --save-trajectories: DIR/trajectories/<key>.npz
 MANIFEST = "runs.json"
 FORMAT = 1
 
@@ -37,6 +48,62 @@ except ImportError:  # not POSIX: no lock; the store still never holds a partial
 
 class StoreBusy(RuntimeError):
     """Another sweep holds the folder's lock."""
+
+
+# The folders under DIR that stereodyn writes with write_atomic (DIR itself, the store, the figures): where a killed
+# process may have left a .NAME.*.tmp. Not the whole tree under DIR: `--out .` must never delete a user's files.
+TEMPORARY_FOLDERS = (".", STORE_DIR, "figures", TRAJECTORIES_DIR)
+# Locks held by this process: resolved DIR/store -> [descriptor, open Stores]. flock conflicts between two descriptors
+# even in one process, so the command's lock and the sweep's Store share one descriptor and nest.
+_HELD: dict[str, list[int]] = {}
+
+
+@contextmanager
+def folder_lock(out_dir: Path, store: bool = False) -> Iterator[None]:
+    """Hold DIR's exclusive lock (on DIR/store) for the block; StoreBusy when another process holds it. `stereodyn
+    run` takes it for the whole command (sweep, work–precision, report) and the sweep's Store (store=True) inside
+    it; in one process a second Store of the folder is still refused."""
+    out_dir = Path(out_dir)
+    root = out_dir / STORE_DIR
+    root.mkdir(parents=True, exist_ok=True)
+    name = os.path.realpath(root)
+    busy = StoreBusy(f"{out_dir}: another stereodyn command is writing to this folder (try again when it has "
+                     f"written its report)")
+    if name in _HELD:
+        held = _HELD[name]
+        if store and held[1]:
+            raise busy
+        held[1] += store
+        try:
+            yield
+        finally:
+            held[1] -= store
+        return
+    fd = None
+    if fcntl is not None:
+        fd = os.open(root, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise busy from None
+    _HELD[name] = [-1 if fd is None else fd, int(store)]
+    try:
+        remove_partial_files(out_dir)
+        yield
+    finally:
+        del _HELD[name]
+        if fd is not None:
+            os.close(fd)  # closing the descriptor releases the lock
+
+
+def remove_partial_files(out_dir: Path) -> list[Path]:
+    """Delete the temporary files of interrupted atomic writes (harness.results.write_atomic's .NAME.*.tmp) in the
+    folders stereodyn writes under DIR (TEMPORARY_FOLDERS)."""
+    leftovers = [path for folder in TEMPORARY_FOLDERS for path in (Path(out_dir) / folder).glob(".*.tmp")]
+    for path in leftovers:
+        path.unlink(missing_ok=True)
+    return leftovers
 
 
 def _plain(value: Any) -> Any:
@@ -69,9 +136,23 @@ def case_content(case: Case) -> dict:
 
 
 def run_identity(case: Case, engine: str, formulation: str, integrator: str, dt: float | None, certify: bool,
-                 versions: dict[str, str]) -> dict:
+                 versions: dict[str, str], code: dict | None = None) -> dict:
+    """Everything a run's row depends on. code: the fingerprints of the code that runs it (Store.code)."""
     return {"case": case_content(case), "engine": engine, "formulation": formulation, "integrator": integrator,
-            "dt": None if dt is None else float(dt), "certify": bool(certify), "versions": versions}
+            "dt": None if dt is None else float(dt), "certify": bool(certify), "versions": versions, "code": code}
+
+
+def integrator_classes(name: str) -> list[type]:
+    """Every registered class called `name`, one per state space (an engine picks the one of its space)."""
+    from stereodyn.harness import integrators
+
+    return [integrators.get(name, space) for space in integrators.state_spaces() if name in integrators.names(space)]
+
+
+def engine_class(name: str) -> type:
+    from stereodyn.harness.engines import get_engine
+
+    return type(get_engine(name))
 
 
 def run_key(identity: dict) -> str:
@@ -81,6 +162,39 @@ def run_key(identity: dict) -> str:
 
 
 _TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "status", "message")
+_IDENTITY_COLUMNS = ("engine", "formulation", "integrator")  # in both the identity and the row
+_STATUSES = frozenset(s.value for s in Status)
+
+
+def _is_number(value: Any) -> bool:
+    """A number column's JSON value: a number, null (NaN) or "inf"/"-inf" (as _plain writes them)."""
+    if isinstance(value, bool):
+        return False
+    return value is None or value in ("inf", "-inf") or isinstance(value, (int, float))
+
+
+def well_formed(record: Any, key: str) -> bool:
+    """Whether a stored record has the shape Store.put writes: the format, its own key, an identity, a row whose
+    status is a Status, whose text columns are text and whose other columns are numbers, and series/checks of the
+    right container type. A record failing this is treated as absent (redone, never copied into results.csv)."""
+    if not (isinstance(record, dict) and record.get("format") == FORMAT and record.get("key") == key
+            and isinstance(record.get("identity"), dict) and isinstance(record.get("row"), dict)
+            and isinstance(record.get("series"), (dict, type(None)))):
+        return False
+    row = record["row"]
+    if row.get("status") not in _STATUSES or not all(isinstance(row.get(c), str) for c in ("case", "engine")):
+        return False
+    identity = record["identity"]
+    if any(c in identity and c in row and row[c] != identity[c] for c in _IDENTITY_COLUMNS):
+        return False
+    for column in COLUMNS:
+        value = row.get(column)
+        if column in _TEXT_COLUMNS or column == "torque_mode":
+            if not isinstance(value, (str, type(None))):
+                return False
+        elif not _is_number(value):
+            return False
+    return isinstance(row.get(ROW_KEY), (list, type(None)))
 
 
 def _row_from_json(row: dict) -> dict:
@@ -98,6 +212,25 @@ def _row_from_json(row: dict) -> dict:
     return out
 
 
+_STATUSES = frozenset(status.value for status in Status)
+_NUMERIC_COLUMNS = frozenset(COLUMNS) - {*_TEXT_COLUMNS, "torque_mode"}
+
+
+def _valid_row(row: Any) -> bool:
+    """A stored row as put() writes it: a status of Status, text in the text columns, numbers (or null, or "inf" /
+    "-inf") in results.csv's numeric columns. Other columns (the checks, columns added later) are not judged here."""
+    if not isinstance(row, dict) or row.get("status") not in _STATUSES:
+        return False
+    for column, value in row.items():
+        if column in _TEXT_COLUMNS:
+            if not isinstance(value, (str, type(None))):
+                return False
+        elif column in _NUMERIC_COLUMNS and not (value is None or value in ("inf", "-inf") or (
+                isinstance(value, (int, float)) and not isinstance(value, bool))):
+            return False
+    return True
+
+
 class Store:
     """The records under DIR/store. Use as a context manager: it takes the folder's lock and clears leftovers."""
 
@@ -105,51 +238,59 @@ class Store:
         self.out_dir = Path(out_dir)
         self.root = self.out_dir / STORE_DIR
         self.versions = library_versions()
-        self._lock_fd: int | None = None
+        self.source = source_fingerprint()
+        self._origins: dict[tuple[str, str], Any] = {}  # ("engine"|"integrator", name) -> code_origin(s)
 
     def __enter__(self) -> "Store":
-        self.root.mkdir(parents=True, exist_ok=True)
-        if fcntl is not None:
-            fd = os.open(self.root, os.O_RDONLY)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                raise StoreBusy(f"{self.out_dir}: another sweep is writing to this folder") from None
-            self._lock_fd = fd
-        self.remove_partial_files()
+        self._lock = folder_lock(self.out_dir, store=True)
+        self._lock.__enter__()
         return self
 
     def __exit__(self, *exc) -> None:
-        if exc[0] is not None:  # interrupted: an atomic write cut short between mkstemp and its try may leave one
-            self.remove_partial_files()
-        if self._lock_fd is not None:
-            os.close(self._lock_fd)  # closing the descriptor releases the lock
-            self._lock_fd = None
+        try:
+            if exc[0] is not None:  # interrupted: an atomic write cut short between mkstemp and its try may leave one
+                self.remove_partial_files()
+        finally:
+            self._lock.__exit__(*exc)
 
     def remove_partial_files(self) -> list[Path]:
-        """Delete the temporary files of interrupted atomic writes (harness.results.write_atomic's .NAME.*.tmp)."""
-        leftovers = [*self.root.glob(".*.tmp"), *self.out_dir.glob(".*.tmp")]
-        for path in leftovers:
-            path.unlink(missing_ok=True)
-        return leftovers
+        """Delete the temporary files of interrupted atomic writes under DIR (remove_partial_files)."""
+        return remove_partial_files(self.out_dir)
+
+    def code(self, engine: str, integrator: str) -> dict:
+        """The code fingerprints of a run: stereodyn's source, its engine's class and every class registered under its
+        integrator's name (an engine's own integrator, e.g. MuJoCo's implicit, has none: the engine's version holds)."""
+        if ("engine", engine) not in self._origins:
+            self._origins["engine", engine] = code_origin(engine_class(engine))
+        if ("integrator", integrator) not in self._origins:
+            self._origins["integrator", integrator] = [code_origin(c) for c in integrator_classes(integrator)]
+        return {"stereodyn": self.source, "engine": self._origins["engine", engine],
+                "integrator": self._origins["integrator", integrator]}
 
     def identity(self, case: Case, engine: str, formulation: str, integrator: str, dt: float | None,
                  certify: bool) -> dict:
-        return run_identity(case, engine, formulation, integrator, dt, certify, self.versions)
+        return run_identity(case, engine, formulation, integrator, dt, certify, self.versions,
+                            self.code(engine, integrator))
+
+    def code_manifest(self) -> dict:
+        """runs.json's "code": stereodyn's source fingerprint and the origin of each engine and integrator used."""
+        listed: dict[str, Any] = {"stereodyn source": self.source, "engines": {}, "integrators": {}}
+        for (kind, name), origin in sorted(self._origins.items()):
+            listed[f"{kind}s"][name] = origin
+        return listed
 
     def path(self, key: str) -> Path:
         return self.root / f"{key}.json"
 
     def get(self, key: str) -> dict | None:
-        """The record {"identity", "row", "series"} of a finished run, or None. An unreadable record counts as absent
-        (it is rewritten when the run is redone)."""
+        """The record {"identity", "row", "series"} of a finished run, or None. An unreadable record, or one of the
+        wrong shape (well_formed), counts as absent (it is rewritten when the run is redone)."""
         try:
             record = json.loads(self.path(key).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+        except (OSError, ValueError, UnicodeDecodeError):
             return None
-        if not isinstance(record, dict) or record.get("format") != FORMAT or "row" not in record:
-            return None
+        if not well_formed(record, key):
+            return None  # not a record this version wrote: recompute the run
         record["row"] = _row_from_json(record["row"])
         return record
 
@@ -160,10 +301,28 @@ class Store:
                   "series": _plain(series)}
         write_atomic(self.path(key), json.dumps(record, separators=(",", ":")) + "\n")
 
+    def states_path(self, key: str) -> Path:
+        return self.out_dir / TRAJECTORIES_DIR / f"{key}.npz"
+
+    def put_states(self, key: str, row: dict, states: dict) -> None:
+        """Write a run's recorded states atomically to DIR/trajectories/<key>.npz: arrays times (n,) s, quat (n, 4)
+        wxyz body -> world, omega (n, 3) rad/s body frame (NaN after a divergence), and the row's case, engine,
+        formulation, integrator (0-d strings) and dt (0-d float, NaN for an adaptive integrator)."""
+        buffer = io.BytesIO()
+        np.savez(buffer, times=np.asarray(states["times"], dtype=float), quat=np.asarray(states["quat"], dtype=float),
+                 omega=np.asarray(states["omega"], dtype=float),
+                 **{c: np.str_(row.get(c) or "") for c in ("case", "engine", "formulation", "integrator")},
+                 dt=np.float64(row.get("dt", math.nan)))
+        path = self.states_path(key)
+        path.parent.mkdir(exist_ok=True)
+        write_atomic(path, buffer.getvalue())
+
     def write_manifest(self, keys: list[str], environment: dict) -> None:
-        """DIR/runs.json: the store keys behind results.csv, and the environment of the sweep."""
+        """DIR/runs.json: the store keys behind results.csv, the environment of the sweep, and the code fingerprints
+        in its keys ("code": code_manifest())."""
         write_atomic(self.out_dir / MANIFEST, json.dumps({"format": FORMAT, "environment": environment,
-                                                          "runs": keys}, indent=1) + "\n")
+                                                          "code": self.code_manifest(), "runs": keys},
+                                                         indent=1) + "\n")
 
 
 def read_manifest(out_dir: Path) -> dict | None:
@@ -172,7 +331,13 @@ def read_manifest(out_dir: Path) -> dict | None:
         manifest = json.loads((Path(out_dir) / MANIFEST).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    return manifest if isinstance(manifest, dict) and manifest.get("format") == FORMAT else None
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+        return None
+    runs, environment = manifest.get("runs", []), manifest.get("environment")
+    if not (isinstance(runs, list) and all(isinstance(key, str) for key in runs)
+            and isinstance(environment, (dict, type(None)))):
+        return None  # not a manifest this version wrote: as if the folder had none
+    return manifest
 
 
 def read_records(out_dir: Path) -> list[dict]:

@@ -22,7 +22,8 @@ import numpy as np
 from stereodyn.harness import integrators as registry
 from stereodyn.harness import metrics
 from stereodyn.harness.cases import Case, find_case, with_overrides
-from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines import engine_for_state_space, get_engine
+from stereodyn.harness.fitting import order_slope
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators.base import Integrator
@@ -42,11 +43,9 @@ ENERGY_NOISE = 8 * float(np.finfo(float).eps)
 
 
 def _engine_for(cls: type[Integrator]) -> tuple[str, dict]:
-    if cls.state_space == "lie":
-        return "pinocchio", {}
-    if cls.state_space == "vector":
-        return "reference", {"formulation": "quaternion"}
-    raise ValueError(f"no engine runs state space {cls.state_space!r}")
+    """The first registered engine that runs the integrator's state space, and its default formulation."""
+    engine = engine_for_state_space(cls.state_space)
+    return engine.name, ({"formulation": engine.default_formulation} if engine.default_formulation else {})
 
 
 def _resolve(integrator: str | type[Integrator], state_space: str) -> type[Integrator]:
@@ -98,8 +97,8 @@ def measured_order(integrator: str | type[Integrator], case: str | Case | Iterab
     if len(points) < 2:
         raise AssertionError(f"{cls.name} on {case.name}: fewer than 2 steps of {dts} give an error in "
                              f"{ORDER_ERR_RANGE} (points: {points})")
-    dt, err = np.log(np.array(points)).T
-    return float(np.polyfit(dt, err, 1)[0])
+    dt, err = np.array(points).T
+    return order_slope(dt, err)
 
 
 def assert_order(integrator: str | type[Integrator], cases: str | Case | Iterable[str | Case] = ("lagrange-top",),

@@ -25,6 +25,9 @@ import pandas as pd
 
 from stereodyn.harness.metrics import DRIFT_COLUMNS
 from stereodyn.harness.results import write_atomic
+from stereodyn.harness.fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
+from stereodyn.harness.engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
+                                      engine_for_state_space)
 
 VERDICTS_FILE = "verdicts.csv"
 COLUMNS = ("verdict", "engine", "formulation", "integrator", "case", "status", "detail", "rule")
@@ -63,7 +66,7 @@ TRUTH_CHECK_TOLERANCE = {
     "constraint_violation": 1e-10,   # [0, sliding ladder]
     "detachment_angle": 1e-10,       # [1.3e-16, sliding ladder]
 }
-TRUTH = ("reference", "quaternion", "taylor")
+TRUTH = (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR)
 
 
 @dataclass(frozen=True)
@@ -139,7 +142,8 @@ def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
             cls = registry.get(name, space)
             if name not in ran or not getattr(cls, "energy_bounded", False):
                 continue
-            engine, formulation = ("pinocchio", "") if space == "lie" else ("reference", "quaternion")
+            runner_engine = engine_for_state_space(space)  # where harness.testing runs the integrator
+            engine, formulation = runner_engine.name, runner_engine.default_formulation
             base = dict(engine=engine, formulation=formulation, integrator=name, rule=rule)
             try:
                 short = testing.energy_error(cls, ENERGY_CASE, ENERGY_DT, ENERGY_STEPS, space,
@@ -265,10 +269,6 @@ def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]
         elif v.integrator:
             out.add((v.engine, v.formulation, v.integrator))
     return out
-
-
-def is_failed(failed_set: set[tuple[str, str, str]], engine: str, formulation: str, integrator: str) -> bool:
-    return (engine, formulation, integrator) in failed_set or ("*", "*", integrator) in failed_set
 
 
 def summary_lines(verdicts: list[Verdict]) -> list[str]:

@@ -6,7 +6,9 @@ axis: det J = -sin θ below.
 
 Kinetic energy T = ½ ω'·σ ω' with ω' = J(θ, ψ) α̇ the body components of ω (C4), for any σ (C5 for principal
 moments); potential V = -U, U = n·R(α) w with w = m g (O -> G) (body frame, N m) and n the unit downward vertical in the
-reference frame. Lagrange's equations d/dt ∂T/∂α̇ - ∂T/∂α = ∂U/∂α give M(α) α̈ = f with M = Jᵀ σ J.
+reference frame. Lagrange's equations d/dt ∂T/∂α̇ - ∂T/∂α = ∂U/∂α + Q give M(α) α̈ = f with M = Jᵀ σ J; Q = Jᵀ M
+(Q_h = M·∂ω'/∂α̇_h) is the generalized force of every other torque M (reference.torque_models, body components),
+written explicitly (the body torque and torque (41) have no potential; the central field's direction turns).
 
 Numpy functions are vectorised over leading axes: angles and rates (..., 3), matrices (..., 3, 3).
 """
@@ -16,6 +18,7 @@ import heyoka as hy
 import numpy as np
 
 from stereodyn.reference import expressions as ex
+from stereodyn.reference import truth
 from stereodyn.reference.rotations import matrix_to_zxz, quat_mul, quat_to_matrix
 
 
@@ -148,9 +151,11 @@ def gravity_torque(angles: np.ndarray, weight_moment: np.ndarray, down: np.ndarr
 
 
 def lagrange_acceleration(angles: np.ndarray, rates: np.ndarray, sigma: np.ndarray, weight_moment: np.ndarray,
-                          down: np.ndarray, sigma_inv: np.ndarray | None = None) -> np.ndarray:
+                          down: np.ndarray, sigma_inv: np.ndarray | None = None,
+                          torque_body: np.ndarray | None = None) -> np.ndarray:
     """α̈ from Lagrange's equations (rad/s²): with p = ∂T/∂α̇ = Jᵀ σ ω' and J̇ = ∂J/∂θ θ̇ + ∂J/∂ψ ψ̇,
-    M α̈ = Q + ∂T/∂α - J̇ᵀ σ ω' - Jᵀ σ J̇ α̇, ∂T/∂α_k = (∂J/∂α_k α̇)·σ ω' (∂J/∂φ = 0), M⁻¹ = J⁻¹ σ⁻¹ J⁻ᵀ."""
+    M α̈ = Q + ∂T/∂α - J̇ᵀ σ ω' - Jᵀ σ J̇ α̇, ∂T/∂α_k = (∂J/∂α_k α̇)·σ ω' (∂J/∂φ = 0), M⁻¹ = J⁻¹ σ⁻¹ J⁻ᵀ;
+    Q = Jᵀ (gravity's torque + torque_body), torque_body (..., 3) N m body components (the other torques)."""
     angles, rates = np.asarray(angles, dtype=float), np.asarray(rates, dtype=float)
     sigma = np.asarray(sigma, dtype=float)
     sigma_inv = np.linalg.inv(sigma) if sigma_inv is None else sigma_inv
@@ -163,7 +168,10 @@ def lagrange_acceleration(angles: np.ndarray, rates: np.ndarray, sigma: np.ndarr
     partials = np.stack([np.zeros_like(dt_theta), dt_theta, dt_psi], axis=-1)
     j_dot = j_theta * rates[..., 1, None, None] + j_psi * rates[..., 2, None, None]
     jt = np.swapaxes(j, -1, -2)
-    force = _matvec(jt, gravity_torque(angles, weight_moment, down))
+    torque = gravity_torque(angles, weight_moment, down)
+    if torque_body is not None:
+        torque = torque + torque_body
+    force = _matvec(jt, torque)
     f = (force + partials - _matvec(np.swapaxes(j_dot, -1, -2), spin)
          - _matvec(jt, _matvec(sigma, _matvec(j_dot, rates))))
     j_inv = inverse_jacobian(angles)
@@ -191,7 +199,8 @@ def lagrange_equations() -> tuple[list, list, object]:
     """Lagrange's equations for heyoka: variables (φ, θ, ψ, φ̇, θ̇, ψ̇), right-hand sides, chart measure sin θ.
 
     p = ∂T/∂α̇, ∂T/∂α, ∂U/∂α and ṗ's explicit part are taken symbolically (hy.diff) from T = ½ ω'·σω' (C4) and U;
-    the mass matrix is inverted in closed form, M⁻¹ = J⁻¹ σ⁻¹ J⁻ᵀ.
+    the other torques' Q = Jᵀ M explicitly, M at H = Rᵀ D(t); the mass matrix is inverted in closed form,
+    M⁻¹ = J⁻¹ σ⁻¹ J⁻ᵀ. Parameters: reference.truth's layout (40).
     """
     variables = hy.make_vars("phi", "theta", "psi", "phid", "thetad", "psid")
     angles, rates = variables[:3], variables[3:]
@@ -203,7 +212,12 @@ def lagrange_equations() -> tuple[list, list, object]:
     rotation = _rotation_expr(*angles)
     potential = ex.dot(ex.vector(ex.DOWN), ex.matvec(rotation, ex.vector(ex.WEIGHT_MOMENT)))
     momentum = [hy.diff(kinetic, rates[k]) for k in range(3)]
-    f = [hy.diff(kinetic, angles[k]) + hy.diff(potential, angles[k])
+    field = truth.field_direction_expression()
+    h = [hy.sum([rotation[j][i] * field[j] for j in range(3)]) for i in range(3)]  # Rᵀ D(t)
+    torque = truth.body_torque_expressions(h, omega, ex.symmetric(ex.SIGMA))
+    jacobian_t = [[st * sp, st * cp, ct], [cp, -sp, 0.0], [0.0, 0.0, 1.0]]  # Jᵀ (C4)
+    external = ex.matvec(jacobian_t, torque)
+    f = [hy.diff(kinetic, angles[k]) + hy.diff(potential, angles[k]) + external[k]
          - hy.sum([hy.diff(momentum[k], angles[i]) * rates[i] for i in range(3)]) for k in range(3)]
     j_inv = [[sp / st, cp / st, 0.0], [cp, -sp, 0.0], [-ct * sp / st, -ct * cp / st, 1.0]]
     j_inv_t = ex.transpose(j_inv)

@@ -1,13 +1,15 @@
 """heyoka expression helpers and the runtime-parameter layout of the formulations' Taylor integrators.
 
 Vectors are lists of 3 heyoka expressions, matrices lists of 3 rows. Every formulation's integrator takes the same
-19 runtime parameters, so one compiled integrator per formulation serves every body and every chart:
+runtime parameters, so one compiled integrator per formulation serves every body and every chart:
 
     0..5    σ, inertia about O, body frame (σ11, σ22, σ33, σ12, σ13, σ23), kg m²
     6..11   σ⁻¹, same layout, 1/(kg m²)
     12..14  w = m g (O -> G), body frame, N m (zero without gravity)
     15..17  n, the unit downward vertical in the current chart's reference frame
     18      the threshold of the chart's terminal event (re-chart criterion, or the singularity guard)
+    19..39  the external torques, reference.truth's layout (truth.TORQUE_OFFSET; truth.N_PARS in all), the central
+            field's directions in the chart's reference frame (Formulation.parameters)
 """
 from __future__ import annotations
 

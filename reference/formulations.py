@@ -8,7 +8,10 @@ A formulation is a choice of state and equations of motion:
     euler_zxz           (φ, θ, ψ, φ̇, θ̇, ψ̇)         Lagrange's equations in ZXZ angles (reference.euler_angles)
 
 The last three are charts of SO(3). A Chart is the reference frame the coordinates are taken in: the world attitude is
-R(frame) R_local(y), and gravity enters as the downward vertical in that frame. When the state leaves the chart's
+R(frame) R_local(y), and gravity enters as the downward vertical in that frame, the central field as its direction
+in that frame (reference.truth.torque_parameters with the frame's matrix). Every formulation carries every torque of
+reference.torque_models: the charted ones as generalized forces in their coordinates (reference.gibbs,
+reference.euler_angles). When the state leaves the chart's
 working domain (|q| > 1, a rotation of more than 90° from the frame, for the Gibbs vector; |sin θ| < 0.5 for the
 angles) the chart is re-centred on the current attitude (F13's rotated-frame variant: the equations keep their form),
 and the change is counted. With chart changes disabled the coordinates are followed towards the singularity, and a
@@ -32,7 +35,7 @@ from typing import ClassVar
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference import euler_angles, euler_poisson, gibbs, truth
+from stereodyn.reference import euler_angles, euler_poisson, gibbs, torques, truth
 from stereodyn.reference import expressions as ex
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.rotations import quat_mul, quat_normalize, quat_to_matrix
@@ -124,9 +127,16 @@ class Formulation(abc.ABC):
         """(..., 3) angular velocity, body frame, rad/s."""
 
     @abc.abstractmethod
-    def rhs(self, t: float, down: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """ẏ at time t (s) and y, with the downward vertical `down` (3,) in the chart's reference axes. Only the
-        quaternion formulation has the external torques (unsupported_torque), so only it depends on t."""
+    def rhs(self, t: float, chart: Chart, y: np.ndarray) -> np.ndarray:
+        """ẏ at time t (s) and y (size,) or (..., size) in chart (its downward vertical, and its frame for the
+        central field's direction); the numpy reference implementation, vectorised."""
+
+    def external_torque(self, t: float, chart: Chart, y: np.ndarray) -> np.ndarray | None:
+        """The torques of reference.torques at (t s, y in chart): (..., 3) N m body components, or None for a body
+        without them (the world attitude R(frame) R_local(y) gives the field's direction in the body)."""
+        if not self.body.has_external_torque:
+            return None
+        return torques.external_torque(self.body, quat_mul(chart.frame, self.local_attitude(y)), self.omega(y), t)
 
     @classmethod
     @abc.abstractmethod
@@ -135,13 +145,13 @@ class Formulation(abc.ABC):
         parameters."""
 
     def fast_rhs(self, t: float, chart: Chart, y: np.ndarray) -> np.ndarray:
-        """ẏ at time t (s; unused: these equations do not depend on time) and one state y (size,) in chart, from the
-        heyoka equations compiled to a function (compiled_rhs(name)):
+        """ẏ at time t (s: a turning central field depends on it, heyoka's time variable) and one state y (size,) in
+        chart, from the heyoka equations compiled to a function (compiled_rhs(name)):
         the same right-hand side as the Taylor integrator's, a few µs a call against ~100 µs for rhs() on one state.
         Not thread-safe (it caches the last chart's parameters)."""
         if chart is not self._compiled_chart:
             self._compiled_chart, self._compiled_pars = chart, self.rhs_parameters(chart)
-        return compiled_rhs(self.name)(y, pars=self._compiled_pars)
+        return compiled_rhs(self.name)(y, pars=self._compiled_pars, time=t)
 
     # --- charts
 
@@ -204,13 +214,16 @@ class Formulation(abc.ABC):
         return chart, y
 
     def rhs_parameters(self, chart: Chart) -> np.ndarray:
-        """The parameters of compiled_rhs(name) (the Taylor parameters without the event threshold)."""
-        return self.parameters(chart)[:ex.THRESHOLD]
+        """The parameters of compiled_rhs(name) (the Taylor parameters; the event threshold is unused there)."""
+        return self.parameters(chart)
 
     def parameters(self, chart: Chart, chart_changes: bool = True) -> np.ndarray:
-        """The heyoka runtime parameters for this body, chart and chart policy."""
+        """The heyoka runtime parameters (reference.truth's layout, truth.N_PARS) for this body, chart and chart policy:
+        the body's and the event threshold (reference.expressions), then the torques with the central field's
+        directions in the chart's reference frame."""
         threshold = self.recentre_threshold if chart_changes else self.guard_threshold
-        return ex.parameters(self.body, chart.frame, threshold if self.charted else 0.0)
+        return np.concatenate([ex.parameters(self.body, chart.frame, threshold if self.charted else 0.0),
+                               truth.torque_parameters(self.body, quat_to_matrix(chart.frame))])
 
 
 class ChartedFormulation(Formulation):
@@ -251,19 +264,9 @@ class Quaternion(Formulation):
     def _local_one(self, y):
         return tuple(y[:4]), tuple(y[4:])
 
-    def rhs(self, t, down, y):
+    def rhs(self, t, chart, y):
         quat_dot, omega_dot = euler_poisson.rhs(self.body, y[..., :4], y[..., 4:], t)
         return np.concatenate([quat_dot, omega_dot], axis=-1)
-
-    def fast_rhs(self, t: float, chart: Chart, y: np.ndarray) -> np.ndarray:
-        """As Formulation.fast_rhs, at time t (s): a turning central field depends on it (heyoka's time variable)."""
-        if chart is not self._compiled_chart:
-            self._compiled_chart, self._compiled_pars = chart, self.rhs_parameters(chart)
-        return compiled_rhs(self.name)(y, pars=self._compiled_pars, time=t)
-
-    def rhs_parameters(self, chart):
-        """stereodyn.reference.truth's parameters: the body's, the unused threshold slot, the torques (reference.torques)."""
-        return np.concatenate([ex.parameters(self.body, chart.frame, 0.0), truth.torque_parameters(self.body)])
 
     @classmethod
     def equations(cls):
@@ -331,10 +334,11 @@ class Gibbs(_Gibbs):
         omega = (c * (d1 - (q2 * d3 - q3 * d2)), c * (d2 - (q3 * d1 - q1 * d3)), c * (d3 - (q1 * d2 - q2 * d1)))
         return self._quat_one(q1, q2, q3), omega
 
-    def rhs(self, t, down, y):
+    def rhs(self, t, chart, y):
         q, qdot = y[..., :3], y[..., 3:]
-        return np.concatenate([qdot, gibbs.lagrangian_acceleration(q, qdot, self.sigma, self.weight_moment, down,
-                                                                   self.sigma_inv)], axis=-1)
+        return np.concatenate([qdot, gibbs.lagrangian_acceleration(q, qdot, self.sigma, self.weight_moment, chart.down,
+                                                                   self.sigma_inv,
+                                                                   self.external_torque(t, chart, y))], axis=-1)
 
     @classmethod
     def equations(cls):
@@ -363,8 +367,9 @@ class GibbsHamiltonian(_Gibbs):
         omega = tuple(0.5 * (row[0] * b[0] + row[1] * b[1] + row[2] * b[2]) for row in self._sigma_inv_rows)
         return self._quat_one(q1, q2, q3), omega
 
-    def rhs(self, t, down, y):
-        qdot, pdot = gibbs.hamiltonian_rhs(y[..., :3], y[..., 3:], self.sigma_inv, self.weight_moment, down)
+    def rhs(self, t, chart, y):
+        qdot, pdot = gibbs.hamiltonian_rhs(y[..., :3], y[..., 3:], self.sigma_inv, self.weight_moment, chart.down,
+                                           self.external_torque(t, chart, y))
         return np.concatenate([qdot, pdot], axis=-1)
 
     def rechart(self, chart: Chart, y: np.ndarray) -> tuple[Chart, np.ndarray]:
@@ -426,10 +431,12 @@ class EulerZXZ(ChartedFormulation):
         omega = (phid * st * sp + thetad * cp, phid * st * cp - thetad * sp, phid * ct + psid)  # C4
         return quat, omega
 
-    def rhs(self, t, down, y):
+    def rhs(self, t, chart, y):
         angles, rates = y[..., :3], y[..., 3:]
         return np.concatenate([rates, euler_angles.lagrange_acceleration(angles, rates, self.sigma,
-                                                                         self.weight_moment, down, self.sigma_inv)],
+                                                                         self.weight_moment, chart.down,
+                                                                         self.sigma_inv,
+                                                                         self.external_torque(t, chart, y))],
                               axis=-1)
 
     @classmethod
@@ -449,20 +456,6 @@ FORMULATIONS: dict[str, type[Formulation]] = {cls.name: cls for cls in (Quaterni
                                                                         EulerZXZ)}
 
 
-def unsupported_torque(name: str, body: RigidBody) -> str | None:
-    """Why formulation `name` cannot model the body's external torques (reference.torques), or None. Only the
-    quaternion formulation (the truth's Euler–Poisson) has them; the charted ones would need each torque as a
-    generalized force in their own coordinates (F9: F = ρ̄ M for the Gibbs vector), not derived here."""
-    if name == Quaternion.name:
-        return None
-    present = [table for table, value in (("body_torque", body.body_torque), ("central_field", body.central_field),
-                                          ("precession_torque", body.precession_torque)) if value is not None]
-    if present:
-        return (f"formulation {name} does not model {', '.join(f'[{t}]' for t in present)} (only quaternion "
-                f"Euler–Poisson has the external torques)")
-    return None
-
-
 def get(name: str, body: RigidBody) -> Formulation:
     """The formulation called name, bound to body; KeyError listing the valid names."""
     try:
@@ -477,7 +470,7 @@ def get(name: str, body: RigidBody) -> Formulation:
 @functools.cache
 def compiled_rhs(name: str):
     """The right-hand side of formulation `name` compiled by heyoka (hy.cfunc, compact mode) from its equations():
-    called as f(y (size,), pars=(18,) parameters of reference.expressions without the threshold). Cached per process;
+    called as f(y (size,), pars=(N_PARS,) Formulation.rhs_parameters(chart), time=t). Cached per process;
     heyoka's compiled functions are stateless, so threads may share one."""
     variables, rhs, _ = FORMULATIONS[name].equations()
     return hy.cfunc(rhs, variables, compact_mode=True)
@@ -499,7 +492,7 @@ def taylor_integrator(name: str) -> tuple[object, threading.Lock]:
     direction = hy.event_direction.positive if cls.event_direction > 0 else hy.event_direction.negative
     event = hy.t_event(measure - hy.par[ex.THRESHOLD], direction=direction)
     integrator = hy.taylor_adaptive(list(zip(variables, rhs)), np.array(cls.regular_state), tol=truth.TRUTH_TOL,
-                                    pars=np.zeros(ex.N_PARS), compact_mode=True, t_events=[event])
+                                    pars=np.zeros(truth.N_PARS), compact_mode=True, t_events=[event])
     COMPILE_SECONDS[name] = time.perf_counter() - start
     return integrator, threading.Lock()
 
@@ -535,13 +528,10 @@ def integrate_taylor(name: str, body: RigidBody, quat0: np.ndarray, omega0: np.n
 
     The chart's terminal event stops the propagation; the chart is re-centred and the propagation continues from
     the event time. With chart_changes False the event is the singularity guard instead, and the run stops there.
-    "quaternion" is the truth itself, the only formulation that models the torques of reference.torques (the
-    others raise ValueError on a body with one: unsupported_torque names it). Raises ValueError on bad input or a
-    propagation that fails otherwise.
+    "quaternion" is the truth itself. Heyoka's time runs on across chart changes (the turning central field).
+    Raises ValueError on bad input or a propagation that fails.
     """
     times = np.asarray(times, dtype=float)
-    if name != Quaternion.name and (reason := unsupported_torque(name, body)):
-        raise ValueError(reason)
     if name == Quaternion.name:
         result = truth.truth(body, quat0, omega0, times)
         return FormulationRun(result.times, result.quat, result.omega, result.steps, None, result.wall_s)

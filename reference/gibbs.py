@@ -9,7 +9,9 @@ positive definite, not necessarily diagonal; the seed's polynomial forms (13), (
 Units: σ kg m², ω rad/s, q dimensionless, q̇ 1/s, p kg m²/s (twice the angular momentum at q = 0), forces N m.
 
 The heavy body: w = m g (O -> G) (body frame, N m) and n the unit downward vertical in the reference frame; the force
-function is U = n·R(q) w (note (10) generalised) and V = -U.
+function is U = n·R(q) w (note (10) generalised) and V = -U. Every other torque M (reference.torque_models, body
+components) enters as Ferrarese's generalized force (16), Q_h = M·∂ω/∂q̇_h = (ρ M)_h, written explicitly: the body
+torque and torque (41) have no potential, and the central field's direction turns with time.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import heyoka as hy
 import numpy as np
 
 from stereodyn.reference import expressions as ex
+from stereodyn.reference import truth
 from stereodyn.reference.rotations import skew
 
 # skew(e_r) for r = 0, 1, 2: ∂Q/∂q^r.
@@ -183,6 +186,12 @@ def generalized_force(q: np.ndarray, torque: np.ndarray) -> np.ndarray:
     return 2.0 / _one_plus_q2(q) * (torque - np.cross(q, torque))
 
 
+def generalized_force_body(q: np.ndarray, torque_body: np.ndarray) -> np.ndarray:
+    """(16) with M in body components: Q_h = M·∂ω_body/∂q̇_h, i.e. Q = ρ̄ᵀ M = ρ M = 2/(1 + q²) (M + q × M) (N m)."""
+    q, torque_body = np.asarray(q, dtype=float), np.asarray(torque_body, dtype=float)
+    return 2.0 / _one_plus_q2(q) * (torque_body + np.cross(q, torque_body))
+
+
 def gravity_torque(q: np.ndarray, weight_moment: np.ndarray, down: np.ndarray) -> np.ndarray:
     """Torque of uniform gravity about O, reference-frame components: (R(q) w) × n (N m)."""
     return np.cross(rotate(np.asarray(q, dtype=float), weight_moment), down)
@@ -217,14 +226,18 @@ def kinetic_energy(q: np.ndarray, qdot: np.ndarray, sigma: np.ndarray) -> np.nda
 
 
 def lagrangian_acceleration(q: np.ndarray, qdot: np.ndarray, sigma: np.ndarray, weight_moment: np.ndarray,
-                            down: np.ndarray, sigma_inv: np.ndarray | None = None) -> np.ndarray:
-    """(17''): q̈^h = a^hk [F_k - (rs,k) q̇^r q̇^s], F the generalized force (16) of gravity (1/s²).
+                            down: np.ndarray, sigma_inv: np.ndarray | None = None,
+                            torque_body: np.ndarray | None = None) -> np.ndarray:
+    """(17''): q̈^h = a^hk [F_k - (rs,k) q̇^r q̇^s], F the generalized force (16) of gravity and of torque_body
+    (..., 3) N m, body components, the other external torques (1/s²).
 
     sigma_inv: σ⁻¹ when the caller has it (saves an inversion per call).
     """
     sigma = np.asarray(sigma, dtype=float)
     sigma_inv = np.linalg.inv(sigma) if sigma_inv is None else sigma_inv
     force = generalized_force(q, gravity_torque(q, weight_moment, down))
+    if torque_body is not None:
+        force = force + generalized_force_body(q, torque_body)
     geodesic = np.einsum("...rsk,...r,...s->...k", christoffel(q, sigma), qdot, qdot)
     return _matvec(_inverse_metric(q, sigma_inv), force - geodesic)
 
@@ -236,13 +249,16 @@ def hamiltonian(q: np.ndarray, p: np.ndarray, sigma: np.ndarray, weight_moment: 
 
 
 def hamiltonian_rhs(q: np.ndarray, p: np.ndarray, sigma_inv: np.ndarray, weight_moment: np.ndarray,
-                    down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(18): q̇ = ∂ℋ/∂p, ṗ = -∂ℋ/∂q, with ℋ's quartic kinetic part written out:
-    m = σ⁻¹ Bᵀ p (= 2 ω_body), q̇ = ¼ B m, ṗ = -¼ [m × p + (q·m) p + (q·p) m] + F (F = ∇U, eq. (16))."""
+                    down: np.ndarray, torque_body: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(18): q̇ = ∂ℋ/∂p, ṗ = -∂ℋ/∂q + Q, with ℋ's quartic kinetic part written out:
+    m = σ⁻¹ Bᵀ p (= 2 ω_body), q̇ = ¼ B m, ṗ = -¼ [m × p + (q·m) p + (q·p) m] + F (F = ∇U, eq. (16)) + Q,
+    Q = ρ M the generalized force of torque_body (..., 3) N m, body components (the other external torques)."""
     q, p = np.asarray(q, dtype=float), np.asarray(p, dtype=float)
     m = 2.0 * omega_from_momentum(q, p, sigma_inv)
     qdot = 0.25 * (m + np.cross(q, m) + _dot(q, m)[..., None] * q)
     force = generalized_force(q, gravity_torque(q, weight_moment, down))
+    if torque_body is not None:
+        force = force + generalized_force_body(q, torque_body)
     pdot = -0.25 * (np.cross(m, p) + _dot(q, m)[..., None] * p + _dot(q, p)[..., None] * m) + force
     return qdot, pdot
 
@@ -290,18 +306,35 @@ def _force_function_expr(q: list, weight_moment: list, down: list):
     return numerator / (1.0 + q2)
 
 
+def _external_force_expr(q: list, omega: list) -> list:
+    """Q = ρ M (16), M the torques of reference.torque_models (truth.body_torque_expressions) at ω (body) and
+    H = R(q)ᵀ D(t) = D - 2/(1 + q²) q × (D - q × D), D(t) the field direction in the chart's reference frame."""
+    one_plus = 1.0 + ex.dot(q, q)
+    d = truth.field_direction_expression()
+    q_cross_d = ex.cross(q, d)
+    turned = ex.cross(q, [d[i] - q_cross_d[i] for i in range(3)])
+    h = [d[i] - 2.0 * turned[i] / one_plus for i in range(3)]
+    torque = truth.body_torque_expressions(h, omega, ex.symmetric(ex.SIGMA))
+    q_cross_m = ex.cross(q, torque)
+    return [2.0 * (torque[i] + q_cross_m[i]) / one_plus for i in range(3)]
+
+
 def lagrangian_equations() -> tuple[list, list, object]:
     """(17'') for heyoka: variables (q1, q2, q3, q̇1, q̇2, q̇3), right-hand sides, and the chart measure q·q.
 
     The Christoffel symbols and F = ∇U are taken symbolically (hy.diff) from a_hk and U, independently of the numpy
-    closed forms above, so the two check each other.
+    closed forms above, so the two check each other; the other torques' generalized force is written explicitly
+    (_external_force_expr). Parameters: reference.truth's layout (40).
     """
     variables = hy.make_vars("q1", "q2", "q3", "qd1", "qd2", "qd3")
     q, qdot = variables[:3], variables[3:]
     sigma, sigma_inv = ex.symmetric(ex.SIGMA), ex.symmetric(ex.SIGMA_INV)
     a = _metric_expr(q, sigma)
     potential = _force_function_expr(q, ex.vector(ex.WEIGHT_MOMENT), ex.vector(ex.DOWN))
-    force = [hy.diff(potential, q[k]) for k in range(3)]
+    q_cross_qdot = ex.cross(q, qdot)
+    omega = [2.0 * (qdot[i] - q_cross_qdot[i]) / (1.0 + ex.dot(q, q)) for i in range(3)]  # ρ̄ q̇ (F5)
+    external = _external_force_expr(q, omega)
+    force = [hy.diff(potential, q[k]) + external[k] for k in range(3)]
     da = [[[hy.diff(a[h][k], q[r]) for k in range(3)] for h in range(3)] for r in range(3)]
     geodesic = [hy.sum([0.5 * (da[r][s][k] + da[s][k][r] - da[k][r][s]) * qdot[r] * qdot[s]
                         for r in range(3) for s in range(3)]) for k in range(3)]
@@ -316,9 +349,14 @@ def hamiltonian_expression(q: list, p: list):
 
 
 def hamiltonian_equations() -> tuple[list, list, object]:
-    """(18) for heyoka: variables (q1, q2, q3, p1, p2, p3), q̇ = ∂ℋ/∂p and ṗ = -∂ℋ/∂q by hy.diff, chart measure q·q."""
+    """(18) for heyoka: variables (q1, q2, q3, p1, p2, p3), q̇ = ∂ℋ/∂p and ṗ = -∂ℋ/∂q + Q (ℋ by hy.diff, the other
+    torques' Q = ρ M explicitly), chart measure q·q. Parameters: reference.truth's layout (40)."""
     variables = hy.make_vars("q1", "q2", "q3", "p1", "p2", "p3")
     q, p = variables[:3], variables[3:]
     energy = hamiltonian_expression(q, p)
-    rhs = [hy.diff(energy, p[k]) for k in range(3)] + [-hy.diff(energy, q[k]) for k in range(3)]
+    qp = ex.dot(q, p)
+    q_cross_p = ex.cross(q, p)
+    omega = ex.matvec(ex.symmetric(ex.SIGMA_INV), [0.5 * (p[i] - q_cross_p[i] + qp * q[i]) for i in range(3)])
+    external = _external_force_expr(q, omega)  # ω = ½ σ⁻¹ Bᵀ p (F8)
+    rhs = [hy.diff(energy, p[k]) for k in range(3)] + [-hy.diff(energy, q[k]) + external[k] for k in range(3)]
     return variables, rhs, ex.dot(q, q)

@@ -29,6 +29,10 @@ from stereodyn.reference.torque_models import (body_torque_components, gravity_g
 
 TRUTH_TOL = 1e-16       # double precision; the issue requires <= 1e-15
 TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)
+# Taylor steps one truth may take: the suite's truths take 6-2205 (long-horizon, 1000 s; measured on the 2-core
+# dev machine), ~10 µs each; a body whose motion needs more (a torque far above its inertia's scale) is reported as
+# not representable in ~10 s instead of running for hours.
+MAX_TRUTH_STEPS = 1_000_000
 
 PRECISIONS = ("double", "quad")
 _FP_TYPE = {"double": float, "quad": hy.real128}
@@ -42,7 +46,7 @@ _SYMMETRIC_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 #   35 cot θ, 36 l, 37 M3, 38 on (1/0), 39 ε       torque (41); ρ = √(p1² + p2² + ε): ε = 1 when the torque is off, so
 #                                                   the Taylor series of √ never meets 0 on a motion with ω ∥ i3
 TORQUE_OFFSET = 19
-_N_PARS = 40
+N_PARS = 40  # every formulation's heyoka systems take this layout (reference.formulations)
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,17 +118,24 @@ def _body_components(w, v, vector) -> list:
     return [scalar * vector[i] + 2.0 * v_dot_x * v[i] - 2.0 * w * v_cross_x[i] for i in range(3)]
 
 
-def torque_expressions(w, v, omega, sigma) -> list:
-    """The torques of reference.torque_models (body frame) as heyoka expressions of the parameters TORQUE_OFFSET..
-    (layout above): the same formulas the engines and the numpy forms evaluate."""
+def field_direction_expression() -> list:
+    """D(t), the unit vector centre -> O in the coordinates' frame, as heyoka expressions of the parameters
+    TORQUE_OFFSET + 6.. and heyoka's time (layout above)."""
+    par, o = hy.par, TORQUE_OFFSET
+    phase = par[o + 15] * hy.time
+    cos_phase, sin_phase = hy.cos(phase), hy.sin(phase)
+    return [cos_phase * par[o + 6 + i] + sin_phase * par[o + 9 + i] + par[o + 12 + i] for i in range(3)]
+
+
+def body_torque_expressions(h, omega, sigma) -> list:
+    """The torques of reference.torque_models (body frame) as heyoka expressions, given H (the body components of
+    field_direction_expression()), ω and σ (body frame): the same formulas the engines and the numpy forms evaluate.
+    Every formulation's equations take them from here (reference.gibbs, reference.euler_angles)."""
     par = hy.par
     o = TORQUE_OFFSET
     axis = [par[o], par[o + 1], par[o + 2]]
     body = body_torque_components(axis, par[o + 3], par[o + 4], omega)
-    phase = par[o + 15] * hy.time
-    cos_phase, sin_phase = hy.cos(phase), hy.sin(phase)
-    direction = [cos_phase * par[o + 6 + i] + sin_phase * par[o + 9 + i] + par[o + 12 + i] for i in range(3)]
-    gradient = gravity_gradient_components(par[o + 5], sigma, _body_components(w, v, direction))
+    gradient = gravity_gradient_components(par[o + 5], sigma, h)
     p1, p2, _ = omega
     cot, ell, m3, on, eps = (par[o + 16 + i] for i in range(5))
     rho = hy.sqrt(p1 * p1 + p2 * p2 + eps)
@@ -132,10 +143,15 @@ def torque_expressions(w, v, omega, sigma) -> list:
     return [body[i] + gradient[i] + on * precession[i] for i in range(3)]
 
 
+def torque_expressions(w, v, omega, sigma) -> list:
+    """body_torque_expressions() with H = Rᵀ D(t) from the quaternion (w, v) (homogeneous in q)."""
+    return body_torque_expressions(_body_components(w, v, field_direction_expression()), omega, sigma)
+
+
 def torque_parameters(body: RigidBody, frame_matrix: np.ndarray | None = None) -> np.ndarray:
     """The 21 torque parameters (layout above, float64); frame_matrix (3, 3): the coordinates' frame in the world
     (identity for the quaternion formulation)."""
-    out = np.zeros(_N_PARS - TORQUE_OFFSET)
+    out = np.zeros(N_PARS - TORQUE_OFFSET)
     out[20] = 1.0  # ε: the torque (41) is off
     if body.body_torque is not None:
         out[0:3] = body.body_torque.axis
@@ -175,7 +191,7 @@ def taylor_integrator(precision: str = "double") -> tuple[object, threading.Lock
         equations(),
         np.array([1.0, 0, 0, 0, 0, 0, 0]).astype(fp_type),
         tol=fp_type(_TOLERANCE[precision]),
-        pars=np.zeros(_N_PARS).astype(fp_type),
+        pars=np.zeros(N_PARS).astype(fp_type),
         compact_mode=True,
         fp_type=fp_type,
     )
@@ -238,9 +254,13 @@ def truth(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndar
         integrator.state[:] = state
         integrator.pars[:] = _parameters(body, fp_type)
         start = time.perf_counter()
-        outcome, _, _, steps, _, samples = integrator.propagate_grid(times.astype(fp_type))
+        outcome, _, _, steps, _, samples = integrator.propagate_grid(times.astype(fp_type),
+                                                                     max_steps=MAX_TRUTH_STEPS)
         wall = time.perf_counter() - start
     # propagate_grid reports time_limit when it reached the last grid point.
+    if outcome == hy.taylor_outcome.step_limit:
+        raise ValueError(f"truth propagation ({precision}) took more than {MAX_TRUTH_STEPS} Taylor steps before "
+                         f"t = {times[-1]:g}: the motion's rates are beyond what this tolerance resolves in time")
     if outcome != hy.taylor_outcome.time_limit:
         raise ValueError(f"truth propagation ({precision}) stopped with outcome {outcome} before t = {times[-1]}; "
                          "the motion is not representable (non-finite state) at this tolerance")
@@ -251,8 +271,57 @@ def truth(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndar
                        wall_s=wall)
 
 
-def truth_error(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray) -> float:
-    """max over times of the attitude angle (rad) between the double and the quadruple precision truths."""
+# The truth's error bounds (truth_bound). u: the unit round-off of float64.
+UNIT_ROUNDOFF = 2.0 ** -53
+# ANGLE_ROUNDING: how far reference.rotations.attitude_angle(quat_to_matrix(q1), quat_to_matrix(q2)), evaluated in
+# float64, can be from the true angle between the rotations of two float64 quaternions at the small angles met here
+# (1e-16..1e-12 rad). Its error is absolute (the matrix entries are O(1), each rounded to ~u), not relative to the
+# angle.
+# Measured: at most 8.9 u over 2e5 random unit pairs (numpy, AMD EPYC, against mpmath at 40 digits); 16 u leaves ~1.8x
+# headroom. (Adding up every rounding of the normalisation, the 9 entries and the Frobenius norm gives ~85 u; those
+# errors never align in practice, and a bound 5x the measured worst would swamp the truth's own ~1e-14 rad.)
+ANGLE_ROUNDING = 16 * UNIT_ROUNDOFF
+# truth_err = max_t a(t) + ATTITUDE_ALLOWANCE, with a(t) = attitude_angle between the double truth q_d and the real128
+# truth q_q rounded to float64 (q̃_q), both in float64. It bounds both the double truth's true error e and what anyone
+# measures in float64 against a reference R correct to >= 20 digits (e.g. mpmath at 40), rounded to float64:
+#   e       <= angle(q_d, q_q) + ε_q                       ε_q: the real128 truth's own error (tolerance 1e-32; < 1e-25)
+#           <= angle(q_d, q̃_q) + 2u + ε_q                  rounding q_q to float64 moves each component by <= u|q|,
+#                                                           its rotation by <= 2u rad
+#           <= a + ANGLE_ROUNDING + 2u + ε_q               our comparison's own rounding
+#   measured = attitude_angle(q_d, R̃) <= e + 2u + ANGLE_ROUNDING   (the reference's rounding and that comparison's)
+# hence ATTITUDE_ALLOWANCE = 2 ANGLE_ROUNDING + 4u (+ ε_q, below u): 36 u = 4.0e-15 rad.
+ATTITUDE_ALLOWANCE = 2 * ANGLE_ROUNDING + 4 * UNIT_ROUNDOFF
+# truth_omega_err = max_t |ω_d - ω̃_q| / max_t |ω̃_q| + OMEGA_ALLOWANCE (relative, as metrics.errors' omega_err). The
+# subtraction of two close float64 vectors is exact (Sterbenz); rounding ω_q to float64 (ours) and the auditor's
+# reference to float64 each move a component by <= u |ω_i|, i.e. <= u max|ω| in norm: 2u; the norm and the division
+# add a few u *relative to the tiny difference*, far below u. 4u leaves 2x headroom.
+OMEGA_ALLOWANCE = 4 * UNIT_ROUNDOFF
+
+
+@dataclass(frozen=True)
+class TruthBound:
+    """Bounds on the double-precision truth's error on a time grid (truth_bound).
+
+    attitude: rad, on the geodesic angle between its attitude and the exact one; omega: relative, on
+    max |ω - ω_exact| / max |ω_exact|. Both include the allowance for a float64 comparison (ATTITUDE_ALLOWANCE,
+    OMEGA_ALLOWANCE), so they hold for anyone's float64 check against a reference correct to >= 20 digits.
+    """
+
+    attitude: float
+    omega: float
+
+
+def truth_bound(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray) -> TruthBound:
+    """The bounds of the double truth's error over `times`, from a quadruple-precision (real128) rerun (derivation
+    above ATTITUDE_ALLOWANCE). Costs one real128 propagation: ~0.1-0.3 s for the suite's cases."""
     double = truth(body, quat0, omega0, times, precision="double")
     quad = truth(body, quat0, omega0, times, precision="quad")
-    return float(np.max(attitude_angle(quat_to_matrix(double.quat), quat_to_matrix(quad.quat))))
+    attitude = float(np.max(attitude_angle(quat_to_matrix(double.quat), quat_to_matrix(quad.quat))))
+    scale = float(np.max(np.linalg.norm(quad.omega, axis=1))) or 1.0
+    omega = float(np.max(np.linalg.norm(double.omega - quad.omega, axis=1))) / scale
+    return TruthBound(attitude + ATTITUDE_ALLOWANCE, omega + OMEGA_ALLOWANCE)
+
+
+def truth_error(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray) -> float:
+    """The bound (rad) on the double truth's attitude error over times: truth_bound(...).attitude."""
+    return truth_bound(body, quat0, omega0, times).attitude

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import stereodyn.harness.integrators as integrators
+from stereodyn.harness.fitting import order_slope
 from stereodyn.harness.cases import BodyTorque, Case, CentralField
 from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid
@@ -232,7 +233,7 @@ def final_truth(name: str, t_end: float) -> np.ndarray:
 
 def fitted_order(dts, errors) -> float:
     """Least-squares slope of log(error) against log(dt)."""
-    return float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+    return order_slope(dts, errors)
 
 
 @pytest.mark.parametrize("engine, integrator, dts, bounds", ORDER_CASES,

@@ -8,7 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, runner
+from stereodyn.harness.fitting import order_slope
+from stereodyn.harness import cli, plan
 from stereodyn.harness.cases import Case, find_case, load_suite
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
@@ -112,7 +113,7 @@ def test_quaternion_formulation_equations_match_euler_poisson():
     states = np.concatenate([to_quat(rng.uniform(0, 3, (50, 3))), rng.normal(size=(50, 3))], axis=1)
     pars = np.repeat(formulation.rhs_parameters(chart)[:, None], len(states), axis=1)
     compiled = formulations.compiled_rhs("quaternion")(states.T.copy(), pars=pars, time=np.zeros(len(states))).T
-    np.testing.assert_allclose(compiled, formulation.rhs(0.0, chart.down, states), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(compiled, formulation.rhs(0.0, chart, states), rtol=0, atol=1e-13)
 
 
 # ------------------------------------------------------------------------------- the formulations check each other
@@ -175,7 +176,7 @@ def test_fixed_step_convergence_order_without_chart_changes(name, integrator, dt
         assert run.status is Status.OK and run.chart_changes in (None, 0)
         assert run.rhs_evals == get_integrator(integrator, "vector").stages * run.steps
         errors.append(float(angle(run.quat[-1], reference.quat[-1])))
-    order = float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+    order = order_slope(dts, errors)
     assert bounds[0] <= order <= bounds[1], (order, errors)
 
 
@@ -220,7 +221,7 @@ def reference_sweep(tmp_path_factory):
 
 def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
     _, df = reference_sweep
-    assert COLUMNS[COLUMNS.index("truth_err") + 1] == "chart_changes" and tuple(df.columns) == COLUMNS
+    assert COLUMNS[COLUMNS.index("truth_omega_err") + 1] == "chart_changes" and tuple(df.columns) == COLUMNS
     assert len(df) == 4 + 2 * 4 * 3 and set(df.status) == {"ok"}
     truth_row = df[(df.formulation == "quaternion") & (df.integrator == "taylor")]
     assert len(truth_row) == 1 and truth_row.dt.isna().all() and truth_row.attitude_err.isna().all()
@@ -233,7 +234,7 @@ def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
 
 def test_plan_gives_every_formulation_its_rows():
     case = find_case("free-asymmetric")
-    specs, skipped = runner.plan([case], ["reference"], None)
+    specs, skipped = plan.plan([case], ["reference"], None)
     assert not skipped
     taylor = [s for s in specs if s.integrator == "taylor"]
     assert [s.formulation for s in taylor] == list(NAMES) and all(s.dt is None for s in taylor)
@@ -261,3 +262,20 @@ def test_formulation_section_needs_no_formulations():
     df = pd.DataFrame({"case": ["c"], "engine": ["mujoco"], "formulation": [""], "integrator": ["rk4"],
                        "dt": [1e-3], "status": ["ok"], "chart_changes": [math.nan]})
     assert formulation_lines(df) == []
+
+
+def test_report_shows_the_formulations_side_by_side_on_a_torqued_case_too(tmp_path):
+    """Issue 13 item 4: one table on the Lagrange top, one on a torqued case, every formulation ok on both."""
+    out = tmp_path / "out"
+    assert cli.main(["run", "lagrange-top", "self-excited-conic", "--engines", "reference", "--t-end", "1",
+                     "--dt", "1e-2,5e-3", "--integrators", "taylor,rk4", "--jobs", "1", "--quiet", "--no-ladder",
+                     "--out", str(out)]) == 0
+    section = (out / "report.md").read_text().split("## Formulations side by side")[1].split("\n## ")[0]
+    for case in ("lagrange-top", "self-excited-conic"):
+        table = section.split(f"### {case}")[1].split("\n### ")[0]
+        rows = [line for line in table.splitlines() if line.startswith("| ") and not line.startswith("| formulation")]
+        for name in NAMES:
+            for integrator, dt in (("taylor", "adaptive"), ("rk4", "0.005")):  # the middle of the two
+                assert any(row.startswith(f"| {name} | {integrator} | {dt} | ok |") for row in rows), (case, name)
+    assert "external torques" in section.split("### self-excited-conic")[1]
+    assert "external torques" not in section.split("### lagrange-top")[1].split("### ")[0]

@@ -5,7 +5,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, gate, runner
+from stereodyn.harness import cli, gate, plan
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines import engine_names
 
@@ -59,8 +59,9 @@ def test_a_drift_ten_times_worse_fails_listing_that_row(baseline, tmp_path, caps
 
     assert check(edited(out, tmp_path / "worse", worse), path) == 1
     printed = capsys.readouterr().out
-    offending = [line for line in printed.splitlines() if "energy_drift" in line]
-    assert len(offending) == 1
+    assert "1 row: pinocchio rk4, energy_drift up to 10x" in printed
+    offending = [line for line in printed.splitlines() if "energy_drift" in line and line.startswith("lagrange-top")]
+    assert len(offending) == 1 and offending[0].split()[-1] == "10x"
     assert offending[0].split()[:4] == ["lagrange-top", "pinocchio", "rk4", "0.01"]
     assert "check failed: 1 of" in printed
 
@@ -81,7 +82,9 @@ def test_a_status_that_got_worse_fails(baseline, tmp_path, capsys, status):
 def test_a_missing_row_fails_and_a_new_row_does_not(baseline, tmp_path, capsys):
     out, path = baseline
     assert check(edited(out, tmp_path / "less", lambda df: df.drop(index=_row(df, "mujoco", "rk4"))), path) == 1
-    assert "missing row" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "1 row: mujoco rk4, missing" in printed and "1 of" in printed and "rows missing" in printed
+    assert "got worse" not in printed
 
     def more(df):
         extra = df.loc[[_row(df, "mujoco", "rk4")]].assign(dt=5e-3)
@@ -135,6 +138,166 @@ def test_a_bad_tolerance_file_exits_2(baseline, tmp_path, capsys, text, expected
     assert expected in err and str(tolerances) in err and err.count("\n") == 1
 
 
+@pytest.mark.parametrize("ratio, code", [(1.9, 0), (2.1, 1)])
+def test_the_default_factor_2_at_its_boundary(baseline, tmp_path, capsys, ratio, code):
+    """factor * baseline + floor with the default factor 2: the drift of mujoco euler (~1e-2) dwarfs the 1e-12 floor,
+    so 1.9x passes and 2.1x fails (a gate 4x laxer than documented would pass both)."""
+    out, path = baseline
+
+    def scaled(df):
+        df.loc[_row(df, "mujoco", "euler"), "attitude_err"] *= ratio
+        return df
+
+    assert check(edited(out, tmp_path / "scaled", scaled), path) == code
+    if code:
+        printed = capsys.readouterr().out
+        assert "1 row: mujoco euler, attitude_err up to 2.1x" in printed
+        line = next(line for line in printed.splitlines() if line.startswith("lagrange-top") and "attitude_err" in line)
+        assert line.split()[-1] == "2.1x"
+
+
+def test_a_nan_metric_fails(baseline, tmp_path, capsys):
+    out, path = baseline
+
+    def nan(df):
+        df.loc[_row(df, "pinocchio", "rk4"), "omega_err"] = float("nan")
+        return df
+
+    assert check(edited(out, tmp_path / "nan", nan), path) == 1
+    assert "1 row: pinocchio rk4, omega_err NaN" in capsys.readouterr().out
+
+
+def test_a_status_change_gives_the_runs_message(baseline, tmp_path, capsys):
+    out, path = baseline
+
+    def broken(df):
+        row = _row(df, "mujoco", "rk4")
+        df["message"] = df["message"].astype(object)
+        df.loc[row, "status"], df.loc[row, "message"] = "diverged", "|omega| exceeded 1e3 x its start at t = 0.31"
+        return df
+
+    assert check(edited(out, tmp_path / "bad", broken), path) == 1
+    printed = capsys.readouterr().out
+    assert "1 row: mujoco rk4, status ok -> diverged" in printed
+    assert any(" status " in line and line.endswith("exceeded 1e3 x its start at t = 0.31")
+               for line in printed.splitlines())
+
+
+def test_the_environment_difference_comes_first(baseline, tmp_path, capsys):
+    out, path = baseline
+    run = edited(out, tmp_path / "run", lambda df: df)
+    manifest = json.loads((out / "runs.json").read_text())
+    old = manifest["environment"]["mujoco"]
+    manifest["environment"]["mujoco"] = "3.17.0"
+    (run / "runs.json").write_text(json.dumps(manifest))
+    assert check(run, path) == 0
+    assert capsys.readouterr().out.splitlines()[0] == f"environment: mujoco {old} -> 3.17.0"
+    (run / "runs.json").unlink()
+    assert check(run, path) == 0
+    assert capsys.readouterr().out.startswith("environment: run environment unknown")
+
+
+def test_a_fitted_order_that_dropped_fails(baseline, tmp_path, capsys):
+    """The baseline carries the fitted orders (convergence.csv); one that fell from 4 to 2 fails, naming the
+    integrator and the three orders; a drop within ORDER_DROP passes."""
+    out, path = baseline
+    convergence = pd.DataFrame([
+        {"case": "heavy-asymmetric", "engine": "mujoco", "formulation": "", "integrator": "rk4", "order": 4.07,
+         "declared_order": 4.0},
+        {"case": "heavy-asymmetric", "engine": "pinocchio", "formulation": "", "integrator": "euler", "order": 1.0,
+         "declared_order": 1.0}])
+    base = tmp_path / "base"
+    base.mkdir()
+    convergence.to_csv(base / "convergence.csv", index=False)
+    ordered = tmp_path / "ordered.json"
+    assert gate.write_baseline(gate.read_table(out), ordered, {}, gate.read_orders(base)) > 0
+    assert [row["fitted"] for row in json.loads(ordered.read_text())["orders"]] == [4.07, 1.0]
+
+    def run_with(order):
+        run = edited(out, tmp_path / f"run{order}", lambda df: df)
+        convergence.assign(order=[order, 1.0]).to_csv(run / "convergence.csv", index=False)
+        return run
+
+    assert check(run_with(4.07 - 0.9 * gate.ORDER_DROP), ordered) == 0
+    capsys.readouterr()
+    assert check(run_with(2.0), ordered) == 1
+    printed = capsys.readouterr().out
+    assert "mujoco rk4: fitted 2.00, baseline 4.07, declared 4 (1 case)" in printed
+    assert "1 of 2 fitted orders fell" in printed
+    assert check(run_with(float("nan")), ordered) == 1
+    no_orders = edited(out, tmp_path / "none", lambda df: df)
+    assert check(no_orders, ordered) == 1  # the convergence rows are gone
+    assert "convergence rows missing" in capsys.readouterr().out
+
+
+def _baseline_with(path: Path, target: Path, edit) -> Path:
+    data = json.loads(path.read_text())
+    edit(data)
+    target.write_text(json.dumps(data))
+    return target
+
+
+def _bad_baseline(edit):
+    return lambda out, path, tmp: (out, _baseline_with(path, tmp / "b.json", edit), [], "b.json")
+
+
+def _bad_results(write, expected):
+    def setup(out, path, tmp):
+        run = tmp / "run"
+        run.mkdir()
+        write(run / "results.csv", out)
+        return run, path, [], expected
+    return setup
+
+
+def _options(*options):
+    return lambda out, path, tmp: (out, path, list(options), options[0])
+
+
+def _without_columns(target: Path, out: Path):
+    pd.read_csv(out / "results.csv").drop(columns=["attitude_err"]).to_csv(target, index=False)
+
+
+MALFORMED = {
+    "row without case": _bad_baseline(lambda d: d["rows"][0].pop("case")),
+    "row a string": _bad_baseline(lambda d: d["rows"].__setitem__(0, "hello")),
+    "row a number": _bad_baseline(lambda d: d["rows"].__setitem__(0, 1)),
+    "row empty": _bad_baseline(lambda d: d["rows"].__setitem__(0, {})),
+    "metric not a number": _bad_baseline(lambda d: d["rows"][0].__setitem__("energy_drift", "small")),
+    "no rows": _bad_baseline(lambda d: d.__setitem__("rows", [])),
+    "empty results": _bad_results(lambda p, out: p.write_text(""), "empty file"),
+    "header only": _bad_results(lambda p, out: p.write_text((out / "results.csv").read_text().splitlines()[0] + "\n"),
+                                "no rows"),
+    "foreign columns": _bad_results(lambda p, out: p.write_text("a,b\n1,2\n"), "missing columns case"),
+    "undecodable": _bad_results(lambda p, out: p.write_bytes(b"case,engine\n\xff\xfe\x80,x\n"), "not UTF-8"),
+    "missing columns": _bad_results(_without_columns, "missing columns attitude_err"),
+    "factor inf": _options("--factor", "inf"),
+    "factor nan": _options("--factor", "nan"),
+    "floor inf": _options("--floor", "inf"),
+    "time factor inf": _options("--time-factor", "inf"),
+}
+
+
+@pytest.mark.parametrize("name", list(MALFORMED))
+def test_malformed_input_exits_2_with_one_line(baseline, tmp_path, capsys, name):
+    out, path = baseline
+    directory, baseline_file, options, expected = MALFORMED[name](out, path, tmp_path)
+    capsys.readouterr()
+    assert check(directory, baseline_file, *options) == 2
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and "Traceback" not in captured.err, captured.err
+    assert expected in captured.err
+
+
+def test_an_unwritable_baseline_out_exits_2(baseline, tmp_path, capsys):
+    out, _ = baseline
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    assert cli.main(["baseline", str(out), "--out", str(blocker / "baseline.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{blocker / 'baseline.json'}: cannot write" in err
+
+
 def test_bad_input_exits_2(baseline, tmp_path, capsys):
     out, path = baseline
     assert check(tmp_path, path) == 2  # no results.csv
@@ -159,8 +322,8 @@ def test_the_committed_quick_baseline_matches_the_quick_suite():
     rows = gate.read_baseline(QUICK_BASELINE)
     dts = [float(dt) for dt in QUICK_DT.split(",")]
     cases = [with_overrides(find_case(name), t_end=float(QUICK_T_END), dt=dts) for name in QUICK_CASES]
-    specs, skipped = runner.plan(cases, list(engine_names()), None)
-    planned = {gate._key(runner._base_row(spec, None)) for spec in specs} | {gate._key(row) for row in skipped}
+    specs, skipped = plan.plan(cases, list(engine_names()), None)
+    planned = {gate._key(plan.base_row(spec, None)) for spec in specs} | {gate._key(row) for row in skipped}
     assert {gate._key(row) for row in rows} <= planned
     assert {(key[0], key[1]) for key in planned} == {(row["case"], row["engine"]) for row in rows}
     assert all(row["status"] == "ok" for row in rows)

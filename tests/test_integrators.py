@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import stereodyn.harness.integrators as integrators
+from stereodyn.harness.fitting import order_slope
 from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, Integrator, get, names, register
@@ -57,7 +58,7 @@ class Heun(ExplicitRK):
 
 def fitted_order(dts, errors) -> float:
     """Least-squares slope of log(error) against log(dt)."""
-    return float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+    return order_slope(dts, errors)
 
 
 def final_errors(integrator: Integrator, dts, t_end: float) -> list[float]:

@@ -66,8 +66,8 @@ def test_report_md_has_every_section(reported):
     assert positions == sorted(positions)  # in this order; the environment is the footer
     assert "diverged at t = " in text
     for case in CASES:
-        assert f"![{case}: work–precision](figures/{case}-work-precision.png)" in text
-        assert f"![{case}: invariants](figures/{case}-invariants.png)" in text
+        assert f"![{case}: work–precision](figures/{build.figure_stem(case)}-work-precision.png)" in text
+        assert f"![{case}: invariants](figures/{build.figure_stem(case)}-invariants.png)" in text
     assert "precession_rate" in text and "convergence_order" in text
     footer = text.split("## Environment")[1]
     for key in ("python", "numpy", "scipy", "mujoco", "pin", "heyoka", "cpu", "date", "git commit"):
@@ -95,7 +95,7 @@ def test_every_figure_is_a_non_empty_image(reported):
         assert pixels.shape[0] > 100 and pixels.shape[1] > 100
         assert pixels[..., :3].std() > 0.05  # not a blank canvas: lines, labels and legends
     assert sorted(p.name for p in (reported / "figures").glob("*.png")) == sorted(
-        f"{case}-{kind}.png" for case in CASES for kind in ("invariants", "work-precision"))
+        f"{build.figure_stem(case)}-{kind}.png" for case in CASES for kind in ("invariants", "work-precision"))
 
 
 def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):

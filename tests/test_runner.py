@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import cli, runner
-from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines import Engine, get_engine
 from stereodyn.harness.results import COLUMNS
 
 
@@ -80,7 +80,7 @@ def test_a_diverging_run_is_a_row_and_the_sweep_completes(tmp_path):
 def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path, monkeypatch):
     real = get_engine("pinocchio")
 
-    class Broken:
+    class Broken(Engine):
         name = "pinocchio"
 
         def integrators(self):
@@ -107,7 +107,11 @@ def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path, monkeypatch):
 def test_a_missing_engine_makes_its_runs_skipped(tmp_path, monkeypatch):
     from stereodyn.harness import engines
 
-    monkeypatch.setitem(engines._ENGINES, "mujoco", ("stereodyn.harness.engines.no_such_sdk", "Nothing"))
+    from importlib.metadata import EntryPoint
+
+    registered = dict(engines._entry_points())
+    registered["mujoco"] = EntryPoint("mujoco", "stereodyn.harness.engines.no_such_sdk:Nothing", "stereodyn.engines")
+    monkeypatch.setattr(engines, "_entry_points", lambda: registered)
     engines.get_engine.cache_clear()
     try:
         assert run_cli("free-asymmetric", "--engines", "mujoco,reference", "--t-end", "0.5", "--jobs", "1",

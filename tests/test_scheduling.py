@@ -7,7 +7,7 @@ import pytest
 
 from stereodyn.harness import runner
 from stereodyn.harness.cases import find_case, with_overrides
-from stereodyn.harness.runner import RunSpec
+from stereodyn.harness.plan import RunSpec
 
 
 def spec(engine, integrator, dt, case="lagrange-top", formulation=""):

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, runner, timing, verdicts, workprecision
+from stereodyn.harness import cli, dt_ladders, runner, timing, verdicts, workprecision
 from stereodyn.harness import integrators as registry
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
@@ -223,16 +223,16 @@ def test_ladder_points_are_timed_after_the_accuracy_runs(monkeypatch):
     """The ladder's points run untimed (in the pool, when there is one); time_points then times each ok point alone,
     with its spread, and rhs_per_sim_s is exactly stages / dt (the engine counts its evaluations)."""
     timed_flags = []
-    real_measure = workprecision.measure
+    real_measure = dt_ladders.measure
 
     def spy(family, dt, timed=True, with_truth=True):
         timed_flags.append(timed)
         return real_measure(family, dt, timed, with_truth)
 
-    monkeypatch.setattr(workprecision, "measure", spy)
+    monkeypatch.setattr(dt_ladders, "measure", spy)
     case = with_overrides(find_case("free-asymmetric"), t_end=1.0)
     family = workprecision.Family(case, "pinocchio", "", "rk4")
-    points, rows = workprecision.run_ladders([family], max_steps=200, jobs=1)
+    points, rows = dt_ladders.run_ladders([family], max_steps=200)
     assert timed_flags and not any(timed_flags)
     ladder = pd.DataFrame(points)
     ok = ladder[ladder.status == "ok"]

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -222,6 +224,42 @@ def _string(text: str) -> str:
     return f'"{text}"'
 
 
+# Numbers the script computes (e.g. a precession rate through arctan and sqrt) may differ in the last bits between
+# CPUs and libm builds: lagrange-precession.toml's omega[0] differs by 1 ulp between the machine that wrote it and an
+# AMD EPYC with AVX-512. --check therefore compares the text with every float literal masked exactly (keys,
+# structure, comments), and every float literal (comments included) and parsed float within this many ulps.
+CHECK_ULPS = 4
+_FLOAT = re.compile(r"(?<![\w.])[-+]?(?:\d+\.\d*(?:[eE][-+]?\d+)?|\d+[eE][-+]?\d+|inf|nan)\b")
+
+
+def _close(committed, written) -> bool:
+    if isinstance(committed, dict):
+        return isinstance(written, dict) and committed.keys() == written.keys() \
+            and all(_close(committed[key], written[key]) for key in committed)
+    if isinstance(committed, list):
+        return isinstance(written, list) and len(committed) == len(written) \
+            and all(_close(a, b) for a, b in zip(committed, written))
+    if isinstance(committed, float) and isinstance(written, float):
+        if math.isnan(committed) or math.isnan(written) or math.isinf(committed) or math.isinf(written):
+            return committed == written or (math.isnan(committed) and math.isnan(written))
+        return abs(committed - written) <= CHECK_ULPS * math.ulp(max(abs(committed), abs(written)))
+    return type(committed) is type(written) and committed == written
+
+
+def same_case_text(committed: str, written: str) -> bool:
+    """The committed file is what the script writes: the same text outside float literals, and the same parsed
+    values with floats within CHECK_ULPS ulps."""
+    if _FLOAT.sub("#", committed) != _FLOAT.sub("#", written):
+        return False
+    literals = [float(x) for x in _FLOAT.findall(committed)], [float(x) for x in _FLOAT.findall(written)]
+    if not _close(*literals):  # the literals in comments too, which the parsed values below do not see
+        return False
+    try:
+        return _close(tomllib.loads(committed), tomllib.loads(written))
+    except tomllib.TOMLDecodeError:
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="compare with the committed files, write nothing")
@@ -234,7 +272,7 @@ def main(argv: list[str] | None = None) -> int:
         path = args.out / f"{spec.stem}.toml"
         text = render(spec)
         if args.check:
-            if not path.is_file() or path.read_text(encoding="utf-8") != text:
+            if not path.is_file() or not same_case_text(path.read_text(encoding="utf-8"), text):
                 stale.append(path.name)
             continue
         path.write_text(text, encoding="utf-8")

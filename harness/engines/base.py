@@ -1,6 +1,7 @@
-"""The engine protocol: build a case's model, roll it out with an integrator and a step, return a Trajectory."""
+"""The engine base class: build a case's model, roll it out with an integrator and a step, return a Trajectory."""
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -19,22 +20,104 @@ class Simulation(Protocol):
     def run(self, grid: "TimeGrid") -> Trajectory: ...
 
 
-class Engine(Protocol):
-    """An engine. Two methods are optional: formulations() -> tuple[str, ...], the formulations it runs (each run
-    then names one, passed to prepare as formulation=...; without the method: none, and rows have formulation ""),
-    and adaptive(integrator) -> bool, whether an integrator chooses its own steps (its runs have dt None; without
-    the method: none does)."""
+class Engine:
+    """The base class of an engine plug-in (entry-point group `stereodyn.engines`, harness.engines). Subclass it, set
+    `name`, implement the three required methods; every other hook has the default written here, which is what an
+    engine that does not override it gets. The harness calls these methods only, never getattr.
 
-    name: str
+    Required: integrators(), unsupported(case), prepare(case, integrator, dt, **formulation).
+    """
+
+    name: str = ""
+    # The state space ("lie" or "vector", harness.integrators) of the registered integrators this engine runs, if
+    # any: their declared orders come from the registry, and harness.testing runs an integrator of that space here.
+    state_space: str | None = None
+    # The formulation harness.testing runs a registered integrator on ("" for an engine without formulations).
+    default_formulation: str = ""
+    # Cost of one right-hand-side evaluation of one step, µs (the sweep's scheduler ranks runs by it: harness.runner).
+    pass_us: float = 5.0
+    # Matplotlib line style of this engine's lines in the report's figures.
+    linestyle: str = "-."
+    # Distributions whose versions can change this engine's results: they key the store (harness.environment).
+    packages: tuple[str, ...] = ()
+    # Model formats `stereodyn export` can write through export(case, fmt, integrator, dt).
+    export_formats: tuple[str, ...] = ()
+
+    # ---------------------------------------------------------------------------------------------- required
 
     def integrators(self) -> tuple[str, ...]:
         """The integrator names this engine runs, in report order."""
+        raise NotImplementedError(f"engine {self.name!r} does not implement integrators()")
 
     def unsupported(self, case: "Case") -> str | None:
         """Why this engine cannot model the case exactly (the run is then `skipped`), or None."""
+        raise NotImplementedError(f"engine {self.name!r} does not implement unsupported(case)")
 
-    def prepare(self, case: "Case", integrator: str, dt: float) -> Simulation:
-        """Build the model (not timed)."""
+    def prepare(self, case: "Case", integrator: str, dt: float | None, **formulation) -> Simulation:
+        """Build the model (not timed). formulation=... is passed when formulations() is not empty."""
+        raise NotImplementedError(f"engine {self.name!r} does not implement prepare(case, integrator, dt)")
+
+    # ---------------------------------------------------------------------------------------------- optional
+
+    def formulations(self) -> tuple[str, ...]:
+        """The formulations it runs; each run names one (prepare(..., formulation=...)). Default: none, and rows have
+        formulation ""."""
+        return ()
+
+    def adaptive(self, integrator: str) -> bool:
+        """Whether an integrator chooses its own steps (its runs have dt None). Default: none does."""
+        return False
+
+    def unsupported_run(self, case: "Case", formulation: str, integrator: str) -> str | None:
+        """Why one formulation/integrator pair cannot model the case (the run is `skipped`), or None (default)."""
+        return None
+
+    def torque_mode(self, case: "Case") -> str:
+        """How the case's external torques enter the model (results column torque_mode) when the trajectory does not
+        say (Trajectory.info["torque_mode"]). Default "none"."""
+        return "none"
+
+    def declared_order(self, integrator: str) -> float:
+        """The order an integrator claims (convergence.csv's declared_order). Default: the registry's order in
+        state_space; NaN for an integrator the registry does not know (override for the engine's own)."""
+        from stereodyn.harness import integrators
+
+        try:
+            return float(integrators.get(integrator, self.state_space or "lie").order)
+        except KeyError:
+            return math.nan
+
+    def prepare_ensemble(self, case: "Case", integrator: str, dt: float, quat0: np.ndarray, omega0: np.ndarray,
+                         threads: int = 1) -> "EnsembleSimulation":
+        """N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together. Default: not supported."""
+        raise NotImplementedError(f"engine {self.name!r} does not run ensembles")
+
+    def sliding_ladder_models(self) -> tuple[str, ...]:
+        """The sliding ladder's models (harness.sliding_ladder; rows name them in the formulation column). Default:
+        none, and the scene's row is skipped with sliding_ladder_unsupported()."""
+        return ()
+
+    def sliding_ladder_unsupported(self) -> str:
+        """Why this engine has no sliding-ladder model (the skipped row's message)."""
+        return f"{self.name} adapter does not model the sliding ladder"
+
+    def sliding_ladder_integrators(self, chosen: list[str]) -> list[str]:
+        """The integrators of the sweep's selection that run the sliding ladder. Default: all of them."""
+        return list(chosen)
+
+    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float | None) -> Simulation:
+        """Build one sliding-ladder model; its run(grid) returns a SlidingLadderTrajectory."""
+        raise NotImplementedError(f"engine {self.name!r} does not model the sliding ladder")
+
+    def export(self, case: "Case", fmt: str, integrator: str | None, dt: float | None) -> str:
+        """The model text in one of export_formats."""
+        raise NotImplementedError(f"engine {self.name!r} exports no format")
+
+
+class EnsembleSimulation(Protocol):
+    """An engine's model run from N initial states at once."""
+
+    def run(self, grid: "TimeGrid") -> list[Trajectory]: ...
 
 
 def precession_singular(case: Case) -> str | None:

@@ -6,6 +6,7 @@ invariant series, harness.store), checks.csv when some check wrote it (DESIGN §
 from __future__ import annotations
 
 import datetime
+import hashlib
 import math
 import multiprocessing
 import os
@@ -19,6 +20,7 @@ from stereodyn.harness import checks as theory_checks
 from stereodyn.harness import workprecision
 from stereodyn.harness.report import figures, html
 from stereodyn.harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
+from stereodyn.harness.processes import exit_with_parent
 from stereodyn.harness.results import read_results, write_atomic
 from stereodyn.harness.store import read_manifest, read_records
 
@@ -75,13 +77,21 @@ def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool
         if png is None:
             lines.setdefault(case, []).extend([missing[kind], ""])
             continue
-        path = f"{FIGURES_DIR}/{html.slug(case)}-{kind}.png"
+        path = f"{FIGURES_DIR}/{figure_stem(case)}-{kind}.png"
         images[path] = png
         lines.setdefault(case, []).extend([f"![{case}: {kind.replace('-', '–')}]({path})", ""])
         if kind == "invariants":
             rows = figures.invariant_rows(group, series, case)
             lines[case].extend([f"Rows of the invariants figure: {'; '.join(rows)}.", ""])
     return lines, images
+
+
+def figure_stem(case: str) -> str:
+    """A figure's file name for a case: safe (ASCII slug), bounded (<= 40 + 9 characters) and unique (the slug alone
+    maps every non-ASCII name to "", and two names to one file; the hash of the whole name tells them apart)."""
+    digest = hashlib.sha256(str(case).encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    stem = html.slug(str(case))[:40].strip("-")
+    return f"{stem}-{digest}" if stem else digest
 
 
 def _render(task: tuple) -> bytes | None:
@@ -95,7 +105,8 @@ def _render_all(tasks: list[tuple]) -> list[bytes | None]:
     if workers < 2:
         return [_render(task) for task in tasks]
     # spawn, not fork: the caller may hold heyoka's LLVM state and threads (a report at the end of a sweep).
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=exit_with_parent) as pool:
         return list(pool.map(_render, tasks))
 
 

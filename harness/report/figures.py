@@ -14,11 +14,20 @@ from matplotlib.ticker import NullFormatter
 
 DPI = 80
 PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
-LINESTYLES = {"mujoco": "-", "pinocchio": "--", "reference": ":"}
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
 QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift", "lagrange": "Lagrange ω₃ drift",
               "kovalevskaya": "Kovalevskaya integral", "chaplygin": "Goryachev–Chaplygin",
               "hess": "Hess K·k drift", "self_excited": "self-excited (36)", "attitude_err": "attitude error (rad)"}
+
+
+def linestyle(engine: str) -> str:
+    """The engine's line style (Engine.linestyle); an engine no longer registered gets the base class's."""
+    from stereodyn.harness.engines import Engine, EngineError, get_engine
+
+    try:
+        return get_engine(engine).linestyle
+    except (KeyError, EngineError):
+        return Engine.linestyle
 
 
 def dt_key(dt) -> str:
@@ -119,7 +128,7 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
             engine = runs["engine"].iloc[0]
             short = str(runs["integrator"].iloc[0])  # the panel's title names the engine and formulation
             axes.plot((runs["wall_s"] / runs["t_end"] * 1e6).to_numpy(), runs["attitude_err"].to_numpy(),
-                      marker=marker, markersize=4, linestyle=LINESTYLES.get(engine, "-."), color=colour,
+                      marker=marker, markersize=4, linestyle=linestyle(engine), color=colour,
                       linewidth=1.0, label=short)
         axes.set_xscale("log")
         axes.set_yscale("log")
@@ -146,7 +155,7 @@ def _legend(frame: pd.DataFrame) -> tuple[list, list[str]]:
         handles.append(Line2D([], [], color=colour, marker=marker, markersize=4))
         labels.append(integrator)
     for engine in dict.fromkeys(frame["engine"]):
-        handles.append(Line2D([], [], color="grey", linestyle=LINESTYLES.get(engine, "-.")))
+        handles.append(Line2D([], [], color="grey", linestyle=linestyle(engine)))
         labels.append(f"engine {engine}")
     if frame["dt"].isna().any():
         handles.append(Line2D([], [], color="black"))
@@ -232,7 +241,7 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
                 y = np.array([np.nan if v is None else v for v in values[quantity]], dtype=float)
                 y[~(y > 0)] = np.nan  # a log axis has no place for the exact zero at t = 0
                 if np.isfinite(y).any():
-                    grid[line, column].plot(t, y, linestyle=LINESTYLES.get(row["engine"], "-."),
+                    grid[line, column].plot(t, y, linestyle=linestyle(row["engine"]),
                                             color="black" if is_truth else colour, linewidth=1.0)
         grid[0, column].set_title(title, fontsize=9)
         grid[-1, column].set_xlabel("t (s)", fontsize=8)

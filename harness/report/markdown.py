@@ -29,8 +29,9 @@ DEFINITIONS = """\
   code for every engine, never from an engine's own energy.
 - attitude_err / attitude_err_end: max / final geodesic angle (rad) between the run's attitude and the truth's at the
   same times, up to the case's horizon; omega_err: max |omega - omega_truth| / max |omega_truth|.
-- truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err is the largest angle
-  between it and a quadruple-precision rerun (only with --certify).
+- truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err (rad) and
+  truth_omega_err (relative) bound its attitude and omega errors: its difference from a quadruple-precision rerun plus
+  an allowance for a float64 comparison's rounding (none with --no-certify).
 - us_per_step: stepping time only, best of 2 or 3 timed runs after an untimed warm-up run, metrics off; every run is
   timed alone, in a phase after all the accuracy runs, so no timed run shares the cores with another run. Compare
   timings within one report. us_per_step_spread: the second-best timed run minus the best (µs per step), the noise of
@@ -199,11 +200,9 @@ FORMULATION_COLUMNS = ("formulation", "integrator", "dt", "status", "chart_chang
                        "us_per_step")
 
 
-def formulation_lines(df: pd.DataFrame) -> list[str]:
-    """The section "Formulations side by side": for one case and one engine with several formulations, every
-    formulation at one dt (the middle of the dt values they all ran) with each fixed-step integrator, and integrated
-    by the adaptive integrators (dt empty). The case: the one whose rows at that dt changed charts most often (the one
-    where the coordinates differ most), first in table order on a tie. Empty when no engine ran two formulations."""
+def _side_by_side(df: pd.DataFrame):
+    """(case, engine, dt, rows) of the case with several formulations whose rows at the middle common dt changed
+    charts most often (first in table order on a tie), or None."""
     formulations = df["formulation"].fillna("") if "formulation" in df else pd.Series("", index=df.index)
     best = None
     for (case, engine), group in df[formulations != ""].groupby(["case", "engine"], sort=False):
@@ -218,15 +217,32 @@ def formulation_lines(df: pd.DataFrame) -> list[str]:
         changes = at_dt["chart_changes"].fillna(0).sum() if "chart_changes" in at_dt else 0
         if best is None or changes > best[0]:
             best = (changes, case, engine, dt, pd.concat([group[group["dt"].isna()], at_dt]))
-    if best is None:
+    return None if best is None else best[1:]
+
+
+def formulation_lines(df: pd.DataFrame) -> list[str]:
+    """The section "Formulations side by side": for one case and one engine with several formulations, every
+    formulation at one dt (the middle of the dt values they all ran) with each fixed-step integrator, and integrated
+    by the adaptive integrators (dt empty). The case: the one whose rows at that dt changed charts most often (the one
+    where the coordinates differ most), first in table order on a tie; one such case without external torques (the
+    Lagrange top, in the default suite) and one with them (torque_mode other than none), each where the sweep has one.
+    Empty when no engine ran two formulations."""
+    torqued = (df["torque_mode"].fillna("none") != "none") if "torque_mode" in df else pd.Series(False, index=df.index)
+    tables = []
+    for picked in (_side_by_side(df[~torqued]), _side_by_side(df[torqued])):
+        if picked is None:
+            continue
+        case, engine, dt, rows = picked
+        cells = _table(rows, list(FORMULATION_COLUMNS))
+        cells[1:] = [[cell if cell or column != "dt" else "adaptive" for cell, column in zip(row, FORMULATION_COLUMNS)]
+                     for row in cells[1:]]
+        modes = sorted(set(rows["torque_mode"].dropna()) - {"none"}) if "torque_mode" in rows else []
+        torque = f" (external torques, entered as: {', '.join(modes)})" if modes else ""
+        tables += [f"### {case}", "", f"Case {case}, engine {engine}{torque}: each formulation at dt = {dt:g} with "
+                   "every fixed-step integrator, and integrated by the adaptive one.", "", _markdown_table(cells), ""]
+    if not tables:
         return []
-    _, case, engine, dt, rows = best
-    cells = _table(rows, list(FORMULATION_COLUMNS))
-    cells[1:] = [[cell if cell or column != "dt" else "adaptive" for cell, column in zip(row, FORMULATION_COLUMNS)]
-                 for row in cells[1:]]
     return ["## Formulations side by side", "",
-            f"Case {case}, engine {engine}: each formulation at dt = {dt:g} with every fixed-step integrator, and "
-            "integrated by the adaptive one (its attitude error is the formulations' disagreement with the truth). "
-            "Same equations of motion, different coordinates: the differences are the coordinates' doing.", "",
-            _markdown_table(cells), ""]
+            "The adaptive integrator's attitude error is the formulations' disagreement with the truth. Same equations "
+            "of motion, different coordinates: the differences are the coordinates' doing.", "", *tables]
 

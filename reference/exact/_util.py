@@ -18,7 +18,9 @@ CONDITION_RTOL = 1e-12
 # Two principal moments are equal (the symmetric closed form applies) when their refined PRECISE_DIGITS-digit values
 # agree to this: the given inertia is exactly symmetric. A genuine gap, even the 1e-16 left by rounding a rotated
 # symmetric tensor, is a triaxial body; the elliptic solution is exact for it (m, ν ~ the gap), whereas the symmetric
-# form would err by gap/I |ω| t (measured 2e-12 rad over 10 periods).
+# form would err in the spin rate by ~ gap/I (ω_⊥/ω_a)², unbounded as the spin ω_a about the symmetry axis goes to 0
+# (measured 2.1e-12 rad over 10 periods of a rotated (3, 1.5, 1.5), ω_⊥/ω_a ~ 40). No asymmetry threshold above
+# exact equality is safe for every state, so there is none.
 SYMMETRIC_RTOL = 1e-30
 
 
@@ -87,6 +89,16 @@ def principal_frame_precise(inertia: np.ndarray, omega: np.ndarray) -> tuple[lis
                 axes = _decimal_matrix_product(axes, rotation)
         a = _decimal_matrix_product(_decimal_transpose(axes), _decimal_matrix_product(sigma, axes))
         moments = [a[i][i] for i in range(3)]
+        # The Jacobi sweeps keep eigh's order, which two moments within ~1 ulp of each other (a rotated symmetric
+        # tensor) can leave ascending: sort descending, as every caller assumes (I1 >= I2 >= I3), and negate the
+        # last axis after an odd permutation so that the frame stays right-handed.
+        order = sorted(range(3), key=lambda i: moments[i], reverse=True)
+        if order != [0, 1, 2]:
+            odd = sum(order[i] > order[j] for i in range(3) for j in range(i + 1, 3)) % 2 == 1
+            moments = [moments[i] for i in order]
+            axes = [[row[i] for i in order] for row in axes]
+            if odd:
+                axes = [[row[0], row[1], -row[2]] for row in axes]
         omega_dec = [Decimal(float(x)) for x in np.asarray(omega, dtype=float)]
         w = [sum((axes[k][i] * omega_dec[k] for k in range(3)), Decimal(0)) for i in range(3)]
     return moments, axes, w

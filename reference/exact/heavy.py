@@ -38,9 +38,9 @@ class Setup:
 
     def motion(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(n,) s -> (quat (n, 4), omega (n, 3) rad/s body): the exact motion from this state."""
-        from stereodyn.reference.exact import ORACLES  # the registry imports this module
-
-        return ORACLES[self.oracle].solve(self.body, self.quat0, self.omega0, np.asarray(times, dtype=float))
+        # every Setup names one of this module's own solutions (the registry reference.exact.ORACLES imports this
+        # module, so the lookup stays here rather than going through the registry)
+        return _SOLVES[self.oracle](self.body, self.quat0, self.omega0, np.asarray(times, dtype=float))
 
 
 def _rodrigues(axis: np.ndarray, angle: np.ndarray, vector: np.ndarray) -> np.ndarray:
@@ -546,3 +546,8 @@ def mlodzejowski_solve(body, quat0, omega0, times):
     axis_world = quat_to_matrix(quat0) @ e
     quat = quat_mul(axis_angle_quat(axis_world, angle0 - swing.angle), quat0)
     return quat, -swing.rate[:, None] * e
+
+
+# The solution of each oracle a Setup can name (reference.exact.ORACLES lists the same functions with their checks).
+_SOLVES = {"lagrange_precession": lagrange_solve, "staude_rotation": staude_solve, "grioli_precession": grioli_solve,
+           "hess_grioli": hess_grioli_solve, "mlodzejowski": mlodzejowski_solve}

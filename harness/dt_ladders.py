@@ -1,0 +1,241 @@
+"""Work–precision measuring: dt ladders and stability limits.
+
+For a case × engine × formulation × integrator, a ladder is LADDER_POINTS log-spaced steps from the largest stable dt
+(found by bisection) down to t_end / max_steps, where the 4th-order methods reach their round-off floor. Each point is
+one untimed accuracy run (errors against the truth, energy drift) and separate timed runs (harness.timing: best of N
+after the accuracy run as warm-up, within a budget), costed as µs of stepping per simulated second.
+
+The error whose order is fitted (harness.fitting) is the global error of the state, state_err = max(attitude_err,
+omega_err, casimir_drift): a method's order is that of its whole state. (The attitude alone can converge faster than
+the method: MuJoCo's semi-implicit Euler on a plane pendulum has the positions of Störmer–Verlet, second order, while
+its velocities are first order; explicit Euler on a steady rotation has a second-order phase but a first-order |q|
+growth.)
+
+stable_dt_max: the largest dt whose run over t_end finishes ok with energy_drift <= STABLE_ENERGY_DRIFT, by
+doubling/halving from a start until the outcome changes, then geometric bisection to STABILITY_RTOL.
+
+The ladders run on the sweep's process pool (harness.runner.worker_pool), one task per family.
+"""
+from __future__ import annotations
+
+import math
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from stereodyn.harness import metrics
+from stereodyn.harness.cases import Case
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.fitting import declared_order, fit
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness import timing
+from stereodyn.harness.trajectory import Status
+
+LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
+                  "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
+                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s")
+LADDER_POINTS = 10
+TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
+STABLE_ENERGY_DRIFT = 1.0    # energy off by its whole scale: the run has blown up even if |ω| is not yet 1e6 x
+STABILITY_RTOL = 0.02        # bisection stops when the bracket [stable, unstable] is this tight (relative)
+MIN_STEPS = 20               # the largest dt tried is t_end / MIN_STEPS: fewer steps say nothing about stability
+
+
+@dataclass(frozen=True)
+class Family:
+    """Runs that differ only in dt."""
+
+    case: Case
+    engine: str
+    formulation: str
+    integrator: str
+
+    @property
+    def label(self) -> str:
+        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator) if x)
+
+
+# ------------------------------------------------------------------------------------------------ one point
+
+def _prepare(family: Family, dt: float):
+    extra = {"formulation": family.formulation} if family.formulation else {}
+    return get_engine(family.engine).prepare(family.case, family.integrator, dt, **extra)
+
+
+def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = True) -> dict:
+    """One ladder point: accuracy run (errors against the truth when with_truth), then timed runs. Never raises."""
+    case = family.case
+    grid = time_grid(case.t_end, dt, case.samples)
+    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
+           "integrator": family.integrator, "dt": float(dt), "t_end": grid.t_end, "steps": grid.steps}
+    try:
+        sim = _prepare(family, dt)
+        traj = sim.run(grid)
+        row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals,
+                   rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan)
+        drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
+        row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
+        if with_truth:
+            from stereodyn.reference import truth as reference_truth
+
+            truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
+            row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
+            parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
+            row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
+                if math.isfinite(row["attitude_err"]) else math.nan
+        if timed and traj.status is Status.OK:
+            row.update(_timed(sim, grid))
+    except Exception as exc:  # a point that breaks is data, as in the sweep
+        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    return row
+
+
+def _timed(sim, grid) -> dict:
+    measured = timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S)
+    return {"wall_s": measured.best, "us_per_sim_s": measured.best / grid.t_end * 1e6,
+            "us_per_sim_s_spread": measured.spread / grid.t_end * 1e6}
+
+
+def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
+    """The ladders' timing phase: every ok point timed in this process, one at a time, after all the accuracy runs
+    (harness.timing: a timed run shares the cores with no other run). Updates the points in place."""
+    for row in points:
+        if row.get("status") != Status.OK.value:
+            continue
+        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        try:
+            sim = _prepare(family, row["dt"])
+            grid = time_grid(family.case.t_end, row["dt"], family.case.samples)
+            sim.run(grid)  # the warm-up
+            row.update(_timed(sim, grid))
+        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
+            pass
+
+
+def _stable(row: dict) -> bool:
+    drift = row.get("energy_drift", math.nan)
+    return row.get("status") == Status.OK.value and not (isinstance(drift, float) and drift > STABLE_ENERGY_DRIFT)
+
+
+# ------------------------------------------------------------------------------------------------ stability
+
+def stability_limit(is_stable: Callable[[float], bool], dt_start: float, dt_cap: float,
+                    dt_floor: float) -> tuple[float, str]:
+    """(largest stable dt, note): doubling or halving from dt_start until the outcome changes, then geometric
+    bisection to STABILITY_RTOL. NaN with a note when no change is found in [dt_floor, dt_cap]."""
+    dt = min(dt_start, dt_cap)
+    stable_dt = unstable_dt = None
+    if is_stable(dt):
+        stable_dt = dt
+        while unstable_dt is None and dt * 2.0 <= dt_cap * (1 + 1e-12):
+            dt *= 2.0
+            if is_stable(dt):
+                stable_dt = dt
+            else:
+                unstable_dt = dt
+        if unstable_dt is None:
+            return math.nan, f"stable up to dt = {dt:.4g} s (t_end / {MIN_STEPS} is the largest tried)"
+    else:
+        unstable_dt = dt
+        while stable_dt is None and dt / 2.0 >= dt_floor:
+            dt /= 2.0
+            if is_stable(dt):
+                stable_dt = dt
+            else:
+                unstable_dt = dt
+        if stable_dt is None:
+            return math.nan, f"unstable down to dt = {dt:.4g} s"
+    while unstable_dt / stable_dt > 1.0 + STABILITY_RTOL:
+        middle = math.sqrt(stable_dt * unstable_dt)
+        if is_stable(middle):
+            stable_dt = middle
+        else:
+            unstable_dt = middle
+    return stable_dt, ""
+
+
+# ------------------------------------------------------------------------------------------------ ladders
+
+def ladder_dts(top: float, bottom: float, points: int = LADDER_POINTS) -> list[float]:
+    """points log-spaced steps from top down to bottom (each rounded to 4 significant digits, so a dt prints back)."""
+    if not bottom < top:
+        return [top]
+    return [float(f"{x:.4g}") for x in np.geomspace(top, bottom, points)]
+
+
+def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
+    """The ladder of one family: its points and its convergence row. Never raises."""
+    case = family.case
+    declared = declared_order(family.engine, family.integrator)
+    cap, floor = case.t_end / MIN_STEPS, case.t_end / max_steps
+    cache: dict[float, dict] = {}
+
+    def is_stable(dt: float) -> bool:
+        cache[dt] = measure(family, dt, timed=False, with_truth=False)
+        return _stable(cache[dt])
+
+    start = max(case.dt)
+    stable_dt, stability_note = stability_limit(is_stable, start, cap, floor)
+    top = stable_dt if math.isfinite(stable_dt) else (cap if "stable up to" in stability_note else start)
+    points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
+    frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
+    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
+           "integrator": family.integrator, "stable_dt_max": stable_dt, "source": "ladder", **fit(frame, declared)}
+    if stability_note:
+        row["note"] = "; ".join(x for x in (row["note"], stability_note) if x)
+    return points, row
+
+
+def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
+             formulations: tuple[str, ...] | None = None) -> list[Family]:
+    """The fixed-step run families a sweep of these cases would have (harness.plan.plan's selection)."""
+    from stereodyn.harness.plan import plan
+
+    specs, _ = plan(cases, engines, integrators)
+    out = {}
+    for spec in specs:
+        if spec.dt is None or (formulations is not None and spec.formulation not in formulations):
+            continue
+        out.setdefault((spec.case.name, spec.engine, spec.formulation, spec.integrator),
+                       Family(spec.case, spec.engine, spec.formulation, spec.integrator))
+    return list(out.values())
+
+
+def _failed_family(family: Family, exc: BaseException) -> tuple[list[dict], dict]:
+    """A family whose worker died: no points, and its convergence row says why."""
+    return [], {"case": family.case.name, "engine": family.engine, "formulation": family.formulation,
+                "integrator": family.integrator, "source": "ladder",
+                "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
+
+
+def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor | None = None,
+                progress: Callable[[str], None] | None = None) -> tuple[list[dict], list[dict]]:
+    """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
+    timed here (time_points). Returns (points, convergence rows), in the order of `chosen` whatever order the families
+    finish in."""
+    results: dict[int, tuple[list[dict], dict]] = {}
+    if pool is None or len(chosen) <= 1:
+        for index, family in enumerate(chosen):
+            results[index] = run_ladder(family, max_steps)
+            if progress:
+                progress(family.label)
+    else:
+        futures = {pool.submit(run_ladder, family, max_steps): index for index, family in enumerate(chosen)}
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                results[index] = future.result()
+            except Exception as exc:  # a worker that died: the family's row says so
+                results[index] = _failed_family(chosen[index], exc)
+            if progress:
+                progress(chosen[index].label)
+    points, rows = [], []
+    for index in range(len(chosen)):
+        points += results[index][0]
+        rows.append(results[index][1])
+    # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
+    time_points(points, {(f.case.name, f.engine, f.formulation, f.integrator): f for f in chosen})
+    return points, rows

@@ -1,0 +1,209 @@
+"""Work–precision fitting: the one order fitter (order_slope), the round-off floor and the order of a ladder's points
+(fit), the orders of a sweep's own dt lists, and the Pareto table (the cheapest run reaching each accuracy target).
+
+- the round-off floor: walking from large to small dt among the points below ASYMPTOTIC_MAX, the first point after
+  which the error falls with a local slope below FLOOR_SLOPE while it is below FLOOR_MAX (a stall higher up is not
+  round-off); floor_dt is that point's dt, floor_err the smallest error from there on;
+- the order: least-squares slope of log state_err against log dt over the asymptotic range: points above the floor
+  (dt > floor_dt), with ROUNDOFF_MARGIN eps steps <= state_err <= ASYMPTOTIC_MAX; at least two points.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from stereodyn.harness import checks
+from stereodyn.harness.engines import EngineError, get_engine
+from stereodyn.harness.report.markdown import number as _num
+from stereodyn.harness.trajectory import Status
+
+CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
+                       "stable_dt_max", "declared_order", "points", "source", "note")
+PARETO_COLUMNS = ("case", "target", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
+                  "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "ties", "not_recommended")
+ORDER_QUANTITY = "convergence_order"
+
+# A state error above this (rad, or relative for ω) is pre-asymptotic: higher-order terms and the saturation of the
+# attitude angle at π bend the curve (measured on the suite: RK4 at 5e-2 rad gives a slope of 3.6, Euler at 0.3 of 1.2).
+ASYMPTOTIC_MAX = 3e-2
+# Below ROUNDOFF_MARGIN × eps × steps the error is contaminated by rounding, which accumulates at most ~ eps per step
+# (measured floors of the suite: 2e-14 to 5e-12 rad after 2e3 to 2e4 steps): a 30x margin keeps its share of a
+# 2-point slope below 0.03.
+ROUNDOFF_MARGIN = 30.0
+EPS = float(np.finfo(float).eps)
+FLOOR_SLOPE = 0.5            # a local slope below this: the error has stopped falling
+FLOOR_MAX = 1e-6             # a stall above this is not round-off (pre-asymptotic wiggles, resonances)
+ACCURACY_TARGETS = tuple(10.0 ** -k for k in range(2, 13))
+
+
+def order_slope(dt, err) -> float:
+    """The convergence order of errors err at steps dt: the least-squares slope of log err against log dt (the
+    error is the dependent variable: err ~ C dt^p). The one order fitter of the harness (convergence.csv,
+    harness.testing)."""
+    return float(np.polyfit(np.log(np.asarray(dt, dtype=float)), np.log(np.asarray(err, dtype=float)), 1)[0])
+
+
+def declared_order(engine: str, integrator: str) -> float:
+    """The order the engine declares for an integrator (Engine.declared_order); NaN for an engine not registered."""
+    try:
+        return get_engine(engine).declared_order(integrator)
+    except (KeyError, EngineError):
+        return math.nan
+
+
+def fit(points: pd.DataFrame, declared: float) -> dict:
+    """order, floor_dt, floor_err, points and a note from ladder points (columns dt, steps, status, state_err)."""
+    ok = points[(points["status"] == Status.OK.value) & np.isfinite(points["state_err"])
+                & (points["state_err"] > 0)].sort_values("dt", ascending=False)
+    dt, err, steps = ok["dt"].to_numpy(float), ok["state_err"].to_numpy(float), ok["steps"].to_numpy(float)
+    below = err <= ASYMPTOTIC_MAX
+    floor_index = None
+    for i in range(len(dt) - 1):
+        if not (below[i] and err[i] <= FLOOR_MAX):
+            continue
+        slope = math.log(err[i] / err[i + 1]) / math.log(dt[i] / dt[i + 1])
+        if slope < FLOOR_SLOPE:
+            floor_index = i
+            break
+    floor_dt = float(dt[floor_index]) if floor_index is not None else math.nan
+    floor_err = float(err[floor_index:].min()) if floor_index is not None else math.nan
+    asymptotic = below & (err >= ROUNDOFF_MARGIN * EPS * steps)
+    if floor_index is not None:  # the stall's first point may already carry the floor
+        asymptotic &= np.arange(len(dt)) < floor_index
+    n = int(asymptotic.sum())
+    notes = []
+    order = math.nan
+    if n >= 2:
+        order = order_slope(dt[asymptotic], err[asymptotic])
+    else:
+        notes.append(f"{n} point(s) in the asymptotic range ({ROUNDOFF_MARGIN:g} eps steps <= state_err <= "
+                     f"{ASYMPTOTIC_MAX:g})")
+    if floor_index is None and len(dt):
+        notes.append(f"no round-off floor down to dt = {dt[-1]:.3g}")
+    return {"order": order, "floor_dt": floor_dt, "floor_err": floor_err, "declared_order": declared, "points": n,
+            "note": "; ".join(notes)}
+
+
+def with_state_err(df: pd.DataFrame) -> pd.DataFrame:
+    df = df.copy()
+    parts = df[["attitude_err", "omega_err", "casimir_drift"]].astype(float)
+    df["state_err"] = parts.max(axis=1).where(np.isfinite(df["attitude_err"].astype(float)))
+    return df
+
+
+def sweep_orders(results: pd.DataFrame, skip: set[tuple]) -> list[dict]:
+    """Convergence rows from the sweep's own dt lists (no extra runs), for families not in skip."""
+    df = with_state_err(results[results["dt"].notna()].fillna({"formulation": ""}))
+    rows = []
+    for (case, engine, formulation, integrator), group in df.groupby(
+            ["case", "engine", "formulation", "integrator"], sort=False):
+        if (case, engine, formulation, integrator) in skip or group["dt"].nunique() < 2:
+            continue
+        declared = declared_order(engine, integrator)
+        row = {"case": case, "engine": engine, "formulation": formulation, "integrator": integrator,
+               "stable_dt_max": math.nan, "source": "dt_list", **fit(group, declared)}
+        rows.append(row)
+    return rows
+
+
+def convergence_table(rows: list[dict]) -> pd.DataFrame:
+    df = pd.DataFrame(rows, columns=list(CONVERGENCE_COLUMNS))
+    return df.fillna({"formulation": "", "note": ""})
+
+
+def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
+    """checks.csv rows: the fitted order against the declared one (dt empty: a fit over many)."""
+    records = []
+    for _, row in convergence.iterrows():
+        if not math.isfinite(row["order"]) or not math.isfinite(row["declared_order"]):
+            continue
+        records.append({"case": row["case"], "engine": row["engine"], "formulation": row["formulation"],
+                        "integrator": row["integrator"], "dt": math.nan, "quantity": ORDER_QUANTITY,
+                        "theory": row["declared_order"], "measured": row["order"],
+                        "error": checks.error(ORDER_QUANTITY, row["declared_order"], row["order"])})
+    return pd.DataFrame(records, columns=list(checks.COLUMNS))
+
+
+# Two candidates tie when their costs differ by no more than the timing noise: the sum of their spreads (slowest
+# minus fastest of their timed runs), and at least TIE_RTOL of the cheaper cost. The floor stands for the noise that
+# repeats inside one process do not show and two runs of the sweep do (clock boost, cache and memory placement); 5% is
+# the usual run-to-run scatter of a micro-benchmark on an idle machine, an assumption to be checked by two runs there.
+TIE_RTOL = 0.05
+
+
+def pareto(results: pd.DataFrame, ladder: pd.DataFrame, failed: set | None = None) -> pd.DataFrame:
+    """Per case and accuracy target, the cheapest fixed-step run (sweep or ladder) whose attitude_err reaches it, with
+    ties and the runs not recommended (pareto_table)."""
+    sweep = results[results["dt"].notna()].copy()
+    sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
+    sweep["us_per_sim_s_spread"] = sweep["us_per_step_spread"] * sweep["steps"] / sweep["t_end"]
+    sweep["source"] = "sweep"
+    ladder = ladder.copy()
+    ladder["source"] = "ladder"
+    columns = ["case", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
+               "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "status"]
+    for frame_ in (sweep, ladder):
+        for column in columns:
+            if column not in frame_:
+                frame_[column] = math.nan
+    both = pd.concat([sweep[columns], ladder[columns]] if len(ladder) else [sweep[columns]], ignore_index=True)
+    return pareto_table(both, list(dict.fromkeys(results["case"])), failed or set())
+
+
+def _candidate(row) -> str:
+    return f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
+
+
+def is_failed(failed_set: set[tuple[str, str, str]], engine: str, formulation: str, integrator: str) -> bool:
+    """Whether a run's integrator failed a verdict (harness.verdicts.failed_integrators; "*" matches any engine and
+    formulation)."""
+    return (engine, formulation, integrator) in failed_set or ("*", "*", integrator) in failed_set
+
+
+def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()) -> pd.DataFrame:
+    """The Pareto table from candidate runs (columns case, engine, formulation, integrator, dt, attitude_err,
+    us_per_sim_s, us_per_sim_s_spread, rhs_per_sim_s, steps, source, status).
+
+    Per case and target: among the ok runs reaching the target whose integrator passed its verdicts (failed: a set of
+    (engine, formulation, integrator), harness.verdicts.failed_integrators), the cheapest; every run within the timing
+    noise of it (TIE_RTOL, the spreads) is a tie, listed in `ties`, and the winner among the tied is the one with the
+    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest.
+    `not_recommended` names the cheaper runs left out because their integrator failed a verdict."""
+    runs = runs.fillna({"formulation": ""})
+    runs = runs[(runs["status"] == Status.OK.value) & np.isfinite(runs["attitude_err"].astype(float))
+                & np.isfinite(runs["us_per_sim_s"].astype(float))]
+    bad = np.array([is_failed(set(failed), r.engine, r.formulation, r.integrator) for r in runs.itertuples()],
+                   dtype=bool)
+    records = []
+    for case in cases:
+        in_case = (runs["case"] == case).to_numpy()
+        for target in ACCURACY_TARGETS:
+            reach = in_case & (runs["attitude_err"] <= target).to_numpy()
+            good, excluded = runs[reach & ~bad], runs[reach & bad]
+            if good.empty:
+                records.append({"case": case, "target": target, "engine": "", "formulation": "", "integrator": "",
+                                "source": "none reached it" if excluded.empty else "only runs that failed a verdict",
+                                "ties": "", "not_recommended": "; ".join(_candidate(r) for _, r in
+                                                                          excluded.nsmallest(3, "us_per_sim_s")
+                                                                          .iterrows())})
+                continue
+            cheapest = good.loc[good["us_per_sim_s"].idxmin()]
+            noise = np.maximum(good["us_per_sim_s_spread"].fillna(0.0).to_numpy(float)
+                               + (0.0 if not math.isfinite(cheapest["us_per_sim_s_spread"])
+                                  else cheapest["us_per_sim_s_spread"]),
+                               TIE_RTOL * cheapest["us_per_sim_s"])
+            tied = good[(good["us_per_sim_s"].to_numpy(float) - cheapest["us_per_sim_s"]) <= noise]
+            rhs = tied["rhs_per_sim_s"].astype(float).fillna(math.inf)
+            best = tied.loc[tied.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
+            cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
+            records.append({"case": case, "target": target, **{c: best[c] for c in PARETO_COLUMNS[2:12]},
+                            "ties": "; ".join(_candidate(r) for i, r in tied.iterrows() if i != best.name),
+                            "not_recommended": "; ".join(_candidate(r) for _, r in
+                                                         cheaper_bad.nsmallest(3, "us_per_sim_s").iterrows())})
+    return pd.DataFrame(records, columns=list(PARETO_COLUMNS))
+
+
+def _name(row) -> str:
+    return " ".join(str(x) for x in (row["engine"], row["formulation"], row["integrator"]) if isinstance(x, str) and x)

@@ -1,0 +1,67 @@
+"""write_atomic (harness/results.py): a write that fails mid-way leaves the old file intact and no temporary."""
+import os
+
+import pytest
+
+from stereodyn.harness import results
+from stereodyn.harness.results import write_atomic
+
+
+class _HalfWriter:
+    """A file handle that writes half of what it is given, then fails (a full disk, a killed process)."""
+
+    def __init__(self, handle):
+        self._handle = handle
+
+    def write(self, data):
+        self._handle.write(data[: len(data) // 2])
+        self._handle.flush()
+        raise OSError(28, "No space left on device")
+
+    def __getattr__(self, name):
+        return getattr(self._handle, name)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._handle.close()
+        return False
+
+
+@pytest.mark.parametrize("payload", ["new text, much longer than the old one\n" * 50, b"\x00\x01new bytes" * 50])
+def test_a_write_failing_mid_way_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch, payload):
+    target = tmp_path / "results.csv"
+    target.write_text("old,contents\n1,2\n")
+    real_fdopen = os.fdopen
+    monkeypatch.setattr(results.os, "fdopen", lambda *a, **k: _HalfWriter(real_fdopen(*a, **k)))
+    monkeypatch.setattr("builtins.open", lambda *a, **k: _HalfWriter(real_fdopen(os.open(a[0], os.O_WRONLY
+                                                                       | os.O_CREAT | os.O_TRUNC), *a[1:], **k)))
+    with pytest.raises(OSError, match="No space left"):
+        write_atomic(target, payload)
+    monkeypatch.undo()
+    assert target.read_text() == "old,contents\n1,2\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv"]
+
+
+def test_a_failing_rename_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
+    target = tmp_path / "runs.json"
+    target.write_text("{}")
+
+    def refuse(src, dst):
+        raise PermissionError(13, "Permission denied", str(dst))
+
+    monkeypatch.setattr(results.os, "replace", refuse)
+    with pytest.raises(PermissionError):
+        write_atomic(target, "{\"new\": 1}")
+    monkeypatch.undo()
+    assert target.read_text() == "{}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["runs.json"]
+
+
+def test_a_write_replaces_the_file_readable_by_all(tmp_path):
+    target = tmp_path / "out.txt"
+    target.write_text("old")
+    write_atomic(target, "new")
+    assert target.read_text() == "new" and (target.stat().st_mode & 0o777) == 0o644
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]

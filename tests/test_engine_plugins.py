@@ -1,0 +1,247 @@
+"""Engines are plug-ins (entry-point group stereodyn.engines, base class harness.engines.base.Engine): the built-ins
+are registered there; a third-party engine package, installed in a temporary directory, runs in a sweep; a broken or
+old-style plug-in is refused naming it; and no engine name is spelled in the harness outside its adapter and the
+registry."""
+import ast
+import os
+import subprocess
+import sys
+import textwrap
+from importlib.metadata import entry_points
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from stereodyn.harness import engines
+from stereodyn.harness.engines import Engine, EngineError
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = "stereodyn_toy_engine"
+
+# A PEP 517 backend in the package's own tree, as tests/test_plugin.py's: no network, no wheel package needed.
+BACKEND = f'''
+import base64, hashlib, zipfile
+from pathlib import Path
+
+NAME, VERSION, PACKAGE = "{PACKAGE.replace('_', '-')}", "0.1.0", "{PACKAGE}"
+DIST_INFO = f"{PACKAGE}-{{VERSION}}.dist-info"
+ENTRY_POINTS = Path("entry_points.txt").read_text()
+
+
+def get_requires_for_build_wheel(config_settings=None):
+    return []
+
+
+def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
+    files = {{
+        f"{{DIST_INFO}}/METADATA": f"Metadata-Version: 2.1\\nName: {{NAME}}\\nVersion: {{VERSION}}\\n",
+        f"{{DIST_INFO}}/WHEEL": "Wheel-Version: 1.0\\nGenerator: b\\nRoot-Is-Purelib: true\\nTag: py3-none-any\\n",
+        f"{{DIST_INFO}}/entry_points.txt": ENTRY_POINTS,
+        f"{{PACKAGE}}/__init__.py": Path(PACKAGE, "__init__.py").read_text(),
+    }}
+    record = []
+    name = f"{PACKAGE}-{{VERSION}}-py3-none-any.whl"
+    with zipfile.ZipFile(Path(wheel_directory) / name, "w") as wheel:
+        for path, text in files.items():
+            data = text.encode()
+            wheel.writestr(path, data)
+            digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
+            record.append(f"{{path}},sha256={{digest}},{{len(data)}}")
+        record.append(f"{{DIST_INFO}}/RECORD,,")
+        wheel.writestr(f"{{DIST_INFO}}/RECORD", "\\n".join(record) + "\\n")
+    return name
+'''
+
+PYPROJECT = f"""
+[build-system]
+requires = []
+build-backend = "backend"
+backend-path = ["."]
+
+[project]
+name = "{PACKAGE.replace('_', '-')}"
+version = "0.1.0"
+"""
+
+ENTRY_POINTS = f"""[stereodyn.engines]
+toy = {PACKAGE}:ToyEngine
+toy_old = {PACKAGE}:OldStyleEngine
+toy_broken = {PACKAGE}:NoSuchClass
+toy_nosdk = {PACKAGE}.needs_sdk:Engine
+"""
+
+# The smallest engine a user could write: it wraps the Pinocchio adapter's simulation (the dynamics are not the point
+# here; the plug-in seam is), for bodies without external torques.
+MODULE = '''
+"""A toy engine plug-in: the body stepped by the harness's Lie-group integrators on Pinocchio's dynamics."""
+from stereodyn.harness import integrators
+from stereodyn.harness.engines.base import Engine
+
+
+class _Simulation:
+    def __init__(self, case, integrator, dt):
+        from stereodyn.harness.engines.pinocchio import PinocchioSimulation
+
+        self.inner = PinocchioSimulation(case, integrator, dt)
+
+    def run(self, grid):
+        return self.inner.run(grid)
+
+
+class ToyEngine(Engine):
+    name = "toy"
+    state_space = "lie"
+    linestyle = "-"
+    pass_us = 3.0
+
+    def integrators(self):
+        return ("rk4",)
+
+    def unsupported(self, case):
+        return "toy: no external torques" if case.body.has_external_torque else None
+
+    def prepare(self, case, integrator, dt):
+        return _Simulation(case, integrators.get(integrator)(), float(dt))
+
+
+class OldStyleEngine:
+    """Written against the 0.1 protocol: not an Engine subclass."""
+    name = "toy_old"
+
+    def integrators(self):
+        return ("rk4",)
+'''
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Path:
+    """The package pip-installed into a target folder (the venv is not touched); removed with tmp_path."""
+    root = tmp_path_factory.mktemp("engine_plugin")
+    source = root / "src"
+    (source / PACKAGE).mkdir(parents=True)
+    (source / "pyproject.toml").write_text(PYPROJECT)
+    (source / "entry_points.txt").write_text(ENTRY_POINTS)
+    (source / "backend.py").write_text(BACKEND)
+    (source / PACKAGE / "__init__.py").write_text(textwrap.dedent(MODULE))
+    target = root / "site"
+    result = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-build-isolation", "--no-deps",
+                             "--target", str(target), str(source)], capture_output=True, text=True, cwd=root)
+    if result.returncode != 0:
+        pytest.fail(f"pip install failed: {result.stderr[-2000:]}")
+    return target
+
+
+def _run(target: Path, *argv: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(target), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return subprocess.run([sys.executable, *argv], capture_output=True, text=True, env=env, cwd=cwd)
+
+
+def test_the_builtin_engines_are_entry_points():
+    registered = {entry.name: entry.value for entry in entry_points(group=engines.ENTRY_POINT_GROUP)}
+    assert {"mujoco", "pinocchio", "reference"} <= set(registered)
+    assert engines.engine_names()[:3] == ("mujoco", "pinocchio", "reference")
+    for name in ("mujoco", "pinocchio", "reference"):
+        engine = engines.get_engine(name)
+        assert isinstance(engine, Engine) and engine.name == name
+
+
+def test_an_external_engine_runs_in_a_sweep(installed, tmp_path):
+    out = tmp_path / "out"
+    result = _run(installed, "-m", "stereodyn", "run", "free-asymmetric", "--engines", "toy,pinocchio",
+                  "--integrators", "rk4", "--t-end", "1", "--dt", "0.01", "--out", str(out), "--quiet", "--jobs", "1",
+                  cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    df = pd.read_csv(out / "results.csv", dtype={"formulation": str}).fillna({"formulation": ""})
+    toy = df[df["engine"] == "toy"]
+    assert len(toy) == 1 and toy["status"].iloc[0] == "ok", toy[["status", "message"]]
+    # the toy engine steps the same equations with the same integrator as Pinocchio's adapter: RK4 at dt = 0.01
+    # over 1 s is ~1e-9 rad off the truth there (measured 2e-10 on this case)
+    assert toy["attitude_err"].iloc[0] < 1e-7
+    pin = df[df["engine"] == "pinocchio"]
+    assert abs(toy["attitude_err"].iloc[0] - pin["attitude_err"].iloc[0]) <= 1e-12
+    # its declared order comes from the registry through its state space (Engine.declared_order)
+    checks = pd.read_csv(out / "convergence.csv", dtype={"formulation": str}).fillna({"formulation": ""})
+    assert set(checks["engine"]) <= {"toy", "pinocchio"}
+
+
+def test_the_external_engine_is_listed_and_old_or_broken_plugins_are_refused(installed, tmp_path):
+    code = textwrap.dedent("""
+        from stereodyn.harness import engines
+        print("names", ",".join(engines.engine_names()))
+        print("nosdk", engines.get_engine("toy_nosdk").unsupported(None))
+        for name in ("toy_old", "toy_broken"):
+            try:
+                engines.get_engine(name)
+            except engines.EngineError as exc:
+                print("refused", exc)
+    """)
+    result = _run(installed, "-c", code, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    lines = result.stdout.splitlines()
+    assert lines[0] == "names mujoco,pinocchio,reference,toy,toy_broken,toy_nosdk,toy_old"
+    # a module that cannot be imported (a missing SDK) makes the engine's runs skipped, with the reason
+    assert lines[1].startswith("nosdk toy_nosdk engine unavailable: No module named")
+    old, broken = lines[2], lines[3]
+    assert "engine plug-in 'toy_old'" in old and "not a subclass of stereodyn.harness.engines.base.Engine" in old
+    assert "engine plug-in 'toy_broken'" in broken and "does not load" in broken and "NoSuchClass" in broken
+
+
+def test_an_old_style_plugin_in_a_run_is_a_one_line_error(installed, tmp_path):
+    result = _run(installed, "-m", "stereodyn", "run", "free-asymmetric", "--engines", "toy_old", "--out",
+                  str(tmp_path / "out"), "--quiet", cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1 and "toy_old" in result.stderr
+
+
+def test_the_base_class_defaults():
+    class Minimal(Engine):
+        name = "minimal"
+
+    engine = Minimal()
+    assert engine.formulations() == () and engine.adaptive("rk4") is False
+    assert engine.unsupported_run(None, "", "rk4") is None and engine.torque_mode(None) == "none"
+    assert engine.sliding_ladder_models() == () and "minimal" in engine.sliding_ladder_unsupported()
+    assert engine.declared_order("no_such_integrator") != engine.declared_order("no_such_integrator")  # NaN
+    assert engine.declared_order("rk4") == 4.0  # the registry's Lie-group rk4
+    with pytest.raises(NotImplementedError, match="minimal"):
+        engine.prepare(None, "rk4", 0.1)
+    with pytest.raises(NotImplementedError, match="ensembles"):
+        engine.prepare_ensemble(None, "rk4", 0.1, None, None)
+
+
+def test_engine_error_is_a_value_error():
+    assert issubclass(EngineError, ValueError)
+
+
+# ------------------------------------------------------------------------------------------------ engine names
+
+ENGINE_NAMES = {"mujoco", "pinocchio", "reference"}
+# Where an engine name may be spelled: its adapter and the registry (and tests, outside harness/).
+ALLOWED = {Path("harness/engines/__init__.py"), Path("harness/engines/mujoco.py"),
+           Path("harness/engines/pinocchio.py"), Path("harness/engines/reference.py")}
+
+
+def _engine_name_literals(path: Path) -> list[tuple[int, str]]:
+    """(line, name) of every string constant in the file that is exactly an engine name, docstrings aside."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    docstrings = {id(node.body[0].value) for node in ast.walk(tree)
+                  if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                  and node.body and isinstance(node.body[0], ast.Expr)
+                  and isinstance(node.body[0].value, ast.Constant)}
+    return [(node.lineno, node.value) for node in ast.walk(tree)
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in ENGINE_NAMES
+            and id(node) not in docstrings]
+
+
+def test_no_engine_name_outside_its_adapter_and_the_registry():
+    found = [f"{path.relative_to(ROOT)}:{line}: {name!r}"
+             for path in sorted((ROOT / "harness").rglob("*.py")) if path.relative_to(ROOT) not in ALLOWED
+             for line, name in _engine_name_literals(path)]
+    assert not found, "engine names spelled outside their adapter and the registry:\n" + "\n".join(found)
+
+
+def test_the_engine_name_scan_finds_a_spelled_name(tmp_path):
+    planted = tmp_path / "planted.py"
+    planted.write_text('"""Docstrings may name mujoco."""\nCOST = {"mujoco": 1.5}\n')
+    assert _engine_name_literals(planted) == [(2, "mujoco")]

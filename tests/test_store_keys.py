@@ -1,0 +1,151 @@
+"""Store keys follow the code: a changed stereodyn source file or plug-in (same version) redoes the runs it affects
+under --resume; a stored record of the wrong shape is redone, never copied into results.csv."""
+import json
+import shutil
+import sys
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from stereodyn.harness import cli, environment
+from stereodyn.harness import integrators as registry
+from stereodyn.harness.store import Store, read_records
+
+SWEEP = ["free-asymmetric", "--engines", "pinocchio", "--t-end", "0.2", "--dt", "1e-2", "--jobs", "1", "--quiet"]
+
+PLUGIN = '''
+"""Heun's method, a plug-in integrator defined outside stereodyn (no distribution owns this module)."""
+from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
+
+
+class HeunFingerprint(ExplicitRK):
+    name = "heun_fingerprint"
+    order = 2
+    tableau = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
+    description = "Heun's method"
+'''
+
+
+def mtimes(out: Path) -> dict[str, int]:
+    return {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
+
+
+@pytest.fixture
+def source_copy(tmp_path, monkeypatch):
+    """A copy of stereodyn's source folders, fingerprinted in place of the installed ones (as a fresh process would
+    after an edit of the installed files)."""
+    roots = []
+    for name, folder in environment.source_roots():
+        copy = tmp_path / "source" / name
+        shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("__pycache__"))
+        roots.append((name, copy))
+    monkeypatch.setattr(environment, "source_roots", lambda: roots)
+    environment.clear_fingerprints()
+    yield dict(roots)
+    environment.clear_fingerprints()
+
+
+def test_the_source_fingerprint_covers_code_and_data_but_not_case_files(source_copy):
+    first = environment.source_fingerprint()
+    assert first == environment.source_fingerprint()  # once per process: cached
+    harness, cases = source_copy["stereodyn.harness"], source_copy["stereodyn.cases"]
+    (cases / "lagrange-top.toml").write_text((cases / "lagrange-top.toml").read_text() + "# words\n")
+    (harness / "__pycache__").mkdir(exist_ok=True)
+    (harness / "__pycache__" / "x.cpython-311.pyc").write_bytes(b"\0")
+    environment.clear_fingerprints()
+    assert environment.source_fingerprint() == first  # a case file's content is in each of its runs' keys instead
+    (harness / "table.json").write_text("{}\n")  # data a module could read
+    environment.clear_fingerprints()
+    with_data = environment.source_fingerprint()
+    assert with_data != first
+    with (harness / "metrics.py").open("a") as handle:
+        handle.write("# one more line\n")
+    environment.clear_fingerprints()
+    assert environment.source_fingerprint() not in (first, with_data)
+
+
+def test_an_edited_source_file_redoes_every_run_under_resume(source_copy, tmp_path):
+    out = tmp_path / "out"
+    argv = ["run", *SWEEP, "--integrators", "euler", "--out", str(out)]
+    assert cli.main(argv) == 0
+    before = mtimes(out)
+    manifest = json.loads((out / "runs.json").read_text())
+    assert manifest["code"]["stereodyn source"] == environment.source_fingerprint()
+    assert cli.main([*argv, "--resume"]) == 0
+    assert mtimes(out) == before  # unchanged code: everything reused
+    with (source_copy["stereodyn.reference"] / "rotations.py").open("a") as handle:
+        handle.write("# one more line\n")
+    environment.clear_fingerprints()
+    assert cli.main([*argv, "--resume"]) == 0
+    after = json.loads((out / "runs.json").read_text())
+    assert len(after["runs"]) == len(manifest["runs"]) and not set(after["runs"]) & set(manifest["runs"])
+    assert after["code"]["stereodyn source"] != manifest["code"]["stereodyn source"]
+    assert len(pd.read_csv(out / "results.csv")) == len(manifest["runs"])
+
+
+def test_an_edited_plugin_redoes_only_its_runs_under_resume(tmp_path, monkeypatch):
+    module = tmp_path / "plugins" / "stereodyn_fingerprint_plugin.py"
+    module.parent.mkdir()
+    module.write_text(PLUGIN)
+    monkeypatch.syspath_prepend(str(module.parent))
+    monkeypatch.delitem(sys.modules, "stereodyn_fingerprint_plugin", raising=False)
+    from stereodyn_fingerprint_plugin import HeunFingerprint
+
+    monkeypatch.setitem(registry._registry, ("lie", "heun_fingerprint"), HeunFingerprint)
+    environment.clear_fingerprints()
+    out = tmp_path / "out"
+    argv = ["run", *SWEEP, "--integrators", "euler,heun_fingerprint", "--out", str(out)]
+    assert cli.main(argv) == 0
+    first = json.loads((out / "runs.json").read_text())
+    origin = first["code"]["integrators"]["heun_fingerprint"]
+    assert origin == [{"distribution": "none", "version": "", "source": origin[0]["source"]}]
+    assert first["code"]["engines"]["pinocchio"]["distribution"] == "stereodyn"
+    records = {r["row"]["integrator"]: r for r in read_records(out)}
+    euler_key, heun_key = records["euler"]["key"], records["heun_fingerprint"]["key"]
+    before = mtimes(out)
+
+    module.write_text(PLUGIN + "# a change of code without a new version\n")
+    environment.clear_fingerprints()
+    assert cli.main([*argv, "--resume"]) == 0
+    after = json.loads((out / "runs.json").read_text())
+    assert euler_key in after["runs"] and heun_key not in after["runs"]
+    assert mtimes(out)[f"{euler_key}.json"] == before[f"{euler_key}.json"]  # the other integrator's run was reused
+    assert after["code"]["integrators"]["heun_fingerprint"][0]["source"] != origin[0]["source"]
+    assert set(pd.read_csv(out / "results.csv").integrator) == {"euler", "heun_fingerprint"}
+    environment.clear_fingerprints()
+
+
+@pytest.mark.parametrize("damage", ["status", "number", "row", "key", "engine", "checks"])
+def test_a_malformed_record_is_redone_and_not_reported(tmp_path, damage):
+    out = tmp_path / "out"
+    argv = ["run", *SWEEP, "--integrators", "euler,rk4", "--out", str(out)]
+    assert cli.main(argv) == 0
+    good = pd.read_csv(out / "results.csv")
+    victim = next(r for r in read_records(out) if r["row"]["integrator"] == "rk4")
+    path = out / "store" / f"{victim['key']}.json"
+    record = json.loads(path.read_text())
+    if damage == "status":
+        record["row"]["status"] = "fine"
+    elif damage == "number":
+        record["row"]["attitude_err"] = "0.0"  # a number as text
+    elif damage == "row":
+        record["row"] = ["not", "a", "row"]
+    elif damage == "key":
+        record["key"] = "0" * 24  # another run's record under this name
+    elif damage == "engine":
+        record["row"]["engine"] = "mujoco"
+    else:
+        record["row"]["checks"] = "none"
+    path.write_text(json.dumps(record))
+    assert Store(out).get(victim["key"]) is None
+    assert len(read_records(out)) == len(good) - 1  # the report never sees it
+    others = {k: v for k, v in mtimes(out).items() if k != path.name}
+    assert cli.main([*argv, "--resume"]) == 0
+    assert {k: v for k, v in mtimes(out).items() if k != path.name} == others  # only the bad one was redone
+    redone = json.loads(path.read_text())
+    assert redone["row"]["status"] == "ok" and redone["row"]["engine"] == "pinocchio"
+    assert isinstance(redone["row"]["attitude_err"], float)
+    timings = ["wall_s", "us_per_step", "us_per_step_spread"]  # measured anew, so not equal
+    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv").drop(columns=timings), good.drop(columns=timings))

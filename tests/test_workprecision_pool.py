@@ -1,0 +1,93 @@
+"""The dt ladders run on the sweep's process pool (harness.runner.worker_pool): one pool for both, and Ctrl-C during
+the ladders ends its workers at once, as during the sweep (tests/test_scheduling.py)."""
+import math
+import multiprocessing
+import os
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from stereodyn.harness import runner, workprecision
+from stereodyn.harness.cases import find_case, with_overrides
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _started_since(before: set) -> set:
+    return set(multiprocessing.active_children()) - before
+
+
+def _ended(processes: set, within_s: float = 60.0) -> bool:
+    """Whether every process ended within a generous bound (not a timing check)."""
+    deadline = time.monotonic() + within_s
+    for process in processes:
+        while True:
+            process.join(timeout=0.1)
+            if process.exitcode is not None or not _exists(process.pid):
+                break
+            if time.monotonic() > deadline:
+                return False
+    return True
+
+
+def _exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _case():
+    return with_overrides(find_case("free-asymmetric"), t_end=0.5, dt=[1e-2, 5e-3])
+
+
+def test_the_sweep_and_the_ladders_share_one_pool(tmp_path):
+    before = set(multiprocessing.active_children())
+    with runner.worker_pool(2, ("reference",)) as pool:
+        workers = _started_since(before)
+        df = runner.run_sweep([_case()], ["reference"], ["rk4"], tmp_path, pool=pool)
+        workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200,
+                              pool=pool)
+        assert _started_since(before) == workers and len(workers) == 2  # no other process was started
+    convergence = pd.read_csv(tmp_path / "convergence.csv", dtype={"formulation": str})
+    ladders = convergence[convergence["source"] == "ladder"]
+    # one ladder per formulation of the reference engine, each with a fitted rk4 order (measured 3.9-4.1 over
+    # t_end 0.5 down to 200 steps; 0.3 is harness.testing's tolerance)
+    assert len(ladders) == 4 and ((ladders["order"] - 4.0).abs() < 0.3).all(), ladders
+    assert (ladders["declared_order"] == 4.0).all()
+
+
+def test_an_interrupt_during_the_ladders_ends_the_workers_at_once(tmp_path):
+    before = set(multiprocessing.active_children())
+    workers, done = set(), []
+
+    def interrupt(label: str) -> None:  # the first ladder done: Ctrl-C while the others run
+        done.append(label)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        with runner.worker_pool(2, ("reference",)) as pool:
+            workers.update(_started_since(before))
+            df = runner.run_sweep([_case()], ["reference"], ["rk4"], tmp_path, pool=pool)
+            workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full",
+                                  max_steps=20_000, pool=pool, progress=interrupt)
+    assert len(done) == 1 and len(workers) == 2 and _ended(workers)
+    assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGTERM), not left to finish their ladders
+
+
+def test_only_the_runner_starts_a_process_pool_for_runs():
+    """The sweep's and the ladders' pool is the runner's; the report's figures (harness.report.build, also run alone by
+    `stereodyn report`) draw on a pool of their own."""
+    starts = sorted(path.relative_to(ROOT) for path in (ROOT / "harness").rglob("*.py")
+                    if "ProcessPoolExecutor(" in path.read_text())
+    assert starts == [Path("harness/report/build.py"), Path("harness/runner.py")]
+
+
+def test_without_a_pool_the_ladders_run_here(tmp_path):
+    df = runner.run_sweep([_case()], ["reference"], ["rk4"], tmp_path, jobs=1)
+    paths = workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200)
+    ladder = pd.read_csv(paths["ladder"])
+    assert len(ladder) == 4 * 10 and math.isfinite(ladder["state_err"].min())
