@@ -114,7 +114,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="also write each run's recorded states, the truth's included, to "
                           "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body; case, engine, "
                           "formulation, integrator, dt)")
-    run.add_argument("--quiet", action="store_true", help="no progress bar (there is none when stderr is not a TTY)")
+    run.add_argument("--quiet", action="store_true",
+                     help="no progress (a bar on a terminal, one line per phase otherwise, on stderr)")
+    run.add_argument("--verbose", action="store_true", help="also print every case's drift table")
     run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
     run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
                      help="run on this Dask scheduler's cluster (needs stereodyn[dask]) instead of local processes")
@@ -145,6 +147,13 @@ def _parser() -> argparse.ArgumentParser:
     gate.add_argument("--floor", type=float, default=None, help="absolute floor (default 1e-12, every metric)")
     gate.add_argument("--time-factor", type=float, default=None,
                        help="also fail when us_per_step exceeds this factor times the baseline's")
+    compare = commands.add_parser("compare", help="two runs side by side: environments, then every row's metrics as "
+                                                   "ratios B/A, largest changes first (compare.md, compare.html)")
+    compare.add_argument("a", type=Path, metavar="A", help="result directory or baseline file (the reference)")
+    compare.add_argument("b", type=Path, metavar="B", help="result directory or baseline file (the new run)")
+    compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
+    commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
+                                            "and origin (built in, or the plug-in's distribution)")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
     export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
@@ -243,7 +252,7 @@ def cmd_run(args) -> int:
     from stereodyn.harness.progress import ProgressBar
     from stereodyn.harness.report.build import write_reports
     from stereodyn.harness.report.markdown import drift_table_text
-    from stereodyn.harness import verdicts, workprecision
+    from stereodyn.harness import summary, verdicts, workprecision
     from stereodyn.harness.runner import run_sweep, worker_pool
 
     from stereodyn.harness.store import folder_lock
@@ -261,13 +270,15 @@ def cmd_run(args) -> int:
             df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs,
                            certify=not args.no_certify, progress=progress, resume=args.resume,
                            scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool)
-            _work_precision(args, chosen, df, pool)
+            _work_precision(args, chosen, df, pool, progress)
         found = verdicts.evaluate(args.out, df, chosen)
         # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
         workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
-        print("\n".join(verdicts.summary_lines(found)))
-        print(drift_table_text(df))
+        if args.verbose:
+            print(drift_table_text(df))
+        progress.stage("report: report.md, figures, report.html")
         markdown, html = write_reports(args.out, df)
+        print("\n".join(summary.terminal_lines(df, found, args.out, html)))
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     if args.strict and verdicts.failed(found):
         print("\n".join(verdicts.summary_lines(found)[1:]), file=sys.stderr)
@@ -281,7 +292,7 @@ def _quiet_engines(out: Path) -> None:
     os.environ["STEREODYN_MUJOCO_LOG"] = str(Path(out).resolve() / "MUJOCO_LOG.TXT")  # engines.mujoco.LOG_ENV
 
 
-def _work_precision(args, chosen: list, df, pool=None) -> None:
+def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
     """ladder.csv, convergence.csv, pareto.csv and the orders in checks.csv (harness.workprecision). The default
     suite (no CASE, no --case-file, no --dt) gets the small default ladder; --dt-ladder every family's."""
     from stereodyn.harness import workprecision
@@ -294,8 +305,8 @@ def _work_precision(args, chosen: list, df, pool=None) -> None:
         mode = "off"
     else:
         mode = "default"
-    if mode != "off" and not args.quiet:
-        print(f"work–precision: {mode} dt ladder", file=sys.stderr)
+    if mode != "off" and progress is not None:
+        progress.stage(f"work–precision: {mode} dt ladder")
     workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
                           max_steps=args.ladder_max_steps, pool=pool)
 
@@ -390,6 +401,22 @@ def cmd_check(args) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    from stereodyn.harness.compare import compare
+
+    markdown, html, head = compare(args.a, args.b, args.out)
+    print("\n".join(head))
+    print(f"wrote {markdown} and {html}")
+    return 0
+
+
+def cmd_integrators(args) -> int:
+    from stereodyn.harness.report.method import integrator_rows, listing
+
+    print(listing(integrator_rows()))
+    return 0
+
+
 def cmd_export(args) -> int:
     from stereodyn.harness.export import export
     from stereodyn.harness.results import write_atomic
@@ -426,6 +453,7 @@ def main(argv: list[str] | None = None) -> int:
         from stereodyn.harness.export import ExportError
         from stereodyn.harness.store import StoreBusy
         from stereodyn.harness.results import TableError
+        from stereodyn.harness.compare import CompareError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
@@ -437,10 +465,11 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
     commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
-                "check": cmd_check, "export": cmd_export}
+                "check": cmd_check, "export": cmd_export, "compare": cmd_compare, "integrators": cmd_integrators}
     try:
         return commands[args.command](args)
-    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError) as exc:
+    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
+            CompareError) as exc:
         print(f"stereodyn: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)

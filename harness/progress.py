@@ -26,6 +26,8 @@ class ProgressBar:
         self.stream = sys.stderr if stream is None else stream
         is_tty = getattr(self.stream, "isatty", lambda: False)()
         self.enabled = is_tty if enabled is None else enabled and is_tty
+        # Off a terminal (a log, CI): no bar, but one plain line per phase of the run (stage()), as on a terminal.
+        self.plain = (enabled is None or enabled) and not is_tty
         self.width = width
         self.total = self.done = 0
         self.total_cost = self.done_cost = 0.0
@@ -36,6 +38,16 @@ class ProgressBar:
     def phase(self, text: str) -> None:
         """A step before the runs (the truth of each case)."""
         self._draw(text, force=True)
+
+    def stage(self, text: str) -> None:
+        """A phase of the whole run (truths, runs, timing, ladders, report): one line, on a terminal or not."""
+        if not (self.plain or self.enabled):
+            return
+        if self._drawn:  # a finished phase's bar stays on its line
+            self.stream.write("\n")
+            self._drawn = False
+        self.stream.write(f"stereodyn: {text}\n")
+        self.stream.flush()
 
     def start(self, total: int, total_cost: float, resumed: int = 0) -> None:
         self.total, self.total_cost, self.done, self.done_cost = total, max(total_cost, 1e-300), 0, 0.0

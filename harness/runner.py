@@ -330,6 +330,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             _local_pool(local_jobs, len(pending), tuple(engines))
         with own_pool as pool:
             truths = {}
+            progress.stage(f"truths of {len(cases)} cases, then {len(pending)} runs on {local_jobs} workers")
             for case in cases:
                 if case.kind == SLIDING_LADDER:  # harness.sliding_ladder solves the equation in each run
                     truths[case.name] = None
@@ -353,6 +354,8 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                 progress.close()
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
+        if untimed:
+            progress.stage(f"timing {len(untimed)} runs, one at a time")
         for spec in untimed:
             key = keys[id(spec)]
             row = stored[key]

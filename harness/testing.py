@@ -56,6 +56,13 @@ def _case(case: str | Case) -> Case:
     return case if isinstance(case, Case) else find_case(case)
 
 
+def _cases(cases: str | Case | Iterable[str | Case]) -> list[Case]:
+    """One case (a name or a Case) or several, as a list: "lagrange-top" is one case, not twelve letters."""
+    if isinstance(cases, (str, Case)):
+        return [_case(cases)]
+    return [_case(case) for case in cases]
+
+
 def _run(cls: type[Integrator], case: Case, dt: float, formulation: str | None = None):
     engine, extra = _engine_for(cls)
     if formulation is not None:
@@ -65,10 +72,14 @@ def _run(cls: type[Integrator], case: Case, dt: float, formulation: str | None =
     return grid, traj
 
 
-def measured_order(integrator: str | type[Integrator], case: str | Case, dts: Iterable[float] | None = None,
-                   state_space: str = "lie", formulation: str | None = None, t_end: float = 2.0) -> float:
-    """The fitted order (slope of log max state error against log dt, the measure of convergence.csv) of an integrator on a case over t_end, from the
-    dt values whose error lies in ORDER_ERR_RANGE. dts default: 0.1 down to 0.00625 by halves."""
+def measured_order(integrator: str | type[Integrator], case: str | Case | Iterable[str | Case],
+                   dts: Iterable[float] | None = None, state_space: str = "lie", formulation: str | None = None,
+                   t_end: float = 2.0) -> float | dict[str, float]:
+    """The fitted order (slope of log max state error against log dt, the measure of convergence.csv) of an integrator
+    on a case over t_end, from the dt values whose error lies in ORDER_ERR_RANGE. dts default: 0.1 down to 0.00625 by
+    halves. `case` is a name or Case (returns the order) or a list of them (returns {case name: order})."""
+    if not isinstance(case, (str, Case)):
+        return {c.name: measured_order(integrator, c, dts, state_space, formulation, t_end) for c in _cases(case)}
     cls = _resolve(integrator, state_space)
     case = with_overrides(_case(case), t_end=t_end)
     dts = list(dts) if dts is not None else [0.1 / 2 ** k for k in range(5)]
@@ -90,15 +101,14 @@ def measured_order(integrator: str | type[Integrator], case: str | Case, dts: It
     return order_slope(dt, err)
 
 
-def assert_order(integrator: str | type[Integrator], cases: Iterable[str | Case] = ("lagrange-top",),
+def assert_order(integrator: str | type[Integrator], cases: str | Case | Iterable[str | Case] = ("lagrange-top",),
                  dts: Iterable[float] | None = None, state_space: str = "lie", formulation: str | None = None,
                  tolerance: float = ORDER_TOLERANCE, t_end: float = 2.0) -> dict[str, float]:
     """Assert that the fitted order on each case is within tolerance of the integrator's declared `order`.
-    Returns {case name: fitted order}."""
+    `cases`: a name or Case, or a list of them. Returns {case name: fitted order}."""
     cls = _resolve(integrator, state_space)
     orders = {}
-    for case in cases:
-        case = _case(case)
+    for case in _cases(cases):
         order = measured_order(cls, case, dts, state_space, formulation, t_end)
         orders[case.name] = order
         assert abs(order - cls.order) <= tolerance, (

@@ -46,7 +46,33 @@ def test_a_sweep_drives_the_bar(tmp_path):
     assert "4/4" in final and "100%" in final and screen.getvalue().endswith("\n")
 
 
-def test_run_prints_no_progress_when_stderr_is_not_a_terminal(tmp_path, capsys):
+def test_run_prints_one_line_per_phase_when_stderr_is_not_a_terminal(tmp_path, capsys):
     assert cli.main(["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2",
                      "--jobs", "1", "--out", str(tmp_path)]) == 0
+    assert capsys.readouterr().err.splitlines() == [
+        "stereodyn: truths of 1 cases, then 3 runs on 1 workers", "stereodyn: timing 3 runs, one at a time",
+        "stereodyn: report: report.md, figures, report.html"]
+    assert cli.main(["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2",
+                     "--jobs", "1", "--out", str(tmp_path / "quiet"), "--quiet"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_a_phase_is_one_plain_line_off_a_terminal_and_one_line_on_it():
+    log = io.StringIO()
+    bar = ProgressBar(log)
+    bar.phase("truth lagrange-top")  # a step inside a phase: nothing in a log
+    bar.stage("timing 3 runs")
+    bar.start(1, 1.0)
+    bar.advance("run", 1.0, "ok")
+    bar.close()
+    assert log.getvalue() == "stereodyn: timing 3 runs\n"
+    screen = Terminal()
+    bar = ProgressBar(screen, width=60)
+    bar.start(1, 1.0)
+    bar.advance("run", 1.0, "ok")
+    bar.stage("report")  # the bar's line is kept, the phase gets its own
+    lines = screen.getvalue().split("\n")
+    assert lines[-2:] == ["stereodyn: report", ""] and lines[-3].rstrip().endswith("run: ok")
+    for quiet in (ProgressBar(s := io.StringIO(), enabled=False), ProgressBar(t := Terminal(), enabled=False)):
+        quiet.stage("report")
+    assert s.getvalue() == t.getvalue() == ""

@@ -38,7 +38,7 @@ def test_every_run_is_a_row_with_the_contract_columns(short_suite):
     for engine, integrators in (("mujoco", 4), ("pinocchio", 4)):
         assert len(df[df.engine == engine]) == 4 * integrators * 2
     assert set(df.status) == {"ok"}, df[df.status != "ok"][["case", "engine", "integrator", "message"]]
-    drift_tables = (out / "report.md").read_text().split("## Drift tables")[1].split("\n## ")[0]
+    drift_tables = (out / "report.md").read_text().split("## Cases")[1].split("\n## ")[0]  # a section per case
     assert drift_tables.count("### ") == 4
     assert not list(out.glob(".*tmp"))  # atomic writes leave no partial files
 

@@ -58,37 +58,32 @@ def summary_lines(df: pd.DataFrame) -> list[str]:
 
 
 def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool,
-                    ladder: pd.DataFrame | None = None) -> tuple[list[str], dict]:
-    """The work–precision and invariant sections, and their figures {relative path: PNG bytes}; the points of the
-    dt ladders (ladder.csv, harness.workprecision) join their case's work–precision plot."""
+                    ladder: pd.DataFrame | None = None) -> tuple[dict[str, list[str]], dict]:
+    """Each case's figures as report lines {case: lines} (work–precision, then invariants against time), and the
+    figures {relative path: PNG bytes}; the points of the dt ladders (ladder.csv, harness.workprecision) join their
+    case's work–precision plot."""
     images: dict[str, bytes] = {}
-    work = ["## Work–precision", "",
-            "Max attitude error against the cost of stepping, in µs per simulated second (wall_s / t_end), one line "
-            "per engine and integrator through its dt values, the dt ladder's points included (ladder.csv). Runs that diverged "
-            "or failed are left out.", ""]
-    drift = ["## Invariants against time", "",
-             "Relative deviation of the energy and of the conserved angular momentum from their initial values, and "
-             "the attitude error against the truth (up to the case's horizon), each the maximum over buckets of "
-             "samples; a column per dt, the adaptive truth drawn in every column.", ""]
-    if not has_store:
-        drift += ["No stored series in this folder (DIR/runs.json and DIR/store/ are written by `stereodyn run`).",
-                  ""]
     tasks = []
     for case, group in df.groupby("case", sort=False):
         tasks.append(("work-precision", case, _with_ladder(group, ladder, case), None))
         tasks.append(("invariants", case, group, {k: v for k, v in series.items() if k[0] == case}))
-    missing = {"work-precision": "No run of this case has both a finite error and a timing.",
-               "invariants": "No stored series for this case."}
-    for (kind, case, _, _), png in zip(tasks, _render_all(tasks)):
-        lines = work if kind == "work-precision" else drift
-        lines += [f"### {case}", ""]
+    missing = {"work-precision": "No work–precision figure: no run of this case has both a finite error and a "
+                                 "timing.",
+               "invariants": "No invariants figure: no stored series for this case." if has_store else
+               "No invariants figure: no stored series in this folder (DIR/runs.json and DIR/store/ are written by "
+               "`stereodyn run`)."}
+    lines: dict[str, list[str]] = {}
+    for (kind, case, group, _), png in zip(tasks, _render_all(tasks)):
         if png is None:
-            lines += [missing[kind], ""]
+            lines.setdefault(case, []).extend([missing[kind], ""])
             continue
         path = f"{FIGURES_DIR}/{figure_stem(case)}-{kind}.png"
         images[path] = png
-        lines += [f"![{case}: {kind.replace('-', '–')}]({path})", ""]
-    return work + drift, images
+        lines.setdefault(case, []).extend([f"![{case}: {kind.replace('-', '–')}]({path})", ""])
+        if kind == "invariants":
+            rows = figures.invariant_rows(group, series, case)
+            lines[case].extend([f"Rows of the invariants figure: {'; '.join(rows)}.", ""])
+    return lines, images
 
 
 def figure_stem(case: str) -> str:
@@ -184,16 +179,18 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, 
     out_dir = Path(out_dir)
     df = read_results(out_dir / "results.csv") if df is None else df
     manifest = read_manifest(out_dir)
-    sections, images = figure_sections(df, _series_index(out_dir), manifest is not None,
-                                       workprecision.read_optional(out_dir / workprecision.LADDER_FILE))
+    series = _series_index(out_dir)
+    case_extras, images = figure_sections(df, series, manifest is not None,
+                                          workprecision.read_optional(out_dir / workprecision.LADDER_FILE))
     env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
     if env is not None:
         env["report rendered"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
-    sections = workprecision.report_lines(out_dir) + sections
     from stereodyn.harness import verdicts
+    from stereodyn.harness.report.method import method_lines
 
-    markdown = report_markdown(df, summary=summary_lines(df), sections=sections + checks_lines(df, out_dir), env=env,
-                               verdicts=verdicts.report_lines(out_dir))
+    front = workprecision.report_lines(out_dir) + method_lines(df, out_dir, series)
+    markdown = report_markdown(df, summary=summary_lines(df), sections=checks_lines(df, out_dir), env=env,
+                               verdicts=verdicts.report_lines(out_dir), front=front, case_extras=case_extras)
     figures_dir = out_dir / FIGURES_DIR
     figures_dir.mkdir(exist_ok=True)
     for path, png in images.items():

@@ -13,10 +13,11 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
 DPI = 80
-PALETTE = 64  # colours of a figure's PNG: plenty for lines on white, and no visible banding
+PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
-LEGEND_COLUMN_IN = 2.7  # width of a legend column, inches: fits "reference rk4 (gibbs_hamiltonian)" at 8 pt
-QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift", "attitude_err": "attitude error (rad)"}
+QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift", "lagrange": "Lagrange ω₃ drift",
+              "kovalevskaya": "Kovalevskaya integral", "chaplygin": "Goryachev–Chaplygin",
+              "hess": "Hess K·k drift", "self_excited": "self-excited (36)", "attitude_err": "attitude error (rad)"}
 
 
 def linestyle(engine: str) -> str:
@@ -40,12 +41,59 @@ def run_label(row) -> str:
     return f"{row['engine']} {row['integrator']}" + (f" ({formulation})" if formulation else "")
 
 
-def _colours(group: pd.DataFrame) -> dict[str, tuple]:
-    from matplotlib import colormaps
+# At most this many series (lines) in one panel: more cannot be told apart (issue 15).
+MAX_SERIES = 8
+# Colour and marker by integrator, the same in every figure; an integrator outside the list gets the next free pair.
+INTEGRATOR_STYLES = ("rk4", "euler", "symplectic_euler", "implicit", "implicitfast", "rk4_naive", "taylor", "rk3",
+                     "rkmk4", "cg4", "midpoint", "heun")
+_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#000000", "#e377c2", "#17becf",
+            "#bcbd22", "#7f7f7f", "#aec7e8")
+_MARKERS = ("o", "s", "^", "v", "D", "P", "*", "X", "<", ">", "h", "p")
 
-    labels = list(dict.fromkeys(run_label(row) for _, row in group.iterrows()))
-    palette = colormaps["tab10" if len(labels) <= 10 else "tab20"]
-    return {label: palette(i % palette.N) for i, label in enumerate(labels)}
+
+def integrator_style(integrator: str) -> tuple[str, str]:
+    """(colour, marker) of an integrator: fixed for the built-in ones, from a hash of the name for the others."""
+    if integrator in INTEGRATOR_STYLES:
+        i = INTEGRATOR_STYLES.index(integrator)
+    else:
+        i = sum(map(ord, integrator)) % len(_COLOURS)
+    return _COLOURS[i % len(_COLOURS)], _MARKERS[i % len(_MARKERS)]
+
+
+def _formulation(row) -> str:
+    value = row.get("formulation", "") if hasattr(row, "get") else ""
+    return value if isinstance(value, str) else ""
+
+
+def facets(rows: pd.DataFrame, key=None, limit: int = MAX_SERIES) -> list[tuple[str, pd.DataFrame]]:
+    """Panels of at most MAX_SERIES series: one per engine and formulation (so colour, marker and line style name a
+    series), a panel with more split into chunks. key(row) names a row's series (default run_label)."""
+    key = key or run_label
+    panels = []
+    names = rows.apply(key, axis=1) if len(rows) else pd.Series([], dtype=str)
+    for (engine, formulation), group in rows.groupby([rows["engine"], rows.apply(_formulation, axis=1)], sort=False):
+        labels = list(dict.fromkeys(names[group.index]))
+        title = f"{engine} {formulation}".strip()
+        for start in range(0, len(labels), limit):
+            chosen = set(labels[start:start + limit])
+            suffix = f" ({start // limit + 1})" if len(labels) > limit else ""
+            panels.append((title + suffix, group[names[group.index].isin(chosen)]))
+    return panels
+
+
+def _panel_grid(count: int, width_in: float, height_in: float, legend_in: float, extra_top: float = 0.0):
+    """A figure with `count` panels, at most 3 a row, each with room for its legend on its right."""
+    columns = min(3, count)
+    rows = math.ceil(count / columns)
+    width, height = columns * (width_in + legend_in), rows * height_in + 0.5 + extra_top
+    figure = Figure(figsize=(width, height))
+    figure.subplots_adjust(left=0.6 / width, right=1 - legend_in / width, bottom=0.55 / height,
+                           top=1 - (0.45 + extra_top) / height, wspace=(legend_in + 0.55) / width_in,
+                           hspace=0.55)
+    grid = figure.subplots(rows, columns, squeeze=False)
+    for axes in grid.flat[count:]:
+        axes.set_visible(False)
+    return figure, grid
 
 
 def _png(figure: Figure) -> bytes:
@@ -62,7 +110,8 @@ def _png(figure: Figure) -> bytes:
 
 
 def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
-    """Attitude error against cost (µs of stepping per simulated second), one line per engine × integrator over dt.
+    """Attitude error against cost (µs of stepping per simulated second): a panel per engine (facets), a line per
+    integrator through its points sorted by dt (colour and marker by integrator, line style by engine).
 
     None when no run of the case has both a finite error and a timing.
     """
@@ -70,56 +119,121 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
                  & (group["attitude_err"] > 0)]
     if rows.empty:
         return None
-    colours = _colours(group)
-    figure = Figure(figsize=(9.0, 4.4))
-    figure.subplots_adjust(left=0.09, right=0.70, bottom=0.12, top=0.92)
-    axes = figure.subplots()
-    for label, runs in rows.groupby(rows.apply(run_label, axis=1), sort=False):
-        cost = runs["wall_s"] / runs["t_end"] * 1e6
-        order = np.argsort(cost.to_numpy())
-        engine = runs["engine"].iloc[0]
-        axes.plot(cost.to_numpy()[order], runs["attitude_err"].to_numpy()[order], marker="o", markersize=4,
-                  linestyle=linestyle(engine), color=colours[label], label=label)
-    axes.set_xscale("log")
-    axes.set_yscale("log")
-    axes.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short decade range
-    axes.set_xlabel("µs of stepping per simulated second")
-    axes.set_ylabel("max attitude error (rad)")
-    axes.set_title(f"{case}: work–precision (points: dt)")
-    axes.grid(True, which="major", alpha=0.3)
-    axes.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    panels = facets(rows)
+    figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
+    for axes, (title, panel) in zip(grid.flat, panels):
+        for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
+            runs = runs.sort_values("dt", ascending=False, na_position="last")  # along dt: no zig-zag
+            colour, marker = integrator_style(runs["integrator"].iloc[0])
+            engine = runs["engine"].iloc[0]
+            short = str(runs["integrator"].iloc[0])  # the panel's title names the engine and formulation
+            axes.plot((runs["wall_s"] / runs["t_end"] * 1e6).to_numpy(), runs["attitude_err"].to_numpy(),
+                      marker=marker, markersize=4, linestyle=linestyle(engine), color=colour,
+                      linewidth=1.0, label=short)
+        axes.set_xscale("log")
+        axes.set_yscale("log")
+        axes.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short decade range
+        axes.set_title(title, fontsize=9)
+        axes.tick_params(labelsize=7)
+        axes.grid(True, which="major", alpha=0.3)
+        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    for axes in grid[-1]:
+        axes.set_xlabel("µs per simulated s", fontsize=8)
+    for axes in grid[:, 0]:
+        axes.set_ylabel("max attitude error (rad)", fontsize=8)
+    figure.suptitle(f"{case}: work–precision (points along dt, largest first)", fontsize=10)
     return _png(figure)
 
 
-def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> bytes | None:
-    """Relative energy and momentum deviation and attitude error against time: a column per dt, a row per quantity.
+def _legend(frame: pd.DataFrame) -> tuple[list, list[str]]:
+    """Proxy handles: a colour and marker per integrator, a line style per engine, black for the truth."""
+    from matplotlib.lines import Line2D
 
-    series: (case, engine, formulation, integrator, dt_key) -> {"t": [...], quantity: [...]}. Adaptive runs (the
-    truth) are drawn in every column. None when no run of the case has a stored series.
-    """
+    handles, labels = [], []
+    for integrator in dict.fromkeys(frame.loc[frame["dt"].notna(), "integrator"]):
+        colour, marker = integrator_style(integrator)
+        handles.append(Line2D([], [], color=colour, marker=marker, markersize=4))
+        labels.append(integrator)
+    for engine in dict.fromkeys(frame["engine"]):
+        handles.append(Line2D([], [], color="grey", linestyle=linestyle(engine)))
+        labels.append(f"engine {engine}")
+    if frame["dt"].isna().any():
+        handles.append(Line2D([], [], color="black"))
+        labels.append("truth (adaptive)")
+    return handles, labels
+
+
+def _truth_for(adaptive: pd.DataFrame, panel: pd.DataFrame) -> pd.DataFrame:
+    """The one adaptive run drawn in a panel: the panel's own formulation's when it has one, else the truth
+    (reference quaternion taylor), else the first."""
+    if adaptive.empty:
+        return adaptive
+    formulations = adaptive.apply(_formulation, axis=1)
+    wanted = set(panel.apply(_formulation, axis=1)) if len(panel) else set()
+    for choice in (formulations.isin(wanted - {""}), formulations == "quaternion"):
+        if choice.any():
+            return adaptive[choice.to_numpy()].head(1)
+    return adaptive.head(1)
+
+
+def figure_quantities(series: list[dict]) -> list[str]:
+    """The rows of an invariants figure: each quantity of QUANTITIES that some shown series recorded (a special
+    integral only where the case meets its conditions, harness.series)."""
+    return [q for q in QUANTITIES if any(q in s and any(v is not None for v in s[q]) for s in series)]
+
+
+def _series_dt(found: list) -> float:
+    """The dt whose runs the invariants figure shows: the middle of the fixed-step dt values (NaN: adaptive only)."""
+    dts = sorted({float(row["dt"]) for row, _ in found if dt_key(row["dt"])}, reverse=True)
+    return dts[len(dts) // 2] if dts else math.nan
+
+
+def _shown(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> tuple[float, list]:
+    """(dt, [(row, series)]): the runs the invariants figure draws, at its dt, and the adaptive ones."""
     found = [(row, series.get((case, row["engine"], row["formulation"], row["integrator"], dt_key(row["dt"]))))
              for _, row in group.iterrows()]
     found = [(row, s) for row, s in found if s]
     if not found:
+        return math.nan, []
+    dt = _series_dt(found)
+    return dt, [(row, s) for row, s in found if not dt_key(row["dt"]) or float(row["dt"]) == dt]
+
+
+def invariant_rows(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> list[str]:
+    """The axis labels of the invariants figure's rows, top to bottom (for its caption)."""
+    return [QUANTITIES[q] for q in figure_quantities([s for _, s in _shown(group, series, case)[1]])]
+
+
+def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> bytes | None:
+    """Deviation of each conserved quantity the case has (energy, momentum, and its special integral: Lagrange,
+    Kovalevskaya, Goryachev–Chaplygin, Hess, self-excited) and the attitude error against time: a row per quantity, a
+    column per engine (facets), the fixed-step runs at the middle dt and the adaptive truth (black).
+
+    series: (case, engine, formulation, integrator, dt_key) -> {"t": [...], quantity: [...]}. None when no run of
+    the case has a stored series.
+    """
+    dt, shown = _shown(group, series, case)
+    quantities = figure_quantities([s for _, s in shown])
+    if not quantities:
         return None
-    quantities = [q for q in QUANTITIES if any(q in s for _, s in found)]
-    dts = sorted({float(row["dt"]) for row, _ in found if dt_key(row["dt"])}, reverse=True) or [math.nan]
-    colours = _colours(group)
-    labels = list(dict.fromkeys(run_label(row) for row, _ in found))
-    width = min(16.0, max(3.6 * len(dts) + 1.0, 2 * LEGEND_COLUMN_IN))
-    columns = max(1, min(len(labels), int(width // LEGEND_COLUMN_IN)))
-    legend_rows = math.ceil(len(labels) / columns)
-    height = 2.4 * len(quantities) + 1.1 + 0.2 * legend_rows
+    frame = pd.DataFrame([row for row, _ in shown])
+    frame["_index"] = range(len(shown))
+    adaptive = frame[frame["dt"].isna()]
+    # the truth is drawn in every panel: one series fewer for the runs
+    fixed = frame[frame["dt"].notna()]
+    panels = facets(fixed, limit=MAX_SERIES - 1) if len(fixed) else [("adaptive", adaptive)]
+    columns = len(panels)
+    width, height = columns * 2.5 + 2.3, 1.3 * len(quantities) + 1.0
     figure = Figure(figsize=(width, height))
-    figure.subplots_adjust(left=0.75 / width, right=1 - 0.2 / width, bottom=(0.75 + 0.2 * legend_rows) / height,
-                           top=1 - 0.65 / height, wspace=0.08, hspace=0.12)
-    grid = figure.subplots(len(quantities), len(dts), squeeze=False, sharex=True, sharey="row")
-    for column, dt in enumerate(dts):
-        for row, values in found:
-            adaptive = not dt_key(row["dt"])
-            if not adaptive and float(row["dt"]) != dt:
-                continue
-            label = run_label(row)
+    figure.subplots_adjust(left=0.8 / width, right=1 - 2.3 / width, bottom=0.5 / height, top=1 - 0.6 / height,
+                           wspace=0.12, hspace=0.12)
+    grid = figure.subplots(len(quantities), columns, squeeze=False, sharex=True, sharey="row")
+    for column, (title, panel) in enumerate(panels):
+        members = pd.concat([panel, _truth_for(adaptive, panel)]).drop_duplicates("_index")
+        for _, row in members.iterrows():
+            values = shown[int(row["_index"])][1]
+            is_truth = not dt_key(row["dt"])
+            colour, _ = integrator_style(row["integrator"])
             t = np.asarray(values["t"], dtype=float)
             for line, quantity in enumerate(quantities):
                 if quantity not in values:
@@ -128,21 +242,19 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
                 y[~(y > 0)] = np.nan  # a log axis has no place for the exact zero at t = 0
                 if np.isfinite(y).any():
                     grid[line, column].plot(t, y, linestyle=linestyle(row["engine"]),
-                                            color="black" if adaptive else colours[label], linewidth=1.0,
-                                            label=label)
-        grid[0, column].set_title(f"dt = {dt:g} s" if math.isfinite(dt) else "adaptive")
-        grid[-1, column].set_xlabel("t (s)")
+                                            color="black" if is_truth else colour, linewidth=1.0)
+        grid[0, column].set_title(title, fontsize=9)
+        grid[-1, column].set_xlabel("t (s)", fontsize=8)
     for line, quantity in enumerate(quantities):
         grid[line, 0].set_ylabel(QUANTITIES[quantity], fontsize=8)
         for axes in grid[line]:
             if axes.has_data():
                 axes.set_yscale("log")
             axes.grid(True, alpha=0.3)
-    handles = {}
-    for axes in grid.flat:
-        for handle, label in zip(*axes.get_legend_handles_labels()):
-            handles.setdefault(label, handle)
-    figure.legend(handles.values(), handles.keys(), fontsize=8, loc="lower center", ncol=columns,
-                  frameon=False)
-    figure.suptitle(f"{case}: invariants and attitude error against time (max over buckets of samples)")
+            axes.tick_params(labelsize=7)
+    figure.legend(*_legend(frame), fontsize=7, frameon=False, loc="upper left",
+                  bbox_to_anchor=(1 - 2.2 / width, 1 - 0.6 / height))
+    when = f"dt = {dt:g} s" if math.isfinite(dt) else "adaptive"
+    figure.suptitle(f"{case}: invariants and attitude error against time ({when}; black: the adaptive truth)",
+                    fontsize=10)
     return _png(figure)

@@ -28,7 +28,44 @@ th { background: #eee; } td.text { text-align: left; white-space: normal; }
 figure { margin: 0.5em 0 1.5em; } img { max-width: 100%; }
 code { background: #f3f3f3; padding: 0 0.2em; }
 .scale { display: inline-block; width: 16em; height: 0.9em; vertical-align: middle; border: 1px solid #999; }
+nav#contents { background: #f7f7f7; border: 1px solid #ccc; padding: 0.3em 1em; columns: 2; font-size: 0.9em; }
+nav#contents ul { margin: 0.2em 0; } details { margin: 0.4em 0; border-left: 3px solid #ccc; padding-left: 0.8em; }
+details > summary { cursor: pointer; font-weight: bold; font-size: 1.1em; }
+th.sortable { cursor: pointer; } input.filter { margin: 0.3em 0; width: 20em; }
 """
+# Tables with more rows than this get a filter box; every table sorts by a click on a header.
+FILTER_ROWS = 8
+# The page's one script, inline (no CDN, works from a file): sort a table by a column (numbers numerically, '-'
+# last), filter its rows by text, and open a case's <details> when a link or the address names it.
+SCRIPT = """
+document.querySelectorAll('table').forEach(function (table) {
+  var rows = function () { return Array.prototype.slice.call(table.rows, 1); };
+  Array.prototype.forEach.call(table.rows[0].cells, function (th, column) {
+    th.className = 'sortable'; th.title = 'sort';
+    th.addEventListener('click', function () {
+      var up = th.dataset.up !== '1'; th.dataset.up = up ? '1' : '0';
+      var key = function (row) { var t = row.cells[column] ? row.cells[column].textContent.trim() : '';
+        var x = parseFloat(t); return isNaN(x) || !/^[-+0-9.eE]+$/.test(t) ? [1, t] : [0, x]; };
+      rows().sort(function (a, b) { var p = key(a), q = key(b);
+        var c = p[0] - q[0] || (p[1] < q[1] ? -1 : p[1] > q[1] ? 1 : 0); return up ? c : -c; })
+        .forEach(function (row) { table.tBodies[0].appendChild(row); });
+    });
+  });
+  if (table.rows.length > %d) {
+    var box = document.createElement('input'); box.className = 'filter'; box.placeholder = 'filter rows';
+    box.addEventListener('input', function () { var text = box.value.toLowerCase();
+      rows().forEach(function (row) {
+        row.style.display = row.textContent.toLowerCase().indexOf(text) < 0 ? 'none' : ''; }); });
+    table.parentNode.insertBefore(box, table);
+  }
+});
+function openTarget() { var e = location.hash && document.getElementById(location.hash.slice(1));
+  if (e && e.tagName === 'DETAILS' && !e.open) { e.open = true; e.scrollIntoView(); } }
+window.addEventListener('hashchange', openTarget); openTarget();
+""" % FILTER_ROWS
+# The level-2 section whose level-3 subsections (one per case) fold away as <details>.
+COLLAPSIBLE = "cases"
+CASE_PREFIX = "case-"
 
 
 def slug(text: str) -> str:
@@ -46,6 +83,27 @@ def grade_colour(value: float) -> str:
     # Pale version of RdYlGn (reversed): text stays readable on every cell.
     r, g, b, _ = colormaps["RdYlGn_r"](position)
     return to_hex((0.45 + 0.55 * r, 0.45 + 0.55 * g, 0.45 + 0.55 * b))
+
+
+# Graded cells carry a class, one per GRADE_STEPS-th of a decade, not an inline colour: a fifth of the bytes in the
+# default suite's tables.
+GRADE_STEPS = 2
+
+
+def grade_class(value: float) -> str:
+    """The class of a drift or error cell: g0 (<= 1e-16) .. g32 (>= 1)."""
+    low, high = GRADE_RANGE
+    if value <= 0:
+        return "g0"
+    return f"g{round((min(max(math.log10(value), low), high) - low) * GRADE_STEPS)}"
+
+
+def _grade_css() -> str:
+    low, high = GRADE_RANGE
+    levels = int((high - low) * GRADE_STEPS)
+    rules = [f"td.g{k} {{ background: {grade_colour(10 ** (low + k / GRADE_STEPS))}; }}" for k in range(levels + 1)]
+    rules += [f"td.s-{status} {{ background: {colour}; }}" for status, colour in STATUS_COLOURS.items()]
+    return "\n".join(rules) + "\n"
 
 
 def _graded(header: str) -> bool:
@@ -74,14 +132,14 @@ def _table(lines: list[str]) -> str:
         for name, cell in zip(header, cells):
             style, css_class = "", ""
             if name == "status" and cell in STATUS_COLOURS:
-                style = f' style="background:{STATUS_COLOURS[cell]}"'
+                css_class = f' class="s-{cell}"'
             elif _graded(name):
                 try:
                     value = float(cell)
                 except ValueError:
                     value = math.nan
                 if math.isfinite(value):
-                    style = f' style="background:{grade_colour(abs(value))}"'
+                    css_class = f' class="{grade_class(abs(value))}"'
             elif cell and not re.fullmatch(r"[-+0-9.eE]+", cell):
                 css_class = ' class="text"'
             row.append(f"<td{css_class}{style}>{_inline(cell)}</td>")
@@ -126,6 +184,15 @@ def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | N
             items.clear()
 
     i, title = 0, "stereodyn report"
+    toc: list[tuple[int, str, str]] = []  # (level, id, text)
+    section, details_open = "", False
+
+    def close_details() -> None:
+        nonlocal details_open
+        if details_open:
+            body.append("</details>")
+            details_open = False
+
     while i < len(lines):
         line = lines[i]
         heading = re.match(r"(#{1,6}) (.*)", line)
@@ -136,12 +203,24 @@ def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | N
             if level == 1:
                 title = text
             if level == 2:
+                close_details()
                 if section_open:
                     body.append("</section>")
-                body.append(f'<section id="{slug(text)}">')
+                section = slug(text)
+                body.append(f'<section id="{section}">')
                 section_open = True
-            body.append(f'<h{level} id="{slug(text)}">{_inline(text)}</h{level}>')
-            if level == 2 and slug(text) == "drift-tables":
+                toc.append((2, section, text))
+            if level == 3 and section == COLLAPSIBLE:
+                close_details()
+                anchor = CASE_PREFIX + slug(text)
+                body.append(f'<details id="{anchor}"><summary>{_inline(text)}</summary>')
+                details_open = True
+                toc.append((3, anchor, text))
+                i += 1
+                continue
+            anchor = "" if level == 2 else f' id="{slug(text)}"'  # a level-2 heading's id is its <section>'s
+            body.append(f'<h{level}{anchor}>{_inline(text)}</h{level}>')
+            if level == 2 and slug(text) == COLLAPSIBLE:  # the cases: their drift tables
                 body.append(_scale_legend())
         elif line.startswith("|"):
             flush()
@@ -168,8 +247,28 @@ def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | N
             paragraph.append(line.strip())
         i += 1
     flush()
+    close_details()
     if section_open:
         body.append("</section>")
+    first = next((k for k, part in enumerate(body) if part.startswith("<section")), len(body))
+    body.insert(first, _contents(toc))
     return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
-            f"<title>{html.escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
-            + "\n".join(body) + "\n</body>\n</html>\n")
+            f"<title>{html.escape(title)}</title>\n<style>{CSS}{_grade_css()}</style>\n</head>\n<body>\n"
+            + "\n".join(body) + f"\n<script>{SCRIPT}</script>\n</body>\n</html>\n")
+
+
+def _contents(toc: list[tuple[int, str, str]]) -> str:
+    """The table of contents: every level-2 section, the cases nested under theirs."""
+    out, nested = ['<nav id="contents"><strong>Contents</strong><ul>'], False
+    for level, anchor, text in toc:
+        if level == 3 and not nested:
+            out[-1] = out[-1].removesuffix("</li>")
+            out.append("<ul>")
+            nested = True
+        elif level == 2 and nested:
+            out.append("</ul></li>")
+            nested = False
+        out.append(f'<li><a href="#{anchor}">{_inline(text)}</a></li>')
+    if nested:
+        out.append("</ul></li>")
+    return "\n".join(out + ["</ul></nav>"])

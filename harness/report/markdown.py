@@ -125,31 +125,72 @@ def _markdown_table(cells: list[list[str]]) -> str:
     return "\n".join(markdown_table(cells[0], cells[1:]))
 
 
+PROBLEMS = "Runs that did not complete"
+# Runs named per reason in "Runs that did not complete" (the CSV files hold every row).
+REASON_EXAMPLES = 3
+
+
+def problem_lines(df: pd.DataFrame) -> list[str]:
+    """ "Runs that did not complete": one row per status and reason (numbers elided), with its count."""
+    from stereodyn.harness.summary import grouped_reasons
+
+    entries = grouped_reasons(df)
+    if not entries:
+        return []
+    rows = [[e["status"], str(e["count"]), e["reason"],
+             "; ".join(e["runs"][:REASON_EXAMPLES]) + (f"; and {e['count'] - REASON_EXAMPLES} more"
+                                                       if e["count"] > REASON_EXAMPLES else "")]
+            for e in entries]
+    total = sum(e["count"] for e in entries)
+    return [f"## {PROBLEMS}", "",
+            f"{total} runs, grouped by status and reason (numbers in the message elided); results.csv has each "
+            "run's message.", "", *markdown_table(["status", "runs", "reason", "for example"], rows), ""]
+
+
+def case_lines(case: str, group: pd.DataFrame, extras: Sequence[str] = ()) -> list[str]:
+    """A case's section: its drift table, its divergences, then `extras` (its figures)."""
+    columns = TERMINAL_COLUMNS[:-2] + ("attitude_err_end", "truth_err", "chart_changes", "wall_s", "us_per_step")
+    counts = group["status"].value_counts()
+    # Skipped runs have no numbers: counted here, their reasons grouped in "Runs that did not complete" (results.csv
+    # has each row).
+    ran = group[group["status"] != "skipped"]
+    skipped = f"; the skipped ones are in {PROBLEMS} (grouped by reason)" if counts.get("skipped", 0) else ""
+    lines = [f"### {case}", "", f"{len(group)} runs: " + ", ".join(
+        f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped") if counts.get(s, 0)) + skipped,
+             ""]
+    if len(ran):
+        lines += [_markdown_table(_table(ran, _shown_columns(ran, columns))), ""]
+    diverged = group[group["status"] == "diverged"]
+    for _, row in diverged.iterrows():
+        formulation = row.get("formulation", "")
+        formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
+        lines.append(f"- {row['engine']}{formulation} {row['integrator']} dt={row['dt']:g} diverged at t = "
+                     f"{row['diverged_at']:.4g} s")
+    if len(diverged):
+        lines.append("")
+    return lines + list(extras)
+
+
 def report_markdown(df: pd.DataFrame, summary: Sequence[str] = (), sections: Sequence[str] = (),
-                    env: dict[str, str] | None = None, verdicts: Sequence[str] = ()) -> str:
-    """report.md. summary: lines appended to the summary; sections: lines (whole sections) before the definitions;
-    env: the environment of the sweep (default: this process's); verdicts: the Verdicts section, first."""
+                    env: dict[str, str] | None = None, verdicts: Sequence[str] = (), front: Sequence[str] = (),
+                    case_extras: dict[str, list[str]] | None = None) -> str:
+    """report.md, answers first: verdicts, summary, `front` (what to use, convergence, each integrator), the runs that
+    did not complete (grouped), formulations side by side, then a section per case (drift table and
+    case_extras[case], its figures), then `sections` (checks), definitions and the environment."""
     counts = df["status"].value_counts()
     lines = ["# stereodyn report", "", *verdicts, "## Summary", "",
              f"{len(df)} runs over {df['case'].nunique()} cases: "
              + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "", *summary]
-    problems = df[df["status"].isin(["failed", "skipped"])]
-    if len(problems):
-        lines += ["## Runs that did not complete", "",
-                  _markdown_table(_table(problems, ["case", "engine", "integrator", "dt", "status", "message"])), ""]
-    lines += ["## Drift tables", ""]
-    columns = TERMINAL_COLUMNS[:-2] + ("attitude_err_end", "truth_err", "chart_changes", "wall_s", "us_per_step")
+    lines += [*front, *problem_lines(df), *formulation_lines(df)]
+    lines += ["## Cases", "",
+              "Per case: the drift table (DESIGN §4; every column in results.csv), the work–precision figure (max "
+              "attitude error against µs of stepping per simulated second, a panel per engine and formulation, "
+              "each integrator's points joined along dt, the dt ladder's included) and the invariants against time "
+              "(energy, momentum and the case's special integral, relative to their scale, and the attitude error: "
+              "the maximum over buckets of samples).", ""]
+    extras = case_extras or {}
     for case, group in df.groupby("case", sort=False):
-        lines += [f"### {case}", "", _markdown_table(_table(group, _shown_columns(group, columns))), ""]
-        diverged = group[group["status"] == "diverged"]
-        for _, row in diverged.iterrows():
-            formulation = row.get("formulation", "")
-            formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
-            lines.append(f"- {row['engine']}{formulation} {row['integrator']} dt={row['dt']:g} diverged at t = "
-                         f"{row['diverged_at']:.4g} s")
-        if len(diverged):
-            lines.append("")
-    lines += formulation_lines(df)
+        lines += case_lines(case, group, extras.get(case, ()))
     lines += [*sections, "## Definitions", "", DEFINITIONS, "", "## Environment", ""]
     lines += [f"- {key}: {value}" for key, value in (env or environment()).items()]
     return "\n".join(lines) + "\n"

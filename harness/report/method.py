@@ -1,0 +1,177 @@
+""""Your method": what the report measured of each integrator, and the origin of every registered one.
+
+For someone checking an integrator (a plug-in, or a built-in): its fitted orders (convergence.csv), its stability limit
+and round-off floor (the dt ladders), whether its energy error stays bounded (measured on the stored series) and what it
+costs against the best built-in integrator at a few accuracy targets (results.csv and ladder.csv).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from stereodyn.harness.report.markdown import markdown_table, number
+
+# Accuracy targets (max attitude error, rad) of the cost comparison.
+COST_TARGETS = (1e-3, 1e-6, 1e-9)
+# Energy trend from a stored series: the max deviation over the second half of the run against that over the first.
+# A bounded error (a symplectic method, an oscillating error) gives about 1; a secular drift that grows like t^p gives
+# 2^p >= 2 for p >= 1. Below ENERGY_NOISE (relative) the deviation is round-off and says nothing about a trend.
+SECULAR_GROWTH = 1.5
+ENERGY_NOISE = 1e-13
+
+
+def origin(cls) -> str:
+    """'built in', or 'plug-in from DIST' (the installed distribution that holds the class's top-level module)."""
+    module = getattr(cls, "__module__", "") or ""
+    if module.split(".")[0] == "stereodyn":
+        return "built in"
+    from importlib.metadata import packages_distributions
+
+    dists = packages_distributions().get(module.split(".")[0], [])
+    return f"plug-in from {', '.join(sorted(set(dists)))}" if dists else f"plug-in (module {module})"
+
+
+def integrator_rows() -> list[dict]:
+    """Every integrator `stereodyn run --integrators` accepts: the registry's classes (each state space) with their
+    metadata and origin, then each engine's own integrators (MuJoCo's) that the registry does not hold."""
+    from stereodyn.harness import integrators as registry
+    from stereodyn.harness.engines import engine_names, get_engine
+
+    rows = []
+    for space in registry.state_spaces():
+        for name in registry.names(space):
+            cls = registry.get(name, space)
+            rows.append({"name": name, "state_space": space, "order": cls.order, "stages": cls.stages,
+                         "symplectic": cls.symplectic, "geometric": cls.geometric,
+                         "energy_bounded": getattr(cls, "energy_bounded", False),
+                         "default_sweep": getattr(cls, "default_sweep", True), "origin": origin(cls),
+                         "description": cls.description})
+    known = {row["name"] for row in rows}
+    for engine in engine_names():
+        try:
+            names = get_engine(engine).integrators()
+        except Exception:  # an engine that is not installed lists nothing
+            continue
+        for name in names:
+            if name not in known:
+                from stereodyn.harness.workprecision import declared_order
+
+                rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
+                             "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
+                             "default_sweep": True, "origin": f"built in ({engine})", "description": ""})
+    return rows
+
+
+def listing(rows: list[dict]) -> str:
+    """The text of `stereodyn integrators`: a fixed-width table."""
+    columns = ("name", "state_space", "order", "stages", "symplectic", "geometric", "energy_bounded", "default_sweep",
+               "origin", "description")
+    cells = [list(columns)] + [[_text(row[c]) for c in columns] for row in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(columns) - 1)]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1] for r in cells)
+
+
+def _text(value) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float) and math.isfinite(value) and value == int(value):
+        return str(int(value))
+    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else str(value)
+
+
+def energy_trend(series: dict[tuple, dict], integrator: str) -> tuple[str, float]:
+    """('bounded' | 'secular' | 'round-off' | 'not measured', median growth) over the integrator's stored energy
+    series: growth = max deviation over the second half / max over the first half."""
+    growths = []
+    for key, values in series.items():
+        if key[3] != integrator or not key[4] or "energy" not in values:
+            continue
+        y = np.array([np.nan if v is None else v for v in values["energy"]], dtype=float)
+        half = len(y) // 2
+        if half < 4 or not np.isfinite(y).all():
+            continue
+        first, second = np.max(y[:half]), np.max(y[half:])
+        if second <= ENERGY_NOISE:
+            growths.append(1.0)
+        elif first > 0:
+            growths.append(second / first)
+    if not growths:
+        return "not measured", math.nan
+    growth = float(np.median(growths))
+    return ("bounded" if growth < SECULAR_GROWTH else "secular"), growth
+
+
+def _costs(runs: pd.DataFrame) -> pd.DataFrame:
+    ok = runs[(runs["status"] == "ok") & runs["dt"].notna() & np.isfinite(runs["attitude_err"])
+              & np.isfinite(runs["wall_s"])]
+    return ok.assign(cost=ok["wall_s"] / ok["t_end"] * 1e6)
+
+
+def cost_ratios(runs: pd.DataFrame, integrator: str, builtin: set[str], targets=COST_TARGETS) -> dict[float, str]:
+    """Per target: the median over cases of (the integrator's cheapest run reaching it) / (the cheapest run of any
+    other built-in integrator reaching it), with the number of cases compared."""
+    costs = _costs(runs)
+    out = {}
+    for target in targets:
+        ratios = []
+        reach = costs[costs["attitude_err"] <= target]
+        for _, group in reach.groupby("case", sort=False):
+            mine = group[group["integrator"] == integrator]["cost"]
+            others = group[(group["integrator"] != integrator) & group["integrator"].isin(builtin)]["cost"]
+            if len(mine) and len(others):
+                ratios.append(mine.min() / others.min())
+        out[target] = f"{np.median(ratios):.2g}x ({len(ratios)} cases)" if ratios else "-"
+    return out
+
+
+def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | None = None) -> list[str]:
+    """The report section "Each integrator (your method)": a subsection per integrator that ran."""
+    from stereodyn.harness import workprecision
+
+    ran = [i for i in dict.fromkeys(df.loc[df["status"] == "ok", "integrator"].astype(str)) if i != "taylor"]
+    if not ran:
+        return []
+    try:
+        catalogue = {row["name"]: row for row in integrator_rows()}
+    except Exception:  # the listing is context; the measurements stand without it
+        catalogue = {}
+    builtin = {name for name, row in catalogue.items() if str(row["origin"]).startswith("built in")}
+    convergence = workprecision.read_optional(Path(out_dir) / workprecision.CONVERGENCE_FILE,
+                                              ("formulation", "note", "source"))
+    if convergence is not None:  # a table with no fitted value reads as text: the numbers as numbers
+        numeric = ("order", "floor_dt", "floor_err", "stable_dt_max", "declared_order")
+        convergence = convergence.assign(**{c: pd.to_numeric(convergence[c], errors="coerce")
+                                            for c in numeric if c in convergence})
+    ladder = workprecision.read_optional(Path(out_dir) / workprecision.LADDER_FILE)
+    runs = df if ladder is None or ladder.empty else pd.concat(
+        [df, ladder[[c for c in ladder.columns if c in df.columns]]], ignore_index=True)
+    lines = ["## Each integrator (your method)", "",
+             "For each integrator that ran: the fitted order over the cases (convergence.csv, min and max), the "
+             "largest stable dt and the round-off floor where a dt ladder ran, the energy trend measured on its stored "
+             f"series (max deviation over the second half of a run / over the first, median over its runs; secular "
+             f"when >= {SECULAR_GROWTH:g}) and its cost against the cheapest other built-in integrator reaching each "
+             "accuracy target (median over cases of the cost ratio; below 1 is cheaper). `stereodyn integrators` "
+             "lists every registered one.", ""]
+    header = ["integrator", "origin", "declared", "fitted order (min / max, cases)", "stable dt max",
+              "round-off floor", "energy trend"] + [f"cost ≤ {t:.0e}" for t in COST_TARGETS]
+    rows = []
+    for name in ran:
+        row = catalogue.get(name, {})
+        fitted = convergence[(convergence["integrator"] == name) & np.isfinite(convergence["order"])] \
+            if convergence is not None else pd.DataFrame()
+        declared = fitted["declared_order"].iloc[0] if len(fitted) else row.get("order", math.nan)
+        orders = (f"{fitted['order'].min():.2f} / {fitted['order'].max():.2f} ({fitted['case'].nunique()})"
+                  if len(fitted) else "-")
+        laddered = convergence[(convergence["integrator"] == name) & (convergence["source"] == "ladder")] \
+            if convergence is not None else pd.DataFrame()
+        stable = number(laddered["stable_dt_max"].min(), ".3g") if len(laddered) else "-"
+        floor = number(laddered["floor_err"].min()) if len(laddered) else "-"
+        trend, growth = energy_trend(series or {}, name)
+        trend = trend if math.isnan(growth) else f"{trend} ({growth:.2g}x)"
+        costs = cost_ratios(runs, name, builtin)
+        rows.append([name, row.get("origin", "?"), _text(declared), orders, stable, floor, trend,
+                     *[costs[t] for t in COST_TARGETS]])
+    return lines + markdown_table(header, rows) + [""]

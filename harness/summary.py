@@ -1,0 +1,106 @@
+"""The answers at a glance: what `stereodyn run` prints by default, and the grouped reasons the report shows.
+
+The terminal summary is short by design (issue 15): counts, the verdicts, the runs that did not finish grouped by
+reason, the cheapest run for a few accuracy targets, and where the report is. The drift tables are `--verbose`.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+# Accuracy targets (max attitude error, rad) of the terminal's "cheapest run" lines: three decades of pareto.csv's.
+TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)
+# Reasons listed in the terminal before "... and N more reasons": keeps the default suite's summary under 80 lines.
+TERMINAL_REASONS = 8
+# Failed verdicts listed before "... and N more" (all of them are in verdicts.csv and the report).
+TERMINAL_VERDICTS = 20
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def reason(message) -> str:
+    """A message with its numbers replaced by '…', so runs that stopped for the same reason share it."""
+    text = message if isinstance(message, str) else ""
+    return _NUMBER.sub("…", text).strip() or "(no message)"
+
+
+def _subject(row) -> str:
+    formulation = row.get("formulation", "")
+    formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
+    dt = row.get("dt")
+    dt = f" dt={dt:g}" if isinstance(dt, float) and np.isfinite(dt) else ""
+    return f"{row['case']} {row['engine']}{formulation} {row['integrator']}{dt}"
+
+
+def grouped_reasons(df: pd.DataFrame, statuses=("failed", "diverged", "skipped")) -> list[dict]:
+    """Runs that did not complete, one entry per (status, reason): count and the runs, most frequent first
+    (failures before divergences before skips on a tie)."""
+    rank = {s: i for i, s in enumerate(statuses)}
+    rows = df[df["status"].isin(statuses)]
+    groups: dict[tuple[str, str], list[str]] = {}
+    for _, row in rows.iterrows():
+        groups.setdefault((row["status"], reason(row.get("message"))), []).append(_subject(row))
+    entries = [{"status": s, "reason": r, "count": len(runs), "runs": runs} for (s, r), runs in groups.items()]
+    return sorted(entries, key=lambda e: (rank[e["status"]], -e["count"], e["reason"]))
+
+
+def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
+    """Per accuracy target, over every case of pareto.csv: how many cases some run reaches, and the case whose
+    cheapest run is dearest (the target's worst case)."""
+    from stereodyn.harness import workprecision
+
+    pareto = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
+                                         ("formulation", "engine", "integrator"))
+    if pareto is None or pareto.empty:
+        return []
+    lines = ["cheapest fixed-step run reaching an accuracy (max attitude error), pareto.csv:"]
+    cases = pareto["case"].nunique()
+    for target in targets:
+        # atol 0: np.isclose's default 1e-8 would take 1e-9 .. 1e-12 for one target
+        hit = pareto[np.isclose(pareto["target"], target, rtol=1e-9, atol=0.0) & (pareto["engine"] != "")]
+        hit = hit.drop_duplicates("case")
+        if hit.empty:
+            lines.append(f"  <= {target:.0e}: no case reaches it")
+            continue
+        counts: dict[str, int] = {}
+        for _, row in hit.iterrows():
+            counts[_method(row)] = counts.get(_method(row), 0) + 1
+        best, wins = max(counts.items(), key=lambda kv: kv[1])
+        dearest = hit.loc[hit["us_per_sim_s"].idxmax()]
+        lines.append(f"  <= {target:.0e}: {len(hit)}/{cases} cases; most often {best} ({wins}); dearest "
+                     f"{dearest['case']}: {_method(dearest)} dt={dearest['dt']:.3g} "
+                     f"({dearest['us_per_sim_s']:.3g} µs/s)")
+    return lines
+
+
+def _method(row) -> str:
+    return " ".join(str(row[c]) for c in ("engine", "formulation", "integrator") if isinstance(row[c], str) and row[c])
+
+
+def terminal_lines(df: pd.DataFrame, found: list, out_dir: Path, report: Path | None = None) -> list[str]:
+    """The default output of `stereodyn run`."""
+    from stereodyn.harness import verdicts
+
+    counts = df["status"].value_counts()
+    lines = [f"{len(df)} runs over {df['case'].nunique()} cases: "
+             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped"))]
+    verdict_lines = verdicts.summary_lines(found)
+    lines += verdict_lines[:1 + TERMINAL_VERDICTS]
+    if len(verdict_lines) > 1 + TERMINAL_VERDICTS:
+        lines.append(f"... and {len(verdict_lines) - 1 - TERMINAL_VERDICTS} more failed verdicts: verdicts.csv")
+    entries = grouped_reasons(df)
+    if entries:
+        lines.append("did not complete, by reason (numbers elided; every run in results.csv):")
+        for entry in entries[:TERMINAL_REASONS]:
+            more = f", +{entry['count'] - 1}" if entry["count"] > 1 else ""
+            lines.append(f"  {entry['count']:4d} {entry['status']}: {entry['reason']} ({entry['runs'][0]}{more})")
+        if len(entries) > TERMINAL_REASONS:
+            rest = entries[TERMINAL_REASONS:]
+            lines.append(f"  ... and {len(rest)} more reasons ({sum(e['count'] for e in rest)} runs): "
+                         "report.md, Runs that did not complete")
+    lines += cheapest_lines(out_dir)
+    if report is not None:
+        lines.append(f"report: {report}  (drift tables: --verbose, or report.md)")
+    return lines
