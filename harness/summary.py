@@ -5,11 +5,12 @@ reason, the cheapest run for a few accuracy targets, and where the report is. Th
 """
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from stereodyn.harness.report.markdown import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
 
 # Accuracy targets (max attitude error, rad) of the terminal's "cheapest run" lines: three decades of pareto.csv's.
 TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)
@@ -17,33 +18,6 @@ TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)
 TERMINAL_REASONS = 8
 # Failed verdicts listed before "... and N more" (all of them are in verdicts.csv and the report).
 TERMINAL_VERDICTS = 20
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-
-
-def reason(message) -> str:
-    """A message with its numbers replaced by '…', so runs that stopped for the same reason share it."""
-    text = message if isinstance(message, str) else ""
-    return _NUMBER.sub("…", text).strip() or "(no message)"
-
-
-def _subject(row) -> str:
-    formulation = row.get("formulation", "")
-    formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
-    dt = row.get("dt")
-    dt = f" dt={dt:g}" if isinstance(dt, float) and np.isfinite(dt) else ""
-    return f"{row['case']} {row['engine']}{formulation} {row['integrator']}{dt}"
-
-
-def grouped_reasons(df: pd.DataFrame, statuses=("failed", "diverged", "skipped")) -> list[dict]:
-    """Runs that did not complete, one entry per (status, reason): count and the runs, most frequent first
-    (failures before divergences before skips on a tie)."""
-    rank = {s: i for i, s in enumerate(statuses)}
-    rows = df[df["status"].isin(statuses)]
-    groups: dict[tuple[str, str], list[str]] = {}
-    for _, row in rows.iterrows():
-        groups.setdefault((row["status"], reason(row.get("message"))), []).append(_subject(row))
-    entries = [{"status": s, "reason": r, "count": len(runs), "runs": runs} for (s, r), runs in groups.items()]
-    return sorted(entries, key=lambda e: (rank[e["status"]], -e["count"], e["reason"]))
 
 
 def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:

@@ -57,7 +57,7 @@ def integrator_rows() -> list[dict]:
             continue
         for name in names:
             if name not in known:
-                from stereodyn.harness.workprecision import declared_order
+                from stereodyn.harness.fitting import declared_order
 
                 rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
                              "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
