@@ -1,9 +1,9 @@
 """`stereodyn compare A B`: two runs side by side, what someone upgrading MuJoCo or Pinocchio reads.
 
 A and B are result directories (results.csv, and runs.json for the environment) or baseline files (`stereodyn
-baseline`). Written to compare.md and compare.html: the environments with the differences first, then the rows whose
-status or metrics changed, grouped by how much and sorted within a group, each metric as the ratio B / A, and a figure
-of the largest changes. Rows are matched by (case, engine, formulation, integrator, dt) as in the gate.
+baseline`). Written to OUT/compare.md and OUT/compare.html (OUT: B or --out): the environments with the differences
+first, then the rows whose status or metrics changed, grouped by how much and sorted within a group, each metric as
+the ratio B / A, and a figure of the largest changes. Rows are matched by (case, engine, formulation, integrator, dt) as in the gate.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ GROUPS = ((1.0, "changed 10x or more"), (math.log10(2.0), "changed 2x to 10x"),
 EXPECTED = ("date", "report rendered")
 TIMING = "us_per_step"
 DIFFERS = "DIFFERS"
-LISTED = 40      # rows listed per group (compare.csv holds every row)
+LISTED = 40      # rows listed per group (the output folder's compare.csv holds every row)
 FIGURE_ROWS = 20
 
 
@@ -131,7 +131,7 @@ def _ratio(value: float) -> str:
 
 def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.DataFrame,
                   figure: str | None) -> list[str]:
-    """compare.md."""
+    """The lines of the output folder's compare.md."""
     lines = ["# stereodyn compare", "", f"A: `{path_a}`", "", f"B: `{path_b}`", "", "## Environment", ""]
     env = environment_rows(env_a, env_b)
     differing = [r[0] for r in env if r[3] == DIFFERS]
