@@ -94,14 +94,19 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
 
 
 def _timed(sim, grid) -> dict:
-    measured = timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S)
+    return _timing_columns(timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S), grid)
+
+
+def _timing_columns(measured: timing.Timing, grid) -> dict:
     return {"wall_s": measured.best, "us_per_sim_s": measured.best / grid.t_end * 1e6,
             "us_per_sim_s_spread": measured.spread / grid.t_end * 1e6}
 
 
 def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
-    """The ladders' timing phase: every ok point timed in this process, one at a time, after all the accuracy runs
-    (harness.timing: a timed run shares the cores with no other run). Updates the points in place."""
+    """The ladders' timing phase: every ok point timed in this process after all the accuracy runs (harness.timing:
+    a timed run shares the cores with no other run), in rounds over all the points (timing.measure_interleaved).
+    Updates the points in place; a point that fails here is left untimed."""
+    runs, grids, rows = [], [], []
     for row in points:
         if row.get("status") != Status.OK.value:
             continue
@@ -110,9 +115,14 @@ def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) ->
             sim = _prepare(family, row["dt"])
             grid = time_grid(family.case.t_end, row["dt"], family.case.samples)
             sim.run(grid)  # the warm-up
-            row.update(_timed(sim, grid))
         except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
-            pass
+            continue
+        runs.append(lambda sim=sim, grid=grid: sim.run(grid))
+        grids.append(grid)
+        rows.append(row)
+    for row, grid, measured in zip(rows, grids, timing.measure_interleaved(runs, TIMING_REPEATS, TIMING_BUDGET_S)):
+        if measured is not None:
+            row.update(_timing_columns(measured, grid))
 
 
 def _stable(row: dict) -> bool:

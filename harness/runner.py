@@ -141,20 +141,38 @@ def _timing_columns(measured: timing.Timing, steps: float) -> dict:
 
 
 def time_spec(spec: RunSpec, steps: float) -> dict:
-    """The timing columns of one finished ok run: a fresh preparation, an untimed warm-up run, then timing.measure.
-    Run alone (the sweep's timing phase), so that no other run shares the cores. {} when the run fails here."""
-    grid = _grid(spec)
+    """The timing columns of one finished ok run, timed alone (time_specs of one run). {} when it fails here."""
+    return time_specs([spec], [steps])[0]
+
+
+def _warm_run(spec: RunSpec):
+    """A fresh preparation of the spec, run once untimed (caches, lazily compiled code): a function of no arguments
+    for the timing phase, or None when it fails here (it ran ok untimed: the row is then left untimed)."""
     try:
         if spec.case.kind == SLIDING_LADDER:
             run = sliding_ladder.timed_run(spec, sliding_ladder._grid(spec))
         else:
+            grid = _grid(spec)
             formulation = {"formulation": spec.formulation} if spec.formulation else {}
             sim = get_engine(spec.engine).prepare(spec.case, spec.integrator, spec.dt, **formulation)
             run = lambda: sim.run(grid)  # noqa: E731
-        run()  # the warm-up: caches, lazily compiled code
-        return _timing_columns(timing.measure(run), steps)
-    except Exception:  # it ran ok untimed: a failure here leaves the row untimed rather than breaking the sweep
-        return {}
+        run()
+        return run
+    except Exception:
+        return None
+
+
+def time_specs(specs: list[RunSpec], steps: list[float]) -> list[dict]:
+    """The timing columns of finished ok runs, in this process with no other run sharing the cores: each prepared
+    and warmed up, then timed in rounds over all of them (timing.measure_interleaved). {} for a run that fails here."""
+    runs = [_warm_run(spec) for spec in specs]
+    kept = [i for i, run in enumerate(runs) if run is not None]
+    measured = timing.measure_interleaved([runs[i] for i in kept])
+    rows: list[dict] = [{} for _ in specs]
+    for i, m in zip(kept, measured):
+        if m is not None:
+            rows[i] = _timing_columns(m, steps[i])
+    return rows
 
 
 # The cost model of a run (execute), to start the longest runs first and to weigh the progress bar's ETA. Measured on
@@ -355,11 +373,12 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
-            progress.stage(f"timing {len(untimed)} runs, one at a time")
-        for spec in untimed:
+            progress.stage(f"timing {len(untimed)} runs, one at a time, in rounds")
+        timings = time_specs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed])
+        for spec, timed_columns in zip(untimed, timings):
             key = keys[id(spec)]
             row = stored[key]
-            row.update(time_spec(spec, row.get("steps", math.nan)))
+            row.update(timed_columns)
             record = store.get(key)
             store.put(key, identities[id(spec)], row, record.get("series") if record else None)
         if untimed:

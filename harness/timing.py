@@ -43,10 +43,47 @@ def measure(run: Callable[[], object], repeats: int = REPEATS, budget_s: float =
     finally:
         if enabled:
             gc.enable()
-    ordered = sorted(times)
-    return Timing(ordered[0], (ordered[1] if len(ordered) > 1 else ordered[0]) - ordered[0], len(ordered))
+    return _timing(times)
 
 
 def best_time(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S) -> float:
     """Best wall time (s) of measure(run, repeats, budget_s)."""
     return measure(run, repeats, budget_s).best
+
+
+def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS, budget_s: float = BUDGET_S,
+                        min_repeats: int = MIN_REPEATS) -> list[Timing | None]:
+    """measure() for many runs at once (each already warmed up), in rounds: round r times every run still short of
+    its repeats once, so the repeats of one run lie a whole round apart. A run drops out of later rounds once it has
+    `min_repeats` repeats and has spent `budget_s`. A run that raises is dropped: its entry is None.
+
+    Why rounds: on this project's 2-core machine, two idle default runs timed the same run up to 2x apart while each
+    run's back-to-back repeats agreed to a few per cent (a slow period of the host lasts longer than one run's repeats).
+    Spread over the phase, the repeats sample different periods: the best is then reproducible across runs, and the
+    spread shows a slow period instead of hiding it.
+    """
+    times: list[list[float] | None] = [[] for _ in runs]
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for round_ in range(max(1, repeats)):
+            for i, run in enumerate(runs):
+                ts = times[i]
+                if ts is None or (round_ >= min_repeats and sum(ts) >= budget_s):
+                    continue
+                start = time.perf_counter()
+                try:
+                    run()
+                except Exception:  # it ran ok before: left untimed rather than breaking the phase
+                    times[i] = None
+                    continue
+                ts.append(time.perf_counter() - start)
+    finally:
+        if enabled:
+            gc.enable()
+    return [None if ts is None else _timing(ts) for ts in times]
+
+
+def _timing(times: list[float]) -> Timing:
+    ordered = sorted(times)
+    return Timing(ordered[0], (ordered[1] if len(ordered) > 1 else ordered[0]) - ordered[0], len(ordered))

@@ -199,6 +199,27 @@ def test_measure_reports_best_and_second_best_spread(monkeypatch):
     assert timing.measure(run, repeats=3, budget_s=1.0).repeats == timing.MIN_REPEATS  # over budget: 2 for a spread
 
 
+def test_measure_interleaved_times_in_rounds_and_drops_what_fails(monkeypatch):
+    """Repeats of one run lie a round apart (a slow period of the host then lands in one repeat, not all); a run over
+    budget stops after MIN_REPEATS; a run that raises is None and the others go on."""
+    clock, calls = [0.0], []
+
+    def make(name, duration, fail_at=None):
+        def run():
+            calls.append(name)
+            if fail_at is not None and calls.count(name) == fail_at:
+                raise RuntimeError("gone")
+            clock[0] += duration
+        return run
+
+    monkeypatch.setattr(timing.time, "perf_counter", lambda: clock[0])
+    runs = [make("a", 0.1), make("b", 5.0), make("c", 0.2, fail_at=2)]
+    measured = timing.measure_interleaved(runs, repeats=3, budget_s=1.0)
+    assert calls == ["a", "b", "c", "a", "b", "c", "a"]  # round by round; b over budget after 2; c failed in round 2
+    assert measured[0].repeats == 3 and measured[0].best == pytest.approx(0.1)
+    assert measured[1].repeats == timing.MIN_REPEATS and measured[2] is None
+
+
 def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypatch):
     """execute runs untimed in the sweep; the timing phase then times each ok run in the parent, one at a time."""
     timed_in_execute = []
