@@ -3,7 +3,6 @@ are registered there; a third-party engine package, installed in a temporary dir
 old-style plug-in is refused naming it; and no engine name is spelled in the harness outside its adapter and the
 registry."""
 import ast
-import os
 import subprocess
 import sys
 import textwrap
@@ -11,6 +10,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 import pandas as pd
+import plugin_packages
 import pytest
 
 from stereodyn.harness import engines
@@ -19,57 +19,9 @@ from stereodyn.harness.engines import Engine, EngineError
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = "stereodyn_toy_engine"
 
-# A PEP 517 backend in the package's own tree, as tests/test_plugin.py's: no network, no wheel package needed.
-BACKEND = f'''
-import base64, hashlib, zipfile
-from pathlib import Path
-
-NAME, VERSION, PACKAGE = "{PACKAGE.replace('_', '-')}", "0.1.0", "{PACKAGE}"
-DIST_INFO = f"{PACKAGE}-{{VERSION}}.dist-info"
-ENTRY_POINTS = Path("entry_points.txt").read_text()
-
-
-def get_requires_for_build_wheel(config_settings=None):
-    return []
-
-
-def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
-    files = {{
-        f"{{DIST_INFO}}/METADATA": f"Metadata-Version: 2.1\\nName: {{NAME}}\\nVersion: {{VERSION}}\\n",
-        f"{{DIST_INFO}}/WHEEL": "Wheel-Version: 1.0\\nGenerator: b\\nRoot-Is-Purelib: true\\nTag: py3-none-any\\n",
-        f"{{DIST_INFO}}/entry_points.txt": ENTRY_POINTS,
-        f"{{PACKAGE}}/__init__.py": Path(PACKAGE, "__init__.py").read_text(),
-    }}
-    record = []
-    name = f"{PACKAGE}-{{VERSION}}-py3-none-any.whl"
-    with zipfile.ZipFile(Path(wheel_directory) / name, "w") as wheel:
-        for path, text in files.items():
-            data = text.encode()
-            wheel.writestr(path, data)
-            digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
-            record.append(f"{{path}},sha256={{digest}},{{len(data)}}")
-        record.append(f"{{DIST_INFO}}/RECORD,,")
-        wheel.writestr(f"{{DIST_INFO}}/RECORD", "\\n".join(record) + "\\n")
-    return name
-'''
-
-PYPROJECT = f"""
-[build-system]
-requires = []
-build-backend = "backend"
-backend-path = ["."]
-
-[project]
-name = "{PACKAGE.replace('_', '-')}"
-version = "0.1.0"
-"""
-
-ENTRY_POINTS = f"""[stereodyn.engines]
-toy = {PACKAGE}:ToyEngine
-toy_old = {PACKAGE}:OldStyleEngine
-toy_broken = {PACKAGE}:NoSuchClass
-toy_nosdk = {PACKAGE}.needs_sdk:Engine
-"""
+ENTRY_POINTS = {"stereodyn.engines": {"toy": f"{PACKAGE}:ToyEngine", "toy_old": f"{PACKAGE}:OldStyleEngine",
+                                     "toy_broken": f"{PACKAGE}:NoSuchClass",
+                                     "toy_nosdk": f"{PACKAGE}.needs_sdk:Engine"}}
 
 # The smallest engine a user could write: it wraps the Pinocchio adapter's simulation (the dynamics are not the point
 # here; the plug-in seam is), for bodies without external torques.
@@ -117,25 +69,14 @@ class OldStyleEngine:
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
     """The package pip-installed into a target folder (the venv is not touched); removed with tmp_path."""
-    root = tmp_path_factory.mktemp("engine_plugin")
-    source = root / "src"
-    (source / PACKAGE).mkdir(parents=True)
-    (source / "pyproject.toml").write_text(PYPROJECT)
-    (source / "entry_points.txt").write_text(ENTRY_POINTS)
-    (source / "backend.py").write_text(BACKEND)
-    (source / PACKAGE / "__init__.py").write_text(textwrap.dedent(MODULE))
-    target = root / "site"
-    result = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-build-isolation", "--no-deps",
-                             "--target", str(target), str(source)], capture_output=True, text=True, cwd=root)
-    if result.returncode != 0:
-        pytest.fail(f"pip install failed: {result.stderr[-2000:]}")
-    return target
+    return plugin_packages.install(tmp_path_factory.mktemp("engine_plugin"), {
+        "pyproject.toml": plugin_packages.pyproject(PACKAGE, ENTRY_POINTS),
+        f"{PACKAGE}/__init__.py": textwrap.dedent(MODULE)})
 
 
 def _run(target: Path, *argv: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(target), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    return subprocess.run([sys.executable, *argv], capture_output=True, text=True, env=env, cwd=cwd)
+    return subprocess.run([sys.executable, *argv], capture_output=True, text=True,
+                          env=plugin_packages.env_with(target), cwd=cwd)
 
 
 def test_the_builtin_engines_are_entry_points():

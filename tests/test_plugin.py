@@ -1,65 +1,16 @@
 """A third-party integrator package, built and installed in a temporary directory, registers an integrator through
 the entry-point group stereodyn.integrators; `stereodyn run --integrators heun_plugin` then runs it on the Pinocchio
 and reference engines."""
-import os
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
 
 import pandas as pd
+import plugin_packages
 import pytest
 
 PACKAGE = "stereodyn_heun_plugin"
-
-PYPROJECT = f"""
-[build-system]
-requires = []
-build-backend = "wheel_backend"
-backend-path = ["."]
-
-[project]
-name = "{PACKAGE.replace('_', '-')}"
-version = "0.1.0"
-
-[project.entry-points."stereodyn.integrators"]
-heun_plugin = "{PACKAGE}:INTEGRATORS"
-"""
-
-# A PEP 517 backend in the package's own tree (backend-path): it builds the wheel with zipfile, so the test needs
-# neither network (build isolation) nor a setuptools with bdist_wheel in the venv.
-BACKEND = f'''
-import base64, hashlib, zipfile
-from pathlib import Path
-
-NAME, VERSION, PACKAGE = "{PACKAGE.replace('_', '-')}", "0.1.0", "{PACKAGE}"
-DIST_INFO = f"{PACKAGE}-{{VERSION}}.dist-info"
-FILES = {{
-    f"{{DIST_INFO}}/METADATA": f"Metadata-Version: 2.1\\nName: {{NAME}}\\nVersion: {{VERSION}}\\n",
-    f"{{DIST_INFO}}/WHEEL": "Wheel-Version: 1.0\\nGenerator: wheel_backend\\nRoot-Is-Purelib: true\\nTag: py3-none-any\\n",
-    f"{{DIST_INFO}}/entry_points.txt": "[stereodyn.integrators]\\nheun_plugin = {PACKAGE}:INTEGRATORS\\n",
-}}
-
-
-def get_requires_for_build_wheel(config_settings=None):
-    return []
-
-
-def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
-    files = dict(FILES)
-    files[f"{{PACKAGE}}/__init__.py"] = Path(PACKAGE, "__init__.py").read_text()
-    record = []
-    name = f"{PACKAGE}-{{VERSION}}-py3-none-any.whl"
-    with zipfile.ZipFile(Path(wheel_directory) / name, "w") as wheel:
-        for path, text in files.items():
-            data = text.encode()
-            wheel.writestr(path, data)
-            digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
-            record.append(f"{{path}},sha256={{digest}},{{len(data)}}")
-        record.append(f"{{DIST_INFO}}/RECORD,,")
-        wheel.writestr(f"{{DIST_INFO}}/RECORD", "\\n".join(record) + "\\n")
-    return name
-'''
 
 MODULE = '''
 """Heun's method (explicit trapezoidal rule), as a user would add it: one tableau, both state spaces; and the explicit
@@ -99,24 +50,13 @@ INTEGRATORS = (HeunLie, HeunVector, MidpointLie)
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
     """The package pip-installed into a target folder (the venv itself is not touched); removed with tmp_path."""
-    root = tmp_path_factory.mktemp("plugin")
-    source = root / "src"
-    (source / PACKAGE).mkdir(parents=True)
-    (source / "pyproject.toml").write_text(PYPROJECT)
-    (source / PACKAGE / "__init__.py").write_text(textwrap.dedent(MODULE))
-    (source / "wheel_backend.py").write_text(BACKEND)
-    target = root / "site"
-    result = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-build-isolation", "--no-deps",
-                             "--target", str(target), str(source)], capture_output=True, text=True, cwd=root)
-    if result.returncode != 0:
-        pytest.fail(f"pip install failed: {result.stderr[-2000:]}")
-    return target
+    return plugin_packages.install(tmp_path_factory.mktemp("plugin"), {
+        "pyproject.toml": plugin_packages.pyproject(
+            PACKAGE, {"stereodyn.integrators": {"heun_plugin": f"{PACKAGE}:INTEGRATORS"}}),
+        f"{PACKAGE}/__init__.py": textwrap.dedent(MODULE)})
 
 
-def _env(target: Path) -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(target), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    return env
+_env = plugin_packages.env_with
 
 
 def test_plugin_runs_by_name_on_pinocchio_and_reference(installed, tmp_path):

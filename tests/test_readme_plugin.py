@@ -1,7 +1,6 @@
 """The README's plug-in guide is a working package: its blocks (each opening with `# <project>/PATH`) are extracted,
 built, pip-installed into a target folder, listed by `stereodyn integrators`, run by `stereodyn run --integrators
 kutta3`, and its own tests pass."""
-import os
 import re
 import subprocess
 import sys
@@ -9,51 +8,11 @@ import tomllib
 from pathlib import Path
 
 import pandas as pd
+import plugin_packages
 import pytest
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 SECTION = "### Writing one: a complete plug-in package"
-
-# A stand-in PEP 517 backend, used only when this environment cannot build the README's setuptools project offline
-# (setuptools < 70.1 builds wheels only with the `wheel` package installed): it zips the package the README's
-# [tool.setuptools] names, with the README's metadata and entry points. The files installed are the README's.
-FALLBACK_BACKEND = '''
-import base64, hashlib, tomllib, zipfile
-from pathlib import Path
-
-
-def get_requires_for_build_wheel(config_settings=None):
-    return []
-
-
-def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
-    meta = tomllib.loads(Path("pyproject.toml").read_text())
-    project, packages = meta["project"], meta["tool"]["setuptools"]["packages"]
-    stem = project["name"].replace("-", "_")
-    dist_info = f"{stem}-{project['version']}.dist-info"
-    entries = "".join(f"[{group}]\\n" + "".join(f"{k} = {v}\\n" for k, v in points.items())
-                      for group, points in project.get("entry-points", {}).items())
-    files = {f"{dist_info}/METADATA":
-             f"Metadata-Version: 2.1\\nName: {project['name']}\\nVersion: {project['version']}\\n",
-             f"{dist_info}/WHEEL":
-             "Wheel-Version: 1.0\\nGenerator: fallback\\nRoot-Is-Purelib: true\\nTag: py3-none-any\\n",
-             f"{dist_info}/entry_points.txt": entries}
-    for package in packages:
-        for path in Path(package).rglob("*.py"):
-            files[path.as_posix()] = path.read_text()
-    name = f"{stem}-{project['version']}-py3-none-any.whl"
-    record = []
-    with zipfile.ZipFile(Path(wheel_directory) / name, "w") as wheel:
-        for path, text in files.items():
-            data = text.encode()
-            wheel.writestr(path, data)
-            digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
-            record.append(f"{path},sha256={digest},{len(data)}")
-        record.append(f"{dist_info}/RECORD,,")
-        wheel.writestr(f"{dist_info}/RECORD", "\\n".join(record) + "\\n")
-    return name
-'''
-
 
 def readme_files() -> dict[str, str]:
     """{path: text} of the fenced blocks in the plug-in guide whose first line is `# <project>/PATH`."""
@@ -86,35 +45,24 @@ def _can_build_with_setuptools() -> bool:
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("readme-plugin")
-    source = root / "src"
     files = readme_files()
     # the package's module and its test, by folder and name (written whole, the docs test reads them as citations)
     assert sorted((Path(p).parent.name, Path(p).name) for p in files) == [
         ("", "pyproject.toml"), ("stereodyn_kutta3", "__init__.py"), ("tests", "test_kutta3.py")]
-    for path, text in files.items():
-        (source / path).parent.mkdir(parents=True, exist_ok=True)
-        (source / path).write_text(text)
     meta = tomllib.loads(files["pyproject.toml"])
     assert meta["project"]["entry-points"]["stereodyn.integrators"] == {"kutta3": "stereodyn_kutta3:INTEGRATORS"}
     if not _can_build_with_setuptools():
+        # setuptools < 70.1 builds wheels only with the `wheel` package installed: the stand-in backend zips the
+        # package the README's [tool.setuptools] names, with the README's metadata; the files installed are the README's
         pyproject = files["pyproject.toml"].replace(
             'requires = ["setuptools>=61"]\nbuild-backend = "setuptools.build_meta"',
-            'requires = []\nbuild-backend = "fallback_backend"\nbackend-path = ["."]')
+            'requires = []\nbuild-backend = "zip_backend"\nbackend-path = ["."]')
         assert pyproject != files["pyproject.toml"]
-        (source / "pyproject.toml").write_text(pyproject)
-        (source / "fallback_backend.py").write_text(FALLBACK_BACKEND)
-    target = root / "site"
-    result = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-build-isolation", "--no-deps",
-                             "--target", str(target), str(source)], capture_output=True, text=True, cwd=root)
-    if result.returncode != 0:
-        pytest.fail(f"pip install failed: {result.stderr[-2000:]}")
-    return target, source
+        files = {**files, "pyproject.toml": pyproject}
+    return plugin_packages.install(root, files), root / "src"
 
 
-def _env(target: Path) -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(target), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    return env
+_env = plugin_packages.env_with
 
 
 def test_the_readme_example_is_listed_and_runs_by_its_class_name(installed, tmp_path):

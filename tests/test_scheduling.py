@@ -1,9 +1,8 @@
 """How a local sweep schedules its runs: the cost model that orders them, and the worker pool's life."""
 import multiprocessing
-import os
-import time
 
 import pytest
+from child_processes import ended, started_since
 
 from stereodyn.harness import runner
 from stereodyn.harness.cases import find_case, with_overrides
@@ -37,59 +36,31 @@ def test_the_timing_budget_bounds_the_cost_of_a_long_run(monkeypatch):
     assert runner._cost(long_run) < repeated
 
 
-def _started_since(before: set) -> set:
-    """Child processes started since `before` (earlier tests' pools may still be exiting)."""
-    return set(multiprocessing.active_children()) - before
-
-
-def _ended(processes: set, within_s: float = 60.0) -> bool:
-    """Whether every process ended within a generous bound (not a timing check). The pool's own thread may reap a
-    worker before Process.join sees it (its exitcode then stays None), so a process also counts as ended once its pid
-    is gone."""
-    deadline = time.monotonic() + within_s
-    for process in processes:
-        while True:
-            process.join(timeout=0.1)
-            if process.exitcode is not None or not _exists(process.pid):
-                break
-            if time.monotonic() > deadline:
-                return False
-    return True
-
-
-def _exists(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
-
 def test_the_pool_starts_its_workers_before_any_run_is_submitted():
     before = set(multiprocessing.active_children())
     with runner._local_pool(2, 5, ("mujoco",)) as pool:
-        workers = _started_since(before)
+        workers = started_since(before)
         assert pool is not None and len(workers) == 2
-    assert _ended(workers)  # idle workers exit on their own after the sweep
+    assert ended(workers)  # idle workers exit on their own after the sweep
 
 
 @pytest.mark.parametrize("jobs, runs", [(1, 5), (2, 1), (2, 0)])
 def test_a_serial_or_single_run_sweep_starts_no_pool(jobs, runs):
     before = set(multiprocessing.active_children())
     with runner._local_pool(jobs, runs, ("mujoco",)) as pool:
-        assert pool is None and not _started_since(before)
+        assert pool is None and not started_since(before)
 
 
 def test_an_interrupt_while_computing_the_truth_ends_the_started_workers(tmp_path, monkeypatch):
     before, workers = set(multiprocessing.active_children()), set()
 
     def interrupted(*args, **kwargs):
-        workers.update(_started_since(before))  # the workers start while the truth is computed
+        workers.update(started_since(before))  # the workers start while the truth is computed
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "compute_truth", interrupted)
     case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
     with pytest.raises(KeyboardInterrupt):
         runner.run_sweep([case], ["mujoco"], ["euler"], tmp_path, jobs=2)
-    assert len(workers) == 2 and _ended(workers)
+    assert len(workers) == 2 and ended(workers)
     assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGTERM), not left to finish their start-up

@@ -2,42 +2,16 @@
 the ladders ends its workers at once, as during the sweep (tests/test_scheduling.py)."""
 import math
 import multiprocessing
-import os
-import time
 from pathlib import Path
 
 import pandas as pd
 import pytest
+from child_processes import ended, started_since
 
 from stereodyn.harness import runner, workprecision
 from stereodyn.harness.cases import find_case, with_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _started_since(before: set) -> set:
-    return set(multiprocessing.active_children()) - before
-
-
-def _ended(processes: set, within_s: float = 60.0) -> bool:
-    """Whether every process ended within a generous bound (not a timing check)."""
-    deadline = time.monotonic() + within_s
-    for process in processes:
-        while True:
-            process.join(timeout=0.1)
-            if process.exitcode is not None or not _exists(process.pid):
-                break
-            if time.monotonic() > deadline:
-                return False
-    return True
-
-
-def _exists(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
 
 
 def _case():
@@ -47,11 +21,11 @@ def _case():
 def test_the_sweep_and_the_ladders_share_one_pool(tmp_path):
     before = set(multiprocessing.active_children())
     with runner.worker_pool(2, ("reference",)) as pool:
-        workers = _started_since(before)
+        workers = started_since(before)
         df = runner.run_sweep([_case()], ["reference"], ["rk4"], tmp_path, pool=pool)
         workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200,
                               pool=pool)
-        assert _started_since(before) == workers and len(workers) == 2  # no other process was started
+        assert started_since(before) == workers and len(workers) == 2  # no other process was started
     convergence = pd.read_csv(tmp_path / "convergence.csv", dtype={"formulation": str})
     ladders = convergence[convergence["source"] == "ladder"]
     # one ladder per formulation of the reference engine, each with a fitted rk4 order (measured 3.9-4.1 over
@@ -70,11 +44,11 @@ def test_an_interrupt_during_the_ladders_ends_the_workers_at_once(tmp_path):
 
     with pytest.raises(KeyboardInterrupt):
         with runner.worker_pool(2, ("reference",)) as pool:
-            workers.update(_started_since(before))
+            workers.update(started_since(before))
             df = runner.run_sweep([_case()], ["reference"], ["rk4"], tmp_path, pool=pool)
             workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full",
                                   max_steps=20_000, pool=pool, progress=interrupt)
-    assert len(done) == 1 and len(workers) == 2 and _ended(workers)
+    assert len(done) == 1 and len(workers) == 2 and ended(workers)
     assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGTERM), not left to finish their ladders
 
 
