@@ -127,7 +127,8 @@ def report_lines(out_dir: Path) -> list[str]:
                   "contenders. Timings are comparable within one report only; each run is timed alone (best of up "
                   "to 3). '**tie** with N': N other runs cost the same within the timing noise (pareto.csv `ties`, "
                   f"the sum of their spreads, at least {TIE_RTOL:.0%}); the one shown needs "
-                  "the fewest right-hand-side evaluations per simulated second. A run whose integrator failed a "
+                  "the fewest right-hand-side evaluations per simulated second (then the cheapest; runs with the same "
+                  "evaluations and the same error in name order). A run whose integrator failed a "
                   "verdict is never shown; a cheaper one is named as not recommended.", ""]
         targets = sorted(pareto_df["target"].unique(), reverse=True)
         header = ["case"] + [f"≤ {t:.0e}" for t in targets]
