@@ -123,7 +123,9 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
     figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
     for axes, (title, panel) in zip(grid.flat, panels):
         for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
-            runs = runs.sort_values("dt", ascending=False, na_position="last")  # along dt: no zig-zag
+            # along dt, an adaptive method's along its tolerance (tolerance ladders): no zig-zag
+            keys = [k for k in ("dt", "tolerance") if k in runs]
+            runs = runs.sort_values(keys, ascending=False, na_position="last", kind="stable")
             colour, marker = integrator_style(runs["integrator"].iloc[0])
             engine = runs["engine"].iloc[0]
             short = str(runs["integrator"].iloc[0])  # the panel's title names the engine and formulation
@@ -141,7 +143,40 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
         axes.set_xlabel("µs per simulated s", fontsize=8)
     for axes in grid[:, 0]:
         axes.set_ylabel("max attitude error (rad)", fontsize=8)
-    figure.suptitle(f"{case}: work–precision (points along dt, largest first)", fontsize=10)
+    figure.suptitle(f"{case}: work–precision (points along dt or tolerance, largest first)", fontsize=10)
+    return _png(figure)
+
+
+def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
+    """The error achieved (state error: max of attitude_err, omega_err, casimir_drift) against the tolerance
+    requested, a line per adaptive method (tolerance.csv's points of the case), with the diagonal error = tolerance:
+    a panel per engine and formulation (facets). None when no point of the case has a finite error."""
+    rows = points[(points["case"] == case) & (points["status"] == "ok")
+                  & np.isfinite(points["state_err"].astype(float)) & (points["state_err"].astype(float) > 0)]
+    if rows.empty:
+        return None
+    panels = facets(rows)
+    figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
+    for axes, (title, panel) in zip(grid.flat, panels):
+        for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
+            runs = runs.sort_values("tolerance", ascending=False, kind="stable")
+            colour, marker = integrator_style(runs["integrator"].iloc[0])
+            axes.plot(runs["tolerance"].to_numpy(float), runs["state_err"].to_numpy(float), marker=marker,
+                      markersize=4, linestyle=linestyle(runs["engine"].iloc[0]), color=colour, linewidth=1.0,
+                      label=str(runs["integrator"].iloc[0]))
+        low, high = float(panel["tolerance"].min()), float(panel["tolerance"].max())
+        axes.plot([low, high], [low, high], color="grey", linestyle="--", linewidth=0.8, label="error = tol")
+        axes.set_xscale("log")
+        axes.set_yscale("log")
+        axes.set_title(title, fontsize=9)
+        axes.tick_params(labelsize=7)
+        axes.grid(True, which="major", alpha=0.3)
+        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    for axes in grid[-1]:
+        axes.set_xlabel("tolerance requested", fontsize=8)
+    for axes in grid[:, 0]:
+        axes.set_ylabel("max state error", fontsize=8)
+    figure.suptitle(f"{case}: error achieved against tolerance requested (dashed: error = tolerance)", fontsize=10)
     return _png(figure)
 
 
