@@ -2,7 +2,7 @@
 tolerances, per point the error achieved and the cost.
 
 For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of
-TOLERANCES (1e-3 ... 1e-13, a decade apart), each prepared with Engine.prepare(..., tolerance=tol) (the contract of
+TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared with Engine.prepare(..., tolerance=tol) (the contract of
 harness.engines.base: rtol = atol = tol) and run on the grid of the sweep's adaptive rows (harness.runner.truth_grid).
 Each point is one untimed accuracy run (errors against the truth on the same sample times, as the dt ladders define
 them: state_err = max(attitude_err, omega_err, casimir_drift)) and separate timed runs, taken in rounds over all the
@@ -35,7 +35,10 @@ TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
                      "energy_drift", "state_err", "err_over_tol", "wall_s", "us_per_sim_s", "us_per_sim_s_spread",
                      "rhs_per_sim_s", "steps_per_sim_s")
-TOLERANCES = tuple(10.0 ** -k for k in range(3, 14))
+TOLERANCES = tuple(10.0 ** -k for k in range(3, 14))  # --dt-ladder: every decade
+# The default run's ladders: every other decade, which halves their cost (~0.5 min on two cores, most of it Radau's
+# and BDF's tight points) and still spans the range.
+DEFAULT_TOLERANCES = TOLERANCES[::2]
 # A point whose accuracy run took longer than this (s) ends its ladder: each tighter tolerance costs more. Measured on
 # the 2-core dev machine (default ladder cases, t_end 20): the scipy methods' points take 0.005-3 s, BDF's and
 # Radau's at 1e-12 the longest.
@@ -186,7 +189,8 @@ def _ladder_cost(family: AdaptiveFamily) -> float:
 
 
 def run_ladders(chosen: list[AdaptiveFamily], pool: ProcessPoolExecutor | None = None,
-                progress: Callable[[str], None] | None = None) -> list[dict]:
+                progress: Callable[[str], None] | None = None,
+                tolerances: tuple[float, ...] = TOLERANCES) -> list[dict]:
     """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
     timed here (time_points). Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose
     to tight."""
@@ -194,17 +198,17 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: ProcessPoolExecutor | None =
     order = sorted(range(len(chosen)), key=lambda i: _ladder_cost(chosen[i]), reverse=True)
     if pool is None or len(chosen) <= 1:
         for index in order:
-            results[index] = run_ladder(chosen[index])
+            results[index] = run_ladder(chosen[index], tolerances)
             if progress:
                 progress(chosen[index].label)
     else:
-        futures = {pool.submit(run_ladder, chosen[index]): index for index in order}
+        futures = {pool.submit(run_ladder, chosen[index], tolerances): index for index in order}
         for future in as_completed(futures):
             index = futures[future]
             try:
                 results[index] = future.result()
             except Exception as exc:  # a worker that died: one failed point says why
-                results[index] = [_failed_point(chosen[index], TOLERANCES[0],
+                results[index] = [_failed_point(chosen[index], max(tolerances),
                                                 f"worker failed: {type(exc).__name__}: {exc}")]
             if progress:
                 progress(chosen[index].label)
@@ -221,5 +225,5 @@ def tolerance_frame(points: list[dict]):
     return df.fillna({"formulation": "", "message": ""}).astype({"tolerance": float})
 
 
-__all__ = ["AdaptiveFamily", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families", "measure",
+__all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families", "measure",
            "run_ladder", "run_ladders", "time_points", "tolerance_frame"]

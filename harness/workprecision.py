@@ -87,22 +87,24 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     if ladder == "full":
         chosen = families(rigid, engines, integrators)
         adaptive = tolerance_ladders.families(rigid, engines, integrators)
+        tolerances = tolerance_ladders.TOLERANCES
         max_steps = max_steps or FULL_MAX_STEPS
     elif ladder == "default":
         laddered_cases = [c for c in rigid if c.name in DEFAULT_LADDER]
         chosen = [f for f in families(laddered_cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
                   if f.integrator not in DEFAULT_LADDER_SKIP]
         adaptive = tolerance_ladders.families(laddered_cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
+        tolerances = tolerance_ladders.DEFAULT_TOLERANCES
         max_steps = max_steps or DEFAULT_MAX_STEPS
     else:
-        chosen, adaptive = [], []
+        chosen, adaptive, tolerances = [], [], ()
     # the costliest first, so the pool ends together
     chosen.sort(key=_ladder_cost, reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress) if chosen else ([], [])
     laddered = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in ladder_rows}
     convergence = convergence_table(ladder_rows + sweep_orders(results[~results["case"].isin(other_kinds)], laddered))
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
-    tolerance_df = tolerance_ladders.tolerance_frame(tolerance_ladders.run_ladders(adaptive, pool, progress)
+    tolerance_df = tolerance_ladders.tolerance_frame(tolerance_ladders.run_ladders(adaptive, pool, progress, tolerances)
                                                      if adaptive else [])
     paths = {"ladder": out_dir / LADDER_FILE, "convergence": out_dir / CONVERGENCE_FILE,
              "tolerance": out_dir / TOLERANCE_FILE, "tolerance_fit": out_dir / TOLERANCE_FIT_FILE,
