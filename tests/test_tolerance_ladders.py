@@ -108,7 +108,7 @@ def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine,
     assert fits["below_tol"].iloc[0] == 0 and 1.0 < fits["max_err_over_tol"].iloc[0] < 100.0
     # its points are candidates of "What to use": here the only ones, so they fill every cell they reach
     pareto = pd.read_csv(tmp_path / workprecision.PARETO_FILE, keep_default_na=False, na_values=[""])
-    reached = pareto[pareto["engine"] != ""]
+    reached = pareto[pareto["engine"].notna()]
     assert len(reached) >= 5 and set(reached["integrator"]) == {"stub_dop853"}
     assert set(reached["source"]) <= {"sweep", "tolerance_ladder"} and "tolerance_ladder" in set(reached["source"])
 
