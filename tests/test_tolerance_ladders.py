@@ -13,6 +13,8 @@ from scipy.integrate import solve_ivp
 from stereodyn.harness import engines, fitting, runner, tolerance_ladders, workprecision
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.report import build
+from stereodyn.harness.report.build import write_reports
 from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.reference import euler_poisson
 
@@ -111,6 +113,25 @@ def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine,
     reached = pareto[pareto["engine"].notna()]
     assert len(reached) >= 5 and set(reached["integrator"]) == {"stub_dop853"}
     assert set(reached["source"]) <= {"sweep", "tolerance_ladder"} and "tolerance_ladder" in set(reached["source"])
+    # the report: a "Tolerance ladders" section with the fit and the figure of error against tolerance
+    write_reports(tmp_path, df)
+    section = (tmp_path / "report.md").read_text().split("## Tolerance ladders")[1].split("\n## ")[0]
+    row = [line for line in section.splitlines() if line.startswith("| free-asymmetric | stub stub_dop853 | ")]
+    assert len(row) == 1 and row[0].split(" | ")[3:5] == [f"{fits['slope'].iloc[0]:.2f}", "11"], row
+    figure = f"figures/{build.figure_stem(case.name)}-tolerance.png"
+    assert f"]({figure})" in section and (tmp_path / figure).read_bytes().startswith(b"\x89PNG")
+
+
+def test_the_tolerance_ladders_run_on_the_sweeps_pool(tmp_path):
+    """One family per worker task, as the dt ladders (tests/test_workprecision_pool.py): heyoka's taylor on two
+    formulations of a short case, the points back in the families' order and timed here."""
+    case = with_overrides(find_case("free-asymmetric"), t_end=1.0)
+    chosen = tolerance_ladders.families([case], ["reference"], ["taylor"], ("quaternion", "gibbs"))
+    with runner.worker_pool(2, ("reference",)) as pool:
+        points = tolerance_ladders.run_ladders(chosen, pool, tolerances=(1e-4, 1e-8))
+    assert [(p["formulation"], p["tolerance"]) for p in points] == [("quaternion", 1e-4), ("quaternion", 1e-8),
+                                                                     ("gibbs", 1e-4), ("gibbs", 1e-8)]
+    assert all(p["status"] == "ok" and p["us_per_sim_s"] > 0 for p in points), points
 
 
 def test_the_tolerance_ladder_stops_at_a_point_over_its_budget(stub_engine):

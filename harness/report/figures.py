@@ -45,10 +45,11 @@ def run_label(row) -> str:
 MAX_SERIES = 8
 # Colour and marker by integrator, the same in every figure; an integrator outside the list gets the next free pair.
 INTEGRATOR_STYLES = ("rk4", "euler", "symplectic_euler", "implicit", "implicitfast", "rk4_naive", "taylor", "rk3",
-                     "rkmk4", "cg4", "midpoint", "heun")
+                     "rkmk4", "cg4", "midpoint", "heun", "scipy_rk45", "scipy_dop853", "scipy_radau", "scipy_bdf",
+                     "scipy_lsoda")
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#000000", "#e377c2", "#17becf",
-            "#bcbd22", "#7f7f7f", "#aec7e8")
-_MARKERS = ("o", "s", "^", "v", "D", "P", "*", "X", "<", ">", "h", "p")
+            "#bcbd22", "#7f7f7f", "#aec7e8", "#393b79", "#e6550d", "#31a354", "#843c39", "#7b4173")
+_MARKERS = ("o", "s", "^", "v", "D", "P", "*", "X", "<", ">", "h", "p", "d", "H", "8", "x", "+")
 
 
 def integrator_style(integrator: str) -> tuple[str, str]:
@@ -176,7 +177,7 @@ def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
         axes.set_xlabel("tolerance requested", fontsize=8)
     for axes in grid[:, 0]:
         axes.set_ylabel("max state error", fontsize=8)
-    figure.suptitle(f"{case}: error achieved against tolerance requested (dashed: error = tolerance)", fontsize=10)
+    figure.suptitle(f"{case}: error against tolerance", fontsize=10)
     return _png(figure)
 
 
