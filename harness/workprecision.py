@@ -208,8 +208,8 @@ def tolerance_report_lines(out_dir: Path, figures: dict[str, str]) -> list[str]:
     if fits is None or fits.empty:
         return []
     lines = ["## Tolerance ladders", "",
-             "Every adaptive method run at requested tolerances 1e-3 … 1e-13 (tolerance.csv: relative and absolute "
-             "tolerance alike; per point the error achieved and the cost). 'slope': the fitted tolerance "
+             "Every adaptive method run at requested tolerances from 1e-3 to 1e-13 (tolerance.csv: relative and "
+             "absolute tolerance alike; per point the error achieved and the cost). 'slope': the fitted tolerance "
              "proportionality, the slope of log state error (max of attitude_err, omega_err, casimir_drift) against "
              f"log tolerance over the points above round-off ({ROUNDOFF_MARGIN:g} eps steps <= error <= "
              f"{ASYMPTOTIC_MAX:g}); 1 is an error proportional to the tolerance. 'error <= tol': at how many of "
