@@ -81,7 +81,12 @@ class ScipyIVP:
                         status, message = Status.FAILED, (f"scipy {self.method}: more than {self.max_steps} steps "
                                                           f"before t = {t_end:g} s (stopped at t = {solver.t:.6g} s)")
                         break
-                    step_message = solver.step()
+                    try:
+                        step_message = solver.step()
+                    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. a Jacobian not finite
+                        status, first = Status.FAILED, (str(exc).splitlines() or [""])[0]
+                        message = f"scipy {self.method}: {type(exc).__name__}: {first} at t = {solver.t:.6g} s"
+                        break
                     if solver.status == "failed":
                         status = Status.FAILED
                         message = f"scipy {self.method}: {step_message} at t = {solver.t:.6g} s"
