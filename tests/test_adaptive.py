@@ -122,6 +122,23 @@ def test_a_solver_failure_is_a_failed_run_with_scipys_message():
     assert capped.status is Status.FAILED and "more than 5 steps" in capped.message
 
 
+class _Breaks(_Blowup):
+    """y' = 1 until t = 0.5 s, then a right-hand side that raises (as a singular Jacobian's LU would)."""
+
+    def rhs(self, t, chart, y):
+        if t > 0.5:
+            raise ValueError("array must not contain infs or NaNs\nsecond line")
+        return np.ones_like(y)
+
+
+def test_an_exception_inside_a_step_is_a_failed_run_with_its_message():
+    grid = time_grid(1.0, 0.01, 11)
+    run = scipy_ivp.ScipyIVP("scipy_radau", 1e-6).integrate(_Breaks(), None, np.array([0.0]), grid)
+    assert run.status is Status.FAILED and "\n" not in run.message
+    assert run.message.startswith("scipy Radau: ValueError: array must not contain infs or NaNs at t = ")
+    assert np.isfinite(run.quat[0]).all() and np.isnan(run.quat[-1]).all()  # kept up to the last accepted step
+
+
 def test_a_tolerance_below_scipys_floor_is_refused():
     with pytest.raises(ValueError, match="100 eps"):
         ENGINE.prepare(_free(), "scipy_dop853", None, tolerance=1e-15)
