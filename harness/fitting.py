@@ -208,7 +208,8 @@ def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()
     Per case and target: among the ok runs reaching the target whose integrator passed its verdicts (failed: a set of
     (engine, formulation, integrator), harness.verdicts.failed_integrators), the cheapest; every run within the timing
     noise of it (TIE_RTOL, the spreads) is a tie, listed in `ties`, and the winner among the tied is the one with the
-    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest.
+    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest; where a
+    tied run has no count (rhs_per_sim_s NaN: heyoka's taylor), the cheapest.
     `not_recommended` names the cheaper runs left out because their integrator failed a verdict."""
     runs = runs.fillna({"formulation": ""})
     runs = runs[(runs["status"] == Status.OK.value) & np.isfinite(runs["attitude_err"].astype(float))
@@ -234,7 +235,10 @@ def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()
                                   else cheapest["us_per_sim_s_spread"]),
                                TIE_RTOL * cheapest["us_per_sim_s"])
             tied = good[(good["us_per_sim_s"].to_numpy(float) - cheapest["us_per_sim_s"]) <= noise]
-            rhs = tied["rhs_per_sim_s"].astype(float).fillna(math.inf)
+            rhs = tied["rhs_per_sim_s"].astype(float)
+            # the evaluations decide a tie only where every tied run counts them (heyoka's taylor does not: a
+            # Taylor step has no stages), else the best time does
+            rhs = rhs if rhs.notna().all() else pd.Series(0.0, index=tied.index)
             best = tied.loc[tied.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
             cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
             records.append({"case": case, "target": target, **{c: best.get(c, math.nan) for c in _CELL_COLUMNS},

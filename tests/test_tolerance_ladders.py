@@ -217,3 +217,13 @@ def test_an_adaptive_point_within_the_timing_noise_of_a_fixed_step_run_is_a_tie(
     cell = fitting.pareto(results, pd.DataFrame(), tolerance=tolerance).set_index("target").loc[1e-6]
     # cheaper by half the tie floor: a tie, and the fixed-step run needs fewer evaluations, so it is shown
     assert (cell.integrator, cell.source) == ("rk4", "sweep") and "e dop tol=1e-06" in cell.ties
+
+
+def test_a_tie_with_a_run_that_does_not_count_its_evaluations_goes_to_the_cheaper():
+    """heyoka's taylor has no right-hand-side count: a tie it is in is decided by the best time, not by a count it
+    lacks (which would make it lose every tie, however much cheaper)."""
+    results = pd.DataFrame([_fixed("euler", 0.005, 9e-3, 1300.0, spread=1500.0, rhs=200.0),
+                            _fixed("taylor", math.nan, 3e-15, 270.0, rhs=math.nan)
+                            | {"steps": 55.0, "us_per_step_spread": 10.0 * 2.0 / 55.0}])
+    cell = fitting.pareto(results, pd.DataFrame()).set_index("target").loc[1e-2]
+    assert cell.integrator == "taylor" and "e euler dt=0.005" in cell.ties  # still a tie, within euler's spread
