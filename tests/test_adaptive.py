@@ -159,3 +159,17 @@ def test_taylor_takes_the_tolerance_keyword():
     # a fixed-step integrator accepts the keyword and ignores it
     fixed = ENGINE.prepare(case, "rk4", 1e-2, tolerance=1e-3).run(time_grid(case.t_end, 1e-2, 11))
     assert fixed.status is Status.OK
+
+
+def test_the_default_sweep_runs_the_explicit_scipy_methods_on_the_quaternion_only():
+    """Engine.default_run: a sweep that names no integrators plans scipy_rk45, scipy_dop853 and scipy_lsoda on the
+    quaternion formulation (the cost measured in docs/ENGINES.md); naming one runs it on every formulation."""
+    from stereodyn.harness.plan import plan
+
+    case = _free()
+    specs, _ = plan([case], ["reference"], None)
+    scipy_runs = {(s.formulation, s.integrator, s.dt) for s in specs if s.integrator in scipy_ivp.METHODS}
+    assert scipy_runs == {("quaternion", name, None) for name in ("scipy_rk45", "scipy_dop853", "scipy_lsoda")}
+    assert {s.formulation for s in specs if s.integrator == "taylor"} == set(ENGINE.formulations())
+    named, _ = plan([case], ["reference"], ["scipy_radau"])
+    assert {(s.formulation, s.integrator) for s in named} == {(f, "scipy_radau") for f in ENGINE.formulations()}
