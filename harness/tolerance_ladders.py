@@ -2,14 +2,15 @@
 tolerances, per point the error achieved and the cost.
 
 For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of
-TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared with Engine.prepare(..., tolerance=tol) (the contract of
-harness.engines.base: rtol = atol = tol) and run on the grid of the sweep's adaptive rows (harness.runner.truth_grid).
-Each point is one untimed accuracy run (errors against the truth on the same sample times, as the dt ladders define
-them: state_err = max(attitude_err, omega_err, casimir_drift)) and separate timed runs, taken in rounds over all the
-points after every accuracy run (harness.dt_ladders.time_points' protocol), costed as µs of stepping per simulated
-second, right-hand-side evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the
-quaternion at its default, truth-grade tolerance) is not a ladder point: every point names its tolerance, and
-heyoka's taylor joins at the loose ones like any other adaptive method.
+TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared
+with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: rtol = atol = tol) and run on the
+grid of the sweep's adaptive rows (harness.runner.truth_grid). Each point is one untimed accuracy run (errors
+against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
+casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
+(harness.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
+evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the quaternion at its default,
+truth-grade tolerance) is not a ladder point: every point names its tolerance, and heyoka's taylor joins at the
+loose ones like any other adaptive method.
 
 A ladder walks from loose to tight and stops early, saying so in the last point's message, once a point's accuracy
 run took longer than POINT_BUDGET_S (the tighter points would each take longer still). The fits (tolerance
@@ -225,5 +226,5 @@ def tolerance_frame(points: list[dict]):
     return df.fillna({"formulation": "", "message": ""}).astype({"tolerance": float})
 
 
-__all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families", "measure",
-           "run_ladder", "run_ladders", "time_points", "tolerance_frame"]
+__all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families",
+           "measure", "run_ladder", "run_ladders", "time_points", "tolerance_frame"]

@@ -149,8 +149,8 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
                   "comparable within one report only; each run is timed alone (best of up to 3). '**tie** with N': "
                   "N other runs cost the same within the timing noise (pareto.csv `ties`, the sum of their spreads, "
                   f"at least {TIE_RTOL:.0%}); the one shown needs the fewest right-hand-side evaluations per simulated "
-                  "second (is the cheapest where a tied run does not count them: heyoka's taylor). A run whose integrator failed a verdict is never shown; a cheaper one is named as not "
-                  "recommended.", ""]
+                  "second (the cheapest where a tied run does not count them: heyoka's taylor). A run whose "
+                  "integrator failed a verdict is never shown; a cheaper one is named as not recommended.", ""]
         targets = sorted(pareto_df["target"].unique(), reverse=True)
         header = ["case"] + [f"≤ {t:.0e}" for t in targets]
         rows = []
