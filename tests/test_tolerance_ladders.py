@@ -228,3 +228,11 @@ def test_a_tie_with_a_run_that_does_not_count_its_evaluations_goes_to_the_cheape
                             | {"steps": 55.0, "us_per_step_spread": 10.0 * 2.0 / 55.0}])
     cell = fitting.pareto(results, pd.DataFrame()).set_index("target").loc[1e-2]
     assert cell.integrator == "taylor" and "e euler dt=0.005" in cell.ties  # still a tie, within euler's spread
+
+
+def test_an_adaptive_row_with_no_error_at_all_is_the_reference_and_no_candidate():
+    """The sliding ladder's equation (an adaptive row measured against itself: error exactly 0) never wins a cell."""
+    results = pd.DataFrame([_fixed("rk4", 0.01, 9e-7, 100.0),
+                            _fixed("theta", math.nan, 0.0, 1.0) | {"steps": 40.0, "us_per_step_spread": 0.0}])
+    table = fitting.pareto(results, pd.DataFrame()).set_index("target")
+    assert table.loc[1e-6, "integrator"] == "rk4" and table.loc[1e-12, "source"] == "none reached it"
