@@ -122,9 +122,10 @@ def _parser() -> argparse.ArgumentParser:
                      help="run on this Dask scheduler's cluster (needs stereodyn[dask]) instead of local processes")
     run.add_argument("--dt-ladder", action="store_true",
                      help="work–precision ladder (about ten dt from the stability limit to the round-off regime) for "
-                          "every case x engine x formulation x integrator; default: only the default suite's few "
-                          "representative ladders")
-    run.add_argument("--no-ladder", action="store_true", help="no dt ladder at all (orders from the dt lists only)")
+                          "every case x engine x formulation x integrator, and a tolerance ladder (1e-3 ... 1e-13) "
+                          "for every adaptive one; default: only the default suite's few representative ladders")
+    run.add_argument("--no-ladder", action="store_true",
+                     help="no dt ladder and no tolerance ladder at all (orders from the dt lists only)")
     run.add_argument("--ladder-max-steps", type=_count, default=None, metavar="N",
                      help="smallest ladder dt = t_end / N (default 200000 with --dt-ladder, 40000 otherwise)")
     run.add_argument("--strict", action="store_true",
@@ -293,8 +294,9 @@ def _quiet_engines(out: Path) -> None:
 
 
 def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
-    """ladder.csv, convergence.csv, pareto.csv and the orders in checks.csv (harness.workprecision). The default
-    suite (no CASE, no --case-file, no --dt) gets the small default ladder; --dt-ladder every family's."""
+    """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and the orders in checks.csv
+    (harness.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
+    --dt-ladder every family's."""
     from stereodyn.harness import workprecision
 
     if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
@@ -306,7 +308,7 @@ def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
     else:
         mode = "default"
     if mode != "off" and progress is not None:
-        progress.stage(f"work–precision: {mode} dt ladder")
+        progress.stage(f"work–precision: {mode} dt and tolerance ladders")
     workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
                           max_steps=args.ladder_max_steps, pool=pool)
 

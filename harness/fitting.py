@@ -1,5 +1,6 @@
 """Work–precision fitting: the one order fitter (order_slope), the round-off floor and the order of a ladder's points
-(fit), the orders of a sweep's own dt lists, and the Pareto table (the cheapest run reaching each accuracy target).
+(fit), the orders of a sweep's own dt lists, the tolerance proportionality of a tolerance ladder (tolerance_fit), and
+the Pareto table (the cheapest run, fixed-step or adaptive, reaching each accuracy target).
 
 - the round-off floor: walking from large to small dt among the points below ASYMPTOTIC_MAX, the first point after
   which the error falls with a local slope below FLOOR_SLOPE while it is below FLOOR_MAX (a stall higher up is not
@@ -21,8 +22,12 @@ from stereodyn.harness.trajectory import Status
 
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")
-PARETO_COLUMNS = ("case", "target", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
-                  "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "ties", "not_recommended")
+PARETO_COLUMNS = ("case", "target", "engine", "formulation", "integrator", "dt", "tolerance", "attitude_err",
+                  "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "ties", "not_recommended")
+# The columns a Pareto cell copies from its winning candidate.
+_CELL_COLUMNS = PARETO_COLUMNS[2:13]
+# pareto.csv's `source`: where the winning candidate came from.
+SOURCE_SWEEP, SOURCE_LADDER, SOURCE_TOLERANCE = "sweep", "ladder", "tolerance_ladder"
 ORDER_QUANTITY = "convergence_order"
 
 # A state error above this (rad, or relative for ω) is pre-asymptotic: higher-order terms and the saturation of the
@@ -135,27 +140,60 @@ def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
 TIE_RTOL = 0.05
 
 
-def pareto(results: pd.DataFrame, ladder: pd.DataFrame, failed: set | None = None) -> pd.DataFrame:
-    """Per case and accuracy target, the cheapest fixed-step run (sweep or ladder) whose attitude_err reaches it, with
-    ties and the runs not recommended (pareto_table)."""
-    sweep = results[results["dt"].notna()].copy()
+def pareto(results: pd.DataFrame, ladder: pd.DataFrame, failed: set | None = None,
+           tolerance: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Per case and accuracy target, the cheapest run whose attitude_err reaches it, with ties and the runs not
+    recommended (pareto_table). Candidates: every timed run of the sweep, fixed-step and adaptive (at the engine's
+    default tolerance; the truth has no error of its own and is none), the dt ladders' points and the tolerance
+    ladders' points (tolerance.csv, pareto_candidates)."""
+    # an adaptive row whose error is exactly 0 is the reference its errors are measured against (the sliding ladder's
+    # equation); the rigid bodies' truth has no error at all. Neither is a contender.
+    sweep = results[results["dt"].notna() | (results["attitude_err"] != 0.0)].copy()
     sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
     sweep["us_per_sim_s_spread"] = sweep["us_per_step_spread"] * sweep["steps"] / sweep["t_end"]
-    sweep["source"] = "sweep"
+    sweep["source"] = SOURCE_SWEEP
     ladder = ladder.copy()
-    ladder["source"] = "ladder"
-    columns = ["case", "engine", "formulation", "integrator", "dt", "attitude_err", "us_per_sim_s",
-               "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "status"]
-    for frame_ in (sweep, ladder):
-        for column in columns:
-            if column not in frame_:
-                frame_[column] = math.nan
-    both = pd.concat([sweep[columns], ladder[columns]] if len(ladder) else [sweep[columns]], ignore_index=True)
+    ladder["source"] = SOURCE_LADDER
+    frames = [sweep, ladder] + ([pareto_candidates(tolerance)] if tolerance is not None else [])
+    both = pd.concat([_candidate_columns(f) for f in frames if len(f)] or [_candidate_columns(sweep)],
+                     ignore_index=True)
     return pareto_table(both, list(dict.fromkeys(results["case"])), failed or set())
 
 
+_CANDIDATE_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "tolerance", "attitude_err",
+                      "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "status")
+
+
+def _candidate_columns(frame_: pd.DataFrame) -> pd.DataFrame:
+    """A candidate frame with exactly _CANDIDATE_COLUMNS (NaN where it has none)."""
+    frame_ = frame_.copy()
+    for column in _CANDIDATE_COLUMNS:
+        if column not in frame_:
+            frame_[column] = math.nan
+    return frame_[list(_CANDIDATE_COLUMNS)]
+
+
+def pareto_candidates(tolerance: pd.DataFrame) -> pd.DataFrame:
+    """The tolerance ladders' points (tolerance.csv) as Pareto candidates: adaptive (dt NaN), with their tolerance,
+    source SOURCE_TOLERANCE."""
+    points = tolerance.copy()
+    points["dt"] = math.nan
+    points["source"] = SOURCE_TOLERANCE
+    return _candidate_columns(points)
+
+
+def setting(row) -> str:
+    """How a run was set: its step (dt=...), its requested tolerance (tol=...) or the engine's default tolerance."""
+    dt, tol = row.get("dt", math.nan), row.get("tolerance", math.nan)
+    if isinstance(dt, (int, float)) and math.isfinite(dt):
+        return f"dt={dt:.3g}"
+    if isinstance(tol, (int, float)) and math.isfinite(tol):
+        return f"tol={tol:.0e}"
+    return "default tol"
+
+
 def _candidate_name(row) -> str:
-    return f"{_name(row)} dt={row['dt']:.3g}"
+    return f"{_name(row)} {setting(row)}"
 
 
 def _candidate(row) -> str:
@@ -170,14 +208,16 @@ def is_failed(failed_set: set[tuple[str, str, str]], engine: str, formulation: s
 
 def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()) -> pd.DataFrame:
     """The Pareto table from candidate runs (columns case, engine, formulation, integrator, dt, attitude_err,
-    us_per_sim_s, us_per_sim_s_spread, rhs_per_sim_s, steps, source, status).
+    us_per_sim_s, us_per_sim_s_spread, rhs_per_sim_s, steps, source, status; optionally tolerance), fixed-step (dt)
+    and adaptive (dt NaN) alike: an adaptive run competes on its cost like any other.
 
     Per case and target: among the ok runs reaching the target whose integrator passed its verdicts (failed: a set of
     (engine, formulation, integrator), harness.verdicts.failed_integrators), the cheapest; every run within the timing
     noise of it (TIE_RTOL, the spreads) is a tie, listed in `ties`, and the winner among the tied is the one with the
-    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest; runs that
-    noise alone tells apart (the same rhs evaluations and the same attitude_err, e.g. two names of one computation)
-    are taken in name order, so that two runs of the sweep name the same one.
+    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest; where a
+    tied run has no count (rhs_per_sim_s NaN: heyoka's taylor), the cheapest. Runs that noise alone tells apart (the
+    same evaluations and the same attitude_err, e.g. two names of one computation) are taken in name order, so that
+    two runs of the sweep name the same one.
     `not_recommended` names the cheaper runs left out because their integrator failed a verdict."""
     runs = runs.fillna({"formulation": ""})
     runs = runs[(runs["status"] == Status.OK.value) & np.isfinite(runs["attitude_err"].astype(float))
@@ -203,14 +243,17 @@ def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()
                                   else cheapest["us_per_sim_s_spread"]),
                                TIE_RTOL * cheapest["us_per_sim_s"])
             tied = good[(good["us_per_sim_s"].to_numpy(float) - cheapest["us_per_sim_s"]) <= noise]
-            rhs = tied["rhs_per_sim_s"].astype(float).fillna(math.inf)
+            rhs = tied["rhs_per_sim_s"].astype(float)
+            # the evaluations decide a tie only where every tied run counts them (heyoka's taylor does not: a
+            # Taylor step has no stages), else the best time does
+            rhs = rhs if rhs.notna().all() else pd.Series(0.0, index=tied.index)
             best = tied.loc[tied.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
             # Two idle default runs named different winners in 11 of 264 cells only because MuJoCo's euler and
             # implicitfast (bit-identical on a ball joint) swapped places by a few per cent of time.
             twins = tied[(rhs == rhs[best.name]) & (tied["attitude_err"] == best["attitude_err"])]
             best = twins.loc[min(twins.index, key=lambda i: _candidate_name(twins.loc[i]))]
             cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
-            records.append({"case": case, "target": target, **{c: best[c] for c in PARETO_COLUMNS[2:12]},
+            records.append({"case": case, "target": target, **{c: best.get(c, math.nan) for c in _CELL_COLUMNS},
                             "ties": "; ".join(_candidate(r) for i, r in tied.iterrows() if i != best.name),
                             "not_recommended": "; ".join(_candidate(r) for _, r in
                                                          cheaper_bad.nsmallest(3, "us_per_sim_s").iterrows())})
@@ -219,3 +262,49 @@ def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()
 
 def _name(row) -> str:
     return " ".join(str(x) for x in (row["engine"], row["formulation"], row["integrator"]) if isinstance(x, str) and x)
+
+
+# ------------------------------------------------------------------------------------------------ tolerance ladders
+
+TOLERANCE_FIT_COLUMNS = ("case", "engine", "formulation", "integrator", "slope", "points", "tol_min", "tol_max",
+                         "below_tol", "max_err_over_tol", "note")
+
+
+def tolerance_fit(points: pd.DataFrame) -> dict:
+    """The tolerance proportionality of one adaptive method's ladder (columns tolerance, steps, status, state_err):
+    slope: least-squares slope of log state_err against log tolerance (order_slope) over the points above round-off
+    (ROUNDOFF_MARGIN eps steps <= state_err <= ASYMPTOTIC_MAX, as the dt ladders' asymptotic range), at least two;
+    1 is an error proportional to the tolerance. points, tol_min, tol_max: the points fitted and their range.
+    below_tol: how many of them reached state_err <= tolerance; max_err_over_tol: the largest state_err / tolerance
+    among them (above 1: the global error exceeded the per-step tolerance requested)."""
+    ok = points[(points["status"] == Status.OK.value) & np.isfinite(points["state_err"].astype(float))
+                & (points["state_err"].astype(float) > 0)]
+    tol, err = ok["tolerance"].to_numpy(float), ok["state_err"].to_numpy(float)
+    steps = ok["steps"].to_numpy(float)
+    fitted = (err <= ASYMPTOTIC_MAX) & (err >= ROUNDOFF_MARGIN * EPS * steps)
+    n = int(fitted.sum())
+    notes = []
+    if n < len(points):
+        not_ok = int((points["status"] != Status.OK.value).sum())
+        outside = len(ok) - n
+        notes += [f"{not_ok} point(s) not ok"] if not_ok else []
+        notes += [f"{outside} point(s) outside {ROUNDOFF_MARGIN:g} eps steps <= state_err <= {ASYMPTOTIC_MAX:g}"] \
+            if outside else []
+    slope = order_slope(tol[fitted], err[fitted]) if n >= 2 else math.nan
+    if n < 2:
+        notes.append(f"{n} point(s) to fit")
+    ratio = err[fitted] / tol[fitted]
+    return {"slope": slope, "points": n, "tol_min": float(tol[fitted].min()) if n else math.nan,
+            "tol_max": float(tol[fitted].max()) if n else math.nan, "below_tol": int((ratio <= 1.0).sum()),
+            "max_err_over_tol": float(ratio.max()) if n else math.nan, "note": "; ".join(notes)}
+
+
+def tolerance_fits(points: pd.DataFrame) -> pd.DataFrame:
+    """tolerance_fit of every family (case, engine, formulation, integrator) of tolerance.csv's points: the rows of
+    tolerance_fit.csv."""
+    rows = []
+    if len(points):
+        for key, group in points.fillna({"formulation": ""}).groupby(["case", "engine", "formulation", "integrator"],
+                                                                     sort=False):
+            rows.append({**dict(zip(("case", "engine", "formulation", "integrator"), key)), **tolerance_fit(group)})
+    return pd.DataFrame(rows, columns=list(TOLERANCE_FIT_COLUMNS)).fillna({"formulation": "", "note": ""})

@@ -73,7 +73,8 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
     """The runs of a sweep, and the rows of runs skipped up front (engine cannot model the case).
 
     An engine's adaptive integrators (Engine.adaptive) run once per case with dt None, the others once per dt of the
-    case; each runs every formulation of the engine (Engine.formulations; "" for an engine without).
+    case; each runs every formulation of the engine (Engine.formulations; "" for an engine without), except the pairs
+    the engine leaves out of a sweep that names no integrators (Engine.default_run).
     """
     specs, skipped = [], []
     for engine_rank, name in enumerate(engines):
@@ -92,6 +93,8 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
             for integrator_rank, integrator in enumerate(chosen or ([""] if reason else [])):
                 dts = (None,) if integrator and engine.adaptive(integrator) else case.dt
                 for formulation_rank, formulation in enumerate(formulations):
+                    if integrator and integrators is None and not engine.default_run(case, formulation, integrator):
+                        continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
                     for dt in dts:
                         spec = RunSpec(case, name, integrator, dt, engine_rank, integrator_rank, formulation,
                                        formulation_rank)

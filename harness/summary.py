@@ -24,12 +24,13 @@ def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
     """Per accuracy target, over every case of pareto.csv: how many cases some run reaches, and the case whose
     cheapest run is dearest (the target's worst case)."""
     from stereodyn.harness import workprecision
+    from stereodyn.harness.fitting import setting
 
     pareto = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
                                          ("formulation", "engine", "integrator"))
     if pareto is None or pareto.empty:
         return []
-    lines = ["cheapest fixed-step run reaching an accuracy (max attitude error), pareto.csv:"]
+    lines = ["cheapest run reaching an accuracy (max attitude error), pareto.csv:"]
     cases = pareto["case"].nunique()
     for target in targets:
         # atol 0: np.isclose's default 1e-8 would take 1e-9 .. 1e-12 for one target
@@ -44,7 +45,7 @@ def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
         best, wins = max(counts.items(), key=lambda kv: kv[1])
         dearest = hit.loc[hit["us_per_sim_s"].idxmax()]
         lines.append(f"  <= {target:.0e}: {len(hit)}/{cases} cases; most often {best} ({wins}); dearest "
-                     f"{dearest['case']}: {_method(dearest)} dt={dearest['dt']:.3g} "
+                     f"{dearest['case']}: {_method(dearest)} {setting(dearest)} "
                      f"({dearest['us_per_sim_s']:.3g} µs/s)")
     return lines
 

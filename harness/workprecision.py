@@ -1,12 +1,14 @@
 """Work–precision: the phase of `stereodyn run` after the sweep, and its report sections.
 
-Measuring is harness.dt_ladders (dt ladders, stability bisection), fitting harness.fitting (orders, round-off floors,
-the Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the
-report's markdown.
+Measuring is harness.dt_ladders (dt ladders, stability bisection) and harness.tolerance_ladders (adaptive methods
+against the requested tolerance), fitting harness.fitting (orders, round-off floors, tolerance proportionality, the
+Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the report's
+markdown.
 
 Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, and per run family of the
-sweep whose own dt list has two asymptotic points), pareto.csv (per case and accuracy target, the cheapest run), and
-the orders as rows of checks.csv (quantity convergence_order, theory = the declared order).
+sweep whose own dt list has two asymptotic points), tolerance.csv (every tolerance-ladder point), tolerance_fit.csv
+(one row per tolerance ladder), pareto.csv (per case and accuracy target, the cheapest run, fixed-step or adaptive),
+and the orders as rows of checks.csv (quantity convergence_order, theory = the declared order).
 """
 from __future__ import annotations
 
@@ -20,18 +22,22 @@ import pandas as pd
 
 from stereodyn.harness import checks
 from stereodyn.harness.cases import Case
+from stereodyn.harness import tolerance_ladders
 from stereodyn.harness.dt_ladders import (LADDER_COLUMNS, MIN_STEPS, STABLE_ENERGY_DRIFT, Family, families,
                                           run_ladders)
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, TIE_RTOL, _name,
-                                       convergence_table, order_checks, pareto, pareto_table, sweep_orders)
+                                       convergence_table, order_checks, pareto, pareto_table, setting, sweep_orders,
+                                       tolerance_fits)
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
 from stereodyn.harness.results import write_atomic
 
-__all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "MIN_STEPS", "analyse", "read_optional",
-           "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
+__all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
+           "analyse", "read_optional", "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
 
 LADDER_FILE, CONVERGENCE_FILE, PARETO_FILE = "ladder.csv", "convergence.csv", "pareto.csv"
+TOLERANCE_FILE, TOLERANCE_FIT_FILE = "tolerance.csv", "tolerance_fit.csv"
+TEXT_COLUMNS = ("formulation", "engine", "integrator", "message")
 FULL_MAX_STEPS = 200_000     # --dt-ladder: rk4 reaches its round-off floor on the suite's cases well before this
 DEFAULT_MAX_STEPS = 40_000   # the default run's small ladder (see DEFAULT_LADDER)
 # The default run ladders these cases only, on the quaternion formulation of the reference engine: one free body and
@@ -53,10 +59,11 @@ def _ladder_cost(family: Family) -> float:
 
 def rewrite_pareto(out_dir: Path, results: pd.DataFrame, failed: set) -> None:
     """pareto.csv again, leaving out the runs of the integrators that failed a verdict (harness.verdicts)."""
-    ladder = read_optional(Path(out_dir) / LADDER_FILE, ("formulation", "engine", "integrator", "message"))
+    ladder = read_optional(Path(out_dir) / LADDER_FILE, TEXT_COLUMNS)
     if ladder is None:
         ladder = pd.DataFrame(columns=list(LADDER_COLUMNS))
-    _write(pareto(results, ladder, failed), Path(out_dir) / PARETO_FILE)
+    tolerance = read_optional(Path(out_dir) / TOLERANCE_FILE, TEXT_COLUMNS)
+    _write(pareto(results, ladder, failed, tolerance), Path(out_dir) / PARETO_FILE)
 
 
 def _write(df: pd.DataFrame, path: Path) -> None:
@@ -67,10 +74,11 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
             integrators: list[str] | None, ladder: str = "default", max_steps: int | None = None,
             pool: ProcessPoolExecutor | None = None,
             progress: Callable[[str], None] | None = None) -> dict[str, Path]:
-    """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep),
-    "default" (DEFAULT_LADDER cases, DEFAULT_LADDER_FORMULATIONS) or "off". Writes ladder.csv, convergence.csv,
-    pareto.csv and appends the orders to checks.csv; returns the paths written. pool: the sweep's worker pool
-    (harness.runner.worker_pool) the ladders run on; None runs them here."""
+    """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
+    tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
+    DEFAULT_LADDER_FORMULATIONS, both kinds of ladder) or "off". Writes ladder.csv, convergence.csv, tolerance.csv,
+    tolerance_fit.csv, pareto.csv and appends the orders to checks.csv; returns the paths written. pool: the sweep's
+    worker pool (harness.runner.worker_pool) the ladders run on; None runs them here."""
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained
     # sliding ladder, whose MuJoCo model has soft constraints) keep their Pareto rows only.
@@ -78,24 +86,34 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     other_kinds = {c.name for c in cases} - {c.name for c in rigid}
     if ladder == "full":
         chosen = families(rigid, engines, integrators)
+        adaptive = tolerance_ladders.families(rigid, engines, integrators)
+        tolerances = tolerance_ladders.TOLERANCES
         max_steps = max_steps or FULL_MAX_STEPS
     elif ladder == "default":
-        chosen = [f for f in families([c for c in rigid if c.name in DEFAULT_LADDER], engines, integrators,
-                                      DEFAULT_LADDER_FORMULATIONS) if f.integrator not in DEFAULT_LADDER_SKIP]
+        laddered_cases = [c for c in rigid if c.name in DEFAULT_LADDER]
+        chosen = [f for f in families(laddered_cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
+                  if f.integrator not in DEFAULT_LADDER_SKIP]
+        adaptive = tolerance_ladders.families(laddered_cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
+        tolerances = tolerance_ladders.DEFAULT_TOLERANCES
         max_steps = max_steps or DEFAULT_MAX_STEPS
     else:
-        chosen = []
+        chosen, adaptive, tolerances = [], [], ()
     # the costliest first, so the pool ends together
     chosen.sort(key=_ladder_cost, reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress) if chosen else ([], [])
     laddered = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in ladder_rows}
     convergence = convergence_table(ladder_rows + sweep_orders(results[~results["case"].isin(other_kinds)], laddered))
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
+    tolerance_df = tolerance_ladders.tolerance_frame(tolerance_ladders.run_ladders(adaptive, pool, progress, tolerances)
+                                                     if adaptive else [])
     paths = {"ladder": out_dir / LADDER_FILE, "convergence": out_dir / CONVERGENCE_FILE,
+             "tolerance": out_dir / TOLERANCE_FILE, "tolerance_fit": out_dir / TOLERANCE_FIT_FILE,
              "pareto": out_dir / PARETO_FILE}
     _write(ladder_df, paths["ladder"])
     _write(convergence, paths["convergence"])
-    _write(pareto(results, ladder_df), paths["pareto"])
+    _write(tolerance_df, paths["tolerance"])
+    _write(tolerance_fits(tolerance_df), paths["tolerance_fit"])
+    _write(pareto(results, ladder_df, tolerance=tolerance_df), paths["pareto"])
     checks_path = out_dir / checks.CHECKS_FILE
     existing = checks.read_checks(checks_path) if checks_path.is_file() else pd.DataFrame(columns=list(checks.COLUMNS))
     existing = existing[existing["quantity"] != ORDER_QUANTITY]
@@ -114,22 +132,26 @@ def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) 
     return df.fillna({c: "" for c in text_columns if c in df})
 
 
-def report_lines(out_dir: Path) -> list[str]:
-    """The report's "What to use" and "Convergence" sections, from pareto.csv and convergence.csv (empty without)."""
+def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None) -> list[str]:
+    """The report's "What to use", "Convergence" and "Tolerance ladders" sections, from pareto.csv, convergence.csv
+    and tolerance_fit.csv (each left out without its file). tolerance_figures: case -> the path of its
+    tolerance-against-error figure (harness.report.build draws them)."""
     lines: list[str] = []
     pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source", "ties",
                                                              "not_recommended"))
     if pareto_df is not None and len(pareto_df):
         lines += ["## What to use", "",
-                  "Per case and accuracy target (max attitude error, rad, up to the case's horizon): the cheapest "
-                  "fixed-step run that reaches it, over the sweep's runs and the dt ladders (pareto.csv); cost in µs of "
-                  "stepping per simulated second. Adaptive runs (heyoka) are the truth and its relatives, not "
-                  "contenders. Timings are comparable within one report only; each run is timed alone (best of up "
-                  "to 3). '**tie** with N': N other runs cost the same within the timing noise (pareto.csv `ties`, "
-                  f"the sum of their spreads, at least {TIE_RTOL:.0%}); the one shown needs "
-                  "the fewest right-hand-side evaluations per simulated second (then the cheapest; runs with the same "
-                  "evaluations and the same error in name order). A run whose integrator failed a "
-                  "verdict is never shown; a cheaper one is named as not recommended.", ""]
+                  "Per case and accuracy target (max attitude error, rad, up to the case's horizon): the cheapest run "
+                  "that reaches it (pareto.csv), fixed-step (dt=) or adaptive: the sweep's runs (an adaptive one at "
+                  "its engine's default tolerance, 'default tol'), the dt ladders' points and the tolerance ladders' "
+                  "(tol=, the requested tolerance; pareto.csv `source` says which). The truth is no contender: it "
+                  "is what the errors are measured against. Cost in µs of stepping per simulated second. Timings are "
+                  "comparable within one report only; each run is timed alone (best of up to 3). '**tie** with N': "
+                  "N other runs cost the same within the timing noise (pareto.csv `ties`, the sum of their spreads, "
+                  f"at least {TIE_RTOL:.0%}); the one shown needs the fewest right-hand-side evaluations per simulated "
+                  "second (the cheapest where a tied run does not count them: heyoka's taylor; runs with the same "
+                  "evaluations and the same error in name order). A run whose "
+                  "integrator failed a verdict is never shown; a cheaper one is named as not recommended.", ""]
         targets = sorted(pareto_df["target"].unique(), reverse=True)
         header = ["case"] + [f"≤ {t:.0e}" for t in targets]
         rows = []
@@ -141,7 +163,7 @@ def report_lines(out_dir: Path) -> list[str]:
                 if row is None or not row["engine"]:
                     cell = "-"
                 else:
-                    cell = f"{_name(row)} dt={row['dt']:.3g} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
+                    cell = f"{_name(row)} {setting(row)} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
                     ties = row.get("ties", "")
                     if isinstance(ties, str) and ties:
                         cell += f" **tie** with {ties.count(';') + 1}"
@@ -178,4 +200,29 @@ def report_lines(out_dir: Path) -> list[str]:
                                 _num(group["order"].min(), ".2f"), _num(group["order"].max(), ".2f")])
             lines += ["Fitted on the sweep's dt lists (every case with two asymptotic points):", "",
                       *_md(["run", "declared", "cases", "smallest order", "largest order"], summary), ""]
+    return lines + tolerance_report_lines(out_dir, tolerance_figures or {})
+
+
+def tolerance_report_lines(out_dir: Path, figures: dict[str, str]) -> list[str]:
+    """The report's "Tolerance ladders" section from tolerance_fit.csv (nothing without it or with no ladder)."""
+    fits = read_optional(Path(out_dir) / TOLERANCE_FIT_FILE, ("formulation", "engine", "integrator", "note"))
+    if fits is None or fits.empty:
+        return []
+    lines = ["## Tolerance ladders", "",
+             "Every adaptive method run at requested tolerances from 1e-3 to 1e-13 (tolerance.csv: relative and "
+             "absolute tolerance alike; per point the error achieved and the cost). 'slope': the fitted tolerance "
+             "proportionality, the slope of log state error (max of attitude_err, omega_err, casimir_drift) against "
+             f"log tolerance over the points above round-off ({ROUNDOFF_MARGIN:g} eps steps <= error <= "
+             f"{ASYMPTOTIC_MAX:g}); 1 is an error proportional to the tolerance. 'error <= tol': at how many of "
+             "those points the error stayed below the tolerance requested; 'max error/tol': the worst ratio (the "
+             "tolerance bounds each step's local error, the error here is global over the whole run). "
+             "tolerance_fit.csv holds the same rows.", ""]
+    rows = [[r["case"], _name(r), _num(r["slope"], ".2f"), str(int(r["points"])),
+             "-" if not r["points"] else f"{r['tol_max']:.0e} … {r['tol_min']:.0e}",
+             f"{int(r['below_tol'])} of {int(r['points'])}", _num(r["max_err_over_tol"], ".3g"), r["note"]]
+            for _, r in fits.iterrows()]
+    lines += _md(["case", "method", "slope", "points", "tolerances fitted", "error <= tol", "max error/tol", "note"],
+                 rows) + [""]
+    for case, path in figures.items():
+        lines += [f"![{case}: tolerance against error]({path})", ""]
     return lines

@@ -481,9 +481,10 @@ COMPILE_SECONDS: dict[str, float] = {}
 
 
 @functools.cache
-def taylor_integrator(name: str) -> tuple[object, threading.Lock]:
-    """The compiled heyoka integrator of a charted formulation (tolerance truth.TRUTH_TOL, one terminal event on the
-    chart measure against parameter 18) and the lock that guards it. Compiled once per process, in compact mode."""
+def taylor_integrator(name: str, tol: float | None = None) -> tuple[object, threading.Lock]:
+    """The compiled heyoka integrator of a charted formulation (tolerance tol, None: truth.TRUTH_TOL; one terminal
+    event on the chart measure against parameter 18) and the lock that guards it. Compiled once per process and
+    tolerance, in compact mode."""
     cls = FORMULATIONS[name]
     if not cls.charted:
         raise ValueError(f"formulation {name!r} is integrated by reference.truth")
@@ -491,9 +492,10 @@ def taylor_integrator(name: str) -> tuple[object, threading.Lock]:
     variables, rhs, measure = cls.equations()
     direction = hy.event_direction.positive if cls.event_direction > 0 else hy.event_direction.negative
     event = hy.t_event(measure - hy.par[ex.THRESHOLD], direction=direction)
-    integrator = hy.taylor_adaptive(list(zip(variables, rhs)), np.array(cls.regular_state), tol=truth.TRUTH_TOL,
+    integrator = hy.taylor_adaptive(list(zip(variables, rhs)), np.array(cls.regular_state),
+                                    tol=truth.TRUTH_TOL if tol is None else truth.check_tolerance(tol),
                                     pars=np.zeros(truth.N_PARS), compact_mode=True, t_events=[event])
-    COMPILE_SECONDS[name] = time.perf_counter() - start
+    COMPILE_SECONDS[name if tol is None else f"{name} tol={tol:g}"] = time.perf_counter() - start
     return integrator, threading.Lock()
 
 
@@ -522,18 +524,19 @@ class FormulationRun:
 
 
 def integrate_taylor(name: str, body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray, *,
-                     chart_changes: bool = True) -> FormulationRun:
-    """Integrate formulation `name` from (quat0 (4,) wxyz, omega0 (3,) rad/s body) with heyoka (tolerance
-    truth.TRUTH_TOL) and sample at times ((n,) s, increasing, from 0).
+                     chart_changes: bool = True, tol: float | None = None) -> FormulationRun:
+    """Integrate formulation `name` from (quat0 (4,) wxyz, omega0 (3,) rad/s body) with heyoka (tolerance tol,
+    relative and absolute; None: truth.TRUTH_TOL) and sample at times ((n,) s, increasing, from 0).
 
     The chart's terminal event stops the propagation; the chart is re-centred and the propagation continues from
     the event time. With chart_changes False the event is the singularity guard instead, and the run stops there.
-    "quaternion" is the truth itself. Heyoka's time runs on across chart changes (the turning central field).
+    "quaternion" at the default tolerance is the truth itself. Heyoka's time runs on across chart changes (the
+    turning central field).
     Raises ValueError on bad input or a propagation that fails.
     """
     times = np.asarray(times, dtype=float)
     if name == Quaternion.name:
-        result = truth.truth(body, quat0, omega0, times)
+        result = truth.truth(body, quat0, omega0, times, tol=tol)
         return FormulationRun(result.times, result.quat, result.omega, result.steps, None, result.wall_s)
     formulation = get(name, body)
     if times.ndim != 1 or times.size == 0 or times[0] != 0.0 or not np.all(np.isfinite(times)) \
@@ -547,7 +550,7 @@ def integrate_taylor(name: str, body: RigidBody, quat0: np.ndarray, omega0: np.n
         chart, y = formulation.start(quat0, omega0, chart_changes)
     except ChartSingularity as exc:
         return FormulationRun(times.copy(), quat, omega, 0, 0, 0.0, 0.0, f"{exc} at t = 0 s", states, frames)
-    integrator, lock = taylor_integrator(name)
+    integrator, lock = taylor_integrator(name, tol)
     steps, filled, now, stopped_at, message = 0, 0, 0.0, math.nan, ""
     with lock:
         integrator.time = 0.0

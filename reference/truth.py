@@ -15,6 +15,7 @@ An integrator holds mutable state: each process compiles its own, and a lock ser
 from __future__ import annotations
 
 import functools
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -177,11 +178,13 @@ COMPILE_SECONDS: dict[str, float] = {}
 
 
 @functools.cache
-def taylor_integrator(precision: str = "double") -> tuple[object, threading.Lock]:
-    """The compiled heyoka integrator for a precision ("double" or "quad") and the lock that guards it.
+def taylor_integrator(precision: str = "double", tol: float | None = None) -> tuple[object, threading.Lock]:
+    """The compiled heyoka integrator for a precision ("double" or "quad") and a tolerance (None: the truth's,
+    TRUTH_TOL or TRUTH_TOL_QUAD), and the lock that guards it.
 
-    Compiled once per process (compact mode: one small function per operation kind, so compilation is fast and
-    independent of the body); the compile time is recorded in COMPILE_SECONDS[precision].
+    Compiled once per process and tolerance (heyoka picks the Taylor order from it; compact mode: one small function
+    per operation kind, so compilation is fast and independent of the body); the compile time is recorded in
+    COMPILE_SECONDS[precision] (COMPILE_SECONDS[f"{precision} tol={tol:g}"] for another tolerance).
     """
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
@@ -190,13 +193,21 @@ def taylor_integrator(precision: str = "double") -> tuple[object, threading.Lock
     integrator = hy.taylor_adaptive(
         equations(),
         np.array([1.0, 0, 0, 0, 0, 0, 0]).astype(fp_type),
-        tol=fp_type(_TOLERANCE[precision]),
+        tol=fp_type(_TOLERANCE[precision] if tol is None else check_tolerance(tol)),
         pars=np.zeros(N_PARS).astype(fp_type),
         compact_mode=True,
         fp_type=fp_type,
     )
-    COMPILE_SECONDS[precision] = time.perf_counter() - start
+    COMPILE_SECONDS[precision if tol is None else f"{precision} tol={tol:g}"] = time.perf_counter() - start
     return integrator, threading.Lock()
+
+
+def check_tolerance(tol: float) -> float:
+    """tol as a float; ValueError unless it is finite and > 0 (a requested tolerance of an adaptive integrator)."""
+    value = float(tol)
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"tolerance must be a finite number > 0, got {tol!r}")
+    return value
 
 
 def _parameters(body: RigidBody, fp_type) -> np.ndarray:
@@ -225,13 +236,15 @@ def _parameters(body: RigidBody, fp_type) -> np.ndarray:
 
 
 def truth(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray, *,
-          precision: str = "double") -> TruthResult:
+          precision: str = "double", tol: float | None = None) -> TruthResult:
     """Integrate from (quat0 (4,) wxyz, omega0 (3,) rad/s body) and sample at times ((n,) s, increasing, from 0).
 
-    precision "double" (tolerance TRUTH_TOL) or "quad" (heyoka real128, TRUTH_TOL_QUAD; results rounded to float64).
-    quat0 is normalised in the working precision. Raises ValueError on bad input or an unsuccessful propagation.
+    precision "double" (tolerance TRUTH_TOL) or "quad" (heyoka real128, TRUTH_TOL_QUAD; results rounded to float64);
+    tol: another tolerance (relative and absolute, heyoka's tol), e.g. a loose one for a tolerance ladder: the run
+    is then no truth. quat0 is normalised in the working precision. Raises ValueError on bad input or an
+    unsuccessful propagation.
     """
-    integrator, lock = taylor_integrator(precision)
+    integrator, lock = taylor_integrator(precision, tol)
     fp_type = _FP_TYPE[precision]
     times = np.asarray(times, dtype=float)
     quat0 = np.asarray(quat0, dtype=float)

@@ -140,7 +140,7 @@ def test_the_base_class_defaults():
         name = "minimal"
 
     engine = Minimal()
-    assert engine.formulations() == () and engine.adaptive("rk4") is False
+    assert engine.formulations() == () and engine.adaptive("rk4") is False and engine.default_run(None, "", "rk4")
     assert engine.unsupported_run(None, "", "rk4") is None and engine.torque_mode(None) == "none"
     assert engine.sliding_ladder_models() == () and "minimal" in engine.sliding_ladder_unsupported()
     assert engine.declared_order("no_such_integrator") != engine.declared_order("no_such_integrator")  # NaN

@@ -59,12 +59,12 @@ def test_registry_and_engine_lists():
         formulations.get("rodrigues", FREE)
     engine = get_engine("reference")
     assert engine.formulations() == NAMES
-    assert engine.integrators()[:3] == ("taylor", "euler", "rk4")
-    assert engine.adaptive("taylor") and not engine.adaptive("rk4")
+    assert engine.integrators()[0] == "taylor" and {"euler", "rk4", "scipy_dop853"} <= set(engine.integrators())
+    assert engine.adaptive("taylor") and engine.adaptive("scipy_dop853") and not engine.adaptive("rk4")
     case = make_case(FREE, np.array([1.0, 0.0, 0.0, 0.0]), np.array([0.4, 0.1, 2.0]), 1.0)
     with pytest.raises(KeyError, match="valid: quaternion"):
         engine.prepare(case, "taylor", None, formulation="rodrigues")
-    with pytest.raises(KeyError, match="valid: taylor, euler, rk4"):
+    with pytest.raises(KeyError, match="valid: taylor, scipy_rk45, .*euler, rk4"):
         engine.prepare(case, "rk4_naive", 1e-2, formulation="gibbs")  # a Lie-group method: not for coordinates
     with pytest.raises(ValueError, match="dt"):
         engine.prepare(case, "rk4", None, formulation="gibbs")
@@ -222,7 +222,9 @@ def reference_sweep(tmp_path_factory):
 def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
     _, df = reference_sweep
     assert COLUMNS[COLUMNS.index("truth_omega_err") + 1] == "chart_changes" and tuple(df.columns) == COLUMNS
-    assert len(df) == 4 + 2 * 4 * 3 and set(df.status) == {"ok"}
+    # the truth and taylor on the 3 other formulations, scipy's default methods (Engine.default_run) on the quaternion,
+    # euler and rk4 on every formulation at 3 dt
+    assert len(df) == 4 + 3 + 2 * 4 * 3 and set(df.status) == {"ok"}
     truth_row = df[(df.formulation == "quaternion") & (df.integrator == "taylor")]
     assert len(truth_row) == 1 and truth_row.dt.isna().all() and truth_row.attitude_err.isna().all()
     assert df[df.formulation == "quaternion"].chart_changes.isna().all()
@@ -239,8 +241,10 @@ def test_plan_gives_every_formulation_its_rows():
     taylor = [s for s in specs if s.integrator == "taylor"]
     assert [s.formulation for s in taylor] == list(NAMES) and all(s.dt is None for s in taylor)
     assert [s.is_truth for s in taylor] == [True, False, False, False]
-    fixed = [s for s in specs if s.integrator != "taylor"]
+    fixed = [s for s in specs if s.dt is not None]
     assert len(fixed) == 2 * len(NAMES) * len(case.dt) and all(s.dt in case.dt for s in fixed)
+    scipy_runs = [s for s in specs if s.integrator.startswith("scipy_")]   # the default ones, on the quaternion
+    assert scipy_runs and all(s.dt is None and s.formulation == "quaternion" for s in scipy_runs)
 
 
 def test_report_shows_the_formulations_side_by_side(reference_sweep):

@@ -54,7 +54,16 @@ class Engine:
         raise NotImplementedError(f"engine {self.name!r} does not implement unsupported(case)")
 
     def prepare(self, case: "Case", integrator: str, dt: float | None, **formulation) -> Simulation:
-        """Build the model (not timed). formulation=... is passed when formulations() is not empty."""
+        """Build the model (not timed). formulation=... is passed when formulations() is not empty.
+
+        tolerance=... (keyword, float | None) is passed for an adaptive integrator (adaptive(integrator) True): None,
+        or not passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine
+        says otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
+        absolute tolerance (scipy: rtol = atol = tol; heyoka: tol; Drake: set_target_accuracy(tol)). The tolerance
+        ladders (harness.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
+        adaptive run's Trajectory fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0
+        where the method has them.
+        """
         raise NotImplementedError(f"engine {self.name!r} does not implement prepare(case, integrator, dt)")
 
     # ---------------------------------------------------------------------------------------------- optional
@@ -65,8 +74,15 @@ class Engine:
         return ()
 
     def adaptive(self, integrator: str) -> bool:
-        """Whether an integrator chooses its own steps (its runs have dt None). Default: none does."""
+        """Whether an integrator chooses its own steps (its runs have dt None; prepare takes tolerance=...). Default:
+        none does."""
         return False
+
+    def default_run(self, case: "Case", formulation: str, integrator: str) -> bool:
+        """Whether a sweep that names no integrators (no --integrators) runs this formulation/integrator pair on the
+        case (harness.plan). Default: every pair. An engine leaves out costly variants whose findings a smaller
+        selection already shows; naming the integrator runs it everywhere."""
+        return True
 
     def unsupported_run(self, case: "Case", formulation: str, integrator: str) -> str | None:
         """Why one formulation/integrator pair cannot model the case (the run is `skipped`), or None (default)."""

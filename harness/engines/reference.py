@@ -1,6 +1,8 @@
 """The reference engine: the classical formulations of reference.formulations, each integrated by heyoka (integrator
-`taylor`, adaptive, truth grade; formulation quaternion with taylor is the truth row) and by the harness's fixed-step
-integrators of state space "vector" applied to the formulation's coordinates, with chart changes between steps.
+`taylor`, adaptive, truth grade; formulation quaternion with taylor is the truth row), by scipy's solve_ivp methods
+(scipy_rk45, scipy_dop853, scipy_radau, scipy_bdf, scipy_lsoda: adaptive, harness.integrators.scipy_ivp) and by the
+harness's fixed-step integrators of state space "vector" applied to the formulation's coordinates, with chart changes
+between steps.
 """
 from __future__ import annotations
 
@@ -11,11 +13,19 @@ from stereodyn.harness.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
+from stereodyn.harness.integrators import scipy_ivp
 from stereodyn.reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
 from stereodyn.reference import sliding_ladder as ref_ladder
 from stereodyn.reference.formulations import Chart, ChartSingularity, Formulation
+from stereodyn.reference.truth import check_tolerance as truth_tolerance
 
 TAYLOR = "taylor"
+# The scipy methods a sweep that names no integrators runs, on the quaternion formulation only (Engine.default_run).
+# Measured on the 2-core dev machine, one run of each at tol 1e-8 over the 25 rigid-body cases of the suite: RK45 1.0 s,
+# DOP853 0.5 s, LSODA 0.5 s, Radau 5.7 s, BDF 3.0 s in all; a row costs about 4 runs (accuracy, checks, timing), and
+# each charted formulation as much again. The implicit Radau and BDF (for stiff problems, which these scenes are not)
+# and the charted formulations run in the tolerance ladders and with --integrators.
+DEFAULT_SCIPY = ("scipy_rk45", "scipy_dop853", "scipy_lsoda")
 STATE_SPACE = "vector"
 SLIDING_LADDER_EQUATION = "theta"  # the sliding ladder's equation of motion in θ (reference.sliding_ladder)
 
@@ -46,17 +56,39 @@ class FormulationSystem:
 
 
 class TaylorSimulation:
-    """A formulation integrated by heyoka; run() starts from the case's initial state every time."""
+    """A formulation integrated by heyoka at tolerance tol (None: the truth's); run() starts from the case's initial
+    state every time. rhs_evals stays 0: a Taylor step computes the series' coefficients, not stages of the
+    right-hand side, so there is no count to compare with the other methods'."""
 
-    def __init__(self, case: Case, formulation: str, chart_changes: bool = True):
-        self.case, self.formulation, self.chart_changes = case, formulation, chart_changes
+    def __init__(self, case: Case, formulation: str, chart_changes: bool = True, tol: float | None = None):
+        self.case, self.formulation, self.chart_changes, self.tol = case, formulation, chart_changes, tol
 
     def run(self, grid: TimeGrid) -> Trajectory:
         result = ref_formulations.integrate_taylor(self.formulation, self.case.body, self.case.quat0, self.case.omega0,
-                                               grid.times, chart_changes=self.chart_changes)
+                                                   grid.times, chart_changes=self.chart_changes, tol=self.tol)
         status = Status.DIVERGED if result.message else Status.OK
         return Trajectory(grid.times, result.quat, result.omega, status, result.message, result.stopped_at,
                           steps=result.steps, info={"wall_s": result.wall_s}, chart_changes=result.chart_changes)
+
+
+class ScipySimulation:
+    """A formulation integrated by one of scipy's solve_ivp methods (harness.integrators.scipy_ivp), the states taken
+    from its dense output on the grid's sample times; run() starts from the case's initial state every time."""
+
+    def __init__(self, case: Case, formulation: str, method: scipy_ivp.ScipyIVP, chart_changes: bool = True):
+        self.case, self.method = case, method
+        self.formulation = ref_formulations.get(formulation, case.body)
+        self.system = FormulationSystem(self.formulation, chart_changes)
+        ref_formulations.compiled_rhs(formulation)  # compile here, not in the timed run
+
+    def run(self, grid: TimeGrid) -> Trajectory:
+        try:
+            chart, y = self.formulation.start(self.case.quat0, self.case.omega0, self.system.enabled)
+        except ChartSingularity as exc:
+            n = grid.times.size
+            return diverged_trajectory(grid, np.full((n, 4), np.nan), np.full((n, 3), np.nan), 0, 0.0, 0,
+                                       message=f"{exc} at t = 0 s")
+        return self.method.integrate(self.system, chart, y, grid)
 
 
 class FixedStepSimulation:
@@ -95,8 +127,8 @@ class SlidingLadderEquation:
 
 
 class ReferenceEngine(Engine):
-    """Formulations quaternion, gibbs, gibbs_hamiltonian, euler_zxz; integrators taylor and the registry's "vector"
-    ones (euler, rk4, then plug-ins)."""
+    """Formulations quaternion, gibbs, gibbs_hamiltonian, euler_zxz; integrators taylor, scipy's (scipy_ivp.METHODS)
+    and the registry's "vector" ones (euler, rk4, then plug-ins)."""
 
     name = "reference"
     state_space = STATE_SPACE
@@ -123,10 +155,16 @@ class ReferenceEngine(Engine):
         return tuple(ref_formulations.FORMULATIONS)
 
     def integrators(self) -> tuple[str, ...]:
-        return (TAYLOR,) + integrators.names(state_space=STATE_SPACE)
+        return (TAYLOR,) + tuple(scipy_ivp.METHODS) + integrators.names(state_space=STATE_SPACE)
 
     def adaptive(self, integrator: str) -> bool:
-        return integrator == TAYLOR
+        return integrator == TAYLOR or integrator in scipy_ivp.METHODS
+
+    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
+        """scipy's methods: DEFAULT_SCIPY on the quaternion formulation; everything else runs."""
+        if integrator in scipy_ivp.METHODS:
+            return integrator in DEFAULT_SCIPY and formulation == ref_formulations.Quaternion.name
+        return True
 
     def unsupported(self, case: Case) -> str | None:
         return precession_singular(case)
@@ -135,13 +173,19 @@ class ReferenceEngine(Engine):
         return "rhs" if case.body.has_external_torque else "none"
 
     def prepare(self, case: Case, integrator: str | type[integrators.Integrator], dt: float | None,
-                formulation: str = ref_formulations.Quaternion.name,
-                chart_changes: bool = True) -> TaylorSimulation | FixedStepSimulation:
-        """chart_changes False follows each chart into its singularity (the run then ends diverged, naming it)."""
+                formulation: str = ref_formulations.Quaternion.name, chart_changes: bool = True,
+                tolerance: float | None = None) -> TaylorSimulation | ScipySimulation | FixedStepSimulation:
+        """chart_changes False follows each chart into its singularity (the run then ends diverged, naming it).
+        tolerance (Engine.prepare): heyoka's tol for taylor (None: the truth's, 1e-16), scipy's rtol = atol for the
+        scipy methods (None: scipy_ivp.DEFAULT_TOLERANCE, 1e-8); ignored by the fixed-step integrators."""
         if formulation not in ref_formulations.FORMULATIONS:
             raise KeyError(f"unknown formulation {formulation!r}; valid: {', '.join(ref_formulations.FORMULATIONS)}")
         if integrator == TAYLOR:
-            return TaylorSimulation(case, formulation, chart_changes)
+            return TaylorSimulation(case, formulation, chart_changes,
+                                    None if tolerance is None else truth_tolerance(tolerance))
+        if isinstance(integrator, str) and integrator in scipy_ivp.METHODS:
+            method = scipy_ivp.ScipyIVP(integrator, scipy_ivp.DEFAULT_TOLERANCE if tolerance is None else tolerance)
+            return ScipySimulation(case, formulation, method, chart_changes)
         try:
             cls = integrators.get(integrator, state_space=STATE_SPACE)
         except KeyError:

@@ -58,14 +58,17 @@ def summary_lines(df: pd.DataFrame) -> list[str]:
 
 
 def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool,
-                    ladder: pd.DataFrame | None = None) -> tuple[dict[str, list[str]], dict]:
+                    ladder: pd.DataFrame | None = None,
+                    tolerance: pd.DataFrame | None = None) -> tuple[dict[str, list[str]], dict]:
     """Each case's figures as report lines {case: lines} (work–precision, then invariants against time), and the
-    figures {relative path: PNG bytes}; the points of the dt ladders (ladder.csv, harness.workprecision) join their
-    case's work–precision plot."""
+    figures {relative path: PNG bytes}; the points of the dt ladders (ladder.csv) and of the tolerance ladders
+    (tolerance.csv, harness.workprecision) join their case's work–precision plot. The tolerance figures are
+    tolerance_figures'."""
     images: dict[str, bytes] = {}
     tasks = []
     for case, group in df.groupby("case", sort=False):
-        tasks.append(("work-precision", case, _with_ladder(group, ladder, case), None))
+        tasks.append(("work-precision", case, _with_tolerance(_with_ladder(group, ladder, case), tolerance, case),
+                      None))
         tasks.append(("invariants", case, group, {k: v for k, v in series.items() if k[0] == case}))
     missing = {"work-precision": "No work–precision figure: no run of this case has both a finite error and a "
                                  "timing.",
@@ -96,7 +99,23 @@ def figure_stem(case: str) -> str:
 
 def _render(task: tuple) -> bytes | None:
     kind, case, group, series = task
+    if kind == "tolerance":
+        return figures.tolerance(group, case)
     return figures.work_precision(group, case) if kind == "work-precision" else figures.invariants(group, series, case)
+
+
+def tolerance_figures(tolerance: pd.DataFrame | None) -> tuple[dict[str, str], dict[str, bytes]]:
+    """The tolerance-against-error figure of each case with tolerance ladders (tolerance.csv): ({case: relative
+    path}, {relative path: PNG bytes})."""
+    if tolerance is None or tolerance.empty:
+        return {}, {}
+    cases = list(dict.fromkeys(tolerance["case"]))
+    paths, images = {}, {}
+    for case, png in zip(cases, _render_all([("tolerance", case, tolerance, None) for case in cases])):
+        if png is not None:
+            paths[case] = f"{FIGURES_DIR}/{figure_stem(case)}-tolerance.png"
+            images[paths[case]] = png
+    return paths, images
 
 
 def _render_all(tasks: list[tuple]) -> list[bytes | None]:
@@ -117,6 +136,21 @@ def _with_ladder(group: pd.DataFrame, ladder: pd.DataFrame | None, case: str) ->
     points = ladder[ladder["case"] == case]
     return pd.concat([group, points[[c for c in points.columns if c in group.columns]]], ignore_index=True) \
         if len(points) else group
+
+
+def _with_tolerance(group: pd.DataFrame, tolerance: pd.DataFrame | None, case: str) -> pd.DataFrame:
+    """A case's rows with its tolerance-ladder points, for the work–precision plot: a method with a ladder is drawn
+    along its tolerances, so the sweep's row of it (the default tolerance, a point of the same curve) is left out."""
+    if tolerance is None or tolerance.empty:
+        return group
+    points = tolerance[tolerance["case"] == case]
+    if points.empty:
+        return group
+    laddered = {(e, f, i) for e, f, i in zip(points["engine"], points["formulation"], points["integrator"])}
+    keys = zip(group["engine"], group["formulation"].fillna(""), group["integrator"])
+    adaptive_row = group["dt"].isna().to_numpy() & np.array([k in laddered for k in keys], dtype=bool)
+    return pd.concat([group[~adaptive_row], points[[c for c in points.columns if c in group.columns or
+                                                     c == "tolerance"]]], ignore_index=True)
 
 
 def checks_lines(df: pd.DataFrame, out_dir: Path) -> list[str]:
@@ -180,15 +214,18 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, 
     df = read_results(out_dir / "results.csv") if df is None else df
     manifest = read_manifest(out_dir)
     series = _series_index(out_dir)
+    tolerance = workprecision.read_optional(out_dir / workprecision.TOLERANCE_FILE, workprecision.TEXT_COLUMNS)
     case_extras, images = figure_sections(df, series, manifest is not None,
-                                          workprecision.read_optional(out_dir / workprecision.LADDER_FILE))
+                                          workprecision.read_optional(out_dir / workprecision.LADDER_FILE), tolerance)
+    tolerance_paths, tolerance_images = tolerance_figures(tolerance)
+    images.update(tolerance_images)
     env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
     if env is not None:
         env["report rendered"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
     from stereodyn.harness import verdicts
     from stereodyn.harness.report.method import method_lines
 
-    front = workprecision.report_lines(out_dir) + method_lines(df, out_dir, series)
+    front = workprecision.report_lines(out_dir, tolerance_paths) + method_lines(df, out_dir, series)
     markdown = report_markdown(df, summary=summary_lines(df), sections=checks_lines(df, out_dir), env=env,
                                verdicts=verdicts.report_lines(out_dir), front=front, case_extras=case_extras)
     figures_dir = out_dir / FIGURES_DIR

@@ -45,10 +45,11 @@ def run_label(row) -> str:
 MAX_SERIES = 8
 # Colour and marker by integrator, the same in every figure; an integrator outside the list gets the next free pair.
 INTEGRATOR_STYLES = ("rk4", "euler", "symplectic_euler", "implicit", "implicitfast", "rk4_naive", "taylor", "rk3",
-                     "rkmk4", "cg4", "midpoint", "heun")
+                     "rkmk4", "cg4", "midpoint", "heun", "scipy_rk45", "scipy_dop853", "scipy_radau", "scipy_bdf",
+                     "scipy_lsoda")
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#000000", "#e377c2", "#17becf",
-            "#bcbd22", "#7f7f7f", "#aec7e8")
-_MARKERS = ("o", "s", "^", "v", "D", "P", "*", "X", "<", ">", "h", "p")
+            "#bcbd22", "#7f7f7f", "#aec7e8", "#393b79", "#e6550d", "#31a354", "#843c39", "#7b4173")
+_MARKERS = ("o", "s", "^", "v", "D", "P", "*", "X", "<", ">", "h", "p", "d", "H", "8", "x", "+")
 
 
 def integrator_style(integrator: str) -> tuple[str, str]:
@@ -123,7 +124,9 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
     figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
     for axes, (title, panel) in zip(grid.flat, panels):
         for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
-            runs = runs.sort_values("dt", ascending=False, na_position="last")  # along dt: no zig-zag
+            # along dt, an adaptive method's along its tolerance (tolerance ladders): no zig-zag
+            keys = [k for k in ("dt", "tolerance") if k in runs]
+            runs = runs.sort_values(keys, ascending=False, na_position="last", kind="stable")
             colour, marker = integrator_style(runs["integrator"].iloc[0])
             engine = runs["engine"].iloc[0]
             short = str(runs["integrator"].iloc[0])  # the panel's title names the engine and formulation
@@ -141,7 +144,40 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
         axes.set_xlabel("µs per simulated s", fontsize=8)
     for axes in grid[:, 0]:
         axes.set_ylabel("max attitude error (rad)", fontsize=8)
-    figure.suptitle(f"{case}: work–precision (points along dt, largest first)", fontsize=10)
+    figure.suptitle(f"{case}: work–precision (points along dt or tolerance, largest first)", fontsize=10)
+    return _png(figure)
+
+
+def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
+    """The error achieved (state error: max of attitude_err, omega_err, casimir_drift) against the tolerance
+    requested, a line per adaptive method (tolerance.csv's points of the case), with the diagonal error = tolerance:
+    a panel per engine and formulation (facets). None when no point of the case has a finite error."""
+    rows = points[(points["case"] == case) & (points["status"] == "ok")
+                  & np.isfinite(points["state_err"].astype(float)) & (points["state_err"].astype(float) > 0)]
+    if rows.empty:
+        return None
+    panels = facets(rows)
+    figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
+    for axes, (title, panel) in zip(grid.flat, panels):
+        for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
+            runs = runs.sort_values("tolerance", ascending=False, kind="stable")
+            colour, marker = integrator_style(runs["integrator"].iloc[0])
+            axes.plot(runs["tolerance"].to_numpy(float), runs["state_err"].to_numpy(float), marker=marker,
+                      markersize=4, linestyle=linestyle(runs["engine"].iloc[0]), color=colour, linewidth=1.0,
+                      label=str(runs["integrator"].iloc[0]))
+        low, high = float(panel["tolerance"].min()), float(panel["tolerance"].max())
+        axes.plot([low, high], [low, high], color="grey", linestyle="--", linewidth=0.8, label="error = tol")
+        axes.set_xscale("log")
+        axes.set_yscale("log")
+        axes.set_title(title, fontsize=9)
+        axes.tick_params(labelsize=7)
+        axes.grid(True, which="major", alpha=0.3)
+        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    for axes in grid[-1]:
+        axes.set_xlabel("tolerance requested", fontsize=8)
+    for axes in grid[:, 0]:
+        axes.set_ylabel("max state error", fontsize=8)
+    figure.suptitle(f"{case}: error against tolerance", fontsize=10)
     return _png(figure)
 
 

@@ -33,6 +33,11 @@ DEFINITIONS = """\
 - truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err (rad) and
   truth_omega_err (relative) bound its attitude and omega errors: its difference from a quadruple-precision rerun plus
   an allowance for a float64 comparison's rounding (none with --no-certify).
+- adaptive runs (dt empty): an engine's error-controlled integrators at its default tolerance: heyoka's taylor
+  (1e-16) and scipy's solve_ivp methods scipy_rk45, scipy_dop853, scipy_radau, scipy_bdf, scipy_lsoda (engine
+  reference, rtol = atol = 1e-8, the dense output on the sample times); steps: accepted steps; rhs_per_sim_s counts
+  every right-hand-side call, the implicit methods' finite-difference Jacobians included. tolerance.csv runs them at
+  1e-3 ... 1e-13 (section Tolerance ladders).
 - us_per_step: stepping time only, best of 2 or 3 timed runs after an untimed warm-up run, metrics off; every run is
   timed alone, in a phase after all the accuracy runs, so no timed run shares the cores with another run. Compare
   timings within one report. us_per_step_spread: the second-best timed run minus the best (µs per step), the noise of
@@ -267,10 +272,10 @@ def formulation_lines(df: pd.DataFrame) -> list[str]:
         modes = sorted(set(rows["torque_mode"].dropna()) - {"none"}) if "torque_mode" in rows else []
         torque = f" (external torques, entered as: {', '.join(modes)})" if modes else ""
         tables += [f"### {case}", "", f"Case {case}, engine {engine}{torque}: each formulation at dt = {dt:g} with "
-                   "every fixed-step integrator, and integrated by the adaptive one.", "", _markdown_table(cells), ""]
+                   "every fixed-step integrator, and integrated by the adaptive ones.", "", _markdown_table(cells), ""]
     if not tables:
         return []
     return ["## Formulations side by side", "",
-            "The adaptive integrator's attitude error is the formulations' disagreement with the truth. Same equations "
+            "Heyoka's taylor's attitude error is the formulations' disagreement with the truth. Same equations "
             "of motion, different coordinates: the differences are the coordinates' doing.", "", *tables]
 

@@ -52,7 +52,8 @@ def integrator_rows() -> list[dict]:
     known = {row["name"] for row in rows}
     for engine in engine_names():
         try:
-            names = get_engine(engine).integrators()
+            adapter = get_engine(engine)
+            names = adapter.integrators()
         except Exception:  # an engine that is not installed lists nothing
             continue
         for name in names:
@@ -61,7 +62,8 @@ def integrator_rows() -> list[dict]:
 
                 rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
                              "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
-                             "default_sweep": True, "origin": f"built in ({engine})", "description": ""})
+                             "default_sweep": True, "origin": f"built in ({engine})",
+                             "description": "adaptive (error-controlled)" if adapter.adaptive(name) else ""})
     return rows
 
 

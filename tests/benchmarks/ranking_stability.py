@@ -19,8 +19,11 @@ import pandas as pd
 
 
 def _run(row) -> str:
+    """A winner's name as pareto.csv's `ties` spell it (harness.fitting: _candidate_name)."""
     parts = [row[c] for c in ("engine", "formulation", "integrator") if isinstance(row[c], str) and row[c]]
-    return " ".join(parts) + f" dt={float(row['dt']):.3g}"
+    dt, tol = float(row["dt"]), float(row.get("tolerance", math.nan))
+    setting = f"dt={dt:.3g}" if math.isfinite(dt) else f"tol={tol:.0e}" if math.isfinite(tol) else "default tol"
+    return " ".join(parts) + " " + setting
 
 
 def _ties(row) -> set[str]:

@@ -1,0 +1,230 @@
+"""Tolerance ladders: every adaptive integrator of every engine (Engine.adaptive) run at a sweep of requested
+tolerances, per point the error achieved and the cost.
+
+For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of
+TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared
+with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: rtol = atol = tol) and run on the
+grid of the sweep's adaptive rows (harness.runner.truth_grid). Each point is one untimed accuracy run (errors
+against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
+casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
+(harness.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
+evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the quaternion at its default,
+truth-grade tolerance) is not a ladder point: every point names its tolerance, and heyoka's taylor joins at the
+loose ones like any other adaptive method.
+
+A ladder walks from loose to tight and stops early, saying so in the last point's message, once a point's accuracy
+run took longer than POINT_BUDGET_S (the tighter points would each take longer still). The fits (tolerance
+proportionality, error below the tolerance) are harness.fitting.tolerance_fit.
+
+The ladders run on the sweep's process pool (harness.runner.worker_pool), one task per family.
+"""
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from typing import Callable
+
+from stereodyn.harness import metrics, timing
+from stereodyn.harness.cases import Case
+from stereodyn.harness.dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.trajectory import Status
+
+TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
+                     "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
+                     "energy_drift", "state_err", "err_over_tol", "wall_s", "us_per_sim_s", "us_per_sim_s_spread",
+                     "rhs_per_sim_s", "steps_per_sim_s")
+TOLERANCES = tuple(10.0 ** -k for k in range(3, 14))  # --dt-ladder: every decade
+# The default run's ladders: every other decade, which halves their cost (~0.5 min on two cores, most of it Radau's
+# and BDF's tight points) and still spans the range.
+DEFAULT_TOLERANCES = TOLERANCES[::2]
+# A point whose accuracy run took longer than this (s) ends its ladder: each tighter tolerance costs more. Measured on
+# the 2-core dev machine (default ladder cases, t_end 20): the scipy methods' points take 0.005-3 s, BDF's and
+# Radau's at 1e-12 the longest.
+POINT_BUDGET_S = 5.0
+
+
+@dataclass(frozen=True)
+class AdaptiveFamily:
+    """Runs of one adaptive integrator that differ only in the requested tolerance."""
+
+    case: Case
+    engine: str
+    formulation: str
+    integrator: str
+
+    @property
+    def label(self) -> str:
+        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator) if x)
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        return self.case.name, self.engine, self.formulation, self.integrator
+
+
+def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
+             formulations: tuple[str, ...] | None = None) -> list[AdaptiveFamily]:
+    """Every adaptive integrator (Engine.adaptive) of the engines, on each formulation and case the engine models;
+    integrators: the names chosen (None: all of them, whatever the sweep's default). formulations: only these (an
+    engine with formulations but none of these: its first), None: all."""
+    out = []
+    for name in engines:
+        engine = get_engine(name)
+        chosen = [i for i in engine.integrators() if engine.adaptive(i) and (integrators is None or i in integrators)]
+        own = tuple(engine.formulations()) or ("",)
+        if formulations is not None:
+            own = tuple(f for f in own if f in formulations) or own[:1]
+        for case in cases:
+            if engine.unsupported(case):
+                continue
+            for integrator in chosen:
+                for formulation in own:
+                    if engine.unsupported_run(case, formulation, integrator):
+                        continue
+                    out.append(AdaptiveFamily(case, name, formulation, integrator))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ one point
+
+def _grid(case: Case):
+    from stereodyn.harness.runner import truth_grid  # the sweep's grid of adaptive rows
+
+    return truth_grid(case)
+
+
+def _prepare(family: AdaptiveFamily, tolerance: float):
+    extra = {"formulation": family.formulation} if family.formulation else {}
+    return get_engine(family.engine).prepare(family.case, family.integrator, None, tolerance=tolerance, **extra)
+
+
+def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
+    """One ladder point's accuracy run (untimed): errors against the truth (a reference.truth.TruthResult on the
+    family's grid; computed here when None), drifts, steps and evaluations. Never raises; the run's wall time goes to
+    `_accuracy_s` (for the ladder's budget, not a timing)."""
+    case = family.case
+    grid = _grid(case)
+    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
+           "integrator": family.integrator, "tolerance": float(tolerance), "t_end": grid.t_end}
+    start = time.perf_counter()
+    try:
+        sim = _prepare(family, tolerance)
+        traj = sim.run(grid)
+        row["_accuracy_s"] = time.perf_counter() - start
+        row.update(status=traj.status.value, message=traj.message, steps=traj.steps, rhs_evals=traj.rhs_evals,
+                   rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan,
+                   steps_per_sim_s=traj.steps / grid.t_end if traj.steps else math.nan)
+        drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
+        row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
+        if truth is None:
+            from stereodyn.reference import truth as reference_truth
+
+            truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
+        row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
+        parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
+        row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
+            if math.isfinite(row["attitude_err"]) else math.nan
+        row["err_over_tol"] = row["state_err"] / float(tolerance)
+    except Exception as exc:  # a point that breaks is data, as in the sweep
+        row.setdefault("_accuracy_s", time.perf_counter() - start)
+        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    return row
+
+
+def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCES,
+               budget_s: float = POINT_BUDGET_S) -> list[dict]:
+    """The accuracy runs of one family's ladder, loose to tight, stopping early (module docstring). Never raises."""
+    try:
+        from stereodyn.reference import truth as reference_truth
+
+        case = family.case
+        truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times)
+    except Exception as exc:
+        return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
+    points = []
+    for tolerance in sorted(tolerances, reverse=True):
+        row = measure(family, tolerance, truth)
+        points.append(row)
+        if row["_accuracy_s"] > budget_s and tolerance != min(tolerances):
+            stop = f"ladder stopped after this point: its run took {row['_accuracy_s']:.3g} s (> {budget_s:g} s)"
+            row["message"] = "; ".join(x for x in (row.get("message", ""), stop) if x)
+            break
+    return points
+
+
+def _failed_point(family: AdaptiveFamily, tolerance: float, message: str) -> dict:
+    return {"case": family.case.name, "engine": family.engine, "formulation": family.formulation,
+            "integrator": family.integrator, "tolerance": float(tolerance), "status": Status.FAILED.value,
+            "message": message.splitlines()[0]}
+
+
+def time_points(points: list[dict], families_by_key: dict[tuple, AdaptiveFamily]) -> None:
+    """The timing phase: every ok point timed in this process after all the accuracy runs, in rounds over all the
+    points (timing.measure_interleaved), as harness.dt_ladders.time_points. Updates the points in place; a point that
+    fails here is left untimed."""
+    runs, grids, rows = [], [], []
+    for row in points:
+        if row.get("status") != Status.OK.value:
+            continue
+        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        try:
+            sim = _prepare(family, row["tolerance"])
+            grid = _grid(family.case)
+            sim.run(grid)  # the warm-up
+        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
+            continue
+        runs.append(lambda sim=sim, grid=grid: sim.run(grid))
+        grids.append(grid)
+        rows.append(row)
+    for row, grid, measured in zip(rows, grids, timing.measure_interleaved(runs, TIMING_REPEATS, TIMING_BUDGET_S)):
+        if measured is not None:
+            row.update(wall_s=measured.best, us_per_sim_s=measured.best / grid.t_end * 1e6,
+                       us_per_sim_s_spread=measured.spread / grid.t_end * 1e6)
+
+
+def _ladder_cost(family: AdaptiveFamily) -> float:
+    """Rank of a family's cost, to start the costliest first: the engine's cost of a step (Engine.pass_us)."""
+    return get_engine(family.engine).pass_us
+
+
+def run_ladders(chosen: list[AdaptiveFamily], pool: ProcessPoolExecutor | None = None,
+                progress: Callable[[str], None] | None = None,
+                tolerances: tuple[float, ...] = TOLERANCES) -> list[dict]:
+    """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
+    timed here (time_points). Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose
+    to tight."""
+    results: dict[int, list[dict]] = {}
+    order = sorted(range(len(chosen)), key=lambda i: _ladder_cost(chosen[i]), reverse=True)
+    if pool is None or len(chosen) <= 1:
+        for index in order:
+            results[index] = run_ladder(chosen[index], tolerances)
+            if progress:
+                progress(chosen[index].label)
+    else:
+        futures = {pool.submit(run_ladder, chosen[index], tolerances): index for index in order}
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                results[index] = future.result()
+            except Exception as exc:  # a worker that died: one failed point says why
+                results[index] = [_failed_point(chosen[index], max(tolerances),
+                                                f"worker failed: {type(exc).__name__}: {exc}")]
+            if progress:
+                progress(chosen[index].label)
+    points = [point for index in range(len(chosen)) for point in results[index]]
+    time_points(points, {f.key: f for f in chosen})
+    return [{k: v for k, v in point.items() if not k.startswith("_")} for point in points]
+
+
+def tolerance_frame(points: list[dict]):
+    """The points as tolerance.csv's table (TOLERANCE_COLUMNS, NaN where a column does not apply)."""
+    import pandas as pd
+
+    df = pd.DataFrame(points, columns=list(TOLERANCE_COLUMNS))
+    return df.fillna({"formulation": "", "message": ""}).astype({"tolerance": float})
+
+
+__all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families",
+           "measure", "run_ladder", "run_ladders", "time_points", "tolerance_frame"]
