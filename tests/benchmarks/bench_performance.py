@@ -1,8 +1,11 @@
-"""The seven performance figures of issue 6, each a ratio measured side by side in one process, printed `name value`.
+"""The performance figures of issues 6 and 14, each a ratio measured side by side in one process, printed `name value`.
 
     python tests/benchmarks/bench_performance.py [--repeats N] [--quick]
 
 mujoco_overhead      MujocoEngine µs/step over a bare mujoco.rollout (worse of euler and rk4).        target <= 1.1
+drake_overhead       DrakeEngine µs/step over a bare Simulator.AdvanceTo(t_end) with the same diagram, integrator and
+                     fixed step (the worse of explicit_euler, runge_kutta3 and the discrete plant; needs the extra
+                     stereodyn[drake], else printed as skipped).                                       target <= 1.1
 pinocchio_overhead   PinocchioEngine rk4 µs/step over a bare Python RKMK4 loop (bench_overhead.py).   target <= 1.2
 pinocchio_vs_native  PinocchioEngine rk4 µs per state-step of an ensemble of 1024 states (prepare_ensemble: numpy
                      arithmetic for the group, a stage's accelerations in one pin.abaInParallel call) over the native
@@ -74,6 +77,43 @@ def pinocchio_vs_native(repeats: int, members: int = 1024, steps: int = 200) -> 
     return {"native_us": best["native"] / (steps * members) * 1e6,
             "ensemble_us": best["ensemble"] / (steps * members) * 1e6,
             "single_us": best["single"] / single_grid.steps * 1e6, "members": members, "threads": threads}
+
+
+# ------------------------------------------------------------------------------------------- drake overhead
+
+DRAKE_INTEGRATORS = ("explicit_euler", "runge_kutta3", "discrete")
+
+
+def drake_overhead(repeats: int) -> dict[str, tuple[float, float]] | None:
+    """{integrator: (adapter µs/step, bare µs/step)} on the Lagrange top at dt = 1e-3 over 10 s (10 000 steps, 1000
+    samples), or None without pydrake. The bare run is the adapter's own diagram in its own Simulator, reset to the
+    initial state and advanced to t_end in one call: Drake's stepping with nothing recorded."""
+    try:
+        from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+    except ImportError:
+        return None
+    case = bench_overhead.lagrange_top()
+    dt = bench_overhead.DT
+    grid = time_grid(case.t_end, dt, bench_overhead.SAMPLES)
+    out = {}
+    for integrator in DRAKE_INTEGRATORS:
+        sim = get_engine("drake").prepare(case, integrator, dt, formulation="rpy_ball")
+        simulator = Simulator(sim.diagram)
+        context = simulator.get_mutable_context()
+
+        def bare(simulator=simulator, context=context, discrete=integrator == "discrete", name=integrator):
+            context.SetTime(0.0)
+            if discrete:
+                context.SetDiscreteState(sim.x0)
+            else:
+                context.SetContinuousState(sim.x0)
+                ResetIntegratorFromFlags(simulator, name, dt).set_fixed_step_mode(True)
+            simulator.Initialize()
+            simulator.AdvanceTo(grid.t_end)
+
+        best = bench_overhead.best_interleaved({"adapter": lambda sim=sim: sim.run(grid), "bare": bare}, repeats)
+        out[integrator] = (best["adapter"] / grid.steps * 1e6, best["bare"] / grid.steps * 1e6)
+    return out
 
 
 # ------------------------------------------------------------------------------------------- truth share
@@ -172,6 +212,10 @@ def main() -> None:
         case = bench_overhead.lagrange_top()
         mujoco = [bench_overhead.bench_mujoco(case, integrator, args.repeats) for integrator in ("euler", "rk4")]
         pinocchio = bench_overhead.bench_pinocchio(case, args.repeats)
+        drake = drake_overhead(args.repeats)
+        if drake is not None:
+            print("# drake us/step, adapter / bare AdvanceTo: " + ", ".join(
+                f"{name} {a:.2f} / {b:.2f}" for name, (a, b) in drake.items()))
         native = pinocchio_vs_native(args.repeats)
         print(f"# pinocchio rk4, us per state-step: ensemble of {native['members']} {native['ensemble_us']:.3f}, "
               f"one trajectory {native['single_us']:.3f}, native floor (4 x abaInParallel) {native['native_us']:.3f}"
@@ -185,6 +229,10 @@ def main() -> None:
         parallel = parallel_efficiency(args.quick)
         print(f"# sweep: --jobs 1 {parallel['jobs1_s']:.1f} s, --jobs 2 {parallel['jobs2_s']:.1f} s")
         print(f"mujoco_overhead {max(a / b for a, b in mujoco):.3f}")
+        if drake is None:
+            print("drake_overhead skipped (pydrake not installed: pip install 'stereodyn[drake]')")
+        else:
+            print(f"drake_overhead {max(a / b for a, b in drake.values()):.3f}")
         print(f"pinocchio_overhead {pinocchio['adapter'] / pinocchio['bare']:.3f}")
         print(f"pinocchio_vs_native {native['ensemble_us'] / native['native_us']:.2f}")
         print(f"pinocchio_single_vs_native {native['single_us'] / native['native_us']:.2f}")

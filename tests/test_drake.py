@@ -1,0 +1,165 @@
+"""The Drake engine (harness/engines/drake.py, the optional extra stereodyn[drake]): its conventions, agreement with
+the truth, torques at every stage, fitted orders, the roll-pitch-yaw chart's singularity, the tolerance keyword, and
+the message when the extra is missing. Skipped where pydrake is not installed (but the missing-extra test runs)."""
+from __future__ import annotations
+
+import dataclasses
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from stereodyn.harness import metrics
+from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.grid import time_grid
+from stereodyn.harness.trajectory import Status
+from stereodyn.reference import truth as reference_truth
+from stereodyn.reference.rotations import attitude_angle, quat_mul, quat_to_matrix
+
+
+@pytest.fixture(scope="module")
+def drake():
+    pytest.importorskip("pydrake")
+    return get_engine("drake")
+
+
+def run(engine, case, integrator, dt, model="rpy_ball", tolerance=None, samples=None):
+    case = dataclasses.replace(case, samples=samples or case.samples)
+    grid = time_grid(case.t_end, dt if dt is not None else case.t_end / (case.samples - 1), case.samples)
+    return grid, engine.prepare(case, integrator, dt, formulation=model, tolerance=tolerance).run(grid)
+
+
+def state_error(case, grid, traj) -> float:
+    """max of attitude_err, omega_err and casimir_drift against the truth: convergence.csv's state error."""
+    truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
+    err = metrics.errors(traj, truth.quat, truth.omega, None)
+    casimir = metrics.drifts(case, traj, ("casimir",))["casimir_drift"]
+    return max(err["attitude_err"], err["omega_err"], casimir)
+
+
+def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
+    """pydrake made unimportable: the registry's stand-in engine skips every case with the adapter's message."""
+    code = ("import sys; sys.modules['pydrake'] = None\n"
+            "from stereodyn.harness.engines import get_engine, UnavailableEngine\n"
+            "engine = get_engine('drake')\n"
+            "print(isinstance(engine, UnavailableEngine)); print(engine.unsupported(None))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    unavailable, reason = result.stdout.splitlines()
+    assert unavailable == "True"
+    assert reason.startswith("drake engine unavailable:") and "pip install 'stereodyn[drake]'" in reason
+
+
+def test_integrators_orders_adaptivity_and_default_sweep(drake):
+    assert drake.formulations() == ("rpy_ball", "quaternion_free")
+    for name, order in (("discrete", 1), ("explicit_euler", 1), ("runge_kutta2", 2), ("runge_kutta3", 3),
+                        ("bogacki_shampine3", 3), ("runge_kutta5", 5), ("radau3", 3), ("runge_kutta5_adaptive", 5)):
+        assert name in drake.integrators() and drake.declared_order(name) == order
+    assert drake.adaptive("runge_kutta3_adaptive") and not drake.adaptive("runge_kutta3")
+    assert not drake.adaptive("discrete") and not drake.adaptive("runge_kutta2")
+    assert drake.in_default_sweep("runge_kutta3") and not drake.in_default_sweep("radau3")
+    heavy, free = find_case("lagrange-top"), find_case("free-asymmetric")
+    assert drake.unsupported_run(heavy, "quaternion_free", "runge_kutta3")  # O is not the centre of mass
+    assert drake.unsupported_run(free, "quaternion_free", "runge_kutta3") is None
+
+
+@pytest.mark.parametrize("model", ["rpy_ball", "quaternion_free"])
+def test_a_uniform_rotation_gives_our_quaternion_and_body_omega(drake, model):
+    """ω along a principal axis of a free body is a uniform rotation: q(t) = q0 ⊗ (cos(|ω|t/2), sin(|ω|t/2) u), ω
+    constant in body components. A world-frame ω or a conjugated quaternion would be off by O(1)."""
+    q0 = np.array([math.cos(0.25), math.sin(0.25), 0.0, 0.0])  # body z tilted 0.5 rad: pitch stays < 30°
+    case = dataclasses.replace(find_case("free-asymmetric"), quat0=q0, omega0=np.array([0.0, 0.0, 1.3]), t_end=2.0)
+    grid, traj = run(drake, case, "runge_kutta3", 1e-2, model)
+    assert traj.status is Status.OK, traj.message
+    half = 0.5 * 1.3 * grid.times
+    expected = quat_mul(q0, np.column_stack([np.cos(half), 0 * half, 0 * half, np.sin(half)]))
+    angle = attitude_angle(quat_to_matrix(traj.quat), quat_to_matrix(expected))
+    # measured 2e-9 rad (rpy_ball: the chart's rates are not constant, RK3's error) and 4e-16 (quaternion_free)
+    assert np.max(angle) < 1e-7
+    assert np.max(np.abs(traj.omega - [0.0, 0.0, 1.3])) < 1e-12  # measured 0 to round-off: ω̇ = 0 exactly
+    assert np.max(np.abs(np.linalg.norm(traj.quat, axis=1) - 1.0)) < 1e-12
+    assert traj.steps == grid.steps  # fixed steps: no extra steps at the sample times
+    assert traj.rhs_evals >= 3 * grid.steps
+
+
+@pytest.mark.parametrize("name,model,bound", [
+    ("free-asymmetric", "rpy_ball", 1e-10), ("free-asymmetric", "quaternion_free", 1e-10),
+    ("lagrange-top", "rpy_ball", 1e-8), ("heavy-asymmetric", "rpy_ball", 1e-9)])
+def test_runge_kutta5_agrees_with_the_truth(drake, name, model, bound):
+    """RK5 at dt = 1e-3 over 2 s against the heyoka truth (measured: see bound's comment in each line below)."""
+    case = with_overrides(find_case(name), t_end=2.0)
+    grid, traj = run(drake, case, "runge_kutta5", 1e-3, model)
+    assert traj.status is Status.OK, traj.message
+    # measured: free-asymmetric 3e-13 rpy / 2e-13 quaternion; lagrange-top 4e-11; heavy-asymmetric 1e-12
+    assert state_error(case, grid, traj) < bound
+
+
+@pytest.mark.parametrize("name", ["central-field-turning", "self-excited-conic"])
+@pytest.mark.parametrize("model", ["rpy_ball", "quaternion_free"])
+def test_torques_enter_at_every_stage(drake, name, model):
+    """A torque that turns with time (the central field's direction) and one that depends on ω: RK3 fits order 3
+    (a torque held over the step would make it first order), and RK5 agrees with the truth."""
+    case = with_overrides(find_case(name), t_end=2.0)
+    dts, errors = [0.04, 0.02, 0.01], []
+    for dt in dts:
+        grid, traj = run(drake, case, "runge_kutta3", dt, model)
+        assert traj.status is Status.OK and traj.info["torque_mode"] == "input_port"
+        errors.append(state_error(case, grid, traj))
+    assert abs(order_slope(np.array(dts), np.array(errors)) - 3.0) < 0.3  # measured 2.9-3.0
+    grid, traj = run(drake, case, "runge_kutta5", 1e-2, model)
+    assert state_error(case, grid, traj) < 1e-9  # measured 1e-12 to 4e-11
+
+
+@pytest.mark.parametrize("integrator,order", [("runge_kutta2", 2), ("runge_kutta3", 3), ("bogacki_shampine3", 3),
+                                              ("discrete", 1)])
+def test_fixed_step_methods_fit_their_declared_orders(drake, integrator, order):
+    """On the Lagrange top over 2 s (convergence.csv's measure: slope of the state error against dt)."""
+    case = with_overrides(find_case("lagrange-top"), t_end=2.0)
+    dts = [0.004, 0.002, 0.001] if order < 3 else [0.008, 0.004, 0.002]
+    errors = []
+    for dt in dts:
+        grid, traj = run(drake, case, integrator, dt)
+        assert traj.status is Status.OK and traj.steps == grid.steps
+        errors.append(state_error(case, grid, traj))
+    fitted = order_slope(np.array(dts), np.array(errors))
+    assert abs(fitted - drake.declared_order(integrator)) < 0.3, (fitted, errors)
+
+
+def test_the_rpy_chart_singularity_ends_the_run_failed_with_its_time(drake):
+    """ω = (0, 1, 0) rad/s body from the identity: pitch = t reaches 90° at t = π/2 s. The quaternion joint has no
+    such chart and runs on."""
+    case = dataclasses.replace(find_case("free-asymmetric"), quat0=np.array([1.0, 0.0, 0.0, 0.0]),
+                               omega0=np.array([0.0, 1.0, 0.0]), t_end=3.0)
+    for integrator in ("runge_kutta3", "runge_kutta3_adaptive", "discrete"):
+        dt = None if integrator.endswith("_adaptive") else 1e-2
+        grid, traj = run(drake, case, integrator, dt, samples=301)
+        assert traj.status is Status.FAILED and "singularity" in traj.message, (integrator, traj.message)
+        when = float(traj.message.split("t = ")[1].split(" s")[0])
+        assert abs(when - math.pi / 2) < 0.03, traj.message  # Drake throws within 0.46° (0.008 rad) of it
+        recorded = np.isfinite(traj.quat[:, 0])
+        assert recorded[grid.times < 1.5].all() and not recorded[grid.times > 1.6].any()
+    grid, traj = run(drake, case, "runge_kutta3", 1e-2, "quaternion_free", samples=301)
+    assert traj.status is Status.OK
+
+
+def test_the_tolerance_keyword_sets_the_target_accuracy(drake):
+    """An error-controlled run at 1e-4 and at 1e-9: the tighter one is far more accurate and takes more steps, both
+    counted; a fixed-step run ignores the keyword."""
+    case = with_overrides(find_case("heavy-asymmetric"), t_end=2.0)
+    results = {}
+    for tolerance in (1e-4, 1e-9):
+        grid, traj = run(drake, case, "runge_kutta5_adaptive", None, tolerance=tolerance)
+        assert traj.status is Status.OK and traj.steps > 0 and traj.rhs_evals > traj.steps
+        results[tolerance] = (state_error(case, grid, traj), traj.steps, traj.rhs_evals)
+    loose, tight = results[1e-4], results[1e-9]
+    assert tight[0] < loose[0] / 100 and tight[1] > loose[1] and tight[2] > loose[2], results  # measured: see report
+    _, default = run(drake, case, "runge_kutta5_adaptive", None)
+    _, at_default = run(drake, case, "runge_kutta5_adaptive", None, tolerance=1e-8)
+    assert np.array_equal(default.quat, at_default.quat)  # None is the contract's default, 1e-8
+    _, a = run(drake, case, "runge_kutta3", 1e-2, tolerance=1e-3)
+    _, b = run(drake, case, "runge_kutta3", 1e-2)
+    assert np.array_equal(a.quat, b.quat)
