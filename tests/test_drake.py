@@ -61,7 +61,8 @@ def test_integrators_orders_adaptivity_and_default_sweep(drake):
         assert name in drake.integrators() and drake.declared_order(name) == order
     assert drake.adaptive("runge_kutta3_adaptive") and not drake.adaptive("runge_kutta3")
     assert not drake.adaptive("discrete") and not drake.adaptive("runge_kutta2")
-    assert drake.in_default_sweep("runge_kutta3") and not drake.in_default_sweep("radau3")
+    assert drake.in_default_sweep("runge_kutta3") and drake.in_default_sweep("runge_kutta3_adaptive")
+    assert not drake.in_default_sweep("radau3") and not drake.in_default_sweep("runge_kutta5")
     heavy, free = find_case("lagrange-top"), find_case("free-asymmetric")
     assert drake.unsupported_run(heavy, "quaternion_free", "runge_kutta3")  # O is not the centre of mass
     assert drake.unsupported_run(free, "quaternion_free", "runge_kutta3") is None
@@ -135,19 +136,24 @@ def test_fixed_step_methods_fit_their_declared_orders(drake, integrator, order):
     assert abs(fitted - drake.declared_order(integrator)) < 0.3, (fitted, errors)
 
 
-def test_the_rpy_chart_singularity_ends_the_run_failed_with_its_time(drake):
-    """ω = (0, 1, 0) rad/s body from the identity: pitch = t reaches 90° at t = π/2 s. The quaternion joint has no
-    such chart and runs on."""
+@pytest.mark.parametrize("rate,path", [(1.0, "stopped"), (0.9995, "crossed")])
+def test_the_rpy_chart_singularity_ends_the_run_failed_with_its_time(drake, rate, path):
+    """ω = (0, rate, 0) rad/s body from the identity: pitch = rate t reaches 90° at t = π/(2 rate). At rate 1 a stage
+    lands on pitch 1.570 rad and Drake throws; at 0.9995 every stage of RK3 at dt 0.01 and of the discrete plant
+    misses the singularity by > 0.0015 rad, the step jumps across and the sample after it shows cos(pitch) < 0. The
+    quaternion joint has no such chart and runs on."""
     case = dataclasses.replace(find_case("free-asymmetric"), quat0=np.array([1.0, 0.0, 0.0, 0.0]),
-                               omega0=np.array([0.0, 1.0, 0.0]), t_end=3.0)
-    for integrator in ("runge_kutta3", "runge_kutta3_adaptive", "discrete"):
+                               omega0=np.array([0.0, rate, 0.0]), t_end=3.0)
+    crossing = math.pi / 2 / rate
+    for integrator in ("runge_kutta3", "discrete") + (("runge_kutta3_adaptive",) if path == "stopped" else ()):
         dt = None if integrator.endswith("_adaptive") else 1e-2
         grid, traj = run(drake, case, integrator, dt, samples=301)
-        assert traj.status is Status.FAILED and "singularity" in traj.message, (integrator, traj.message)
+        assert traj.status is Status.FAILED, (integrator, traj.message)
+        assert traj.message.startswith("roll-pitch-yaw chart singularity") and path in traj.message, traj.message
         when = float(traj.message.split("t = ")[1].split(" s")[0])
-        assert abs(when - math.pi / 2) < 0.03, traj.message  # Drake throws within 0.46° (0.008 rad) of it
+        assert abs(when - crossing) <= 0.011, traj.message  # within a step (sample spacing 0.01 s)
         recorded = np.isfinite(traj.quat[:, 0])
-        assert recorded[grid.times < 1.5].all() and not recorded[grid.times > 1.6].any()
+        assert recorded[grid.times < crossing - 0.02].all() and not recorded[grid.times > crossing + 0.02].any()
     grid, traj = run(drake, case, "runge_kutta3", 1e-2, "quaternion_free", samples=301)
     assert traj.status is Status.OK
 
