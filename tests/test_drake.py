@@ -122,9 +122,11 @@ def test_torques_enter_at_every_stage(drake, name, model):
 
 
 @pytest.mark.parametrize("integrator,order", [("runge_kutta2", 2), ("runge_kutta3", 3), ("bogacki_shampine3", 3),
-                                              ("discrete", 1)])
+                                              ("discrete", 1), ("radau3", 3)])
 def test_fixed_step_methods_fit_their_declared_orders(drake, integrator, order):
-    """On the Lagrange top over 2 s (convergence.csv's measure: slope of the state error against dt)."""
+    """On the Lagrange top over 2 s (convergence.csv's measure: slope of the state error against dt). Measured:
+    2.00, 3.00, 3.00, 1.0 and 3.00 (radau3 with its Newton iteration converged to NEWTON_ACCURACY; at Drake's
+    default accuracy its local slopes scatter from -0.04 to 3.5)."""
     case = with_overrides(find_case("lagrange-top"), t_end=2.0)
     dts = [0.004, 0.002, 0.001] if order < 3 else [0.008, 0.004, 0.002]
     errors = []
