@@ -224,7 +224,7 @@ class DrakeSimulation:
         stopped = context.get_time()
         recorded = len(rows)
         states = np.full((len(times), self.x0.size), np.nan)
-        states[:recorded] = rows
+        states[:recorded] = np.concatenate(rows).reshape(recorded, self.x0.size)  # one copy, not one per row
         if self.discrete:  # MultibodyPlant 1.51's discrete step is an unrestricted update
             steps = rhs_evals = (self.simulator.get_num_discrete_updates()
                                  + self.simulator.get_num_unrestricted_updates())

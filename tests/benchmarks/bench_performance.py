@@ -1,6 +1,6 @@
 """The performance figures of issues 6 and 14, each a ratio measured side by side in one process, printed `name value`.
 
-    python tests/benchmarks/bench_performance.py [--repeats N] [--quick]
+    python tests/benchmarks/bench_performance.py [--repeats N] [--quick] [--only FIGURE,...]
 
 mujoco_overhead      MujocoEngine µs/step over a bare mujoco.rollout (worse of euler and rk4).        target <= 1.1
 drake_overhead       DrakeEngine µs/step over a bare Simulator.AdvanceTo(t_end) with the same diagram, integrator and
@@ -202,44 +202,63 @@ def parallel_efficiency(quick: bool, rounds: int = 2) -> dict[str, float]:
     return {"jobs1_s": times[1], "jobs2_s": times[2]}
 
 
+FIGURES = ("mujoco_overhead", "drake_overhead", "pinocchio_overhead", "pinocchio_vs_native", "truth_share",
+           "step_scaling", "memory_scaling", "parallel_efficiency")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--quick", action="store_true", help="shorter sweeps for truth_share and parallel_efficiency")
+    parser.add_argument("--only", default=",".join(FIGURES),
+                        help="comma-separated figures to measure (default: all): " + ", ".join(FIGURES))
     args = parser.parse_args()
+    only = args.only.split(",")
+    unknown = [name for name in only if name not in FIGURES]
+    if unknown:
+        parser.error(f"--only: unknown figure {', '.join(unknown)}; valid: {', '.join(FIGURES)}")
+    lines = []
     with tempfile.TemporaryDirectory() as scratch:
         os.chdir(scratch)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory on a warning
         case = bench_overhead.lagrange_top()
-        mujoco = [bench_overhead.bench_mujoco(case, integrator, args.repeats) for integrator in ("euler", "rk4")]
-        pinocchio = bench_overhead.bench_pinocchio(case, args.repeats)
-        drake = drake_overhead(args.repeats)
-        if drake is not None:
-            print("# drake us/step, adapter / bare AdvanceTo: " + ", ".join(
-                f"{name} {a:.2f} / {b:.2f}" for name, (a, b) in drake.items()))
-        native = pinocchio_vs_native(args.repeats)
-        print(f"# pinocchio rk4, us per state-step: ensemble of {native['members']} {native['ensemble_us']:.3f}, "
-              f"one trajectory {native['single_us']:.3f}, native floor (4 x abaInParallel) {native['native_us']:.3f}"
-              f" ({native['threads']} threads)")
-        share = truth_share(2, args.quick)
-        print(f"# truth {share['truth_s']:.2f} s of a {share['sweep_s']:.1f} s sweep")
-        scaling = step_scaling()
-        print(f"# step scaling exponents: {scaling}")
-        memory = memory_scaling()
-        print(f"# memory ratios 1e6 / 1e4 steps: {memory}")
-        parallel = parallel_efficiency(args.quick)
-        print(f"# sweep: --jobs 1 {parallel['jobs1_s']:.1f} s, --jobs 2 {parallel['jobs2_s']:.1f} s")
-        print(f"mujoco_overhead {max(a / b for a, b in mujoco):.3f}")
-        if drake is None:
-            print("drake_overhead skipped (pydrake not installed: pip install 'stereodyn[drake]')")
-        else:
-            print(f"drake_overhead {max(a / b for a, b in drake.values()):.3f}")
-        print(f"pinocchio_overhead {pinocchio['adapter'] / pinocchio['bare']:.3f}")
-        print(f"pinocchio_vs_native {native['ensemble_us'] / native['native_us']:.2f}")
-        print(f"pinocchio_single_vs_native {native['single_us'] / native['native_us']:.2f}")
-        print(f"truth_share {share['truth_s'] / share['sweep_s']:.4f}")
-        print(f"step_scaling {max(scaling.values(), key=lambda e: abs(e - 1.0)):.3f}")
-        print(f"memory_scaling {max(memory.values()):.3f}")
-        print(f"parallel_efficiency {parallel['jobs1_s'] / (2.0 * parallel['jobs2_s']):.3f}")
+        if "mujoco_overhead" in only:
+            mujoco = [bench_overhead.bench_mujoco(case, integrator, args.repeats) for integrator in ("euler", "rk4")]
+            lines.append(f"mujoco_overhead {max(a / b for a, b in mujoco):.3f}")
+        if "drake_overhead" in only:
+            drake = drake_overhead(args.repeats)
+            if drake is None:
+                lines.append("drake_overhead skipped (pydrake not installed: pip install 'stereodyn[drake]')")
+            else:
+                print("# drake us/step, adapter / bare AdvanceTo: " + ", ".join(
+                    f"{name} {a:.2f} / {b:.2f}" for name, (a, b) in drake.items()))
+                lines.append(f"drake_overhead {max(a / b for a, b in drake.values()):.3f}")
+        if "pinocchio_overhead" in only:
+            pinocchio = bench_overhead.bench_pinocchio(case, args.repeats)
+            lines.append(f"pinocchio_overhead {pinocchio['adapter'] / pinocchio['bare']:.3f}")
+        if "pinocchio_vs_native" in only:
+            native = pinocchio_vs_native(args.repeats)
+            print(f"# pinocchio rk4, us per state-step: ensemble of {native['members']} {native['ensemble_us']:.3f}, "
+                  f"one trajectory {native['single_us']:.3f}, native floor (4 x abaInParallel) "
+                  f"{native['native_us']:.3f} ({native['threads']} threads)")
+            lines.append(f"pinocchio_vs_native {native['ensemble_us'] / native['native_us']:.2f}")
+            lines.append(f"pinocchio_single_vs_native {native['single_us'] / native['native_us']:.2f}")
+        if "truth_share" in only:
+            share = truth_share(2, args.quick)
+            print(f"# truth {share['truth_s']:.2f} s of a {share['sweep_s']:.1f} s sweep")
+            lines.append(f"truth_share {share['truth_s'] / share['sweep_s']:.4f}")
+        if "step_scaling" in only:
+            scaling = step_scaling()
+            print(f"# step scaling exponents: {scaling}")
+            lines.append(f"step_scaling {max(scaling.values(), key=lambda e: abs(e - 1.0)):.3f}")
+        if "memory_scaling" in only:
+            memory = memory_scaling()
+            print(f"# memory ratios 1e6 / 1e4 steps: {memory}")
+            lines.append(f"memory_scaling {max(memory.values()):.3f}")
+        if "parallel_efficiency" in only:
+            parallel = parallel_efficiency(args.quick)
+            print(f"# sweep: --jobs 1 {parallel['jobs1_s']:.1f} s, --jobs 2 {parallel['jobs2_s']:.1f} s")
+            lines.append(f"parallel_efficiency {parallel['jobs1_s'] / (2.0 * parallel['jobs2_s']):.3f}")
+    print("\n".join(lines))
 
 
 if __name__ == "__main__":
