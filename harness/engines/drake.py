@@ -33,7 +33,7 @@ EPS = float(np.finfo(float).eps)
 # floating point, can exceed m steps of dt accumulated in Drake's clock (t += h, rounded each step) by a few ulps of
 # t_end, and Drake's fixed-step mode then ends the interval with an extra step of ~1e-18 s (measured: 746 extra steps
 # in 4000 at dt = 1e-3, each a full step's cost). The slack lets the m-th step absorb it; every step is still dt to
-# within 1e-9 relative for runs up to 1e6 steps, and the run takes exactly `steps` steps (tests/test_drake.py).
+# within 8 eps steps relative (2e-9 at 1e6 steps), and the run takes exactly `steps` steps (tests/test_drake.py).
 STRETCH_ULPS = 8.0
 try:
     from pydrake.common.eigen_geometry import Quaternion
