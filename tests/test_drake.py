@@ -179,3 +179,41 @@ def test_the_tolerance_keyword_sets_the_target_accuracy(drake):
     _, a = run(drake, case, "runge_kutta3", 1e-2, tolerance=1e-3)
     _, b = run(drake, case, "runge_kutta3", 1e-2)
     assert a.steps == b.steps and np.allclose(a.quat, b.quat, rtol=0, atol=1e-15)
+
+
+def test_every_integrator_runs_on_both_models_and_counts_its_work(drake):
+    """Each fixed-step scheme takes exactly the grid's steps; each adaptive one reports its steps and derivative
+    evaluations (the tolerance contract); short span of the torqued self-excited body (a torque at every stage)."""
+    case = with_overrides(find_case("self-excited-conic"), t_end=0.2)
+    for model in drake.formulations():
+        for integrator in drake.integrators():
+            dt = None if drake.adaptive(integrator) else 1e-2
+            grid, traj = run(drake, case, integrator, dt, model, tolerance=1e-6, samples=11)
+            assert traj.status is Status.OK, (model, integrator, traj.message)
+            assert traj.steps > 0 and traj.rhs_evals >= traj.steps, (model, integrator)
+            if dt is not None:
+                assert traj.steps == grid.steps, (model, integrator, traj.steps)
+            # measured <= 8.3e-4 for the first-order schemes (dt 1e-2 or tolerance 1e-6, over 0.2 s), <= 2.2e-6
+            # (runge_kutta2) for the others
+            bound = 1e-2 if drake.declared_order(integrator) == 1 else 2e-5
+            assert state_error(case, grid, traj) < bound, (model, integrator)
+
+
+def test_the_default_sweep_has_drake_rows_on_every_case(drake):
+    """The plan of a run naming no integrators: every rigid-body case runs both Drake models or skips
+    quaternion_free with its reason; the sliding ladder is one skipped row naming why."""
+    from stereodyn.harness.cases import load_suite
+    from stereodyn.harness.plan import plan
+
+    suite = load_suite()
+    specs, skipped = plan(suite, ["drake"], None)
+    for case in suite:
+        runs = {(s.formulation, s.integrator) for s in specs if s.case.name == case.name}
+        rows = [r for r in skipped if r["case"] == case.name]
+        if case.kind == "sliding_ladder":
+            assert not runs and len(rows) == 1 and "bilateral constraints" in rows[0]["message"]
+            continue
+        assert {i for _, i in runs} == {"discrete", "runge_kutta2", "runge_kutta3", "runge_kutta3_adaptive"}
+        assert ("rpy_ball", "runge_kutta3") in runs
+        assert ("quaternion_free", "runge_kutta3") in runs or all(
+            r["message"].startswith("quaternion_free:") for r in rows) and rows
