@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from stereodyn.harness import integrators as integrator_registry
 from stereodyn.harness.cases import SLIDING_LADDER, Case
 from stereodyn.harness.engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, Engine, get_engine
 from stereodyn.harness.grid import TimeGrid, time_grid
@@ -80,7 +79,7 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
     for engine_rank, name in enumerate(engines):
         engine = get_engine(name)
         chosen = [i for i in engine.integrators()
-                  if (integrators is None and integrator_registry.in_default_sweep(i))
+                  if (integrators is None and engine.in_default_sweep(i))
                   or (integrators is not None and i in integrators)]
         formulations = tuple(engine.formulations()) or ("",)
         for case in cases:

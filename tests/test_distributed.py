@@ -29,7 +29,9 @@ def test_a_local_cluster_gives_the_local_table(tmp_path, capsys):
     assert (got.status == "ok").sum() >= 8 + 1  # every simulator run and the truth
     pd.testing.assert_frame_equal(got.drop(columns=TIMINGS), expected.drop(columns=TIMINGS))
     assert got[got.status == "ok"].us_per_step.notna().all()
-    assert (remote / "report.html").is_file() and len(list((remote / "store").glob("*.json"))) == len(got)
+    # one record per run; rows skipped up front (Drake's quaternion_free model of this heavy top) are not runs
+    ran = got[got.status != "skipped"]
+    assert (remote / "report.html").is_file() and len(list((remote / "store").glob("*.json"))) == len(ran)
 
 
 def test_an_unreachable_scheduler_is_bad_input(tmp_path, capsys, monkeypatch):

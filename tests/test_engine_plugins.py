@@ -121,7 +121,8 @@ def test_the_external_engine_is_listed_and_old_or_broken_plugins_are_refused(ins
     result = _run(installed, "-c", code, cwd=tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     lines = result.stdout.splitlines()
-    assert lines[0] == "names mujoco,pinocchio,reference,toy,toy_broken,toy_nosdk,toy_old"
+    # drake: a built-in whose SDK is an optional extra (registered whether or not it is installed)
+    assert lines[0] == "names mujoco,pinocchio,reference,drake,toy,toy_broken,toy_nosdk,toy_old"
     # a module that cannot be imported (a missing SDK) makes the engine's runs skipped, with the reason
     assert lines[1].startswith("nosdk toy_nosdk engine unavailable: No module named")
     old, broken = lines[2], lines[3]
@@ -141,6 +142,9 @@ def test_the_base_class_defaults():
 
     engine = Minimal()
     assert engine.formulations() == () and engine.adaptive("rk4") is False and engine.default_run(None, "", "rk4")
+    # the registry's default_sweep: the geometric methods run only when named; an engine's own name is run
+    assert engine.in_default_sweep("rk4") and not engine.in_default_sweep("implicit_midpoint")
+    assert engine.in_default_sweep("no_such_integrator")
     assert engine.unsupported_run(None, "", "rk4") is None and engine.torque_mode(None) == "none"
     assert engine.sliding_ladder_models() == () and "minimal" in engine.sliding_ladder_unsupported()
     assert engine.declared_order("no_such_integrator") != engine.declared_order("no_such_integrator")  # NaN
@@ -157,10 +161,10 @@ def test_engine_error_is_a_value_error():
 
 # ------------------------------------------------------------------------------------------------ engine names
 
-ENGINE_NAMES = {"mujoco", "pinocchio", "reference"}
+ENGINE_NAMES = {"mujoco", "pinocchio", "reference", "drake"}
 # Where an engine name may be spelled: its adapter and the registry (and tests, outside harness/).
 ALLOWED = {Path("harness/engines/__init__.py"), Path("harness/engines/mujoco.py"),
-           Path("harness/engines/pinocchio.py"), Path("harness/engines/reference.py")}
+           Path("harness/engines/pinocchio.py"), Path("harness/engines/reference.py"), Path("harness/engines/drake.py")}
 
 
 def _engine_name_literals(path: Path) -> list[tuple[int, str]]:

@@ -7,7 +7,7 @@ import pytest
 
 from stereodyn.harness import cli, gate, plan
 from stereodyn.harness.cases import find_case, with_overrides
-from stereodyn.harness.engines import engine_names
+from stereodyn.harness.engines import UnavailableEngine, engine_names, get_engine
 
 SWEEP = ["lagrange-top", "heavy-asymmetric", "--t-end", "0.5", "--dt", "1e-2", "--jobs", "1", "--quiet"]
 REPO = Path(__file__).resolve().parents[1]
@@ -320,14 +320,21 @@ def test_the_baseline_is_readable_json_with_one_row_per_line(baseline):
 
 def test_the_committed_quick_baseline_matches_the_quick_suite():
     """reports/baselines/quick.json covers every run the quick suite plans (regenerate it when the plan changes)."""
-    rows = gate.read_baseline(QUICK_BASELINE)
+    # the engines installed here: CI has every extra (.ci/run), a checkout may lack one (its rows are then skipped)
+    available = [name for name in engine_names() if not isinstance(get_engine(name), UnavailableEngine)]
+    rows = [row for row in gate.read_baseline(QUICK_BASELINE) if row["engine"] in available]
     dts = [float(dt) for dt in QUICK_DT.split(",")]
     cases = [with_overrides(find_case(name), t_end=float(QUICK_T_END), dt=dts) for name in QUICK_CASES]
-    specs, skipped = plan.plan(cases, list(engine_names()), None)
+    specs, skipped = plan.plan(cases, available, None)
     planned = {gate._key(plan.base_row(spec, None)) for spec in specs} | {gate._key(row) for row in skipped}
     assert {gate._key(row) for row in rows} <= planned
     assert {(key[0], key[1]) for key in planned} == {(row["case"], row["engine"]) for row in rows}
-    assert all(row["status"] == "ok" for row in rows)
+    # every run ok, but those the plan skips up front (Drake's quaternion_free model of a heavy top) and Drake's
+    # roll-pitch-yaw model stopped by its chart's singularity (the discrete plant on lagrange-top at dt 1e-2: a finding)
+    up_front = {gate._key(row) for row in skipped}
+    assert all(row["status"] == "ok" or (row["status"], row["formulation"]) == ("failed", "rpy_ball")
+               for row in rows if gate._key(row) not in up_front)
+    assert all(row["status"] == "skipped" for row in rows if gate._key(row) in up_front)
     ci = (REPO / ".ci" / "run").read_text()
     assert f"{' '.join(QUICK_CASES)} --t-end {QUICK_T_END} --dt {QUICK_DT}" in ci
     assert "stereodyn check" in ci and "reports/baselines/quick.json" in ci

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import cli, runner
-from stereodyn.harness.engines import Engine, get_engine
+from stereodyn.harness.engines import Engine, UnavailableEngine, get_engine
 from stereodyn.harness.results import COLUMNS
 
 
@@ -37,7 +37,12 @@ def test_every_run_is_a_row_with_the_contract_columns(short_suite):
     assert "## Formulations side by side" in (out / "report.md").read_text()
     for engine, integrators in (("mujoco", 4), ("pinocchio", 4)):
         assert len(df[df.engine == engine]) == 4 * integrators * 2
-    assert set(df.status) == {"ok"}, df[df.status != "ok"][["case", "engine", "integrator", "message"]]
+    # the one kind of row skipped up front: Drake's quaternion_free model of a heavy top (its centre of mass is off O)
+    skipped = df[df.status == "skipped"]
+    assert (skipped.engine == "drake").all() and skipped.message.str.startswith("quaternion_free:").all()
+    assert set(df.status) <= {"ok", "skipped"}, df[df.status != "ok"][["case", "engine", "integrator", "message"]]
+    if not isinstance(get_engine("drake"), UnavailableEngine):  # with the extra: both models, 3 methods x 2 dts + RK3
+        assert len(df[df.engine == "drake"]) == 4 * 2 * (3 * 2 + 1)
     drift_tables = (out / "report.md").read_text().split("## Cases")[1].split("\n## ")[0]  # a section per case
     assert drift_tables.count("### ") == 4
     assert not list(out.glob(".*tmp"))  # atomic writes leave no partial files
@@ -45,6 +50,7 @@ def test_every_run_is_a_row_with_the_contract_columns(short_suite):
 
 def test_special_integrals_only_on_their_cases(short_suite):
     _, df = short_suite
+    df = df[df.status != "skipped"]  # rows that ran (Drake's quaternion_free model of a heavy top is skipped)
     kova = df.case == "kovalevskaya"
     assert np.isfinite(df[kova].kovalevskaya_drift).all()
     assert df[~kova].kovalevskaya_drift.isna().all()
@@ -56,7 +62,7 @@ def test_special_integrals_only_on_their_cases(short_suite):
 
 def test_errors_are_measured_against_the_truth(short_suite):
     _, df = short_suite
-    engines = df[df.engine != "reference"]
+    engines = df[(df.engine != "reference") & (df.status != "skipped")]
     assert np.isfinite(engines.attitude_err).all() and (engines.attitude_err >= engines.attitude_err_end).all()
     # The truth is exact to round-off: rk4 at dt = 5e-3 over one second is far more accurate than Euler.
     rk4 = engines[(engines.integrator == "rk4") & (engines.dt == 5e-3)]

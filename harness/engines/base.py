@@ -73,6 +73,13 @@ class Engine:
         formulation ""."""
         return ()
 
+    def in_default_sweep(self, integrator: str) -> bool:
+        """Whether a sweep that names no integrators runs this one on this engine. Default: the registry's
+        in_default_sweep (False only for classes declaring default_sweep = False; an engine's own name is run)."""
+        from stereodyn.harness import integrators
+
+        return integrators.in_default_sweep(integrator)
+
     def adaptive(self, integrator: str) -> bool:
         """Whether an integrator chooses its own steps (its runs have dt None; prepare takes tolerance=...). Default:
         none does."""

@@ -62,7 +62,8 @@ def integrator_rows() -> list[dict]:
 
                 rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
                              "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
-                             "default_sweep": True, "origin": f"built in ({engine})",
+                             "default_sweep": get_engine(engine).in_default_sweep(name),
+                             "origin": f"built in ({engine})",
                              "description": "adaptive (error-controlled)" if adapter.adaptive(name) else ""})
     return rows
 

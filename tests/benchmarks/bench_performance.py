@@ -1,8 +1,11 @@
-"""The seven performance figures of issue 6, each a ratio measured side by side in one process, printed `name value`.
+"""The performance figures of issues 6 and 14, each a ratio measured side by side in one process, printed `name value`.
 
-    python tests/benchmarks/bench_performance.py [--repeats N] [--quick]
+    python tests/benchmarks/bench_performance.py [--repeats N] [--quick] [--only FIGURE,...]
 
 mujoco_overhead      MujocoEngine µs/step over a bare mujoco.rollout (worse of euler and rk4).        target <= 1.1
+drake_overhead       DrakeEngine µs/step over a bare Simulator.AdvanceTo(t_end) with the same diagram, integrator and
+                     fixed step (the worse of explicit_euler, runge_kutta3 and the discrete plant; needs the extra
+                     stereodyn[drake], else printed as skipped).                                       target <= 1.1
 pinocchio_overhead   PinocchioEngine rk4 µs/step over a bare Python RKMK4 loop (bench_overhead.py).   target <= 1.2
 pinocchio_vs_native  PinocchioEngine rk4 µs per state-step of an ensemble of 1024 states (prepare_ensemble: numpy
                      arithmetic for the group, a stage's accelerations in one pin.abaInParallel call) over the native
@@ -74,6 +77,43 @@ def pinocchio_vs_native(repeats: int, members: int = 1024, steps: int = 200) -> 
     return {"native_us": best["native"] / (steps * members) * 1e6,
             "ensemble_us": best["ensemble"] / (steps * members) * 1e6,
             "single_us": best["single"] / single_grid.steps * 1e6, "members": members, "threads": threads}
+
+
+# ------------------------------------------------------------------------------------------- drake overhead
+
+DRAKE_INTEGRATORS = ("explicit_euler", "runge_kutta3", "discrete")
+
+
+def drake_overhead(repeats: int) -> dict[str, tuple[float, float]] | None:
+    """{integrator: (adapter µs/step, bare µs/step)} on the Lagrange top at dt = 1e-3 over 10 s (10 000 steps, 1000
+    samples), or None without pydrake. The bare run is the adapter's own diagram in its own Simulator, reset to the
+    initial state and advanced to t_end in one call: Drake's stepping with nothing recorded."""
+    try:
+        from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+    except ImportError:
+        return None
+    case = bench_overhead.lagrange_top()
+    dt = bench_overhead.DT
+    grid = time_grid(case.t_end, dt, bench_overhead.SAMPLES)
+    out = {}
+    for integrator in DRAKE_INTEGRATORS:
+        sim = get_engine("drake").prepare(case, integrator, dt, formulation="rpy_ball")
+        simulator = Simulator(sim.diagram)
+        context = simulator.get_mutable_context()
+
+        def bare(simulator=simulator, context=context, discrete=integrator == "discrete", name=integrator):
+            context.SetTime(0.0)
+            if discrete:
+                context.SetDiscreteState(sim.x0)
+            else:
+                context.SetContinuousState(sim.x0)
+                ResetIntegratorFromFlags(simulator, name, dt).set_fixed_step_mode(True)
+            simulator.Initialize()
+            simulator.AdvanceTo(grid.t_end)
+
+        best = bench_overhead.best_interleaved({"adapter": lambda sim=sim: sim.run(grid), "bare": bare}, repeats)
+        out[integrator] = (best["adapter"] / grid.steps * 1e6, best["bare"] / grid.steps * 1e6)
+    return out
 
 
 # ------------------------------------------------------------------------------------------- truth share
@@ -162,36 +202,63 @@ def parallel_efficiency(quick: bool, rounds: int = 2) -> dict[str, float]:
     return {"jobs1_s": times[1], "jobs2_s": times[2]}
 
 
+FIGURES = ("mujoco_overhead", "drake_overhead", "pinocchio_overhead", "pinocchio_vs_native", "truth_share",
+           "step_scaling", "memory_scaling", "parallel_efficiency")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--quick", action="store_true", help="shorter sweeps for truth_share and parallel_efficiency")
+    parser.add_argument("--only", default=",".join(FIGURES),
+                        help="comma-separated figures to measure (default: all): " + ", ".join(FIGURES))
     args = parser.parse_args()
+    only = args.only.split(",")
+    unknown = [name for name in only if name not in FIGURES]
+    if unknown:
+        parser.error(f"--only: unknown figure {', '.join(unknown)}; valid: {', '.join(FIGURES)}")
+    lines = []
     with tempfile.TemporaryDirectory() as scratch:
         os.chdir(scratch)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory on a warning
         case = bench_overhead.lagrange_top()
-        mujoco = [bench_overhead.bench_mujoco(case, integrator, args.repeats) for integrator in ("euler", "rk4")]
-        pinocchio = bench_overhead.bench_pinocchio(case, args.repeats)
-        native = pinocchio_vs_native(args.repeats)
-        print(f"# pinocchio rk4, us per state-step: ensemble of {native['members']} {native['ensemble_us']:.3f}, "
-              f"one trajectory {native['single_us']:.3f}, native floor (4 x abaInParallel) {native['native_us']:.3f}"
-              f" ({native['threads']} threads)")
-        share = truth_share(2, args.quick)
-        print(f"# truth {share['truth_s']:.2f} s of a {share['sweep_s']:.1f} s sweep")
-        scaling = step_scaling()
-        print(f"# step scaling exponents: {scaling}")
-        memory = memory_scaling()
-        print(f"# memory ratios 1e6 / 1e4 steps: {memory}")
-        parallel = parallel_efficiency(args.quick)
-        print(f"# sweep: --jobs 1 {parallel['jobs1_s']:.1f} s, --jobs 2 {parallel['jobs2_s']:.1f} s")
-        print(f"mujoco_overhead {max(a / b for a, b in mujoco):.3f}")
-        print(f"pinocchio_overhead {pinocchio['adapter'] / pinocchio['bare']:.3f}")
-        print(f"pinocchio_vs_native {native['ensemble_us'] / native['native_us']:.2f}")
-        print(f"pinocchio_single_vs_native {native['single_us'] / native['native_us']:.2f}")
-        print(f"truth_share {share['truth_s'] / share['sweep_s']:.4f}")
-        print(f"step_scaling {max(scaling.values(), key=lambda e: abs(e - 1.0)):.3f}")
-        print(f"memory_scaling {max(memory.values()):.3f}")
-        print(f"parallel_efficiency {parallel['jobs1_s'] / (2.0 * parallel['jobs2_s']):.3f}")
+        if "mujoco_overhead" in only:
+            mujoco = [bench_overhead.bench_mujoco(case, integrator, args.repeats) for integrator in ("euler", "rk4")]
+            lines.append(f"mujoco_overhead {max(a / b for a, b in mujoco):.3f}")
+        if "drake_overhead" in only:
+            drake = drake_overhead(args.repeats)
+            if drake is None:
+                lines.append("drake_overhead skipped (pydrake not installed: pip install 'stereodyn[drake]')")
+            else:
+                print("# drake us/step, adapter / bare AdvanceTo: " + ", ".join(
+                    f"{name} {a:.2f} / {b:.2f}" for name, (a, b) in drake.items()))
+                lines.append(f"drake_overhead {max(a / b for a, b in drake.values()):.3f}")
+        if "pinocchio_overhead" in only:
+            pinocchio = bench_overhead.bench_pinocchio(case, args.repeats)
+            lines.append(f"pinocchio_overhead {pinocchio['adapter'] / pinocchio['bare']:.3f}")
+        if "pinocchio_vs_native" in only:
+            native = pinocchio_vs_native(args.repeats)
+            print(f"# pinocchio rk4, us per state-step: ensemble of {native['members']} {native['ensemble_us']:.3f}, "
+                  f"one trajectory {native['single_us']:.3f}, native floor (4 x abaInParallel) "
+                  f"{native['native_us']:.3f} ({native['threads']} threads)")
+            lines.append(f"pinocchio_vs_native {native['ensemble_us'] / native['native_us']:.2f}")
+            lines.append(f"pinocchio_single_vs_native {native['single_us'] / native['native_us']:.2f}")
+        if "truth_share" in only:
+            share = truth_share(2, args.quick)
+            print(f"# truth {share['truth_s']:.2f} s of a {share['sweep_s']:.1f} s sweep")
+            lines.append(f"truth_share {share['truth_s'] / share['sweep_s']:.4f}")
+        if "step_scaling" in only:
+            scaling = step_scaling()
+            print(f"# step scaling exponents: {scaling}")
+            lines.append(f"step_scaling {max(scaling.values(), key=lambda e: abs(e - 1.0)):.3f}")
+        if "memory_scaling" in only:
+            memory = memory_scaling()
+            print(f"# memory ratios 1e6 / 1e4 steps: {memory}")
+            lines.append(f"memory_scaling {max(memory.values()):.3f}")
+        if "parallel_efficiency" in only:
+            parallel = parallel_efficiency(args.quick)
+            print(f"# sweep: --jobs 1 {parallel['jobs1_s']:.1f} s, --jobs 2 {parallel['jobs2_s']:.1f} s")
+            lines.append(f"parallel_efficiency {parallel['jobs1_s'] / (2.0 * parallel['jobs2_s']):.3f}")
+    print("\n".join(lines))
 
 
 if __name__ == "__main__":
