@@ -33,7 +33,9 @@ def test_every_run_is_a_row_with_the_contract_columns(short_suite):
     # Every formulation by heyoka (dt empty) and by the two vector-state integrators at each dt.
     assert set(reference.formulation) == {"quaternion", "gibbs", "gibbs_hamiltonian", "euler_zxz"}
     assert reference[reference.integrator == "taylor"].dt.isna().all()
-    assert len(reference) == cases * (4 + 2 * 4 * 2)
+    # scipy's default methods (scipy_rk45, scipy_dop853, scipy_lsoda) on the quaternion formulation, dt empty
+    assert len(reference) == cases * (4 + 2 * 4 * 2 + 3)
+    assert reference[reference.integrator.str.startswith("scipy_")].dt.isna().all()
     assert "## Formulations side by side" in (out / "report.md").read_text()
     for engine, integrators in (("mujoco", 4), ("pinocchio", 4)):
         assert len(df[df.engine == engine]) == 4 * integrators * 2
