@@ -242,10 +242,17 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
             if len(new) >= SHORT_POINTS:
                 stops.append(f"short ladder stopped at {SHORT_POINTS} points")
                 break
+            previous = marked().iloc[-1]  # the finest point before this one (used when walking finer)
             new.append(measure(family, float(f"{dt:.4g}"), timed=False) | {"source": SHORT_LADDER})
             points = marked()
             last = points.loc[points["dt"] == new[-1]["dt"], "regime"].iloc[-1]
             if asymptotic() >= SHORT_TARGET or last in leaves[direction]:
+                break
+            if direction == -1 and last == previous["regime"] == fitting.ABOVE \
+                    and new[-1]["state_err"] > previous["state_err"] * 2.0 ** -fitting.FLOOR_SLOPE:
+                # saturated (an attitude error of order pi, a chaotic separation): finer steps here are the costly ones
+                stops.append(f"state_err not falling above {fitting.ASYMPTOTIC_MAX:g} from dt = {previous['dt']:.3g} "
+                             f"to {new[-1]['dt']:.3g}")
                 break
         else:
             stops.append(f"dt = {dt if last else edge['dt']:.3g} is the " + (
@@ -277,7 +284,7 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
     ok = points[points["regime"] != fitting.FAILED]
     if len(ok) and (ok["regime"] == fitting.ABOVE).all() and chaotic:
         return [f"the case is {'/'.join(chaotic)}: its error grows exponentially and stays above the asymptotic "
-                "range at every dt within the steps cap"]
+                "range at every dt tried"]
     return []
 
 
@@ -305,16 +312,14 @@ def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> 
 
 def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor | None = None,
                 progress: Callable[[str], None] | None = None,
-                short: list[tuple[Family, list[dict]]] = (), short_max_steps: int | None = None
-                ) -> tuple[list[dict], list[dict]]:
-    """Every family's ladder and every short ladder (short: (family, its sweep runs), run_short_ladder with
-    short_max_steps, default max_steps), their accuracy runs in this process (pool None) or on the sweep's pool, then
+                short: list[tuple[Family, list[dict], int]] = ()) -> tuple[list[dict], list[dict]]:
+    """Every family's ladder and every short ladder (short: (family, its sweep runs, its steps cap), run_short_ladder),
+    their accuracy runs in this process (pool None) or on the sweep's pool, then
     the ladders' points timed here (time_points; the short ladders' points stay untimed). Returns (points, convergence
     rows): the ladders' in the order of `chosen`, then the short ladders' in the order of `short`, whatever order the
     families finish in."""
     tasks = [(run_ladder, family, (family, max_steps), LADDER) for family in chosen]
-    tasks += [(run_short_ladder, family, (family, known, short_max_steps or max_steps), SHORT_LADDER)
-              for family, known in short]
+    tasks += [(run_short_ladder, family, (family, known, steps), SHORT_LADDER) for family, known, steps in short]
     results: dict[int, tuple[list[dict], dict]] = {}
     if pool is None or len(tasks) <= 1:
         for index, (function, family, args, _) in enumerate(tasks):

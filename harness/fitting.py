@@ -126,9 +126,11 @@ NOTE_GROUPS = (
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),
     ("exact for this motion", "exact for this motion (round-off up to t_end / 20)"),
     ("round-off for every stable dt", "error at round-off for every stable dt"),
-    ("its error grows exponentially", "chaotic or unstable case: error above the range within the steps cap"),
+    ("its error grows exponentially", "chaotic or unstable case: error above the range at every dt tried"),
+    ("not falling above", "error above the range and saturated (not falling as dt halves)"),
     ("error at round-off at every", "error at round-off at every dt tried"),
-    (f"state_err > {ASYMPTOTIC_MAX:g} at every", "error above the range at every dt within the steps cap"),
+    (f"state_err > {ASYMPTOTIC_MAX:g} at every", "error above the range at every dt down to the steps cap"),
+    ("smallest tried", "fewer than two asymptotic points down to the steps cap"),
     ("no run ok", "no run ok"),
     ("worker failed", "worker failed"),
 )

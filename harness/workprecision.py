@@ -42,7 +42,10 @@ DEFAULT_LADDER_FORMULATIONS = ("", "quaternion")
 # Left out of the default ladder (their orders still come from the dt lists): MuJoCo's implicitfast is bit-identical
 # to its Euler on a ball joint (ENGINES.md), and rk4_naive is a documented contrast that costs as much as rk4.
 DEFAULT_LADDER_SKIP = ("implicitfast", "rk4_naive")
-SHORT_MAX_STEPS = DEFAULT_MAX_STEPS  # a short ladder's smallest dt: t_end / SHORT_MAX_STEPS
+# A short ladder's point costs at most SHORT_MAX_EVALS right-hand-side evaluations (the sweep's rhs_per_sim_s; 4 a step
+# where unknown): 40000 steps of rk4, 160000 of Euler, whose first-order error needs the smaller steps to come down
+# into the asymptotic range.
+SHORT_MAX_EVALS = 4 * DEFAULT_MAX_STEPS
 
 
 def _ladder_cost(family: Family) -> float:
@@ -66,8 +69,9 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
-                          sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict]]]:
-    """The families that get a short ladder (harness.dt_ladders.run_short_ladder), each with its sweep runs: every
+                          sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
+    """The families that get a short ladder (harness.dt_ladders.run_short_ladder), each with its sweep runs and its
+    steps cap (SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
     fitted = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
@@ -82,7 +86,11 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
         group = by_family.get(key)
         if group is None or group["status"].isin(("failed", "skipped")).all():
             continue
-        out.append((family, group[["dt", "steps", "status", "state_err"]].to_dict("records")))
+        per_step = (group["rhs_per_sim_s"] * group["t_end"] / group["steps"]).median() \
+            if {"rhs_per_sim_s", "t_end"} <= set(group) else math.nan
+        # evaluations a step: a whole number for a fixed-step method (its stages), measured over t_end / dt rounded
+        max_steps = int(SHORT_MAX_EVALS / (round(per_step) if math.isfinite(per_step) and per_step >= 1 else 4))
+        out.append((family, group[["dt", "steps", "status", "state_err"]].to_dict("records"), max_steps))
     return out
 
 
@@ -117,8 +125,8 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered) \
         if ladder == "default" else []
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
-    points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short,
-                                      SHORT_MAX_STEPS) if chosen or short else ([], [])
+    points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
+        if chosen or short else ([], [])
     by_key = {(r["case"], r["engine"], r["formulation"], r["integrator"]): r for r in ladder_rows
               if r["source"] == SHORT_LADDER}
     # a short ladder's row takes the place of its family's row from the dt list; a family with one dt had none
@@ -201,7 +209,8 @@ def report_lines(out_dir: Path) -> list[str]:
                   f"energy drift <= {STABLE_ENERGY_DRIFT:g}); the others are fitted on the sweep's own dt list, and "
                   f"the {len(short)} whose list gave no order on a short ladder (`source` {SHORT_LADDER}: dt doubled "
                   "or halved from the list until three points are asymptotic, at most "
-                  f"{dt_ladders.SHORT_POINTS} untimed points of at most {SHORT_MAX_STEPS} steps; "
+                  f"{dt_ladders.SHORT_POINTS} untimed points of at most {SHORT_MAX_EVALS} right-hand-side "
+                  "evaluations; "
                   f"{int(np.isfinite(short['order']).sum())} of them fitted).", ""]
         if len(ladders):
             rows = [[r["case"], _name(r), _num(r["declared_order"], ".0f"), _num(r["order"], ".2f"),

@@ -133,14 +133,22 @@ def test_a_family_at_round_off_in_its_dt_list_gets_its_order_from_coarser_steps(
     assert row["order"] == pytest.approx(4.0, abs=0.05) and row["points"] == 3, row
 
 
-def test_a_chaotic_case_above_the_range_down_to_the_steps_cap_says_so(monkeypatch):
+def test_a_chaotic_case_above_the_range_says_so_and_a_saturated_error_stops_the_walk(monkeypatch):
     case = dataclasses.replace(with_overrides(find_case("kovalevskaya"), t_end=T_END, dt=[1e-2, 5e-3]),
                                tags=("chaotic",))
-    tried = _fake(monkeypatch, lambda dt, steps: 1.0)
-    _, row = run_short_ladder(Family(case, "mujoco", "", "rk4"), _known(case, lambda dt, steps: 1.0), 8_000)
-    assert min(tried) >= T_END / 8_000 and len(tried) <= dt_ladders.SHORT_POINTS
+
+    def slow(dt, steps):  # falls, but too slowly to reach 3e-2 before the steps cap: 0.29 at t_end / 8000
+        return (dt / 0.01) ** 0.6
+
+    tried = _fake(monkeypatch, slow)
+    _, row = run_short_ladder(Family(case, "mujoco", "", "rk4"), _known(case, slow), 8_000)
+    assert tried == pytest.approx([2.5e-3, 1.25e-3])  # halving down to t_end / 8000
     assert math.isnan(row["order"])
-    assert "smallest tried" in row["note"] and "the case is chaotic" in row["note"], row["note"]
+    assert "smallest tried (t_end / 8000)" in row["note"] and "the case is chaotic" in row["note"], row["note"]
+    # an error that does not fall as dt halves (saturated, of order pi) ends the walk at the first such point
+    tried = _fake(monkeypatch, lambda dt, steps: 3.0)
+    _, row = run_short_ladder(Family(case, "mujoco", "", "rk4"), _known(case, lambda dt, steps: 3.0), 8_000)
+    assert tried == pytest.approx([2.5e-3]) and "state_err not falling above 0.03" in row["note"], row["note"]
 
 
 # ------------------------------------------------------------------------------------------------ real runs
@@ -163,10 +171,10 @@ def test_the_default_run_gives_a_short_ladder_to_the_families_without_an_order()
     case = with_overrides(find_case("kovalevskaya"), t_end=T_END, dt=[1e-2, 3e-3])
 
     def run(engine, formulation, integrator, dt, err, status="ok"):
+        stages = {"rk4": 4}.get(integrator, 1)
         return {"case": case.name, "engine": engine, "formulation": formulation, "integrator": integrator,
                 "dt": dt, "steps": round(T_END / dt) if dt == dt else 1000, "status": status, "attitude_err": err,
-                "omega_err": err,
-                "casimir_drift": 0.0}
+                "t_end": T_END, "rhs_per_sim_s": stages / dt, "omega_err": err, "casimir_drift": 0.0}
 
     results = pd.DataFrame([
         run("mujoco", "", "rk4", 1e-2, 1e-9), run("mujoco", "", "rk4", 3e-3, 1e-15),         # one asymptotic point
@@ -177,5 +185,10 @@ def test_the_default_run_gives_a_short_ladder_to_the_families_without_an_order()
     ])
     sweep_rows = fitting.sweep_orders(results, set())
     chosen = workprecision.short_ladder_families(results, [case], ["mujoco", "reference"], None, sweep_rows, set())
-    assert [(f.engine, f.integrator) for f, _ in chosen] == [("mujoco", "rk4")]
+    assert [(f.engine, f.integrator) for f, _, _ in chosen] == [("mujoco", "rk4")]
     assert [p["dt"] for p in chosen[0][1]] == [1e-2, 3e-3]
+    # its steps cap: SHORT_MAX_EVALS over the 4 evaluations a step of rk4 costs in the sweep (rhs_per_sim_s)
+    assert chosen[0][2] == workprecision.SHORT_MAX_EVALS // 4
+    # Euler, were its list to give no order (no sweep rows): one evaluation a step, four times the steps
+    [(family, _, steps)] = workprecision.short_ladder_families(results, [case], ["mujoco"], ["euler"], [], set())
+    assert family.integrator == "euler" and steps == workprecision.SHORT_MAX_EVALS
