@@ -230,7 +230,7 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
         return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
 
     # a point that leaves the range in the walk's direction ends that direction
-    leaves = {1: (fitting.ABOVE, fitting.FAILED), -1: (fitting.ROUNDOFF,)}
+    leaves = {1: (fitting.ABOVE, fitting.FAILED), -1: (fitting.ROUNDOFF, fitting.IRREGULAR)}
     stops = []
     for direction in (1, -1):  # coarser first: its steps are the cheap ones
         points = marked()

@@ -4,9 +4,9 @@
 - the round-off floor: walking from large to small dt among the points below ASYMPTOTIC_MAX, the first point after
   which the error falls with a local slope below FLOOR_SLOPE while it is below FLOOR_MAX (a stall higher up is not
   round-off); floor_dt is that point's dt, floor_err the smallest error from there on;
-- each point's regime (regimes): failed (not ok), above (state_err > ASYMPTOTIC_MAX), round-off (at or after the floor,
-  or below ROUNDOFF_MARGIN times the rounding level: eps steps, or the measured floor_err where one is found) or
-  asymptotic;
+- each point's regime (regimes): failed (not ok), above (state_err > ASYMPTOTIC_MAX), round-off (below
+  ROUNDOFF_MARGIN times the rounding level: eps steps, or the measured floor_err where one is found), irregular (at or
+  after the floor but above that: an error that does not fall steadily with dt) or asymptotic;
 - the order: least-squares slope of log state_err against log dt over the asymptotic points; at least two, and a fit
   of two only when its slope is not more than STEEP above the declared order (two points cannot tell superconvergence
   from a point at round-off); a fit of three or more that far above is kept with the note SUPERCONVERGENT;
@@ -60,6 +60,7 @@ def declared_order(engine: str, integrator: str) -> float:
 
 
 FAILED, ABOVE, ROUNDOFF, ASYMPTOTIC = "failed", "above", "round-off", "asymptotic"
+IRREGULAR = "irregular"  # at or after the floor, yet well above it: the error does not fall steadily with dt
 # A fit more than STEEP above the declared order is a special motion the method solves better than in general
 # (SUPERCONVERGENT, with three points or more) or a point contaminated by rounding (two points): the suite's fits of
 # general motions lie within 0.15 of their declared orders (harness.verdicts), the special ones measured so far at
@@ -89,10 +90,10 @@ def regimes(points: pd.DataFrame) -> tuple[pd.DataFrame, float, float]:
     # worse than eps per step, e.g. ZXZ angles growing without bound on a regular precession)
     rounding = EPS * steps if floor_at is None else np.maximum(EPS * steps, floor_err)
     regime = np.where(ran, ROUNDOFF, FAILED).astype(object)
+    near_rounding = err_ok < ROUNDOFF_MARGIN * rounding
+    past_floor = np.arange(len(index)) >= (len(index) if floor_at is None else floor_at)
     regime[index] = np.where(err_ok > ASYMPTOTIC_MAX, ABOVE,
-                             np.where((err_ok < ROUNDOFF_MARGIN * rounding)
-                                      | (np.arange(len(index)) >= (len(index) if floor_at is None else floor_at)),
-                                      ROUNDOFF, ASYMPTOTIC))
+                             np.where(near_rounding, ROUNDOFF, np.where(past_floor, IRREGULAR, ASYMPTOTIC)))
     return points.assign(regime=regime), floor_dt, floor_err
 
 
@@ -112,7 +113,7 @@ def reason(marked: pd.DataFrame) -> str:
         return f"state_err > {ASYMPTOTIC_MAX:g} at every ok {span(ok)}"
     parts = []
     for regime, words in ((ABOVE, f"above {ASYMPTOTIC_MAX:g}"), (ASYMPTOTIC, "asymptotic"), (ROUNDOFF, "at round-off"),
-                          (FAILED, "not ok")):
+                          (IRREGULAR, "irregular (past the round-off floor, yet above it)"), (FAILED, "not ok")):
         chosen = marked[marked["regime"] == regime]
         if len(chosen):
             parts.append(f"{len(chosen)} {words} ({span(chosen)})")

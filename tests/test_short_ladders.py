@@ -38,6 +38,18 @@ def test_a_point_within_the_margin_of_a_measured_floor_is_at_round_off():
     assert "round-off" in result["note"]
 
 
+def test_an_error_that_rises_again_past_the_floor_is_irregular_not_round_off():
+    """Measured (reference euler_zxz Euler on lagrange-precession, t_end 20, its dt list and a short ladder): at
+    round-off up to dt = 0.04, then 8.4e-10, 3.7e-5, 5.3e-8 and 0.37. The floor test stops at dt = 0.32 (the error
+    rises as dt halves); the points past it that lie far above the floor are not called round-off."""
+    dts = [0.64, 0.32, 0.16, 0.08, 0.04, 0.02, 0.01, 0.003]
+    err = [0.37, 5.3e-8, 3.7e-5, 8.4e-10, 1.7e-12, 2.8e-12, 3.7e-12, 1.5e-11]
+    marked, floor_dt, floor_err = fitting.regimes(points(dts, err, steps=[round(20 / dt) for dt in dts]))
+    assert list(marked["regime"]) == ["above"] + ["irregular"] * 3 + ["round-off"] * 4
+    result = fit(points(dts, err, steps=[round(20 / dt) for dt in dts]), declared=1.0)
+    assert math.isnan(result["order"]) and "3 irregular" in result["note"], result["note"]
+
+
 def test_two_points_steeper_than_declared_are_refused_three_are_superconvergence():
     """A first-order method whose error falls like dt^3 on this motion: two points cannot tell that from a point at
     round-off (fitting.STEEP), three consistent ones can."""
