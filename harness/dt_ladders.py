@@ -277,7 +277,8 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
                 if largest * 2.0 > family.case.t_end / MIN_STEPS * (1 + 1e-9) else []
         first = others.loc[others["dt"].idxmin()]
         what = {fitting.FAILED: "did not run ok", fitting.ABOVE: f"state_err > {fitting.ASYMPTOTIC_MAX:g}",
-                fitting.ASYMPTOTIC: "the error leaves round-off"}[first["regime"]]
+                fitting.ASYMPTOTIC: "the error leaves round-off",
+                fitting.IRREGULAR: "the error leaves round-off"}[first["regime"]]
         return [f"error at round-off for every stable dt: every dt up to {largest:.3g} (dt = {first['dt']:.3g}: "
                 f"{what})"]
     chaotic = sorted(set(family.case.tags) & set(CHAOTIC_TAGS))

@@ -92,6 +92,9 @@ def regimes(points: pd.DataFrame) -> tuple[pd.DataFrame, float, float]:
     regime = np.where(ran, ROUNDOFF, FAILED).astype(object)
     near_rounding = err_ok < ROUNDOFF_MARGIN * rounding
     past_floor = np.arange(len(index)) >= (len(index) if floor_at is None else floor_at)
+    if floor_at is not None:  # past the floor rounding grows with the steps: from the floor's point, in proportion
+        at_floor = floor_at + int(np.argmin(err_ok[floor_at:]))
+        near_rounding |= past_floor & (err_ok < ROUNDOFF_MARGIN * floor_err * steps / steps[at_floor])
     regime[index] = np.where(err_ok > ASYMPTOTIC_MAX, ABOVE,
                              np.where(near_rounding, ROUNDOFF, np.where(past_floor, IRREGULAR, ASYMPTOTIC)))
     return points.assign(regime=regime), floor_dt, floor_err
