@@ -279,8 +279,10 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
         what = {fitting.FAILED: "did not run ok", fitting.ABOVE: f"state_err > {fitting.ASYMPTOTIC_MAX:g}",
                 fitting.ASYMPTOTIC: "the error leaves round-off",
                 fitting.IRREGULAR: "the error leaves round-off"}[first["regime"]]
-        return [f"error at round-off for every stable dt: every dt up to {largest:.3g} (dt = {first['dt']:.3g}: "
-                f"{what})"]
+        if first["regime"] == fitting.FAILED:
+            return [f"error at round-off for every stable dt: every dt up to {largest:.3g} (dt = {first['dt']:.3g}: "
+                    f"{what})"]
+        return [f"error at round-off for every dt up to {largest:.3g} (dt = {first['dt']:.3g}: {what})"]
     chaotic = sorted(set(family.case.tags) & set(CHAOTIC_TAGS))
     ok = points[points["regime"] != fitting.FAILED]
     if len(ok) and (ok["regime"] == fitting.ABOVE).all() and chaotic:

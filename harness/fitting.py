@@ -130,6 +130,7 @@ NOTE_GROUPS = (
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),
     ("exact for this motion", "exact for this motion (round-off up to t_end / 20)"),
     ("round-off for every stable dt", "error at round-off for every stable dt"),
+    ("error at round-off for every dt up to", "error at round-off for every dt up to a limit, not beyond it"),
     ("its error grows exponentially", "chaotic or unstable case: error above the range at every dt tried"),
     ("not falling above", "error above the range and saturated (not falling as dt halves)"),
     ("error at round-off at every", "error at round-off at every dt tried"),
