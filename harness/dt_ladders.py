@@ -215,16 +215,19 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
 
 def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple[list[dict], dict]:
     """The short ladder of a family whose own dt list (known: the sweep's runs of it, with columns dt, steps, status,
-    state_err) has fewer than two asymptotic points: its points (untimed) and its convergence row. Never raises."""
+    state_err) has fewer than two asymptotic points: its points (untimed) and its convergence row. A point that
+    breaks is data (measure), as in the sweep."""
     case = family.case
     declared = declared_order(family.engine, family.integrator)
     cap, floor = case.t_end / MIN_STEPS, case.t_end / max_steps
     columns = ["dt", "steps", "status", "state_err"]
     new: list[dict] = []
 
+    def frame() -> pd.DataFrame:  # the sweep's points and the new ones
+        return pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns)
+
     def marked() -> pd.DataFrame:
-        frame = pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns)
-        return fitting.regimes(frame)[0]
+        return fitting.regimes(frame())[0]
 
     def asymptotic() -> int:
         return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
@@ -259,8 +262,7 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
                 f"largest tried (t_end / {MIN_STEPS})" if direction == 1 else f"smallest tried (t_end / {max_steps})"))
     row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
            "integrator": family.integrator, "stable_dt_max": math.nan, "source": SHORT_LADDER}
-    row.update(fit(pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns),
-                   declared))
+    row.update(fit(frame(), declared))
     if not math.isfinite(row["order"]):
         row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *_short_reason(family, marked())])
     return new, row
