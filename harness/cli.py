@@ -308,7 +308,8 @@ def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
     else:
         mode = "default"
     if mode != "off" and progress is not None:
-        progress.stage(f"work–precision: {mode} dt and tolerance ladders")
+        progress.stage(f"work–precision: {mode} dt and tolerance ladders"
+                       + (" and short ladders" if mode == "default" else ""))
     workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
                           max_steps=args.ladder_max_steps, pool=pool)
 

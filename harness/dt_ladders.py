@@ -14,6 +14,12 @@ growth.)
 stable_dt_max: the largest dt whose run over t_end finishes ok with energy_drift <= STABLE_ENERGY_DRIFT, by
 doubling/halving from a start until the outcome changes, then geometric bisection to STABILITY_RTOL.
 
+A short ladder (run_short_ladder) is for a family whose sweep dt list has fewer than two points in the asymptotic
+range: it walks from the list, doubling dt while the coarsest point is asymptotic or at round-off and halving it while
+the finest is above the range or failed, until SHORT_TARGET points are asymptotic, a point leaves the range in the
+walk's direction, dt leaves [t_end / max_steps, t_end / MIN_STEPS] or SHORT_POINTS points are spent. Its points are
+untimed: they are for the order only. Without an order, its note says where the points lie and why the walk stopped.
+
 The ladders run on the sweep's process pool (harness.runner.worker_pool), one task per family.
 """
 from __future__ import annotations
@@ -27,7 +33,8 @@ import numpy as np
 import pandas as pd
 
 from stereodyn.harness import metrics
-from stereodyn.harness.cases import Case
+from stereodyn.harness import fitting
+from stereodyn.harness.cases import CHAOTIC_TAGS, Case
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.fitting import declared_order, fit
 from stereodyn.harness.grid import time_grid
@@ -36,12 +43,18 @@ from stereodyn.harness.trajectory import Status
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
-                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s")
+                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "source")
+LADDER, SHORT_LADDER = "ladder", "short-ladder"   # the `source` of a ladder's points and convergence row
 LADDER_POINTS = 10
 TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
 STABLE_ENERGY_DRIFT = 1.0    # energy off by its whole scale: the run has blown up even if |ω| is not yet 1e6 x
 STABILITY_RTOL = 0.02        # bisection stops when the bracket [stable, unstable] is this tight (relative)
 MIN_STEPS = 20               # the largest dt tried is t_end / MIN_STEPS: fewer steps say nothing about stability
+# A short ladder adds at most SHORT_POINTS points (each at most max_steps steps) and stops at SHORT_TARGET asymptotic
+# points: three, so that one point bent by rounding or by the pre-asymptotic range shows as a bent line, and so that a
+# fit steeper than the declared order can be kept as superconvergence (fitting.STEEP). Six doublings reach
+# t_end / MIN_STEPS from the suite's largest dt (1e-2 s over 10-20 s), which an exact method needs to be called exact.
+SHORT_POINTS, SHORT_TARGET = 6, 3
 
 
 @dataclass(frozen=True)
@@ -70,7 +83,8 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
     case = family.case
     grid = time_grid(case.t_end, dt, case.samples)
     row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "dt": float(dt), "t_end": grid.t_end, "steps": grid.steps}
+           "integrator": family.integrator, "dt": float(dt), "t_end": grid.t_end, "steps": grid.steps,
+           "source": LADDER}
     try:
         sim = _prepare(family, dt)
         traj = sim.run(grid)
@@ -132,32 +146,32 @@ def _stable(row: dict) -> bool:
 
 # ------------------------------------------------------------------------------------------------ stability
 
+def walk(dt: float, direction: int, dt_floor: float, dt_cap: float):
+    """dt doubled (direction +1) or halved (-1) again and again while it stays in [dt_floor, dt_cap]: the one walk of
+    the stability search and the short ladders."""
+    while True:
+        dt = dt * 2.0 ** direction
+        if not dt_floor * (1 - 1e-12) <= dt <= dt_cap * (1 + 1e-12):
+            return
+        yield dt
+
+
 def stability_limit(is_stable: Callable[[float], bool], dt_start: float, dt_cap: float,
                     dt_floor: float) -> tuple[float, str]:
     """(largest stable dt, note): doubling or halving from dt_start until the outcome changes, then geometric
     bisection to STABILITY_RTOL. NaN with a note when no change is found in [dt_floor, dt_cap]."""
     dt = min(dt_start, dt_cap)
-    stable_dt = unstable_dt = None
-    if is_stable(dt):
-        stable_dt = dt
-        while unstable_dt is None and dt * 2.0 <= dt_cap * (1 + 1e-12):
-            dt *= 2.0
-            if is_stable(dt):
-                stable_dt = dt
-            else:
-                unstable_dt = dt
-        if unstable_dt is None:
-            return math.nan, f"stable up to dt = {dt:.4g} s (t_end / {MIN_STEPS} is the largest tried)"
+    first = is_stable(dt)
+    last = {first: dt}  # the last dt tried with each outcome
+    for dt in walk(dt, 1 if first else -1, dt_floor, dt_cap):
+        outcome = is_stable(dt)
+        last[outcome] = dt
+        if outcome != first:
+            break
     else:
-        unstable_dt = dt
-        while stable_dt is None and dt / 2.0 >= dt_floor:
-            dt /= 2.0
-            if is_stable(dt):
-                stable_dt = dt
-            else:
-                unstable_dt = dt
-        if stable_dt is None:
-            return math.nan, f"unstable down to dt = {dt:.4g} s"
+        return math.nan, (f"stable up to dt = {dt:.4g} s (t_end / {MIN_STEPS} is the largest tried)" if first
+                          else f"unstable down to dt = {dt:.4g} s")
+    stable_dt, unstable_dt = last[True], last[False]
     while unstable_dt / stable_dt > 1.0 + STABILITY_RTOL:
         middle = math.sqrt(stable_dt * unstable_dt)
         if is_stable(middle):
@@ -193,10 +207,90 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
     frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "stable_dt_max": stable_dt, "source": "ladder", **fit(frame, declared)}
+           "integrator": family.integrator, "stable_dt_max": stable_dt, "source": LADDER, **fit(frame, declared)}
     if stability_note:
         row["note"] = "; ".join(x for x in (row["note"], stability_note) if x)
     return points, row
+
+
+def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple[list[dict], dict]:
+    """The short ladder of a family whose own dt list (known: the sweep's runs of it, with columns dt, steps, status,
+    state_err) has fewer than two asymptotic points: its points (untimed) and its convergence row. A point that
+    breaks is data (measure), as in the sweep."""
+    case = family.case
+    declared = declared_order(family.engine, family.integrator)
+    cap, floor = case.t_end / MIN_STEPS, case.t_end / max_steps
+    columns = ["dt", "steps", "status", "state_err"]
+    new: list[dict] = []
+
+    def frame() -> pd.DataFrame:  # the sweep's points and the new ones
+        return pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns)
+
+    def marked() -> pd.DataFrame:
+        return fitting.regimes(frame())[0]
+
+    def asymptotic() -> int:
+        return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
+
+    # a point that leaves the range in the walk's direction ends that direction
+    leaves = {1: (fitting.ABOVE, fitting.FAILED), -1: (fitting.ROUNDOFF, fitting.IRREGULAR)}
+    stops = []
+    for direction in (1, -1):  # coarser first: its steps are the cheap ones
+        points = marked()
+        edge = points.iloc[0] if direction == 1 else points.iloc[-1]
+        if asymptotic() >= SHORT_TARGET or edge["regime"] in leaves[direction]:
+            continue
+        last = None
+        for dt in walk(float(edge["dt"]), direction, floor, cap):
+            if len(new) >= SHORT_POINTS:
+                stops.append(f"short ladder stopped at {SHORT_POINTS} points")
+                break
+            previous = marked().iloc[-1]  # the finest point before this one (used when walking finer)
+            new.append(measure(family, float(f"{dt:.4g}"), timed=False) | {"source": SHORT_LADDER})
+            points = marked()
+            last = points.loc[points["dt"] == new[-1]["dt"], "regime"].iloc[-1]
+            if asymptotic() >= SHORT_TARGET or last in leaves[direction]:
+                break
+            if direction == -1 and last == previous["regime"] == fitting.ABOVE \
+                    and new[-1]["state_err"] > previous["state_err"] * 2.0 ** -fitting.FLOOR_SLOPE:
+                # saturated (an attitude error of order pi, a chaotic separation): finer steps here are the costly ones
+                stops.append(f"state_err not falling above {fitting.ASYMPTOTIC_MAX:g} from dt = {previous['dt']:.3g} "
+                             f"to {new[-1]['dt']:.3g}")
+                break
+        else:
+            stops.append(f"dt = {dt if last else edge['dt']:.3g} is the " + (
+                f"largest tried (t_end / {MIN_STEPS})" if direction == 1 else f"smallest tried (t_end / {max_steps})"))
+    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
+           "integrator": family.integrator, "stable_dt_max": math.nan, "source": SHORT_LADDER}
+    row.update(fit(frame(), declared))
+    if not math.isfinite(row["order"]):
+        row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *_short_reason(family, marked())])
+    return new, row
+
+
+def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
+    """Why a short ladder found no order, in words a reader acts on (points: fitting.regimes' marked points)."""
+    at_round_off = points[points["regime"] == fitting.ROUNDOFF]
+    others = points[points["regime"] != fitting.ROUNDOFF]
+    if len(at_round_off) and (others.empty or others["dt"].min() > at_round_off["dt"].max()):
+        largest = at_round_off["dt"].max()
+        if others.empty:  # exact at every dt the walk reached: up to t_end / MIN_STEPS, or the walk stopped early
+            return ["exact for this motion: the error is at round-off up to the largest dt tried"] \
+                if largest * 2.0 > family.case.t_end / MIN_STEPS * (1 + 1e-9) else []
+        first = others.loc[others["dt"].idxmin()]
+        what = {fitting.FAILED: "did not run ok", fitting.ABOVE: f"state_err > {fitting.ASYMPTOTIC_MAX:g}",
+                fitting.ASYMPTOTIC: "the error leaves round-off",
+                fitting.IRREGULAR: "the error leaves round-off"}[first["regime"]]
+        if first["regime"] == fitting.FAILED:
+            return [f"error at round-off for every stable dt: every dt up to {largest:.3g} (dt = {first['dt']:.3g}: "
+                    f"{what})"]
+        return [f"error at round-off for every dt up to {largest:.3g} (dt = {first['dt']:.3g}: {what})"]
+    chaotic = sorted(set(family.case.tags) & set(CHAOTIC_TAGS))
+    ok = points[points["regime"] != fitting.FAILED]
+    if len(ok) and (ok["regime"] == fitting.ABOVE).all() and chaotic:
+        return [f"the case is {'/'.join(chaotic)}: its error grows exponentially and stays above the asymptotic "
+                "range at every dt tried"]
+    return []
 
 
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
@@ -214,38 +308,44 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
     return list(out.values())
 
 
-def _failed_family(family: Family, exc: BaseException) -> tuple[list[dict], dict]:
+def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> tuple[list[dict], dict]:
     """A family whose worker died: no points, and its convergence row says why."""
     return [], {"case": family.case.name, "engine": family.engine, "formulation": family.formulation,
-                "integrator": family.integrator, "source": "ladder",
+                "integrator": family.integrator, "source": source,
                 "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
 def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor | None = None,
-                progress: Callable[[str], None] | None = None) -> tuple[list[dict], list[dict]]:
-    """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
-    timed here (time_points). Returns (points, convergence rows), in the order of `chosen` whatever order the families
-    finish in."""
+                progress: Callable[[str], None] | None = None,
+                short: list[tuple[Family, list[dict], int]] = ()) -> tuple[list[dict], list[dict]]:
+    """Every family's ladder and every short ladder (short: (family, its sweep runs, its steps cap), run_short_ladder),
+    their accuracy runs in this process (pool None) or on the sweep's pool, then
+    the ladders' points timed here (time_points; the short ladders' points stay untimed). Returns (points, convergence
+    rows): the ladders' in the order of `chosen`, then the short ladders' in the order of `short`, whatever order the
+    families finish in."""
+    tasks = [(run_ladder, family, (family, max_steps), LADDER) for family in chosen]
+    tasks += [(run_short_ladder, family, (family, known, steps), SHORT_LADDER) for family, known, steps in short]
     results: dict[int, tuple[list[dict], dict]] = {}
-    if pool is None or len(chosen) <= 1:
-        for index, family in enumerate(chosen):
-            results[index] = run_ladder(family, max_steps)
+    if pool is None or len(tasks) <= 1:
+        for index, (function, family, args, _) in enumerate(tasks):
+            results[index] = function(*args)
             if progress:
                 progress(family.label)
     else:
-        futures = {pool.submit(run_ladder, family, max_steps): index for index, family in enumerate(chosen)}
+        futures = {pool.submit(function, *args): index for index, (function, _, args, _) in enumerate(tasks)}
         for future in as_completed(futures):
             index = futures[future]
             try:
                 results[index] = future.result()
             except Exception as exc:  # a worker that died: the family's row says so
-                results[index] = _failed_family(chosen[index], exc)
+                results[index] = _failed_family(tasks[index][1], exc, tasks[index][3])
             if progress:
-                progress(chosen[index].label)
+                progress(tasks[index][1].label)
     points, rows = [], []
-    for index in range(len(chosen)):
+    for index in range(len(tasks)):
         points += results[index][0]
         rows.append(results[index][1])
     # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
-    time_points(points, {(f.case.name, f.engine, f.formulation, f.integrator): f for f in chosen})
+    time_points([p for p in points if p.get("source") == LADDER],
+                {(f.case.name, f.engine, f.formulation, f.integrator): f for f in chosen})
     return points, rows

@@ -5,8 +5,8 @@ against the requested tolerance), fitting harness.fitting (orders, round-off flo
 Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the report's
 markdown.
 
-Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, and per run family of the
-sweep whose own dt list has two asymptotic points), tolerance.csv (every tolerance-ladder point), tolerance_fit.csv
+Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, per short ladder, and per
+other run family of the sweep with two dt or more), tolerance.csv (every tolerance-ladder point), tolerance_fit.csv
 (one row per tolerance ladder), pareto.csv (per case and accuracy target, the cheapest run, fixed-step or adaptive),
 and the orders as rows of checks.csv (quantity convergence_order, theory = the declared order).
 """
@@ -20,15 +20,15 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks
+from stereodyn.harness import checks, dt_ladders
 from stereodyn.harness.cases import Case
 from stereodyn.harness import tolerance_ladders
-from stereodyn.harness.dt_ladders import (LADDER_COLUMNS, MIN_STEPS, STABLE_ENERGY_DRIFT, Family, families,
-                                          run_ladders)
+from stereodyn.harness.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
+                                          Family, families, run_ladders)
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, TIE_RTOL, _name,
-                                       convergence_table, order_checks, pareto, pareto_table, setting, sweep_orders,
-                                       tolerance_fits)
+from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
+                                       _name, convergence_table, declared_order, note_group, order_checks, pareto,
+                                       pareto_table, setting, sweep_orders, tolerance_fits, with_state_err)
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
 from stereodyn.harness.results import write_atomic
 
@@ -47,6 +47,10 @@ DEFAULT_LADDER_FORMULATIONS = ("", "quaternion")
 # Left out of the default ladder (their orders still come from the dt lists): MuJoCo's implicitfast is bit-identical
 # to its Euler on a ball joint (ENGINES.md), and rk4_naive is a documented contrast that costs as much as rk4.
 DEFAULT_LADDER_SKIP = ("implicitfast", "rk4_naive")
+# A short ladder's point costs at most SHORT_MAX_EVALS right-hand-side evaluations (the sweep's rhs_per_sim_s; 4 a step
+# where unknown): 40000 steps of rk4, 160000 of Euler, whose first-order error needs the smaller steps to come down
+# into the asymptotic range.
+SHORT_MAX_EVALS = 4 * DEFAULT_MAX_STEPS
 
 
 def _ladder_cost(family: Family) -> float:
@@ -70,15 +74,42 @@ def _write(df: pd.DataFrame, path: Path) -> None:
     write_atomic(path, df.to_csv(index=False, float_format="%.10g"))
 
 
+def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
+                          sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
+    """The families that get a short ladder (harness.dt_ladders.run_short_ladder), each with its sweep runs and its
+    steps cap (SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
+    fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
+    gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
+    fitted = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
+              if math.isfinite(r["order"])}
+    runs = with_state_err(results[results["dt"].notna()].fillna({"formulation": ""}))
+    by_family = {key: group for key, group in runs.groupby(["case", "engine", "formulation", "integrator"], sort=False)}
+    out = []
+    for family in families(cases, engines, integrators):
+        key = (family.case.name, family.engine, family.formulation, family.integrator)
+        if key in laddered or key in fitted or not math.isfinite(declared_order(family.engine, family.integrator)):
+            continue
+        group = by_family.get(key)
+        if group is None or group["status"].isin(("failed", "skipped")).all():
+            continue
+        per_step = (group["rhs_per_sim_s"] * group["t_end"] / group["steps"]).median() \
+            if {"rhs_per_sim_s", "t_end"} <= set(group) else math.nan
+        # evaluations a step: a whole number for a fixed-step method (its stages), measured over t_end / dt rounded
+        max_steps = int(SHORT_MAX_EVALS / (round(per_step) if math.isfinite(per_step) and per_step >= 1 else 4))
+        out.append((family, group[["dt", "steps", "status", "state_err"]].to_dict("records"), max_steps))
+    return out
+
+
 def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: list[str],
             integrators: list[str] | None, ladder: str = "default", max_steps: int | None = None,
             pool: ProcessPoolExecutor | None = None,
             progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
-    DEFAULT_LADDER_FORMULATIONS, both kinds of ladder) or "off". Writes ladder.csv, convergence.csv, tolerance.csv,
-    tolerance_fit.csv, pareto.csv and appends the orders to checks.csv; returns the paths written. pool: the sweep's
-    worker pool (harness.runner.worker_pool) the ladders run on; None runs them here."""
+    DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
+    no order) or "off". Writes ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and appends
+    the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.runner.worker_pool)
+    the ladders run on; None runs them here."""
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained
     # sliding ladder, whose MuJoCo model has soft constraints) keep their Pareto rows only.
@@ -100,9 +131,21 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         chosen, adaptive, tolerances = [], [], ()
     # the costliest first, so the pool ends together
     chosen.sort(key=_ladder_cost, reverse=True)
-    points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress) if chosen else ([], [])
-    laddered = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in ladder_rows}
-    convergence = convergence_table(ladder_rows + sweep_orders(results[~results["case"].isin(other_kinds)], laddered))
+    laddered = {(f.case.name, f.engine, f.formulation, f.integrator) for f in chosen}
+    rigid_results = results[~results["case"].isin(other_kinds)]
+    sweep_rows = sweep_orders(rigid_results, laddered)
+    short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered) \
+        if ladder == "default" else []
+    short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
+    points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
+        if chosen or short else ([], [])
+    by_key = {(r["case"], r["engine"], r["formulation"], r["integrator"]): r for r in ladder_rows
+              if r["source"] == SHORT_LADDER}
+    # a short ladder's row takes the place of its family's row from the dt list; a family with one dt had none
+    rows = [r for r in ladder_rows if r["source"] == LADDER]
+    for row in sweep_rows:
+        rows.append(by_key.pop((row["case"], row["engine"], row["formulation"], row["integrator"]), row))
+    convergence = convergence_table(rows + list(by_key.values()))
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     tolerance_df = tolerance_ladders.tolerance_frame(tolerance_ladders.run_ladders(adaptive, pool, progress, tolerances)
                                                      if adaptive else [])
@@ -177,13 +220,20 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
     if convergence is not None and len(convergence):
         ladders = convergence[convergence["source"] == "ladder"]
         fitted = convergence[np.isfinite(convergence["order"])]
+        short = convergence[convergence["source"] == SHORT_LADDER]
         lines += ["## Convergence, round-off floors and stability", "",
                   f"convergence.csv: {len(fitted)} of {len(convergence)} run families have a fitted order (slope of "
                   "log state error, max(attitude_err, omega_err, casimir_drift), against log dt over the asymptotic "
-                  f"range: {ROUNDOFF_MARGIN:g} eps steps <= error <= {ASYMPTOTIC_MAX:g}). Families with a dt ladder "
-                  "(ladder.csv: about ten dt from the stability limit down to the round-off regime) also have the "
-                  "round-off floor and the largest stable dt over t_end (bisection; stable: finished ok with energy "
-                  f"drift <= {STABLE_ENERGY_DRIFT:g}); the others are fitted on the sweep's own dt list.", ""]
+                  f"range: {ROUNDOFF_MARGIN:g} x the rounding level (eps steps, or the round-off floor where the "
+                  f"points show one) <= error <= {ASYMPTOTIC_MAX:g}); the others say why in `note`. Families with a "
+                  "dt ladder (ladder.csv: about ten dt from the stability limit down to the round-off regime) also "
+                  "have the round-off floor and the largest stable dt over t_end (bisection; stable: finished ok with "
+                  f"energy drift <= {STABLE_ENERGY_DRIFT:g}); the others are fitted on the sweep's own dt list, and "
+                  f"the {len(short)} whose list gave no order on a short ladder (`source` {SHORT_LADDER}: dt doubled "
+                  "or halved from the list until three points are asymptotic, at most "
+                  f"{dt_ladders.SHORT_POINTS} untimed points of at most {SHORT_MAX_EVALS} right-hand-side "
+                  "evaluations; "
+                  f"{int(np.isfinite(short['order']).sum())} of them fitted).", ""]
         if len(ladders):
             rows = [[r["case"], _name(r), _num(r["declared_order"], ".0f"), _num(r["order"], ".2f"),
                      _num(r["floor_dt"], ".3g"), _num(r["floor_err"]), _num(r["stable_dt_max"], ".4g"),
@@ -198,8 +248,14 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
                 summary.append([_name({"engine": engine, "formulation": formulation, "integrator": integrator}),
                                 _num(group["declared_order"].iloc[0], ".0f"), str(len(group)),
                                 _num(group["order"].min(), ".2f"), _num(group["order"].max(), ".2f")])
-            lines += ["Fitted on the sweep's dt lists (every case with two asymptotic points):", "",
+            lines += ["Fitted on the sweep's dt lists and the short ladders:", "",
                       *_md(["run", "declared", "cases", "smallest order", "largest order"], summary), ""]
+        reasons = convergence[~np.isfinite(convergence["order"]) | convergence["note"].str.contains(
+            SUPERCONVERGENT, regex=False)]
+        if len(reasons):
+            counts = reasons["note"].map(note_group).value_counts()
+            lines += ["Families without a fitted order, or fitted steeper than declared, by reason (convergence.csv "
+                      "`note`):", "", *_md(["reason", "families"], [[k, str(v)] for k, v in counts.items()]), ""]
     return lines + tolerance_report_lines(out_dir, tolerance_figures or {})
 
 
