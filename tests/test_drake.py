@@ -200,8 +200,8 @@ def test_every_integrator_runs_on_both_models_and_counts_its_work(drake):
 
 
 def test_the_default_sweep_has_drake_rows_on_every_case(drake):
-    """The plan of a run naming no integrators: every rigid-body case runs both Drake models or skips
-    quaternion_free with its reason; the sliding ladder is one skipped row naming why."""
+    """The plan of a run naming no integrators: every rigid-body case runs rpy_ball, and quaternion_free exactly where
+    O is the centre of mass (absent elsewhere, not skipped); the sliding ladder is one skipped row naming why."""
     from stereodyn.harness.cases import load_suite
     from stereodyn.harness.plan import plan
 
@@ -215,5 +215,6 @@ def test_the_default_sweep_has_drake_rows_on_every_case(drake):
             continue
         assert {i for _, i in runs} == {"discrete", "runge_kutta2", "runge_kutta3", "runge_kutta3_adaptive"}
         assert ("rpy_ball", "runge_kutta3") in runs
-        assert ("quaternion_free", "runge_kutta3") in runs or all(
-            r["message"].startswith("quaternion_free:") for r in rows) and rows
+        assert not rows
+        free_body_at_o = not any(case.body.com)
+        assert (("quaternion_free", "runge_kutta3") in runs) == free_body_at_o, case.name

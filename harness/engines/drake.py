@@ -311,6 +311,11 @@ class DrakeEngine(Engine):
                     "(com = 0); Drake's continuous plant has no exact pin for it")
         return None
 
+    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
+        """The quaternion_free model joins a default sweep only where the scene allows it: elsewhere it is absent,
+        not a skipped row (naming it with --integrators still shows the reason)."""
+        return self.unsupported_run(case, formulation, integrator) is None
+
     def torque_mode(self, case: Case) -> str:
         return "input_port" if case.body.has_external_torque else "none"
 
