@@ -139,3 +139,18 @@ def test_pareto_picks_the_cheapest_run_reaching_each_target():
         assert table.loc[target, "source"] == "none reached it" and table.loc[target, "engine"] == ""
     assert list(table.index) == list(fitting.ACCURACY_TARGETS)
     assert (table["ties"].fillna("") == "").all()  # costs 10, 30, 50, 100 differ by more than the timing noise
+
+
+def test_a_coarsest_point_whose_local_slope_disagrees_is_left_out_of_the_fit():
+    # Drake's rpy_ball runge_kutta3 on kovalevskaya, the case's dt list: state_err measured 5.08e-4, 1.41e-4, 5.85e-6
+    # (local slopes 1.06, 2.90; the three fit 1.92, a third-order method verdict-failed by its coarsest point)
+    measured = pd.DataFrame({"dt": [1e-2, 3e-3, 1e-3], "steps": [2000, 6667, 20000], "status": "ok",
+                             "state_err": [5.078755252e-4, 1.408940359e-4, 5.84945678e-6]})
+    result = fit(measured, declared=3.0)
+    assert result["order"] == pytest.approx(2.90, abs=0.01) and result["points"] == 2
+    assert "pre-asymptotic, left out of the fit: dt = 0.01" in result["note"]
+    # a clean third-order curve keeps every point (neighbouring local slopes agree to 1e-12 here)
+    clean = fit(points(3, 0.5, 0.0, [1e-2, 3e-3, 1e-3]), declared=3.0)
+    assert clean["points"] == 3 and "pre-asymptotic" not in clean["note"]
+    # two points cannot show a disagreement: nothing is left out
+    assert fit(measured.iloc[:2], declared=3.0)["points"] == 2
