@@ -88,8 +88,10 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
             continue
         per_step = (group["rhs_per_sim_s"] * group["t_end"] / group["steps"]).median() \
             if {"rhs_per_sim_s", "t_end"} <= set(group) else math.nan
-        # evaluations a step: a whole number for a fixed-step method (its stages), measured over t_end / dt rounded
-        max_steps = int(SHORT_MAX_EVALS / (round(per_step) if math.isfinite(per_step) and per_step >= 1 else 4))
+        # evaluations a step: a whole number for a fixed-step method (its stages); rounded, since a results.csv read
+        # back gives 0.99999999995 for Euler (its numbers are written to 10 digits)
+        evals = round(per_step) if math.isfinite(per_step) else 0
+        max_steps = int(SHORT_MAX_EVALS / (evals if evals >= 1 else 4))
         out.append((family, group[["dt", "steps", "status", "state_err"]].to_dict("records"), max_steps))
     return out
 

@@ -204,3 +204,7 @@ def test_the_default_run_gives_a_short_ladder_to_the_families_without_an_order()
     # Euler, were its list to give no order (no sweep rows): one evaluation a step, four times the steps
     [(family, _, steps)] = workprecision.short_ladder_families(results, [case], ["mujoco"], ["euler"], [], set())
     assert family.integrator == "euler" and steps == workprecision.SHORT_MAX_EVALS
+    # the same read back from results.csv, whose 10 digits make it 0.99999999995 evaluations a step
+    read_back = results.assign(rhs_per_sim_s=results["rhs_per_sim_s"] * (1 - 5e-11))
+    [(_, _, steps)] = workprecision.short_ladder_families(read_back, [case], ["mujoco"], ["euler"], [], set())
+    assert steps == workprecision.SHORT_MAX_EVALS
