@@ -44,8 +44,9 @@ DEFAULT_LADDER_FORMULATIONS = ("", "quaternion")
 DEFAULT_LADDER_SKIP = ("implicitfast", "rk4_naive")
 # A short ladder's point takes at most SHORT_MAX_STEPS steps, or SHORT_MAX_EVALS right-hand-side evaluations where that
 # allows more (the sweep's rhs_per_sim_s): 40000 steps of rk4, 80000 of Euler, whose first-order error needs smaller
-# steps to come down into the asymptotic range. Measured on the default run (2 workers): 160000 evaluations fitted
-# 296 of 400 families for +62 s; 40000 steps for every method, 281 for about half that.
+# steps to come down into the asymptotic range. Measured on the default run's results (tests/benchmarks/
+# bench_short_ladders.py, 1 worker, other processes on the machine): +53 s of one core, 286 of 400 families fitted;
+# 160000 evaluations (Euler 160000 steps): +92 s, 296.
 SHORT_MAX_STEPS, SHORT_MAX_EVALS = DEFAULT_MAX_STEPS, 2 * DEFAULT_MAX_STEPS
 
 
