@@ -47,10 +47,12 @@ DEFAULT_LADDER_FORMULATIONS = ("", "quaternion")
 # Left out of the default ladder (their orders still come from the dt lists): MuJoCo's implicitfast is bit-identical
 # to its Euler on a ball joint (ENGINES.md), and rk4_naive is a documented contrast that costs as much as rk4.
 DEFAULT_LADDER_SKIP = ("implicitfast", "rk4_naive")
-# A short ladder's point costs at most SHORT_MAX_EVALS right-hand-side evaluations (the sweep's rhs_per_sim_s; 4 a step
-# where unknown): 40000 steps of rk4, 160000 of Euler, whose first-order error needs the smaller steps to come down
-# into the asymptotic range.
-SHORT_MAX_EVALS = 4 * DEFAULT_MAX_STEPS
+# A short ladder's point takes at most SHORT_MAX_STEPS steps, or SHORT_MAX_EVALS right-hand-side evaluations where that
+# allows more (the sweep's rhs_per_sim_s): 40000 steps of rk4, 80000 of Euler, whose first-order error needs smaller
+# steps to come down into the asymptotic range. Measured on the default run's results (tests/benchmarks/
+# bench_short_ladders.py, 1 worker, other processes on the machine): +53 s of one core, 286 of 400 families fitted;
+# 160000 evaluations (Euler 160000 steps): +92 s, 296.
+SHORT_MAX_STEPS, SHORT_MAX_EVALS = DEFAULT_MAX_STEPS, 2 * DEFAULT_MAX_STEPS
 
 
 def _ladder_cost(family: Family) -> float:
@@ -77,7 +79,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
     """The families that get a short ladder (harness.dt_ladders.run_short_ladder), each with its sweep runs and its
-    steps cap (SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
+    steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
     fitted = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
@@ -94,8 +96,10 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
             continue
         per_step = (group["rhs_per_sim_s"] * group["t_end"] / group["steps"]).median() \
             if {"rhs_per_sim_s", "t_end"} <= set(group) else math.nan
-        # evaluations a step: a whole number for a fixed-step method (its stages), measured over t_end / dt rounded
-        max_steps = int(SHORT_MAX_EVALS / (round(per_step) if math.isfinite(per_step) and per_step >= 1 else 4))
+        # evaluations a step: a whole number for a fixed-step method (its stages); rounded, since a results.csv read
+        # back gives 0.99999999995 for Euler (its numbers are written to 10 digits)
+        evals = round(per_step) if math.isfinite(per_step) else 0
+        max_steps = max(SHORT_MAX_STEPS, int(SHORT_MAX_EVALS / evals) if evals >= 1 else 0)
         out.append((family, group[["dt", "steps", "status", "state_err"]].to_dict("records"), max_steps))
     return out
 
@@ -231,8 +235,8 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
                   f"energy drift <= {STABLE_ENERGY_DRIFT:g}); the others are fitted on the sweep's own dt list, and "
                   f"the {len(short)} whose list gave no order on a short ladder (`source` {SHORT_LADDER}: dt doubled "
                   "or halved from the list until three points are asymptotic, at most "
-                  f"{dt_ladders.SHORT_POINTS} untimed points of at most {SHORT_MAX_EVALS} right-hand-side "
-                  "evaluations; "
+                  f"{dt_ladders.SHORT_POINTS} untimed points of at most {SHORT_MAX_STEPS} steps, or "
+                  f"{SHORT_MAX_EVALS} right-hand-side evaluations where that is more; "
                   f"{int(np.isfinite(short['order']).sum())} of them fitted).", ""]
         if len(ladders):
             rows = [[r["case"], _name(r), _num(r["declared_order"], ".0f"), _num(r["order"], ".2f"),

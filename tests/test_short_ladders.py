@@ -199,8 +199,12 @@ def test_the_default_run_gives_a_short_ladder_to_the_families_without_an_order()
     chosen = workprecision.short_ladder_families(results, [case], ["mujoco", "reference"], None, sweep_rows, set())
     assert [(f.engine, f.integrator) for f, _, _ in chosen] == [("mujoco", "rk4")]
     assert [p["dt"] for p in chosen[0][1]] == [1e-2, 3e-3]
-    # its steps cap: SHORT_MAX_EVALS over the 4 evaluations a step of rk4 costs in the sweep (rhs_per_sim_s)
-    assert chosen[0][2] == workprecision.SHORT_MAX_EVALS // 4
-    # Euler, were its list to give no order (no sweep rows): one evaluation a step, four times the steps
+    # its steps cap: SHORT_MAX_STEPS for rk4 (4 evaluations a step in the sweep, rhs_per_sim_s)
+    assert chosen[0][2] == workprecision.SHORT_MAX_STEPS
+    # Euler, were its list to give no order (no sweep rows): one evaluation a step, SHORT_MAX_EVALS steps (80000)
     [(family, _, steps)] = workprecision.short_ladder_families(results, [case], ["mujoco"], ["euler"], [], set())
-    assert family.integrator == "euler" and steps == workprecision.SHORT_MAX_EVALS
+    assert family.integrator == "euler" and steps == workprecision.SHORT_MAX_EVALS > workprecision.SHORT_MAX_STEPS
+    # the same read back from results.csv, whose 10 digits make it 0.99999999995 evaluations a step
+    read_back = results.assign(rhs_per_sim_s=results["rhs_per_sim_s"] * (1 - 5e-11))
+    [(_, _, steps)] = workprecision.short_ladder_families(read_back, [case], ["mujoco"], ["euler"], [], set())
+    assert steps == workprecision.SHORT_MAX_EVALS
