@@ -236,3 +236,20 @@ def test_an_adaptive_row_with_no_error_at_all_is_the_reference_and_no_candidate(
                             _fixed("theta", math.nan, 0.0, 1.0) | {"steps": 40.0, "us_per_step_spread": 0.0}])
     table = fitting.pareto(results, pd.DataFrame()).set_index("target")
     assert table.loc[1e-6, "integrator"] == "rk4" and table.loc[1e-12, "source"] == "none reached it"
+
+
+def test_the_default_run_ladders_the_adaptive_methods_of_each_engines_default_sweep():
+    from stereodyn.harness import workprecision
+    from stereodyn.harness.cases import find_case
+    from stereodyn.harness.engines import UnavailableEngine, get_engine
+
+    engines = ["reference"] + ([] if isinstance(get_engine("drake"), UnavailableEngine) else ["drake"])
+    chosen = workprecision.default_tolerance_families([find_case("free-asymmetric")], engines, None)
+    by_engine = {e: {f.integrator for f in chosen if f.engine == e} for e in engines}
+    assert {"taylor", "scipy_dop853", "scipy_radau"} <= by_engine["reference"]
+    assert {f.formulation for f in chosen if f.engine == "reference"} == {"quaternion"}
+    if "drake" in engines:  # its one default adaptive scheme, on its first model
+        assert by_engine["drake"] == {"runge_kutta3_adaptive"}
+        assert {f.formulation for f in chosen if f.engine == "drake"} == {"rpy_ball"}
+    named = workprecision.default_tolerance_families([find_case("free-asymmetric")], engines, ["radau3_adaptive"])
+    assert {f.integrator for f in named} == ({"radau3_adaptive"} if "drake" in engines else set())
