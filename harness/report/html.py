@@ -24,7 +24,7 @@ body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 110em; p
 h1 { border-bottom: 2px solid #444; } h2 { border-bottom: 1px solid #aaa; margin-top: 2em; }
 table { border-collapse: collapse; margin: 0.5em 0 1.2em; font-size: 0.85em; }
 th, td { border: 1px solid #bbb; padding: 0.15em 0.5em; text-align: right; white-space: nowrap; }
-th { background: #eee; } td.text { text-align: left; white-space: normal; }
+th { background: #eee; } td.t { text-align: left; white-space: normal; }
 figure { margin: 0.5em 0 1.5em; } img { max-width: 100%; }
 code { background: #f3f3f3; padding: 0 0.2em; }
 .scale { display: inline-block; width: 16em; height: 0.9em; vertical-align: middle; border: 1px solid #999; }
@@ -141,7 +141,7 @@ def _table(lines: list[str]) -> str:
                 if math.isfinite(value):
                     css_class = f' class="{grade_class(abs(value))}"'
             elif cell and not re.fullmatch(r"[-+0-9.eE]+", cell):
-                css_class = ' class="text"'
+                css_class = ' class="t"'
             row.append(f"<td{css_class}{style}>{_inline(cell)}</td>")
         out.append("<tr>" + "".join(row) + "</tr>")
     return "\n".join(out + ["</table>"])
