@@ -59,7 +59,8 @@ SHORT_POINTS, SHORT_TARGET = 6, 3
 
 @dataclass(frozen=True)
 class Family:
-    """Runs that differ only in dt."""
+    """Runs of one case x engine x formulation x integrator, which differ only in dt (a dt ladder) or in the
+    requested tolerance (a tolerance ladder, harness.tolerance_ladders)."""
 
     case: Case
     engine: str
@@ -69,6 +70,10 @@ class Family:
     @property
     def label(self) -> str:
         return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator) if x)
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        return self.case.name, self.engine, self.formulation, self.integrator
 
 
 # ------------------------------------------------------------------------------------------------ one point
@@ -108,35 +113,16 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
 
 
 def _timed(sim, grid) -> dict:
-    return _timing_columns(timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S), grid)
-
-
-def _timing_columns(measured: timing.Timing, grid) -> dict:
-    return {"wall_s": measured.best, "us_per_sim_s": measured.best / grid.t_end * 1e6,
-            "us_per_sim_s_spread": measured.spread / grid.t_end * 1e6}
+    return timing.columns(timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S), grid.t_end)
 
 
 def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
-    """The ladders' timing phase: every ok point timed in this process after all the accuracy runs (harness.timing:
-    a timed run shares the cores with no other run), in rounds over all the points (timing.measure_interleaved).
-    Updates the points in place; a point that fails here is left untimed."""
-    runs, grids, rows = [], [], []
-    for row in points:
-        if row.get("status") != Status.OK.value:
-            continue
+    """The ladders' timing phase (harness.timing.time_points: a timed run shares the cores with no other run)."""
+    def prepare(row: dict):
         family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
-        try:
-            sim = _prepare(family, row["dt"])
-            grid = time_grid(family.case.t_end, row["dt"], family.case.samples)
-            sim.run(grid)  # the warm-up
-        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
-            continue
-        runs.append(lambda sim=sim, grid=grid: sim.run(grid))
-        grids.append(grid)
-        rows.append(row)
-    for row, grid, measured in zip(rows, grids, timing.measure_interleaved(runs, TIMING_REPEATS, TIMING_BUDGET_S)):
-        if measured is not None:
-            row.update(_timing_columns(measured, grid))
+        return _prepare(family, row["dt"]), time_grid(family.case.t_end, row["dt"], family.case.samples)
+
+    timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
 
 
 def _stable(row: dict) -> bool:

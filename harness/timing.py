@@ -8,6 +8,8 @@ import gc
 import time
 from typing import Callable, NamedTuple
 
+from stereodyn.harness.trajectory import Status
+
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
 BUDGET_S = 2.0       # stop repeating once the timed runs have taken this long (after MIN_REPEATS)
@@ -87,3 +89,31 @@ def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS
 def _timing(times: list[float]) -> Timing:
     ordered = sorted(times)
     return Timing(ordered[0], (ordered[1] if len(ordered) > 1 else ordered[0]) - ordered[0], len(ordered))
+
+
+def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: int, budget_s: float) -> None:
+    """A ladder's timing phase (dt ladders, tolerance ladders): every ok point timed in this process after all the
+    accuracy runs, in rounds over all the points (measure_interleaved). prepare(point) -> (simulation, grid). Sets
+    wall_s (s), us_per_sim_s and us_per_sim_s_spread (µs of stepping per simulated second) on each timed point, in
+    place; a point that fails here is left untimed."""
+    runs, grids, timed = [], [], []
+    for point in points:
+        if point.get("status") != Status.OK.value:
+            continue
+        try:
+            sim, grid = prepare(point)
+            sim.run(grid)  # the warm-up
+        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
+            continue
+        runs.append(lambda sim=sim, grid=grid: sim.run(grid))
+        grids.append(grid)
+        timed.append(point)
+    for point, grid, measured in zip(timed, grids, measure_interleaved(runs, repeats, budget_s)):
+        if measured is not None:
+            point.update(columns(measured, grid.t_end))
+
+
+def columns(measured: Timing, t_end: float) -> dict:
+    """A timed run's columns: wall_s (s), us_per_sim_s and its spread (µs per simulated second)."""
+    return {"wall_s": measured.best, "us_per_sim_s": measured.best / t_end * 1e6,
+            "us_per_sim_s_spread": measured.spread / t_end * 1e6}

@@ -23,12 +23,11 @@ from __future__ import annotations
 import math
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
 from typing import Callable
 
 from stereodyn.harness import metrics, timing
 from stereodyn.harness.cases import Case
-from stereodyn.harness.dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS
+from stereodyn.harness.dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
 
@@ -46,22 +45,7 @@ DEFAULT_TOLERANCES = TOLERANCES[::2]
 POINT_BUDGET_S = 5.0
 
 
-@dataclass(frozen=True)
-class AdaptiveFamily:
-    """Runs of one adaptive integrator that differ only in the requested tolerance."""
-
-    case: Case
-    engine: str
-    formulation: str
-    integrator: str
-
-    @property
-    def label(self) -> str:
-        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator) if x)
-
-    @property
-    def key(self) -> tuple[str, str, str, str]:
-        return self.case.name, self.engine, self.formulation, self.integrator
+AdaptiveFamily = Family  # runs of one adaptive integrator that differ only in the requested tolerance
 
 
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
@@ -161,27 +145,12 @@ def _failed_point(family: AdaptiveFamily, tolerance: float, message: str) -> dic
 
 
 def time_points(points: list[dict], families_by_key: dict[tuple, AdaptiveFamily]) -> None:
-    """The timing phase: every ok point timed in this process after all the accuracy runs, in rounds over all the
-    points (timing.measure_interleaved), as harness.dt_ladders.time_points. Updates the points in place; a point that
-    fails here is left untimed."""
-    runs, grids, rows = [], [], []
-    for row in points:
-        if row.get("status") != Status.OK.value:
-            continue
+    """The timing phase, as the dt ladders' (harness.timing.time_points)."""
+    def prepare(row: dict):
         family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"])]
-        try:
-            sim = _prepare(family, row["tolerance"])
-            grid = _grid(family.case)
-            sim.run(grid)  # the warm-up
-        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
-            continue
-        runs.append(lambda sim=sim, grid=grid: sim.run(grid))
-        grids.append(grid)
-        rows.append(row)
-    for row, grid, measured in zip(rows, grids, timing.measure_interleaved(runs, TIMING_REPEATS, TIMING_BUDGET_S)):
-        if measured is not None:
-            row.update(wall_s=measured.best, us_per_sim_s=measured.best / grid.t_end * 1e6,
-                       us_per_sim_s_spread=measured.spread / grid.t_end * 1e6)
+        return _prepare(family, row["tolerance"]), _grid(family.case)
+
+    timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
 
 
 def _ladder_cost(family: AdaptiveFamily) -> float:
