@@ -149,7 +149,7 @@ def _parser() -> argparse.ArgumentParser:
     gate.add_argument("--time-factor", type=float, default=None,
                        help="also fail when us_per_step exceeds this factor times the baseline's")
     compare = commands.add_parser("compare", help="two runs side by side: environments, then every row's metrics as "
-                                                   "ratios B/A, largest changes first (compare.md, compare.html)")
+                                                   "ratios B/A, largest changes first (OUT/compare.md, OUT/compare.html)")
     compare.add_argument("a", type=Path, metavar="A", help="result directory or baseline file (the reference)")
     compare.add_argument("b", type=Path, metavar="B", help="result directory or baseline file (the new run)")
     compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")

@@ -71,14 +71,14 @@ class TaylorSimulation:
                           steps=result.steps, info={"wall_s": result.wall_s}, chart_changes=result.chart_changes)
 
 
-class ScipySimulation:
-    """A formulation integrated by one of scipy's solve_ivp methods (harness.integrators.scipy_ivp), the states taken
-    from its dense output on the grid's sample times; run() starts from the case's initial state every time."""
+class _CoordinateSimulation:
+    """A formulation's coordinates stepped by a harness-side method (integrate(system, chart, y, grid)); run() starts
+    from the case's state every time, and a start on a chart singularity is a diverged run at t = 0."""
 
-    def __init__(self, case: Case, formulation: str, method: scipy_ivp.ScipyIVP, chart_changes: bool = True):
+    def __init__(self, case: Case, formulation: str, method, chart_changes: bool = True, compiled: bool = True):
         self.case, self.method = case, method
         self.formulation = ref_formulations.get(formulation, case.body)
-        self.system = FormulationSystem(self.formulation, chart_changes)
+        self.system = FormulationSystem(self.formulation, chart_changes, compiled)
         ref_formulations.compiled_rhs(formulation)  # compile here, not in the timed run
 
     def run(self, grid: TimeGrid) -> Trajectory:
@@ -91,26 +91,26 @@ class ScipySimulation:
         return self.method.integrate(self.system, chart, y, grid)
 
 
-class FixedStepSimulation:
-    """A formulation stepped by a vector-state integrator with a fixed dt; run() starts from the case's state."""
+class ScipySimulation(_CoordinateSimulation):
+    """A formulation integrated by one of scipy's solve_ivp methods (harness.integrators.scipy_ivp), the states taken
+    from its dense output on the grid's sample times."""
+
+    def __init__(self, case: Case, formulation: str, method: scipy_ivp.ScipyIVP, chart_changes: bool = True):
+        super().__init__(case, formulation, method, chart_changes)
+
+
+class FixedStepSimulation(_CoordinateSimulation):
+    """A formulation stepped by a vector-state integrator with a fixed dt."""
 
     def __init__(self, case: Case, formulation: str, integrator: integrators.Integrator, dt: float,
                  chart_changes: bool = True, compiled: bool = True):
-        self.case, self.integrator, self.dt = case, integrator, dt
-        self.formulation = ref_formulations.get(formulation, case.body)
-        self.system = FormulationSystem(self.formulation, chart_changes, compiled)
-        ref_formulations.compiled_rhs(formulation)  # compile here, not in the timed run
+        super().__init__(case, formulation, integrator, chart_changes, compiled)
+        self.integrator, self.dt = integrator, dt
 
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
-        try:
-            chart, y = self.formulation.start(self.case.quat0, self.case.omega0, self.system.enabled)
-        except ChartSingularity as exc:
-            n = grid.times.size
-            return diverged_trajectory(grid, np.full((n, 4), np.nan), np.full((n, 3), np.nan), 0, 0.0, 0,
-                                       message=f"{exc} at t = 0 s")
-        return self.integrator.integrate(self.system, chart, y, grid)
+        return super().run(grid)
 
 
 class SlidingLadderEquation:

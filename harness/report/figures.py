@@ -135,19 +135,28 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
             axes.plot((runs["wall_s"] / runs["t_end"] * 1e6).to_numpy(), runs["attitude_err"].to_numpy(),
                       marker=marker, markersize=4, linestyle=linestyle(engine), color=colour,
                       linewidth=1.0, label=short)
-        axes.set_xscale("log")
-        axes.set_yscale("log")
-        axes.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short decade range
-        axes.set_title(title, fontsize=9)
-        axes.tick_params(labelsize=7)
-        axes.grid(True, which="major", alpha=0.3)
-        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    for axes in grid[-1]:
-        axes.set_xlabel("µs per simulated s", fontsize=8)
-    for axes in grid[:, 0]:
-        axes.set_ylabel("max attitude error (rad)", fontsize=8)
+        _log_log(axes, title)
+    _axis_labels(grid, "µs per simulated s", "max attitude error (rad)")
     figure.suptitle(f"{case}: work–precision (points along dt or tolerance, largest first)", fontsize=10)
     return _png(figure)
+
+
+def _log_log(axes, title: str) -> None:
+    """A work–precision-style panel: log-log, light grid, its legend outside on the right."""
+    axes.set_xscale("log")
+    axes.set_yscale("log")
+    axes.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short decade range
+    axes.set_title(title, fontsize=9)
+    axes.tick_params(labelsize=7)
+    axes.grid(True, which="major", alpha=0.3)
+    axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+
+
+def _axis_labels(grid, xlabel: str, ylabel: str) -> None:
+    for axes in grid[-1]:
+        axes.set_xlabel(xlabel, fontsize=8)
+    for axes in grid[:, 0]:
+        axes.set_ylabel(ylabel, fontsize=8)
 
 
 def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
@@ -169,16 +178,8 @@ def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
                       label=str(runs["integrator"].iloc[0]))
         low, high = float(panel["tolerance"].min()), float(panel["tolerance"].max())
         axes.plot([low, high], [low, high], color="grey", linestyle="--", linewidth=0.8, label="error = tol")
-        axes.set_xscale("log")
-        axes.set_yscale("log")
-        axes.set_title(title, fontsize=9)
-        axes.tick_params(labelsize=7)
-        axes.grid(True, which="major", alpha=0.3)
-        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    for axes in grid[-1]:
-        axes.set_xlabel("tolerance requested", fontsize=8)
-    for axes in grid[:, 0]:
-        axes.set_ylabel("max state error", fontsize=8)
+        _log_log(axes, title)
+    _axis_labels(grid, "tolerance requested", "max state error")
     figure.suptitle(f"{case}: error against tolerance", fontsize=10)
     return _png(figure)
 
