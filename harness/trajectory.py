@@ -95,6 +95,11 @@ def first_bad_step(step, observe, g, v, start: int, end: int, dt: float, limit2:
     return end, g  # not reached for a deterministic step; the sample itself is the bound
 
 
+def divergence_message(diverged_at: float) -> str:
+    """The divergence rule's message for a run that broke it at diverged_at (s)."""
+    return f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s"
+
+
 def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, bad: int, diverged_at: float,
                         steps: int, rhs_evals: int = 0, message: str | None = None) -> Trajectory:
     """A Trajectory whose samples from `bad` on are NaN, with status diverged and message (default: the divergence
@@ -103,7 +108,7 @@ def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, b
     quat[bad:] = np.nan
     omega[bad:] = np.nan
     if message is None:
-        message = f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s"
+        message = divergence_message(diverged_at)
     return Trajectory(grid.times, quat, omega, Status.DIVERGED, message, diverged_at, steps, rhs_evals)
 
 

@@ -48,7 +48,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
 from stereodyn.harness.cases import Case
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, first_bad_sample
+from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
 from stereodyn.reference.rotations import quat_to_matrix
 from stereodyn.reference.torques import torque_function
 
@@ -245,7 +245,7 @@ class DrakeSimulation:
         first = first_bad_sample(omega[:recorded], quat[:recorded], self.case.omega0)
         if first is not None and (bad is None or first < bad):
             status, bad, diverged_at = Status.DIVERGED, first, times[first]
-            message = f"state not finite or |omega| beyond 1e+06 x its start at t = {diverged_at:.6g} s"
+            message = divergence_message(diverged_at)
         if bad is not None:
             quat[bad:] = np.nan
             omega[bad:] = np.nan

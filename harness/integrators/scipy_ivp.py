@@ -26,7 +26,7 @@ from scipy import integrate
 
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.vector import VectorSystem
-from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status, Trajectory, divergence_limit2, sample_good
+from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
 
 # Integrator name -> scipy's method (scipy.integrate.solve_ivp's `method`), in report order.
 METHODS = {"scipy_rk45": "RK45", "scipy_dop853": "DOP853", "scipy_radau": "Radau", "scipy_bdf": "BDF",
@@ -104,9 +104,7 @@ class ScipyIVP:
                     bad = [i for i in range(filled, last) if not sample_good(quat[i], omega[i], limit2)]
                     if bad or not (sample_good(*system.observe(chart, y_new), limit2) and np.isfinite(y_new).all()):
                         diverged_at = float(times[bad[0]]) if bad else t_new
-                        status, message = Status.DIVERGED, (f"state not finite or |omega| beyond "
-                                                            f"{DIVERGENCE_FACTOR:g} x its start at "
-                                                            f"t = {diverged_at:.6g} s")
+                        status, message = Status.DIVERGED, divergence_message(diverged_at)
                         quat[bad[0] if bad else last:], omega[bad[0] if bad else last:] = np.nan, np.nan
                         break
                     filled = last
