@@ -219,7 +219,7 @@ def _output_file(path: Path, option: str) -> Path:
 
 
 def _check_names(args) -> None:
-    from stereodyn.harness.engines import get_engine
+    from stereodyn.harness.engines import UnavailableEngine, get_engine
 
     unknown = [e for e in args.engines if e not in engine_names()]
     if unknown:
@@ -227,11 +227,13 @@ def _check_names(args) -> None:
     if args.integrators:
         engines = [get_engine(e) for e in args.engines]
         known = {i for engine in engines for i in engine.integrators()}
-        all_available = all(engine.integrators() for engine in engines)
         missing = [i for i in args.integrators if i not in known]
-        if missing and all_available:
+        # an engine whose SDK is missing lists no integrators: a name may be its, so the message says how to get it
+        absent = [e.reason for e in engines if isinstance(e, UnavailableEngine)]
+        if missing:
             raise BadInput(f"--integrators: unknown integrator {', '.join(missing)} for engines "
-                           f"{','.join(args.engines)}; valid: {', '.join(sorted(known))}")
+                           f"{','.join(args.engines)}; valid: {', '.join(sorted(known))}"
+                           + (f" (not installed: {'; '.join(absent)})" if absent else ""))
     if getattr(args, "dt_ladder", False) and args.no_ladder:
         raise BadInput("--dt-ladder and --no-ladder: give at most one")
     if getattr(args, "ladder_max_steps", None) is not None:
