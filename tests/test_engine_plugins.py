@@ -122,7 +122,7 @@ def test_the_external_engine_is_listed_and_old_or_broken_plugins_are_refused(ins
     assert result.returncode == 0, result.stderr[-3000:]
     lines = result.stdout.splitlines()
     # drake: a built-in whose SDK is an optional extra (registered whether or not it is installed)
-    assert lines[0] == "names mujoco,pinocchio,reference,drake,toy,toy_broken,toy_nosdk,toy_old"
+    assert lines[0] == "names mujoco,pinocchio,reference,drake,mjx,toy,toy_broken,toy_nosdk,toy_old,warp"
     # a module that cannot be imported (a missing SDK) makes the engine's runs skipped, with the reason
     assert lines[1].startswith("nosdk toy_nosdk engine unavailable: No module named")
     old, broken = lines[2], lines[3]
@@ -161,10 +161,11 @@ def test_engine_error_is_a_value_error():
 
 # ------------------------------------------------------------------------------------------------ engine names
 
-ENGINE_NAMES = {"mujoco", "pinocchio", "reference", "drake"}
+ENGINE_NAMES = {"mujoco", "pinocchio", "reference", "drake", "mjx", "warp"}
 # Where an engine name may be spelled: its adapter and the registry (and tests, outside harness/).
 ALLOWED = {Path("harness/engines/__init__.py"), Path("harness/engines/mujoco.py"),
-           Path("harness/engines/pinocchio.py"), Path("harness/engines/reference.py"), Path("harness/engines/drake.py")}
+           Path("harness/engines/pinocchio.py"), Path("harness/engines/reference.py"), Path("harness/engines/drake.py"),
+           Path("harness/engines/mjx.py"), Path("harness/engines/warp.py")}
 
 
 def _engine_name_literals(path: Path) -> list[tuple[int, str]]:
