@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status

@@ -46,7 +46,7 @@ if not jax.config.jax_compilation_cache_dir:
                       os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "stereodyn",
                                    "jax"))
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular
 from stereodyn.harness.engines.mujoco import scene, torque_mode
 from stereodyn.harness.grid import TimeGrid, time_grid
@@ -184,7 +184,7 @@ class MjxEngine(Engine):
         return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
-        return precession_singular(case)
+        return unphysical_inertia(case) or precession_singular(case)  # MuJoCo's compiler refuses the first
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         return _constant_torque_only(case)

@@ -33,7 +33,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
 from stereodyn.harness.engines.mujoco import scene, torque_mode
 from stereodyn.harness.grid import TimeGrid
@@ -174,7 +174,7 @@ class WarpEngine(Engine):
         return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
-        return precession_singular(case)
+        return unphysical_inertia(case) or precession_singular(case)  # MuJoCo's compiler refuses the first
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         return _constant_torque_only(case)
