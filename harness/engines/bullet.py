@@ -37,7 +37,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
@@ -220,7 +220,8 @@ class BulletEngine(Engine):
         return "semi_implicit_euler" if integrator == STEP else ""
 
     def unsupported(self, case: Case) -> str | None:
-        return precession_singular(case)
+        # [body] physical = false: a link's inertia is a physical body's (as MuJoCo's and Drake's; not probed further)
+        return unphysical_inertia(case) or precession_singular(case)
 
     def torque_mode(self, case: Case) -> str:
         return "step" if case.body.has_external_torque else "none"
