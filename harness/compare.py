@@ -3,7 +3,8 @@
 A and B are result directories (results.csv, and runs.json for the environment) or baseline files (`stereodyn
 baseline`). Written to OUT/compare.md and OUT/compare.html (OUT: B or --out): the environments with the differences
 first, then the rows whose status or metrics changed, grouped by how much and sorted within a group, each metric as
-the ratio B / A, and a figure of the largest changes. Rows are matched by (case, engine, formulation, integrator, dt) as in the gate.
+the ratio B / A, and a figure of the largest changes. Rows are matched by (case, engine, formulation, integrator,
+precision, dt) as in the gate; a table or baseline without precision (0.2.0) holds float64 runs.
 """
 from __future__ import annotations
 
@@ -15,6 +16,8 @@ from pathlib import Path
 import pandas as pd
 
 from stereodyn.harness import gate
+from stereodyn.harness.engines.base import FLOAT64
+from stereodyn.harness.run.results import with_precision
 from stereodyn.harness.report.markdown import markdown_table
 
 # Values below this are round-off (the gate's floor): two of them have no meaningful ratio, so a ratio is taken of
@@ -40,6 +43,7 @@ def load(path: Path) -> tuple[pd.DataFrame, dict]:
     """(table, environment) of a result directory or a baseline file; CompareError when the table lacks the key
     columns or the status."""
     table, env = _load(Path(path))
+    table = with_precision(table)  # a table or baseline of 0.2.0 has no precision: float64 runs
     missing = [c for c in (*gate.KEY, "status") if c not in table.columns]
     if missing:
         name = Path(path) / "results.csv" if Path(path).is_dir() else Path(path)
@@ -121,8 +125,9 @@ def _group(row) -> str:
 
 def _label(row) -> str:
     dt = row["dt"] or "adaptive"
-    return " ".join(str(x) for x in (row["case"], row["engine"], row["formulation"], row["integrator"]) if x) + \
-        f" dt={dt}"
+    precision = row.get("precision") if row.get("precision") != FLOAT64 else ""
+    return " ".join(str(x) for x in (row["case"], row["engine"], row["formulation"], row["integrator"], precision)
+                    if x) + f" dt={dt}"
 
 
 def _ratio(value: float) -> str:

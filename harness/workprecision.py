@@ -27,11 +27,11 @@ from stereodyn.harness.run import tolerance_ladders
 from stereodyn.harness.run.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
                                           Family, families, run_ladders)
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
+from stereodyn.harness.fitting import (FAMILY, ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
                                        _name, convergence_table, declared_order, note_group, order_checks, pareto,
                                        pareto_table, setting, sweep_orders, tolerance_fits, with_state_err)
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
-from stereodyn.harness.run.results import write_atomic
+from stereodyn.harness.run.results import with_precision, write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -83,13 +83,12 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
-    fitted = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
-              if math.isfinite(r["order"])}
-    runs = with_state_err(results[results["dt"].notna()].fillna({"formulation": ""}))
-    by_family = {key: group for key, group in runs.groupby(["case", "engine", "formulation", "integrator"], sort=False)}
+    fitted = {tuple(r[c] for c in FAMILY) for r in sweep_rows if math.isfinite(r["order"])}
+    runs = with_state_err(with_precision(results[results["dt"].notna()]).fillna({"formulation": ""}))
+    by_family = {key: group for key, group in runs.groupby(list(FAMILY), sort=False)}
     out = []
     for family in families(cases, engines, integrators):
-        key = (family.case.name, family.engine, family.formulation, family.integrator)
+        key = family.key
         if key in laddered or key in fitted or not math.isfinite(declared_order(family.engine, family.integrator)):
             continue
         group = by_family.get(key)
@@ -146,7 +145,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         chosen, adaptive, tolerances = [], [], ()
     # the costliest first, so the pool ends together
     chosen.sort(key=_ladder_cost, reverse=True)
-    laddered = {(f.case.name, f.engine, f.formulation, f.integrator) for f in chosen}
+    laddered = {f.key for f in chosen}
     rigid_results = results[~results["case"].isin(other_kinds)]
     sweep_rows = sweep_orders(rigid_results, laddered)
     short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered) \
@@ -154,12 +153,11 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
         if chosen or short else ([], [])
-    by_key = {(r["case"], r["engine"], r["formulation"], r["integrator"]): r for r in ladder_rows
-              if r["source"] == SHORT_LADDER}
+    by_key = {tuple(r[c] for c in FAMILY): r for r in ladder_rows if r["source"] == SHORT_LADDER}
     # a short ladder's row takes the place of its family's row from the dt list; a family with one dt had none
     rows = [r for r in ladder_rows if r["source"] == LADDER]
     for row in sweep_rows:
-        rows.append(by_key.pop((row["case"], row["engine"], row["formulation"], row["integrator"]), row))
+        rows.append(by_key.pop(tuple(row[c] for c in FAMILY), row))
     convergence = convergence_table(rows + list(by_key.values()))
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     tolerance_df = tolerance_ladders.tolerance_frame(tolerance_ladders.run_ladders(adaptive, pool, progress, tolerances)

@@ -40,6 +40,16 @@ class KnownDeviation:
     reference: str
 
 
+def prepare_keywords(engine: "Engine", formulation: str, integrator: str, precision: str = FLOAT64) -> dict:
+    """The keywords a run passes to engine.prepare besides (case, integrator, dt): its formulation where the engine
+    has formulations, its precision where the engine declares any other than float64 only (an engine written before
+    precisions existed never receives one)."""
+    keywords: dict = {"formulation": formulation} if formulation else {}
+    if tuple(engine.precisions(integrator)) != (FLOAT64,):
+        keywords["precision"] = precision
+    return keywords
+
+
 class Simulation(Protocol):
     """A model built for one case, integrator and dt; run() steps it from the case's initial state."""
 

@@ -36,12 +36,13 @@ from ..scenes import metrics
 from .. import fitting
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..engines import get_engine
+from ..engines.base import EPS, FLOAT64, prepare_keywords
 from ..fitting import declared_order, fit
 from ..grid import time_grid
 from . import timing
 from ..trajectory import Status
 
-LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
+LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
                   "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "source")
 LADDER, SHORT_LADDER = "ladder", "short-ladder"   # the `source` of a ladder's points and convergence row
@@ -66,29 +67,37 @@ class Family:
     engine: str
     formulation: str
     integrator: str
+    precision: str = FLOAT64
 
     @property
     def label(self) -> str:
-        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator) if x)
+        precision = self.precision if self.precision != FLOAT64 else ""
+        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator, precision) if x)
 
     @property
-    def key(self) -> tuple[str, str, str, str]:
-        return self.case.name, self.engine, self.formulation, self.integrator
+    def key(self) -> tuple[str, str, str, str, str]:
+        return self.case.name, self.engine, self.formulation, self.integrator, self.precision
+
+    @property
+    def columns(self) -> dict:
+        """The family's identity columns of a ladder or convergence row."""
+        return {"case": self.case.name, "engine": self.engine, "formulation": self.formulation,
+                "integrator": self.integrator, "precision": self.precision}
 
 
 # ------------------------------------------------------------------------------------------------ one point
 
 def _prepare(family: Family, dt: float):
-    extra = {"formulation": family.formulation} if family.formulation else {}
-    return get_engine(family.engine).prepare(family.case, family.integrator, dt, **extra)
+    engine = get_engine(family.engine)
+    return engine.prepare(family.case, family.integrator, dt,
+                          **prepare_keywords(engine, family.formulation, family.integrator, family.precision))
 
 
 def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = True) -> dict:
     """One ladder point: accuracy run (errors against the truth when with_truth), then timed runs. Never raises."""
     case = family.case
     grid = time_grid(case.t_end, dt, case.samples)
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "dt": float(dt), "t_end": grid.t_end, "steps": grid.steps,
+    row = {**family.columns, "dt": float(dt), "t_end": grid.t_end, "steps": grid.steps,
            "source": LADDER}
     try:
         sim = _prepare(family, dt)
@@ -119,7 +128,8 @@ def _timed(sim, grid) -> dict:
 def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
     """The ladders' timing phase (harness.run.timing.time_points: a timed run shares the cores with no other run)."""
     def prepare(row: dict):
-        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"],
+                                    row["precision"])]
         return _prepare(family, row["dt"]), time_grid(family.case.t_end, row["dt"], family.case.samples)
 
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
@@ -192,8 +202,8 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     top = stable_dt if math.isfinite(stable_dt) else (cap if "stable up to" in stability_note else start)
     points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
     frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "stable_dt_max": stable_dt, "source": LADDER, **fit(frame, declared)}
+    row = {**family.columns, "stable_dt_max": stable_dt, "source": LADDER,
+           **fit(frame, declared, EPS[family.precision])}
     if stability_note:
         row["note"] = "; ".join(x for x in (row["note"], stability_note) if x)
     return points, row
@@ -213,7 +223,7 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
         return pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns)
 
     def marked() -> pd.DataFrame:
-        return fitting.regimes(frame())[0]
+        return fitting.regimes(frame(), EPS[family.precision])[0]
 
     def asymptotic() -> int:
         return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
@@ -246,9 +256,8 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
         else:
             stops.append(f"dt = {dt if last else edge['dt']:.3g} is the " + (
                 f"largest tried (t_end / {MIN_STEPS})" if direction == 1 else f"smallest tried (t_end / {max_steps})"))
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "stable_dt_max": math.nan, "source": SHORT_LADDER}
-    row.update(fit(frame(), declared))
+    row = {**family.columns, "stable_dt_max": math.nan, "source": SHORT_LADDER}
+    row.update(fit(frame(), declared, EPS[family.precision]))
     if not math.isfinite(row["order"]):
         row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *_short_reason(family, marked())])
     return new, row
@@ -289,15 +298,14 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
     for spec in specs:
         if spec.dt is None or (formulations is not None and spec.formulation not in formulations):
             continue
-        out.setdefault((spec.case.name, spec.engine, spec.formulation, spec.integrator),
-                       Family(spec.case, spec.engine, spec.formulation, spec.integrator))
+        out.setdefault((spec.case.name, spec.engine, spec.formulation, spec.integrator, spec.precision),
+                       Family(spec.case, spec.engine, spec.formulation, spec.integrator, spec.precision))
     return list(out.values())
 
 
 def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> tuple[list[dict], dict]:
     """A family whose worker died: no points, and its convergence row says why."""
-    return [], {"case": family.case.name, "engine": family.engine, "formulation": family.formulation,
-                "integrator": family.integrator, "source": source,
+    return [], {**family.columns, "source": source,
                 "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 

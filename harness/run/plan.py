@@ -1,4 +1,4 @@
-"""The plan of a sweep: every case x engine x integrator x formulation x dt as a RunSpec, and the rows of the runs
+"""The plan of a sweep: every case x engine x integrator x formulation x dt x precision as a RunSpec, and the rows of the runs
 skipped up front (the engine cannot model the case). harness.run.sweep executes the plan; harness.workprecision picks
 its run families from it."""
 from __future__ import annotations
@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from ..scenes.cases import SLIDING_LADDER, Case
 from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, Engine, get_engine
+from ..engines.base import FLOAT64, prepare_keywords
 from ..grid import TimeGrid, time_grid
 from ..trajectory import Status
 
@@ -25,13 +26,22 @@ class RunSpec:
     integrator_rank: int = 0
     formulation: str = ""
     formulation_rank: int = 0
+    precision: str = FLOAT64  # the run's floating-point precision (Engine.precisions)
+    precision_rank: int = 0
     keep_states: bool = False  # return the recorded states with the row ("_states"), for --save-trajectories
 
     @property
     def label(self) -> str:
         dt = "" if self.dt is None else f" dt={self.dt:g}"
         formulation = f" {self.formulation}" if self.formulation else ""
-        return f"{self.case.name} {self.engine}{formulation} {self.integrator}{dt}"
+        precision = f" {self.precision}" if self.precision != FLOAT64 else ""
+        return f"{self.case.name} {self.engine}{formulation} {self.integrator}{precision}{dt}"
+
+    def prepare(self):
+        """The engine's simulation of this run (Engine.prepare with the run's keywords; not timed)."""
+        engine = get_engine(self.engine)
+        return engine.prepare(self.case, self.integrator, self.dt,
+                              **prepare_keywords(engine, self.formulation, self.integrator, self.precision))
 
     @property
     def is_truth(self) -> bool:
@@ -41,11 +51,11 @@ class RunSpec:
 def base_row(spec: RunSpec, grid: TimeGrid | None) -> dict:
     """The columns every row of the spec has (identity, grid, private sort keys)."""
     return {"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
-            "integrator": spec.integrator, "dt": math.nan if spec.dt is None else spec.dt,
+            "integrator": spec.integrator, "precision": spec.precision, "dt": math.nan if spec.dt is None else spec.dt,
             "t_end": grid.t_end if grid is not None else spec.case.t_end,
             "steps": grid.steps if grid is not None else math.nan,
             "_engine_rank": spec.engine_rank, "_integrator_rank": spec.integrator_rank,
-            "_formulation_rank": spec.formulation_rank, "_dt_rank": -(spec.dt if spec.dt is not None else math.inf)}
+            "_formulation_rank": spec.formulation_rank, "_precision_rank": spec.precision_rank, "_dt_rank": -(spec.dt if spec.dt is not None else math.inf)}
 
 
 def skipped_row(spec: RunSpec, reason: str) -> dict:
@@ -96,10 +106,12 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
                 for formulation_rank, formulation in enumerate(formulations):
                     if integrator and integrators is None and not engine.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
+                    precisions = engine.precisions(integrator) if integrator else (FLOAT64,)
                     for dt in dts:
-                        spec = RunSpec(case, name, integrator, dt, engine_rank, integrator_rank, formulation,
-                                       formulation_rank)
-                        # a formulation/integrator pair that cannot model the case (Engine.unsupported_run)
-                        why = reason or (integrator and engine.unsupported_run(case, formulation, integrator))
-                        (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
+                        for precision_rank, precision in enumerate(precisions):
+                            spec = RunSpec(case, name, integrator, dt, engine_rank, integrator_rank, formulation,
+                                           formulation_rank, precision, precision_rank)
+                            # a formulation/integrator pair that cannot model the case (Engine.unsupported_run)
+                            why = reason or (integrator and engine.unsupported_run(case, formulation, integrator))
+                            (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
     return specs, skipped

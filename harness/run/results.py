@@ -7,15 +7,16 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..engines.base import FLOAT64
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
-COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
+COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message", "diverged_at",
            "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
            "truth_err", "truth_omega_err", "chart_changes", "torque_mode", "precession_axis_drift")
 
 # Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
-# them, formulations as the engine lists them, dt descending.
-SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_formulation_rank", "_dt_rank")
+# them, formulations as the engine lists them, dt descending, precisions as the engine lists them.
+SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_formulation_rank", "_dt_rank", "_precision_rank")
 
 
 def frame(rows: list[dict]) -> pd.DataFrame:
@@ -76,10 +77,17 @@ def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.
     return df
 
 
+def with_precision(df: pd.DataFrame) -> pd.DataFrame:
+    """The table with a `precision` column: a table of stereodyn 0.2.0 has none, and its runs were all float64."""
+    if "precision" not in df:
+        df = df.assign(precision=FLOAT64)
+    return df.fillna({"precision": FLOAT64}).astype({"precision": str})
+
+
 def read_results(path: Path) -> pd.DataFrame:
-    text = ("integrator", "formulation", "message")  # empty means "none" here, not a missing number
+    text = ("integrator", "formulation", "message", "precision")  # empty means "none" here, not a missing number
     df = read_csv_table(path, REQUIRED_COLUMNS, keep_default_na=True, dtype=dict.fromkeys(text, str))
     for column in ("formulation", "message"):  # optional text columns a results.csv of an older version may lack
         if column not in df:
             df[column] = ""
-    return df.fillna(dict.fromkeys(text, ""))
+    return with_precision(df.fillna({c: "" for c in text if c != "precision"}))

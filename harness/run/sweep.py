@@ -109,9 +109,8 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
     if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
         return sliding_ladder.execute(spec, row, timed)
     try:
-        formulation = {"formulation": spec.formulation} if spec.formulation else {}
         engine = get_engine(spec.engine)
-        sim = engine.prepare(spec.case, spec.integrator, spec.dt, **formulation)
+        sim = spec.prepare()
         traj: Trajectory = sim.run(grid)
         row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
                    chart_changes=math.nan if traj.chart_changes is None else traj.chart_changes,
@@ -126,8 +125,8 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
         row["oracle_err"] = oracles.oracle_err(spec.case, traj, truth.times, truth.exact_quat)
         # theory checks; the perturbed reruns some of them need are untimed, like the accuracy run
-        row[checks.ROW_KEY] = checks.measure(spec.case, traj, lambda case: get_engine(spec.engine).prepare(
-            case, spec.integrator, spec.dt, **formulation).run(grid))
+        row[checks.ROW_KEY] = checks.measure(spec.case, traj, lambda case: dataclasses.replace(
+            spec, case=case).prepare().run(grid))
         if not spec.is_truth:
             truth_quat, truth_omega = truth.on(grid)
             row.update(metrics.errors(traj, truth_quat, truth_omega, spec.case.horizon))
@@ -158,8 +157,7 @@ def _warm_run(spec: RunSpec):
             run = sliding_ladder.timed_run(spec, sliding_ladder._grid(spec))
         else:
             grid = _grid(spec)
-            formulation = {"formulation": spec.formulation} if spec.formulation else {}
-            sim = get_engine(spec.engine).prepare(spec.case, spec.integrator, spec.dt, **formulation)
+            sim = spec.prepare()
             run = lambda: sim.run(grid)  # noqa: E731
         run()
         return run
@@ -309,7 +307,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     specs.sort(key=_cost, reverse=True)
     results_path = out_dir / "results.csv"
     with Store(out_dir) as store:
-        identities = {id(s): store.identity(s.case, s.engine, s.formulation, s.integrator, s.dt, certify)
+        identities = {id(s): store.identity(s.case, s.engine, s.formulation, s.integrator, s.dt, certify, s.precision)
                       for s in specs}
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
         stored: dict[str, dict] = {}  # key -> row of every run of this sweep done so far

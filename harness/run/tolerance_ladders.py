@@ -30,9 +30,10 @@ from . import timing
 from ..scenes.cases import Case
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
 from ..engines import get_engine
+from ..engines.base import FLOAT64, prepare_keywords
 from ..trajectory import Status
 
-TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
+TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
                      "energy_drift", "state_err", "err_over_tol", "wall_s", "us_per_sim_s", "us_per_sim_s_spread",
                      "rhs_per_sim_s", "steps_per_sim_s")
@@ -68,7 +69,8 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
                 for formulation in own:
                     if engine.unsupported_run(case, formulation, integrator):
                         continue
-                    out.append(AdaptiveFamily(case, name, formulation, integrator))
+                    for precision in engine.precisions(integrator):
+                        out.append(AdaptiveFamily(case, name, formulation, integrator, precision))
     return out
 
 
@@ -81,8 +83,9 @@ def _grid(case: Case):
 
 
 def _prepare(family: AdaptiveFamily, tolerance: float):
-    extra = {"formulation": family.formulation} if family.formulation else {}
-    return get_engine(family.engine).prepare(family.case, family.integrator, None, tolerance=tolerance, **extra)
+    engine = get_engine(family.engine)
+    return engine.prepare(family.case, family.integrator, None, tolerance=tolerance,
+                          **prepare_keywords(engine, family.formulation, family.integrator, family.precision))
 
 
 def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
@@ -91,8 +94,7 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
     `_accuracy_s` (for the ladder's budget, not a timing)."""
     case = family.case
     grid = _grid(case)
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "tolerance": float(tolerance), "t_end": grid.t_end}
+    row = {**family.columns, "tolerance": float(tolerance), "t_end": grid.t_end}
     start = time.perf_counter()
     try:
         sim = _prepare(family, tolerance)
@@ -140,15 +142,15 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
 
 
 def _failed_point(family: AdaptiveFamily, tolerance: float, message: str) -> dict:
-    return {"case": family.case.name, "engine": family.engine, "formulation": family.formulation,
-            "integrator": family.integrator, "tolerance": float(tolerance), "status": Status.FAILED.value,
+    return {**family.columns, "tolerance": float(tolerance), "status": Status.FAILED.value,
             "message": message.splitlines()[0]}
 
 
 def time_points(points: list[dict], families_by_key: dict[tuple, AdaptiveFamily]) -> None:
     """The timing phase, as the dt ladders' (harness.run.timing.time_points)."""
     def prepare(row: dict):
-        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"],
+                                  row["precision"])]
         return _prepare(family, row["tolerance"]), _grid(family.case)
 
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
@@ -193,7 +195,7 @@ def tolerance_frame(points: list[dict]):
     import pandas as pd
 
     df = pd.DataFrame(points, columns=list(TOLERANCE_COLUMNS))
-    return df.fillna({"formulation": "", "message": ""}).astype({"tolerance": float})
+    return df.fillna({"formulation": "", "message": "", "precision": FLOAT64}).astype({"tolerance": float})
 
 
 __all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families",
