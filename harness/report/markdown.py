@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import re
+import textwrap
 from typing import Sequence
 
 import numpy as np
@@ -10,24 +11,20 @@ import pandas as pd
 
 from ..environment import environment
 
-TERMINAL_COLUMNS = ("engine", "formulation", "integrator", "dt", "status", "energy_drift", "momentum_drift",
-                    "casimir_drift",
-                    "lagrange_drift", "kovalevskaya_drift", "chaplygin_drift", "hess_drift", "attitude_err",
-                    "omega_err", "truth_err", "us_per_step")
-SHORT = {"energy_drift": "energy", "momentum_drift": "momentum", "casimir_drift": "casimir",
-         "lagrange_drift": "lagrange", "kovalevskaya_drift": "kovalevskaya", "chaplygin_drift": "chaplygin",
-         "hess_drift": "hess", "attitude_err": "att_err", "omega_err": "omega_err", "us_per_step": "us/step",
-         "chart_changes": "charts"}
+from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS
 
-DEFINITIONS = """\
+# The drift tables' columns: every drift column of the registry (reference.integrals), a case's table showing those it
+# has (_shown_columns).
+TERMINAL_COLUMNS = ("engine", "formulation", "integrator", "dt", "status", *DRIFT_COLUMNS, "attitude_err",
+                    "omega_err", "truth_err", "us_per_step")
+SHORT = {**{integral.column: integral.short for integral in INTEGRALS.values()}, "attitude_err": "att_err",
+         "omega_err": "omega_err", "us_per_step": "us/step", "chart_changes": "charts"}
+
+DEFINITIONS_TEMPLATE = """\
 - *_drift: max over the samples of |I(t) - I(0)| / scale, scale = the sum of the absolute values of the integral's
-  terms at t = 0 (for a vector or a dot product, the norms). energy: kinetic + potential of uniform gravity;
-  momentum: the world angular momentum K about O for a torque-free body, its vertical component K.d under gravity;
-  casimir: | |q|^2 - 1 | of the recorded quaternion (= ||H| - 1| for the heavy body); lagrange: omega along the
-  symmetry axis; kovalevskaya: |(p1 + i p2)^2 + (m g / A3)(c1 + i c2)(H1 + i H2)|^2 with H the downward vertical in
-  body axes; chaplygin: (p1^2 + p2^2) p3 + lambda^2 p1 H3; hess: K.k. A special integral is shown only on cases that
-  meet its conditions (FORMULARY G5-G8), NaN elsewhere. Every integral is computed from the recorded states by the same
-  code for every engine, never from an engine's own energy.
+  terms at t = 0 (for a vector or a dot product, the norms). {integrals}. A special integral is shown only on cases
+  that meet its conditions (FORMULARY G5-G8, G12), NaN elsewhere. Every integral is computed from the recorded states
+  by the same code for every engine, never from an engine's own energy.
 - attitude_err / attitude_err_end: max / final geodesic angle (rad) between the run's attitude and the truth's at the
   same times, up to the case's horizon; omega_err: max |omega - omega_truth| / max |omega_truth|.
 - truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err (rad) and
@@ -58,8 +55,7 @@ DEFINITIONS = """\
   conserved because the scene is stationary in the frame turning with the orbit (its Lagrangian in the relative
   angular velocity omega - Omega R^T z does not depend on time, and J is its Jacobi function); a body torque on top
   adds the work of M along omega - Omega R^T z. momentum: K.D along a fixed field's direction D (NaN otherwise).
-  self_excited: the conic-cylinder invariant (36) A1/(A2-A3) p1^2 - A2/(A3-A1) p2^2 in the principal frame with i3
-  along the torque axis (any torque along i3, no other torque). precession_axis_drift: max |e(t) - e(0)| of the
+  precession_axis_drift: max |e(t) - e(0)| of the
   world precession axis (40) e = sin(theta)(omega - (omega.u)u)/|omega x u| + cos(theta) u under torque (41);
   NaN when a sample comes within 0.05 rad of omega || u, where (41) is singular. torque_mode: how the torque entered
   the engine: rhs (the reference's equations), qfrc_applied (MuJoCo, a constant torque set once), passive_callback
@@ -69,6 +65,14 @@ DEFINITIONS = """\
   rod's energy 1/2 m|v_G|^2 + 1/2 (m l^2/3) theta'^2 + m g y_G; attitude_err: |theta - theta_equation| (rad),
   omega_err likewise for theta', up to the equation's detachment for the unilateral model. checks.csv: the
   detachment angle against arccos((2/3) cos theta0 + 4 l theta0'^2 / (9 g)), energy drift, constraint violation (m)."""
+# The registry's definitions (reference.integrals), one per drift column, in table order.
+def _definitions() -> str:
+    drifts, rest = DEFINITIONS_TEMPLATE.split("\n- ", 1)
+    drifts = drifts.replace("{integrals}", "; ".join(f"{i.name}: {i.definition}" for i in INTEGRALS.values()))
+    return textwrap.fill(" ".join(drifts.split()), width=118, subsequent_indent="  ") + "\n- " + rest
+
+
+DEFINITIONS = _definitions()
 
 
 def _fmt(value, column: str) -> str:
