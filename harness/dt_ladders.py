@@ -33,10 +33,10 @@ import numpy as np
 import pandas as pd
 
 from stereodyn.harness import metrics
-from stereodyn.harness import fitting
+from stereodyn.harness.analysis import fitting
 from stereodyn.harness.cases import CHAOTIC_TAGS, Case
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import declared_order, fit
+from stereodyn.harness.analysis.fitting import declared_order, fit
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness import timing
 from stereodyn.harness.trajectory import Status

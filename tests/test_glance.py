@@ -14,7 +14,8 @@ import pandas as pd
 import pytest
 from matplotlib import image as mpimg
 
-from stereodyn.harness import cli, summary, testing
+from stereodyn.harness import cli, testing
+from stereodyn.harness.analysis import summary
 from stereodyn.harness.report import figures
 from stereodyn.harness.report.method import energy_trend
 
@@ -286,7 +287,7 @@ def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
 
 def test_the_default_suites_summary_fits_in_80_lines():
     """On the committed default suite (reports/default: 1001 runs, 9 of them diverged for one reason)."""
-    from stereodyn.harness import verdicts
+    from stereodyn.harness.analysis import verdicts
     from stereodyn.harness.results import read_results
 
     folder = Path(__file__).resolve().parents[1] / "reports" / "default"

@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks as theory_checks
-from stereodyn.harness import workprecision
-from stereodyn.harness.report import figures, html
-from stereodyn.harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
-from stereodyn.harness.processes import exit_with_parent
-from stereodyn.harness.results import read_results, write_atomic
-from stereodyn.harness.store import read_manifest, read_records
+from .. import checks as theory_checks
+from ..analysis import workprecision
+from . import figures, html
+from .markdown import markdown_table as _md_table, number as _num, report_markdown
+from ..processes import exit_with_parent
+from ..results import read_results, write_atomic
+from ..store import read_manifest, read_records
 
 FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
@@ -222,8 +222,8 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, 
     env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
     if env is not None:
         env["report rendered"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
-    from stereodyn.harness import verdicts
-    from stereodyn.harness.report.method import method_lines
+    from ..analysis import verdicts
+    from .method import method_lines
 
     front = workprecision.report_lines(out_dir, tolerance_paths) + method_lines(df, out_dir, series)
     markdown = report_markdown(df, summary=summary_lines(df), sections=checks_lines(df, out_dir), env=env,

@@ -24,7 +24,7 @@ QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift",
 
 def linestyle(engine: str) -> str:
     """The engine's line style (Engine.linestyle); an engine no longer registered gets the base class's."""
-    from stereodyn.harness.engines import Engine, EngineError, get_engine
+    from ..engines import Engine, EngineError, get_engine
 
     try:
         return get_engine(engine).linestyle

@@ -8,7 +8,7 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.environment import environment
+from ..environment import environment
 
 TERMINAL_COLUMNS = ("engine", "formulation", "integrator", "dt", "status", "energy_drift", "momentum_drift",
                     "casimir_drift",

@@ -20,17 +20,17 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks, dt_ladders
-from stereodyn.harness.cases import Case
-from stereodyn.harness import tolerance_ladders
-from stereodyn.harness.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
+from .. import checks, dt_ladders
+from ..cases import Case
+from .. import tolerance_ladders
+from ..dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
                                           Family, families, run_ladders)
-from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
+from ..engines import get_engine
+from .fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
                                        _name, convergence_table, declared_order, note_group, order_checks, pareto,
                                        pareto_table, setting, sweep_orders, tolerance_fits, with_state_err)
-from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
-from stereodyn.harness.results import write_atomic
+from ..report.markdown import markdown_table as _md, number as _num
+from ..results import write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]

@@ -21,10 +21,10 @@ import re
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks
-from stereodyn.harness.engines import EngineError, get_engine
-from stereodyn.harness.report.markdown import number as _num
-from stereodyn.harness.trajectory import Status
+from .. import checks
+from ..engines import EngineError, get_engine
+from ..report.markdown import number as _num
+from ..trajectory import Status
 
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")

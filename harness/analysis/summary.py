@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.report.markdown import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
+from ..report.markdown import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
 
 # Accuracy targets (max attitude error, rad) of the terminal's "cheapest run" lines: three decades of pareto.csv's.
 TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)
@@ -23,8 +23,8 @@ TERMINAL_VERDICTS = 20
 def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
     """Per accuracy target, over every case of pareto.csv: how many cases some run reaches, and the case whose
     cheapest run is dearest (the target's worst case)."""
-    from stereodyn.harness import workprecision
-    from stereodyn.harness.fitting import setting
+    from . import workprecision
+    from .fitting import setting
 
     pareto = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
                                          ("formulation", "engine", "integrator"))
@@ -56,7 +56,7 @@ def _method(row) -> str:
 
 def terminal_lines(df: pd.DataFrame, found: list, out_dir: Path, report: Path | None = None) -> list[str]:
     """The default output of `stereodyn run`."""
-    from stereodyn.harness import verdicts
+    from . import verdicts
 
     counts = df["status"].value_counts()
     lines = [f"{len(df)} runs over {df['case'].nunique()} cases: "

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from stereodyn.harness import gate
-from stereodyn.harness.report.markdown import markdown_table
+from . import gate
+from ..report.markdown import markdown_table
 
 # Values below this are round-off (the gate's floor): two of them have no meaningful ratio, so a ratio is taken of
 # max(value, FLOOR). The truth's drifts sit at 1e-16 .. 1e-14 and move by factors of ten between machines.
@@ -193,8 +193,8 @@ def figure(changes: pd.DataFrame) -> bytes | None:
 def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, Path, list[str]]:
     """Write compare.md, compare.html, compare.csv (and the figure) to `out` (default: B, which must then be a
     directory); return the two pages and the headline lines for the terminal."""
-    from stereodyn.harness.report import html
-    from stereodyn.harness.results import write_atomic
+    from ..report import html
+    from ..results import write_atomic
 
     if out is None:
         if Path(path_b).is_file():

@@ -23,12 +23,12 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
-from stereodyn.harness.fitting import SUPERCONVERGENT
-from stereodyn.harness.metrics import DRIFT_COLUMNS
-from stereodyn.harness.results import write_atomic
-from stereodyn.harness.fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
-from stereodyn.harness.engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
+from ..cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
+from .fitting import SUPERCONVERGENT
+from ..metrics import DRIFT_COLUMNS
+from ..results import write_atomic
+from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
+from ..engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
                                       engine_for_state_space)
 
 VERDICTS_FILE = "verdicts.csv"
@@ -136,8 +136,8 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
 def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
     """For each integrator of the run that declares energy_bounded: the long-run energy check (harness.testing), on
     the engine of its state space (Pinocchio for "lie", the reference's quaternion formulation for "vector")."""
-    from stereodyn.harness import integrators as registry
-    from stereodyn.harness import testing
+    from .. import integrators as registry
+    from .. import testing
 
     ran = set(results.loc[results["status"] == "ok", "integrator"].astype(str))
     rule = (f"energy error over {ENERGY_STEPS * ENERGY_RATIO} steps <= {testing.ENERGY_GROWTH:g}x that over "
@@ -230,8 +230,8 @@ def truth_verdicts(results: pd.DataFrame, checks_table: pd.DataFrame | None) -> 
 def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy: bool = True) -> list[Verdict]:
     """Every verdict of a run folder (convergence.csv and checks.csv when present) and its results table; cases: the
     run's Case objects, whose tags say which are chaotic. Writes DIR/verdicts.csv."""
-    from stereodyn.harness import checks
-    from stereodyn.harness import workprecision
+    from .. import checks
+    from . import workprecision
 
     out_dir = Path(out_dir)
     excluded = [c.name for c in cases if set(getattr(c, "tags", ())) & set(CHAOTIC_TAGS)]
@@ -287,7 +287,7 @@ def summary_lines(verdicts: list[Verdict]) -> list[str]:
 
 def report_lines(out_dir: Path) -> list[str]:
     """The report's "Verdicts" section from DIR/verdicts.csv (empty without)."""
-    from stereodyn.harness.report.markdown import markdown_table
+    from ..report.markdown import markdown_table
 
     verdicts = read(out_dir)
     if verdicts is None:
