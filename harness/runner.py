@@ -164,14 +164,15 @@ def _warm_run(spec: RunSpec):
 
 def time_specs(specs: list[RunSpec], steps: list[float]) -> list[dict]:
     """The timing columns of finished ok runs, in this process with no other run sharing the cores: each prepared
-    and warmed up, then timed in rounds over all of them (timing.measure_interleaved). {} for a run that fails here."""
+    and warmed up, then timed in rounds over all of them (timing.measure_interleaved). {} for a run that fails here;
+    a timing still disturbed when re-timed carries it as `_disturbed`."""
     runs = [_warm_run(spec) for spec in specs]
     kept = [i for i, run in enumerate(runs) if run is not None]
     measured = timing.measure_interleaved([runs[i] for i in kept])
     rows: list[dict] = [{} for _ in specs]
     for i, m in zip(kept, measured):
         if m is not None:
-            rows[i] = _timing_columns(m, steps[i])
+            rows[i] = _timing_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
     return rows
 
 
@@ -378,7 +379,10 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         for spec, timed_columns in zip(untimed, timings):
             key = keys[id(spec)]
             row = stored[key]
+            mark = timed_columns.pop("_disturbed", None)
             row.update(timed_columns)
+            if mark is not None:  # still disturbed when re-timed: the row says so, and the Pareto table skips it
+                row["message"] = timing.with_disturbed(row.get("message"), mark)
             record = store.get(key)
             store.put(key, identities[id(spec)], row, record.get("series") if record else None)
         if untimed:

@@ -149,12 +149,16 @@ def _candidates(rows) -> pd.DataFrame:
                          for e, i, err, cost, spread, rhs in rows])
 
 
+def _any(table: pd.DataFrame) -> pd.DataFrame:
+    return table[table["scope"] == "any"]
+
+
 def test_pareto_marks_ties_within_the_spread_and_picks_by_rhs_evaluations():
     runs = _candidates([("mujoco", "rk4", 1e-9, 100.0, 3.0, 400.0),
                         ("pinocchio", "rk4", 1e-9, 104.0, 2.0, 400.0),   # within 3 + 2 (and 5%): a tie
                         ("pinocchio", "euler", 1e-2, 98.0, 1.0, 100.0),   # cheapest, but only reaches 1e-2
                         ("reference", "rk4", 1e-9, 200.0, 1.0, 400.0)])  # clearly dearer
-    table = workprecision.pareto_table(runs, ["c"]).set_index("target")
+    table = _any(workprecision.pareto_table(runs, ["c"])).set_index("target")
     cell = table.loc[1e-9]
     assert (cell.engine, cell.integrator) == ("mujoco", "rk4")
     assert "pinocchio rk4" in cell.ties and "reference" not in cell.ties
@@ -165,10 +169,10 @@ def test_pareto_marks_ties_within_the_spread_and_picks_by_rhs_evaluations():
 
 def test_pareto_without_spread_ties_only_within_the_floor():
     rtol = workprecision.TIE_RTOL
-    runs = _candidates([("a", "m", 1e-9, 100.0, 0.0, 400.0), ("b", "m", 1e-9, 100.0 * (1 + 0.9 * rtol), 0.0, 100.0),
-                        ("c", "m", 1e-9, 100.0 * (1 + 1.1 * rtol), 0.0, 10.0)])
-    cell = workprecision.pareto_table(runs, ["c"]).set_index("target").loc[1e-9]
-    assert cell.engine == "b" and cell.ties.startswith("a m") and "c m" not in cell.ties
+    runs = _candidates([("e", "a", 1e-9, 100.0, 0.0, 400.0), ("e", "b", 1e-9, 100.0 * (1 + 0.9 * rtol), 0.0, 100.0),
+                        ("e", "c", 1e-9, 100.0 * (1 + 1.1 * rtol), 0.0, 10.0)])
+    cell = _any(workprecision.pareto_table(runs, ["c"])).set_index("target").loc[1e-9]
+    assert cell.integrator == "b" and cell.ties.startswith("e a") and "e c" not in cell.ties
 
 
 def test_pareto_names_twins_in_name_order_whichever_timed_faster():
@@ -178,17 +182,17 @@ def test_pareto_names_twins_in_name_order_whichever_timed_faster():
         runs = _candidates([("mujoco", "implicitfast", 1e-9, implicit_cost, 5.0, 100.0),
                             ("mujoco", "euler", 1e-9, euler_cost, 5.0, 100.0),
                             ("pinocchio", "euler", 9e-10, 131.0, 5.0, 100.0)])  # tied too, another computation
-        cell = workprecision.pareto_table(runs, ["c"]).set_index("target").loc[1e-9]
+        cell = _any(workprecision.pareto_table(runs, ["c"])).set_index("target").loc[1e-9]
         assert (cell.engine, cell.integrator) == ("pinocchio", "euler")
-        cell = workprecision.pareto_table(runs[runs.engine == "mujoco"], ["c"]).set_index("target").loc[1e-9]
+        cell = _any(workprecision.pareto_table(runs[runs.engine == "mujoco"], ["c"])).set_index("target").loc[1e-9]
         assert (cell.engine, cell.integrator) == ("mujoco", "euler") and "mujoco implicitfast" in cell.ties
 
 
 def test_pareto_never_recommends_a_failed_integrator():
     runs = _candidates([("pinocchio", "bad", 1e-9, 50.0, 0.0, 200.0), ("pinocchio", "rk4", 1e-9, 100.0, 0.0, 400.0)])
-    table = workprecision.pareto_table(runs, ["c"], {("pinocchio", "", "bad")}).set_index("target")
+    table = _any(workprecision.pareto_table(runs, ["c"], {("pinocchio", "", "bad")})).set_index("target")
     assert table.loc[1e-9].integrator == "rk4" and "pinocchio bad" in table.loc[1e-9].not_recommended
-    only_bad = workprecision.pareto_table(runs[runs.integrator == "bad"], ["c"], {("*", "*", "bad")})
+    only_bad = _any(workprecision.pareto_table(runs[runs.integrator == "bad"], ["c"], {("*", "*", "bad")}))
     reached = only_bad.target >= 1e-9
     assert (only_bad.engine == "").all() and (only_bad.source[reached] == "only runs that failed a verdict").all()
     assert (only_bad.source[~reached] == "none reached it").all()

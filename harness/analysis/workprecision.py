@@ -195,41 +195,11 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
     tolerance-against-error figure (harness.report.build draws them)."""
     lines: list[str] = []
     pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source", "ties",
-                                                             "not_recommended"))
+                                                             "not_recommended", "scope"))
     if pareto_df is not None and len(pareto_df):
-        lines += ["## What to use", "",
-                  "Per case and accuracy target (max attitude error, rad, up to the case's horizon): the cheapest run "
-                  "that reaches it (pareto.csv), fixed-step (dt=) or adaptive: the sweep's runs (an adaptive one at "
-                  "its engine's default tolerance, 'default tol'), the dt ladders' points and the tolerance ladders' "
-                  "(tol=, the requested tolerance; pareto.csv `source` says which). The truth is no contender: it "
-                  "is what the errors are measured against. Cost in µs of stepping per simulated second. Timings are "
-                  "comparable within one report only; each run is timed alone (best of up to 3). '**tie** with N': "
-                  "N other runs cost the same within the timing noise (pareto.csv `ties`, the sum of their spreads, "
-                  f"at least {TIE_RTOL:.0%}); the one shown needs the fewest right-hand-side evaluations per simulated "
-                  "second (the cheapest where a tied run does not count them: heyoka's taylor; runs with the same "
-                  "evaluations and the same error in name order). A run whose "
-                  "integrator failed a verdict is never shown; a cheaper one is named as not recommended.", ""]
-        targets = sorted(pareto_df["target"].unique(), reverse=True)
-        header = ["case"] + [f"≤ {t:.0e}" for t in targets]
-        rows = []
-        for case, group in pareto_df.groupby("case", sort=False):
-            cells = [case]
-            for target in targets:
-                hit = group[group["target"] == target]
-                row = hit.iloc[0] if len(hit) else None
-                if row is None or not row["engine"]:
-                    cell = "-"
-                else:
-                    cell = f"{_name(row)} {setting(row)} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
-                    ties = row.get("ties", "")
-                    if isinstance(ties, str) and ties:
-                        cell += f" **tie** with {ties.count(';') + 1}"
-                failed_runs = row.get("not_recommended", "") if row is not None else ""
-                if isinstance(failed_runs, str) and failed_runs:
-                    cell += f" (cheaper, not recommended: {failed_runs.split(';')[0]}, failed a verdict)"
-                cells.append(cell)
-            rows.append(cells)
-        lines += _md(header, rows) + [""]
+        from ..report.what_to_use import what_to_use_lines
+
+        lines += what_to_use_lines(pareto_df)
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
     if convergence is not None and len(convergence):
         ladders = convergence[convergence["source"] == "ladder"]

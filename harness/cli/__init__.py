@@ -23,6 +23,7 @@ if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or sys.argv[0] == 
     signal.signal(signal.SIGINT, _interrupted_while_loading)
 
 import argparse  # noqa: E402  (after the handler, on purpose)
+import importlib  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import warnings  # noqa: E402
@@ -31,6 +32,8 @@ from pathlib import Path  # noqa: E402
 # The command's modules (numpy, the SDKs behind them) are imported by main() inside its Ctrl-C handling (_load), so an
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
 case_files = CaseError = engine_names = EngineError = None
+# Each command is the module of its name in this package, with main(args) -> int.
+COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "compare", "integrators")
 _commands: dict = {}
 
 DEFAULT_OUT = "out"
@@ -254,11 +257,9 @@ def _load() -> None:
     from .. import cases as case_files
     from ..cases import CaseError
     from ..engines import EngineError, engine_names
-    from . import baseline, cases, check, compare, export, integrators, report, run
-
-    _commands.update({"cases": cases.main, "run": run.main, "report": report.main, "baseline": baseline.main,
-                      "check": check.main, "export": export.main, "compare": compare.main,
-                      "integrators": integrators.main})
+    # Loaded by name (as asv loads its commands): this package never imports a command module itself, so each may
+    # import the helpers above from it.
+    _commands.update({name: importlib.import_module(f"{__name__}.{name}").main for name in COMMANDS})
 
 
 def main(argv: list[str] | None = None) -> int:

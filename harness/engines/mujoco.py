@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                                           diverged_trajectory, sample_good, samples_good)
 from stereodyn.harness.engines.base import Engine, precession_singular
@@ -66,7 +66,8 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 
 
 def _unsupported(case: Case) -> str | None:
-    return precession_singular(case)
+    # MuJoCo's compiler refuses a body that breaks the triangle inequality (balanceinertia would alter it silently)
+    return unphysical_inertia(case) or precession_singular(case)
 
 
 def torque_mode(case: Case) -> str:
@@ -443,6 +444,8 @@ class MujocoEngine(Engine):
 
     def export(self, case: Case, fmt: str, integrator: str | None, dt: float | None) -> str:
         """MJCF: the scene with an integrator (default rk4) and a timestep (default the case's first dt)."""
+        if unphysical_inertia(case):
+            raise ValueError(f"{case.name}: {unphysical_inertia(case)}")
         return mjcf(case, integrator or DEFAULT_MJCF_INTEGRATOR, case.dt[0] if dt is None else dt)
 
     def integrators(self) -> tuple[str, ...]:
