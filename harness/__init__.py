@@ -16,6 +16,7 @@ MOVED = {
     "compare": "analysis.compare",
     "fitting": "analysis.fitting",
     "gate": "analysis.gate",
+    "pareto": "analysis.pareto",  # (not in 0.2.0: for branches that began before the move)
     "summary": "analysis.summary",
     "verdicts": "analysis.verdicts",
     "workprecision": "analysis.workprecision",

@@ -294,7 +294,7 @@ def test_the_default_suites_summary_fits_in_80_lines():
     df = read_results(folder / "results.csv")
     lines = summary.terminal_lines(df, verdicts.read(folder) or [], folder, folder / "report.html")
     assert len(lines) <= 80  # 9 lines measured (17 before the formulations modelled the torques: 11 reasons)
-    from stereodyn.harness.pareto import scopes
+    from stereodyn.harness.analysis.pareto import scopes
 
     engines = scopes(pd.read_csv(folder / "pareto.csv"))  # none in a pareto.csv from before the scopes
     assert lines[-1].startswith("report: ") and sum("<= 1e-" in line for line in lines) == 3 * (1 + len(engines))

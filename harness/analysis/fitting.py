@@ -1,6 +1,6 @@
 """Work–precision fitting: the one order fitter (order_slope), the round-off floor and the order of a ladder's points
 (fit), the orders of a sweep's own dt lists and the tolerance proportionality of a tolerance ladder (tolerance_fit).
-The Pareto table is harness.pareto.
+The Pareto table is harness.analysis.pareto.
 
 - the round-off floor: walking from large to small dt among the points below ASYMPTOTIC_MAX, the first point after
   which the error falls with a local slope below FLOOR_SLOPE while it is below FLOOR_MAX (a stall higher up is not
@@ -25,9 +25,9 @@ from .. import checks
 from ..engines import EngineError, get_engine
 from ..trajectory import Status
 # The Pareto table has its own module; its names stay importable from here.
-from ..pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWEEP,  # noqa: F401
-                      SOURCE_TOLERANCE, TIE_RTOL, is_failed, pareto, pareto_candidates, pareto_table,
-                      run_name as _name, setting)
+from .pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWEEP,  # noqa: F401
+                     SOURCE_TOLERANCE, TIE_RTOL, is_failed, pareto, pareto_candidates, pareto_table,
+                     run_name as _name, setting)
 
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..report.markdown import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
+from .text import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
 
 # Accuracy targets (max attitude error, rad) of the terminal's "cheapest run" lines: three decades of pareto.csv's.
 TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)
@@ -25,7 +25,7 @@ def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
     scope reaches it, the run named most often, and the case whose cheapest run is dearest (the target's worst case);
     where no case is reached, why (pareto.csv's `source`)."""
     from . import workprecision
-    from ..pareto import ANY, scope_rows, scopes, setting
+    from .pareto import ANY, scope_rows, scopes, setting
 
     table = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
                                         ("formulation", "engine", "integrator", "scope", "source"))

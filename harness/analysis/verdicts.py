@@ -283,20 +283,3 @@ def summary_lines(verdicts: list[Verdict]) -> list[str]:
     lines = [f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED]} not measured"]
     lines += [f"verdict failed: {v.line}" for v in failed(verdicts)]
     return lines
-
-
-def report_lines(out_dir: Path) -> list[str]:
-    """The report's "Verdicts" section from DIR/verdicts.csv (empty without)."""
-    from ..report.markdown import markdown_table
-
-    verdicts = read(out_dir)
-    if verdicts is None:
-        return []
-    lines = ["## Verdicts", "", summary_lines(verdicts)[0] + ". Failed verdicts come first; each row states its rule.",
-             ""]
-    ordered = sorted(verdicts, key=lambda v: (v.status != FAIL, v.status != UNMEASURED))
-    if ordered:
-        rows = [[("**FAIL**" if v.status == FAIL else v.status), v.verdict, v.subject, v.detail, v.rule]
-                for v in ordered]
-        lines += markdown_table(["status", "verdict", "subject", "finding", "rule"], rows) + [""]
-    return lines

@@ -2,9 +2,8 @@
 from __future__ import annotations
 
 
-
 def main(args) -> int:
-    from ..analysis.compare import compare
+    from ..report.compare import compare
 
     markdown, html, head = compare(args.a, args.b, args.out)
     print("\n".join(head))

@@ -1,15 +1,15 @@
 """The drift table in the terminal and report.md."""
 from __future__ import annotations
 
-import math
-import re
 import textwrap
 from typing import Sequence
 
 import numpy as np
 import pandas as pd
 
+from ..analysis.text import grouped_reasons, number, reason  # noqa: F401 (number, reason: part of this API)
 from ..environment import environment
+from . import sections
 
 from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS
 
@@ -114,15 +114,6 @@ def drift_table_text(df: pd.DataFrame) -> str:
     return "\n".join(out)
 
 
-def number(value, spec: str = ".2e") -> str:
-    """A table cell for a number: '-' for NaN, the text itself for a non-number."""
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    return "-" if math.isnan(value) else format(value, spec)
-
-
 def markdown_table(header: list[str], rows: list[list]) -> list[str]:
     """The lines of a Markdown table."""
     # A bar inside a cell (a message about |omega|, say) would end the cell: escape it.
@@ -138,35 +129,6 @@ def _markdown_table(cells: list[list[str]]) -> str:
 PROBLEMS = "Runs that did not complete"
 # Runs named per reason in "Runs that did not complete" (the CSV files hold every row).
 REASON_EXAMPLES = 3
-
-
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-
-
-def reason(message) -> str:
-    """A message with its numbers replaced by '…', so runs that stopped for the same reason share it."""
-    text = message if isinstance(message, str) else ""
-    return _NUMBER.sub("…", text).strip() or "(no message)"
-
-
-def _subject(row) -> str:
-    formulation = row.get("formulation", "")
-    formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
-    dt = row.get("dt")
-    dt = f" dt={dt:g}" if isinstance(dt, float) and np.isfinite(dt) else ""
-    return f"{row['case']} {row['engine']}{formulation} {row['integrator']}{dt}"
-
-
-def grouped_reasons(df: pd.DataFrame, statuses=("failed", "diverged", "skipped")) -> list[dict]:
-    """Runs that did not complete, one entry per (status, reason): count and the runs, most frequent first
-    (failures before divergences before skips on a tie)."""
-    rank = {s: i for i, s in enumerate(statuses)}
-    rows = df[df["status"].isin(statuses)]
-    groups: dict[tuple[str, str], list[str]] = {}
-    for _, row in rows.iterrows():
-        groups.setdefault((row["status"], reason(row.get("message"))), []).append(_subject(row))
-    entries = [{"status": s, "reason": r, "count": len(runs), "runs": runs} for (s, r), runs in groups.items()]
-    return sorted(entries, key=lambda e: (rank[e["status"]], -e["count"], e["reason"]))
 
 
 def problem_lines(df: pd.DataFrame) -> list[str]:
@@ -208,29 +170,43 @@ def case_lines(case: str, group: pd.DataFrame, extras: Sequence[str] = ()) -> li
     return lines + list(extras)
 
 
-def report_markdown(df: pd.DataFrame, summary: Sequence[str] = (), sections: Sequence[str] = (),
-                    env: dict[str, str] | None = None, verdicts: Sequence[str] = (), front: Sequence[str] = (),
-                    case_extras: dict[str, list[str]] | None = None) -> str:
-    """report.md, answers first: verdicts, summary, `front` (what to use, convergence, each integrator), the runs that
-    did not complete (grouped), formulations side by side, then a section per case (drift table and
-    case_extras[case], its figures), then `sections` (checks), definitions and the environment."""
-    counts = df["status"].value_counts()
-    lines = ["# stereodyn report", "", *verdicts, "## Summary", "",
-             f"{len(df)} runs over {df['case'].nunique()} cases: "
-             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "", *summary]
-    lines += [*front, *problem_lines(df), *formulation_lines(df)]
-    lines += ["## Cases", "",
-              "Per case: the drift table (DESIGN §4; every column in results.csv), the work–precision figure (max "
-              "attitude error against µs of stepping per simulated second, a panel per engine and formulation, "
-              "each integrator's points joined along dt, the dt ladder's included) and the invariants against time "
-              "(energy, momentum and the case's special integral, relative to their scale, and the attitude error: "
-              "the maximum over buckets of samples).", ""]
-    extras = case_extras or {}
-    for case, group in df.groupby("case", sort=False):
-        lines += case_lines(case, group, extras.get(case, ()))
-    lines += [*sections, "## Definitions", "", DEFINITIONS, "", "## Environment", ""]
-    lines += [f"- {key}: {value}" for key, value in (env or environment()).items()]
-    return "\n".join(lines) + "\n"
+@sections.register("title", 0)
+def _title(context: sections.Context) -> list[str]:
+    return ["# stereodyn report", ""]
+
+
+@sections.register("runs-that-did-not-complete", 50)
+def _problems(context: sections.Context) -> list[str]:
+    return problem_lines(context.results)
+
+
+@sections.register("formulations-side-by-side", 60)
+def _formulations(context: sections.Context) -> list[str]:
+    return formulation_lines(context.results)
+
+
+@sections.register("cases", 70)
+def cases_lines(context: sections.Context) -> list[str]:
+    """A section per case: its drift table, its divergences and its figures."""
+    lines = ["## Cases", "",
+             "Per case: the drift table (DESIGN §4; every column in results.csv), the work–precision figure (max "
+             "attitude error against µs of stepping per simulated second, a panel per engine and formulation, "
+             "each integrator's points joined along dt, the dt ladder's included) and the invariants against time "
+             "(energy, momentum and the case's special integral, relative to their scale, and the attitude error: "
+             "the maximum over buckets of samples).", ""]
+    for case, group in context.results.groupby("case", sort=False):
+        lines += case_lines(case, group, context.case_figures.get(case, ()))
+    return lines
+
+
+@sections.register("definitions", 90)
+def _definitions_section(context: sections.Context) -> list[str]:
+    return ["## Definitions", "", DEFINITIONS, ""]
+
+
+@sections.register("environment", 100)
+def _environment(context: sections.Context) -> list[str]:
+    return ["## Environment", "", *(f"- {key}: {value}" for key, value in (context.env or environment()).items())]
 
 
 FORMULATION_COLUMNS = ("formulation", "integrator", "dt", "status", "chart_changes", "energy_drift", "attitude_err",

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from . import sections
 from .markdown import markdown_table, number
 
 # Accuracy targets (max attitude error, rad) of the cost comparison.
@@ -178,3 +179,8 @@ def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | No
         rows.append([name, row.get("origin", "?"), _text(declared), orders, stable, floor, trend,
                      *[costs[t] for t in COST_TARGETS]])
     return lines + markdown_table(header, rows) + [""]
+
+
+@sections.register("each-integrator", 40)
+def _each_integrator(context: sections.Context) -> list[str]:
+    return method_lines(context.results, context.out_dir, context.series)
