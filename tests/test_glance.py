@@ -168,6 +168,11 @@ def test_energy_trend_is_measured():
     trend, growth = energy_trend({("c", "e", "", "b", "0.01"): secular}, "b")
     assert trend == "secular" and growth == pytest.approx(2.0, rel=0.05)  # max over [0, 1] against over [0, 1/2]
     assert energy_trend({("c", "e", "", "b", ""): secular}, "b")[0] == "not measured"  # adaptive runs are not
+    # round-off that grows with the steps is no trend (issue 21 item 4): moser_veselov's energy error on a free body
+    # reaches 3.9e-13 after 5e4 steps (measured; harness.testing.energy_noise), 500 s at dt 1e-2
+    long = {"t": list(np.linspace(0, 500, 100)), "energy": list(3.9e-13 * np.linspace(0.01, 1, 100))}
+    assert energy_trend({("c", "e", "", "m", "0.01"): long}, "m")[0] == "bounded"
+    assert energy_trend({("c", "e", "", "m", "0.01"): {**long, "t": t}}, "m")[0] == "secular"  # 1000 steps: a drift
 
 
 def test_compare_names_the_environment_first_then_the_changed_row(ran, tmp_path):
@@ -198,6 +203,24 @@ def test_compare_names_the_environment_first_then_the_changed_row(ran, tmp_path)
     assert _main(["baseline", str(a), "--out", str(tmp_path / "base.json")])[0] == 0
     code, stdout, _ = _main(["compare", str(tmp_path / "base.json"), str(b), "--out", str(tmp_path / "c")])
     assert code == 0 and "attitude_err x10" in stdout and (tmp_path / "c" / "compare.md").is_file()
+
+
+def test_compare_counts_an_improvement_as_a_change(ran, tmp_path):
+    """A change is |log10 B/A|: a run ten times better in B is "changed 10x or more" (ratio 0.1), as a worsening is."""
+    out, _, _ = ran
+    a, b = tmp_path / "a", tmp_path / "b"
+    shutil.copytree(out, a)
+    shutil.copytree(out, b)
+    results = pd.read_csv(b / "results.csv", dtype={"formulation": str})
+    better = (results["engine"] == "pinocchio") & (results["integrator"] == "rk4") & (results["dt"] == 1e-2) & (
+        results["case"] == "lagrange-top")
+    assert better.sum() == 1
+    results.loc[better, "attitude_err"] /= 10
+    results.to_csv(b / "results.csv", index=False, float_format="%.17g")
+    code, stdout, _ = _main(["compare", str(a), str(b)])
+    assert code == 0
+    assert "1 rows changed 10x or more; first: lagrange-top pinocchio rk4 dt=0.01 (attitude_err x0.1)" in stdout
+    assert "### changed 10x or more (1 rows)" in (b / "compare.md").read_text()
 
 
 @pytest.mark.parametrize("argv, message", [

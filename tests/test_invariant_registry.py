@@ -7,10 +7,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, metrics
-from stereodyn.harness.cases import load_suite
+from stereodyn.harness import cli
+from stereodyn.harness.scenes import metrics
+from stereodyn.harness.scenes.cases import load_suite
 from stereodyn.harness.report import figures, html, markdown
-from stereodyn.harness.results import COLUMNS
+from stereodyn.harness.run.results import COLUMNS
 from stereodyn.harness.trajectory import Trajectory
 from stereodyn.reference.integrals import DRIFT_COLUMNS, INTEGRALS
 

@@ -1,7 +1,7 @@
 """Work–precision: the phase of `stereodyn run` after the sweep (its report sections: harness.report.workprecision).
 
-Measuring is harness.dt_ladders (dt ladders, stability bisection) and harness.tolerance_ladders (adaptive methods
-against the requested tolerance), fitting harness.fitting (orders, round-off floors, tolerance proportionality, the
+Measuring is harness.run.dt_ladders (dt ladders, stability bisection) and harness.run.tolerance_ladders (adaptive
+methods against the requested tolerance), fitting harness.analysis.fitting (orders, round-off floors, tolerance proportionality, the
 Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results (tables only).
 
 Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, per short ladder, and per
@@ -18,14 +18,14 @@ from typing import Callable
 
 import pandas as pd
 
-from .. import checks
-from ..cases import Case
-from .. import tolerance_ladders
-from ..dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
+from ..scenes import checks
+from ..scenes.cases import Case
+from ..run import tolerance_ladders
+from ..run.dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
 from ..engines import get_engine
 from .fitting import (ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto, pareto_table,
                       sweep_orders, tolerance_fits, with_state_err)
-from ..results import write_atomic
+from ..run.results import write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -73,7 +73,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
-    """The families that get a short ladder (harness.dt_ladders.run_short_ladder), each with its sweep runs and its
+    """The families that get a short ladder (harness.run.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
@@ -117,7 +117,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
     DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
     no order) or "off". Writes ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and appends
-    the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.runner.worker_pool)
+    the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.run.sweep.worker_pool)
     the ladders run on; None runs them here."""
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained

@@ -15,11 +15,14 @@ def _interrupted_while_loading(signum, frame) -> None:
     os._exit(130)
 
 
-# Started as the command (the `stereodyn` script, python -m stereodyn or python -m stereodyn.harness.cli, while which
-# this package loads with argv[0] "-m"), Ctrl-C while the modules below load ends in one line; main() puts Python's
-# handler back once they are in. Imported as a library: untouched.
+# Started as the command (the `stereodyn` script, python -m stereodyn, or python -m stereodyn.harness.cli: while
+# locating that, Python loads this package with argv[0] "-m"), Ctrl-C while the modules below
+# load ends in one line; main() then puts the command's handler (run/processes.py: on_interrupt). Imported as a
+# library: untouched.
+# A pool worker (which imports this module as its __main__'s) ignores Ctrl-C: harness/run/processes.py.
 if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or sys.argv[0] == "-m"
-                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))):
+                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))) \
+        and not __import__("stereodyn.harness.run.processes").harness.run.processes.is_worker():
     signal.signal(signal.SIGINT, _interrupted_while_loading)
 
 import argparse  # noqa: E402  (after the handler, on purpose)
@@ -198,33 +201,6 @@ def _override(case, args):
                                                                 "") + f": {exc.rule}") from None
 
 
-def check_names(args) -> None:
-    from ..engines import UnavailableEngine, get_engine
-
-    unknown = [e for e in args.engines if e not in engine_names()]
-    if unknown:
-        raise BadInput(f"--engines: unknown engine {', '.join(unknown)}; valid: {', '.join(engine_names())}")
-    if args.integrators:
-        engines = [get_engine(e) for e in args.engines]
-        known = {i for engine in engines for i in engine.integrators()}
-        missing = [i for i in args.integrators if i not in known]
-        # an engine whose SDK is missing lists no integrators: a name may be its, so the message says how to get it
-        absent = [e.reason for e in engines if isinstance(e, UnavailableEngine)]
-        if missing:
-            raise BadInput(f"--integrators: unknown integrator {', '.join(missing)} for engines "
-                           f"{','.join(args.engines)}; valid: {', '.join(sorted(known))}"
-                           + (f" (not installed: {'; '.join(absent)})" if absent else ""))
-    if getattr(args, "dt_ladder", False) and args.no_ladder:
-        raise BadInput("--dt-ladder and --no-ladder: give at most one")
-    if getattr(args, "ladder_max_steps", None) is not None:
-        from ..analysis import workprecision
-
-        if args.ladder_max_steps < 2 * workprecision.MIN_STEPS:  # checked before the sweep, not after it
-            raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}, got {args.ladder_max_steps}")
-        if args.ladder_max_steps > case_files.MAX_STEPS:
-            raise BadInput(f"--ladder-max-steps: must be <= {case_files.MAX_STEPS}, got {args.ladder_max_steps}")
-
-
 def output_folder(path: Path, option: str) -> Path:
     """Create the output folder (and its store/) and prove it writable, or one line naming the option."""
     try:
@@ -252,10 +228,37 @@ def output_file(path: Path, option: str) -> Path:
     return path
 
 
+def check_names(args) -> None:
+    from ..engines import UnavailableEngine, get_engine
+
+    unknown = [e for e in args.engines if e not in engine_names()]
+    if unknown:
+        raise BadInput(f"--engines: unknown engine {', '.join(unknown)}; valid: {', '.join(engine_names())}")
+    if args.integrators:
+        engines = [get_engine(e) for e in args.engines]
+        known = {i for engine in engines for i in engine.integrators()}
+        missing = [i for i in args.integrators if i not in known]
+        # an engine whose SDK is missing lists no integrators: a name may be its, so the message says how to get it
+        absent = [e.reason for e in engines if isinstance(e, UnavailableEngine)]
+        if missing:
+            raise BadInput(f"--integrators: unknown integrator {', '.join(missing)} for engines "
+                           f"{','.join(args.engines)}; valid: {', '.join(sorted(known))}"
+                           + (f" (not installed: {'; '.join(absent)})" if absent else ""))
+    if getattr(args, "dt_ladder", False) and args.no_ladder:
+        raise BadInput("--dt-ladder and --no-ladder: give at most one")
+    if getattr(args, "ladder_max_steps", None) is not None:
+        from ..analysis import workprecision
+
+        if args.ladder_max_steps < 2 * workprecision.MIN_STEPS:  # checked before the sweep, not after it
+            raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}, got {args.ladder_max_steps}")
+        if args.ladder_max_steps > case_files.MAX_STEPS:
+            raise BadInput(f"--ladder-max-steps: must be <= {case_files.MAX_STEPS}, got {args.ladder_max_steps}")
+
+
 def _load() -> None:
     global case_files, CaseError, engine_names, EngineError
-    from .. import cases as case_files
-    from ..cases import CaseError
+    from ..scenes import cases as case_files
+    from ..scenes.cases import CaseError
     from ..engines import EngineError, engine_names
     # Loaded by name (as asv loads its commands): this package never imports a command module itself, so each may
     # import the helpers above from it.
@@ -272,31 +275,42 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _load()
         from ..analysis.gate import GateError
-        from ..distributed import ClusterError
+        from ..run.distributed import ClusterError
         from ..export import ExportError
-        from ..store import StoreBusy
-        from ..results import TableError
+        from ..run.store import StoreBusy
+        from ..run.results import TableError
         from ..analysis.compare import CompareError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
-    if signal.getsignal(signal.SIGINT) is _interrupted_while_loading:
-        signal.signal(signal.SIGINT, signal.default_int_handler)  # loaded: KeyboardInterrupt, handled below
+    from ..run import processes
+
+    processes.forget_interrupts()
+    if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
+        signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
     try:
         args = _parser().parse_args(argv)
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
     try:
-        return _commands[args.command](args)
+        code = _commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
             CompareError) as exc:
-        print(f"stereodyn: error: {exc}", file=sys.stderr)
-        return 2
+        code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"stereodyn: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
+        code = _error(f"{where}{exc.strerror or exc}")
     except KeyboardInterrupt:
+        code = 130
+    if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
+    return code
+
+
+def _error(message: str) -> int:
+    """Bad input: one line on stderr (a newline or other control character in a name or path is escaped), exit 2."""
+    line = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in message)
+    print(f"stereodyn: error: {line}", file=sys.stderr)
+    return 2

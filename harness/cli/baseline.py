@@ -6,7 +6,7 @@ from . import output_file
 
 def main(args) -> int:
     from ..analysis import gate
-    from ..store import read_manifest
+    from ..run.store import read_manifest
 
     output_file(args.out, "--out")
     manifest = read_manifest(args.dir) or {}

@@ -1,6 +1,6 @@
 """`stereodyn cases`: list the suite's cases with their tags."""
 from __future__ import annotations
-from .. import cases as case_files
+from ..scenes import cases as case_files
 
 
 

@@ -26,7 +26,7 @@ def main(args) -> int:
             per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
     if args.time_factor is not None:
         tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
-    from ..store import read_manifest
+    from ..run.store import read_manifest
 
     base = gate.read_baseline_file(args.baseline)
     baseline = base.rows

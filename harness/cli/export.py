@@ -4,12 +4,12 @@ from __future__ import annotations
 import sys
 
 from . import output_file
-from .. import cases as case_files
+from ..scenes import cases as case_files
 
 
 def main(args) -> int:
     from ..export import export
-    from ..results import write_atomic
+    from ..run.results import write_atomic
 
     if args.out is not None:
         output_file(args.out, "--out")

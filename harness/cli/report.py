@@ -7,8 +7,8 @@ from . import BadInput, output_folder
 def main(args) -> int:
     from ..report.build import write_reports
 
-    from ..results import TableError
-    from ..store import folder_lock
+    from ..run.results import TableError
+    from ..run.store import folder_lock
 
     results = args.dir / "results.csv"
     if not results.is_file():

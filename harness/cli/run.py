@@ -9,13 +9,13 @@ from . import BadInput, check_names, output_folder, select_cases
 
 
 def main(args) -> int:
-    from ..progress import ProgressBar
+    from ..run.progress import ProgressBar
     from ..report.build import write_reports
     from ..report.markdown import drift_table_text
     from ..analysis import summary, verdicts, workprecision
-    from ..runner import run_sweep, worker_pool
+    from ..run.sweep import run_sweep, worker_pool
 
-    from ..store import folder_lock
+    from ..run.store import folder_lock
 
     check_names(args)
     if args.certify and args.no_certify:

@@ -10,7 +10,7 @@ every RK4 stage included, with that stage's qpos, qvel and time. Refreshing qfrc
 instead would hold the torque through the stages and make RK4 first order (tests/test_torques.py shows it). Torqued
 scenes are stepped from Python with mj_step (the callback is process-global: set for the run, restored after).
 
-The sliding ladder (harness.sliding_ladder) is built here too, as planar rods: sliding_ladder_simulation().
+The sliding ladder (harness.scenes.sliding_ladder) is built here too, as planar rods: sliding_ladder_simulation().
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from stereodyn.harness.cases import Case, unphysical_inertia
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                                           diverged_trajectory, sample_good, samples_good)
 from stereodyn.harness.engines.base import Engine, precession_singular
@@ -106,11 +106,12 @@ def mjcf(case: Case, integrator: str, dt: float) -> str:
     reason = _runtime_torques(case)
     if reason:
         raise ValueError(f"{case.name}: {reason}")
-    return _scene(case, integrator, dt)
+    return scene(case, integrator, dt)
 
 
-def _scene(case: Case, integrator: str, dt: float) -> str:
-    """mjcf() without the export's refusal of run-time torques."""
+def scene(case: Case, integrator: str, dt: float, model_name: str | None = None) -> str:
+    """mjcf() without the export's refusal of run-time torques (the MJX and MuJoCo Warp adapters build on it).
+    model_name: the model's name (default the case's)."""
     if integrator not in INTEGRATORS:
         raise KeyError(f"unknown MuJoCo integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
     body = case.body
@@ -122,7 +123,7 @@ def _scene(case: Case, integrator: str, dt: float) -> str:
                          f"(principal moments {moments})")
     gravity = body.gravity * np.asarray(body.gravity_direction, dtype=float)
     full_inertia = (inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2])
-    return f"""<mujoco model={quoteattr(case.name)}>
+    return f"""<mujoco model={quoteattr(case.name if model_name is None else model_name)}>
   <option timestep="{float(dt)!r}" gravity="{_numbers(gravity)}" integrator="{INTEGRATORS[integrator][0]}">
     <flag contact="disable" constraint="disable" equality="disable" frictionloss="disable" limit="disable"
           damper="disable" autoreset="disable"/>
@@ -141,7 +142,7 @@ class MujocoSimulation:
     """A compiled scene; run() rolls it out from the case's initial state (every call starts afresh)."""
 
     def __init__(self, case: Case, integrator: str, dt: float):
-        self.xml = _scene(case, integrator, dt)
+        self.xml = scene(case, integrator, dt)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
         self.stages = INTEGRATORS[integrator][1]
@@ -264,7 +265,8 @@ class TorqueSimulation(MujocoSimulation):
         return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, self.stages * grid.steps)
 
 
-# The sliding ladder (harness.sliding_ladder, FORMULARY T5). Soft constraints and contacts relax on this time constant (s):
+# The sliding ladder (harness.scenes.sliding_ladder, FORMULARY T5). Soft constraints and contacts relax on this
+# time constant (s):
 # the smallest MuJoCo keeps stable at the suite's steps (it clamps solref's time constant to >= 2 dt), so the
 # constraint violation it leaves is as small as MuJoCo allows.
 LADDER_SOLREF = 2e-3
@@ -425,6 +427,10 @@ class LadderSimulation:
 # Declared orders of MuJoCo's integrators (ENGINES.md: its Euler is semi-implicit, implicit/implicitfast are first
 # order, RK4 on a ball joint is RKMK, 4th order in MuJoCo 4).
 ORDERS = {"euler": 1, "implicit": 1, "implicitfast": 1, "rk4": 4}
+# What each integrator is (harness.engines.methods): Euler updates the velocity first; implicitfast on a ball joint is
+# the same update (its gyroscopic treatment is for free bodies: bit-identical here, ENGINES.md); implicit is MuJoCo's
+# own.
+METHODS = {"euler": "semi_implicit_euler", "implicitfast": "semi_implicit_euler", "rk4": "rk4"}
 DEFAULT_MJCF_INTEGRATOR = "rk4"
 
 
@@ -438,6 +444,9 @@ class MujocoEngine(Engine):
 
     def declared_order(self, integrator: str) -> float:
         return float(ORDERS.get(integrator, math.nan))
+
+    def method(self, integrator: str) -> str:
+        return METHODS.get(integrator, "")
 
     def torque_mode(self, case: Case) -> str:
         return torque_mode(case)
@@ -463,7 +472,7 @@ class MujocoEngine(Engine):
         return MujocoSimulation(case, integrator, dt)
 
     def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.sliding_ladder): rows name them in the formulation column."""
+        """The sliding ladder's models (harness.scenes.sliding_ladder): rows name them in the formulation column."""
         return LADDER_MODELS
 
     def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float) -> LadderSimulation:

@@ -1,7 +1,7 @@
 """The report of an output folder: report.md, the figures it shows (DIR/figures/*.png), and report.html.
 
 Sources, all in the folder: results.csv (the table), runs.json and store/ (the sweep's environment and each run's
-invariant series, harness.store), checks.csv when some check wrote it (DESIGN §4).
+invariant series, harness.run.store), checks.csv when some check wrote it (DESIGN §4).
 """
 from __future__ import annotations
 
@@ -16,16 +16,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import checks as theory_checks
+from ..scenes import checks as theory_checks
 from ..analysis import workprecision
 from . import figures, html
 from . import sections
 # the modules whose sections the page shows besides this one's and markdown's (each registers its own)
 from . import method, verdicts, workprecision as work_precision_sections  # noqa: F401
 from .markdown import markdown_table as _md_table, number as _num
-from ..processes import exit_with_parent
-from ..results import read_results, write_atomic
-from ..store import read_manifest, read_records
+from ..run.processes import exit_with_parent
+from ..run.results import read_results, write_atomic
+from ..run.store import read_manifest, read_records
 
 FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")

@@ -5,12 +5,12 @@ import math
 
 import numpy as np
 
-from stereodyn.harness.cases import Case
-from stereodyn.harness.trajectory import Trajectory
-from stereodyn.reference import torques
+from .cases import Case
+from ..trajectory import Trajectory
+from ...reference import torques
 # DRIFT_COLUMNS: the registry's (reference.integrals), re-exported where the results table's columns are listed
-from stereodyn.reference.integrals import DRIFT_COLUMNS, INTEGRALS, applicable, drift  # noqa: F401
-from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
+from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS, applicable, drift  # noqa: F401
+from ...reference.rotations import attitude_angle, quat_to_matrix
 
 ERROR_COLUMNS = ("attitude_err", "attitude_err_end", "omega_err")
 
