@@ -4,9 +4,8 @@ test_import_cycles reads it): analysis never renders (imports nothing from repor
 from test_import_cycles import graph
 
 LAYERS = ("reference", "harness", "analysis", "report", "cli")
-# stereodyn.harness.testing keeps its 0.2.0 path (plug-ins import it) but measures and fits: the analysis layer; so do
-# the dt and tolerance ladders (they fit orders to choose their points) until they move into analysis/.
-ANALYSIS_ELSEWHERE = ("stereodyn.harness.testing", "stereodyn.harness.dt_ladders", "stereodyn.harness.tolerance_ladders")
+# stereodyn.harness.testing keeps its 0.2.0 path (plug-ins import it) but measures and fits: the analysis layer.
+ANALYSIS_ELSEWHERE = ("stereodyn.harness.testing",)
 
 
 def layer(module: str) -> str | None:

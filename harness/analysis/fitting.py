@@ -142,7 +142,7 @@ def reason(marked: pd.DataFrame) -> str:
 
 
 # The kinds of reason a convergence row's note gives, by the words that start them (the report counts families by
-# these): fit() and harness.run.dt_ladders write them.
+# these): fit() and harness.analysis.dt_ladders write them.
 NOTE_GROUPS = (
     (SUPERCONVERGENT, SUPERCONVERGENT),
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),

@@ -1,6 +1,6 @@
 """Work–precision: the phase of `stereodyn run` after the sweep (its report sections: harness.report.workprecision).
 
-Measuring is harness.run.dt_ladders (dt ladders, stability bisection) and harness.run.tolerance_ladders (adaptive
+Measuring is harness.analysis.dt_ladders (dt ladders, stability bisection) and harness.analysis.tolerance_ladders (adaptive
 methods against the requested tolerance), fitting harness.analysis.fitting (orders, round-off floors, tolerance proportionality, the
 Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results (tables only).
 
@@ -20,8 +20,8 @@ import pandas as pd
 
 from ..scenes import checks
 from ..scenes.cases import Case
-from ..run import tolerance_ladders
-from ..run.dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
+from . import tolerance_ladders
+from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
 from ..engines import get_engine
 from .fitting import (ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto, pareto_table,
                       sweep_orders, tolerance_fits, with_state_err)
@@ -73,7 +73,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
-    """The families that get a short ladder (harness.run.dt_ladders.run_short_ladder), each with its sweep runs and its
+    """The families that get a short ladder (harness.analysis.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""

@@ -89,7 +89,7 @@ class Engine:
         or not passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine
         says otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
         absolute tolerance (scipy: rtol = atol = tol; heyoka: tol; Drake: set_target_accuracy(tol)). The tolerance
-        ladders (harness.run.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
+        ladders (harness.analysis.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
         adaptive run's Trajectory fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0
         where the method has them.
         """

@@ -33,12 +33,12 @@ import numpy as np
 import pandas as pd
 
 from ..scenes import metrics
-from ..analysis import fitting
+from . import fitting
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..engines import get_engine
-from ..analysis.fitting import declared_order, fit
+from .fitting import declared_order, fit
 from ..grid import time_grid
-from . import timing
+from ..run import timing
 from ..trajectory import Status
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
@@ -60,7 +60,7 @@ SHORT_POINTS, SHORT_TARGET = 6, 3
 @dataclass(frozen=True)
 class Family:
     """Runs of one case x engine x formulation x integrator, which differ only in dt (a dt ladder) or in the
-    requested tolerance (a tolerance ladder, harness.run.tolerance_ladders)."""
+    requested tolerance (a tolerance ladder, harness.analysis.tolerance_ladders)."""
 
     case: Case
     engine: str
@@ -282,7 +282,7 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
              formulations: tuple[str, ...] | None = None) -> list[Family]:
     """The fixed-step run families a sweep of these cases would have (harness.run.plan.plan's selection)."""
-    from .plan import plan
+    from ..run.plan import plan
 
     specs, _ = plan(cases, engines, integrators)
     out = {}
