@@ -167,6 +167,11 @@ def test_energy_trend_is_measured():
     trend, growth = energy_trend({("c", "e", "", "b", "0.01"): secular}, "b")
     assert trend == "secular" and growth == pytest.approx(2.0, rel=0.05)  # max over [0, 1] against over [0, 1/2]
     assert energy_trend({("c", "e", "", "b", ""): secular}, "b")[0] == "not measured"  # adaptive runs are not
+    # round-off that grows with the steps is no trend (issue 21 item 4): moser_veselov's energy error on a free body
+    # reaches 3.9e-13 after 5e4 steps (measured; harness.testing.energy_noise), 500 s at dt 1e-2
+    long = {"t": list(np.linspace(0, 500, 100)), "energy": list(3.9e-13 * np.linspace(0.01, 1, 100))}
+    assert energy_trend({("c", "e", "", "m", "0.01"): long}, "m")[0] == "bounded"
+    assert energy_trend({("c", "e", "", "m", "0.01"): {**long, "t": t}}, "m")[0] == "secular"  # 1000 steps: a drift
 
 
 def test_compare_names_the_environment_first_then_the_changed_row(ran, tmp_path):

@@ -16,11 +16,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import advising, cases as case_files, runner, workprecision
-from stereodyn.harness import tolerance_ladders
-from stereodyn.harness.dt_ladders import families
+from stereodyn.harness import workprecision
 from stereodyn.harness.fitting import tolerance_fits
-from stereodyn.harness.results import read_results
+from stereodyn.harness.run import advice as advising, sweep as runner
+from stereodyn.harness.run.dt_ladders import families
+from stereodyn.harness.run.results import read_results
+from stereodyn.harness.scenes import cases as case_files
 
 
 def main() -> None:

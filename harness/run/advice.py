@@ -12,8 +12,8 @@ from typing import Callable
 
 import pandas as pd
 
-from stereodyn.harness import dt_ladders, tolerance_ladders
-from stereodyn.harness.dt_ladders import MIN_STEPS, Family
+from stereodyn.harness.run import dt_ladders, tolerance_ladders
+from stereodyn.harness.run.dt_ladders import MIN_STEPS, Family
 from stereodyn.harness.step_advice import ADVICE_COLUMNS, error_model, rounded, search
 from stereodyn.harness.trajectory import Status
 
