@@ -13,11 +13,12 @@ def _interrupted_while_loading(signum, frame) -> None:
 
 
 # Started as the command (the `stereodyn` script, python -m stereodyn or this file), Ctrl-C while the modules below
-# load ends in one line; main() puts Python's handler back once they are in. Imported as a library: untouched.
-# A pool worker (which imports this module as its __main__'s) ignores Ctrl-C: harness.processes.
+# load ends in one line; main() then puts the command's handler (run/processes.py: on_interrupt). Imported as a
+# library: untouched.
+# A pool worker (which imports this module as its __main__'s) ignores Ctrl-C: harness/run/processes.py.
 if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or __name__ == "__main__"
                  or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))) \
-        and not __import__("stereodyn.harness.processes").harness.processes.is_worker():
+        and not __import__("stereodyn.harness.run.processes").harness.run.processes.is_worker():
     signal.signal(signal.SIGINT, _interrupted_while_loading)
 
 import argparse  # noqa: E402  (after the handler, on purpose)
@@ -254,13 +255,13 @@ def cmd_cases(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from stereodyn.harness.progress import ProgressBar
+    from stereodyn.harness.run.progress import ProgressBar
     from stereodyn.harness.report.build import write_reports
     from stereodyn.harness.report.markdown import drift_table_text
     from stereodyn.harness import summary, verdicts, workprecision
-    from stereodyn.harness.runner import run_sweep, worker_pool
+    from stereodyn.harness.run.sweep import run_sweep, worker_pool
 
-    from stereodyn.harness.store import folder_lock
+    from stereodyn.harness.run.store import folder_lock
 
     _check_names(args)
     if args.certify and args.no_certify:
@@ -321,8 +322,8 @@ def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
 def cmd_report(args) -> int:
     from stereodyn.harness.report.build import write_reports
 
-    from stereodyn.harness.results import TableError
-    from stereodyn.harness.store import folder_lock
+    from stereodyn.harness.run.results import TableError
+    from stereodyn.harness.run.store import folder_lock
 
     results = args.dir / "results.csv"
     if not results.is_file():
@@ -343,7 +344,7 @@ def cmd_report(args) -> int:
 
 def cmd_baseline(args) -> int:
     from stereodyn.harness import gate
-    from stereodyn.harness.store import read_manifest
+    from stereodyn.harness.run.store import read_manifest
 
     _output_file(args.out, "--out")
     manifest = read_manifest(args.dir) or {}
@@ -372,7 +373,7 @@ def cmd_check(args) -> int:
             per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
     if args.time_factor is not None:
         tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
-    from stereodyn.harness.store import read_manifest
+    from stereodyn.harness.run.store import read_manifest
 
     base = gate.read_baseline_file(args.baseline)
     baseline = base.rows
@@ -426,7 +427,7 @@ def cmd_integrators(args) -> int:
 
 def cmd_export(args) -> int:
     from stereodyn.harness.export import export
-    from stereodyn.harness.results import write_atomic
+    from stereodyn.harness.run.results import write_atomic
 
     if args.out is not None:
         _output_file(args.out, "--out")
@@ -441,8 +442,8 @@ def cmd_export(args) -> int:
 
 def _load() -> None:
     global case_files, CaseError, engine_names, EngineError
-    from stereodyn.harness import cases as case_files
-    from stereodyn.harness.cases import CaseError
+    from stereodyn.harness.scenes import cases as case_files
+    from stereodyn.harness.scenes.cases import CaseError
     from stereodyn.harness.engines import EngineError, engine_names
 
 
@@ -456,15 +457,15 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _load()
         from stereodyn.harness.gate import GateError
-        from stereodyn.harness.distributed import ClusterError
+        from stereodyn.harness.run.distributed import ClusterError
         from stereodyn.harness.export import ExportError
-        from stereodyn.harness.store import StoreBusy
-        from stereodyn.harness.results import TableError
+        from stereodyn.harness.run.store import StoreBusy
+        from stereodyn.harness.run.results import TableError
         from stereodyn.harness.compare import CompareError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
-    from stereodyn.harness import processes
+    from stereodyn.harness.run import processes
 
     processes.forget_interrupts()
     if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):

@@ -1,6 +1,6 @@
 """Work–precision fitting: the one order fitter (order_slope), the round-off floor and the order of a ladder's points
-(fit), the orders of a sweep's own dt lists, the tolerance proportionality of a tolerance ladder (tolerance_fit), and
-the Pareto table (the cheapest run, fixed-step or adaptive, reaching each accuracy target).
+(fit), the orders of a sweep's own dt lists and the tolerance proportionality of a tolerance ladder (tolerance_fit).
+The Pareto table is harness.pareto.
 
 - the round-off floor: walking from large to small dt among the points below ASYMPTOTIC_MAX, the first point after
   which the error falls with a local slope below FLOOR_SLOPE while it is below FLOOR_MAX (a stall higher up is not
@@ -21,19 +21,16 @@ import re
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks
+from stereodyn.harness.scenes import checks
 from stereodyn.harness.engines import EngineError, get_engine
-from stereodyn.harness.report.markdown import number as _num
 from stereodyn.harness.trajectory import Status
+# The Pareto table has its own module; its names stay importable from here.
+from stereodyn.harness.pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWEEP,  # noqa: F401
+                                      SOURCE_TOLERANCE, TIE_RTOL, is_failed, pareto, pareto_candidates, pareto_table,
+                                      run_name as _name, setting)
 
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")
-PARETO_COLUMNS = ("case", "target", "engine", "formulation", "integrator", "dt", "tolerance", "attitude_err",
-                  "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "ties", "not_recommended")
-# The columns a Pareto cell copies from its winning candidate.
-_CELL_COLUMNS = PARETO_COLUMNS[2:13]
-# pareto.csv's `source`: where the winning candidate came from.
-SOURCE_SWEEP, SOURCE_LADDER, SOURCE_TOLERANCE = "sweep", "ladder", "tolerance_ladder"
 ORDER_QUANTITY = "convergence_order"
 
 # A state error above this (rad, or relative for ω) is pre-asymptotic: higher-order terms and the saturation of the
@@ -46,7 +43,6 @@ ROUNDOFF_MARGIN = 30.0
 EPS = float(np.finfo(float).eps)
 FLOOR_SLOPE = 0.5            # a local slope below this: the error has stopped falling
 FLOOR_MAX = 1e-6             # a stall above this is not round-off (pre-asymptotic wiggles, resonances)
-ACCURACY_TARGETS = tuple(10.0 ** -k for k in range(2, 13))
 
 
 def order_slope(dt, err) -> float:
@@ -146,7 +142,7 @@ def reason(marked: pd.DataFrame) -> str:
 
 
 # The kinds of reason a convergence row's note gives, by the words that start them (the report counts families by
-# these): fit() and harness.dt_ladders write them.
+# these): fit() and harness.run.dt_ladders write them.
 NOTE_GROUPS = (
     (SUPERCONVERGENT, SUPERCONVERGENT),
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),
@@ -241,139 +237,6 @@ def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
                         "theory": row["declared_order"], "measured": row["order"],
                         "error": checks.error(ORDER_QUANTITY, row["declared_order"], row["order"])})
     return pd.DataFrame(records, columns=list(checks.COLUMNS))
-
-
-# Two candidates tie when their costs differ by no more than the timing noise: the sum of their spreads (slowest
-# minus fastest of their timed runs), and at least TIE_RTOL of the cheaper cost. The floor stands for the noise that
-# repeats inside one process do not show and two runs of the sweep do (clock boost, cache and memory placement); 5% is
-# the usual run-to-run scatter of a micro-benchmark on an idle machine. Checked on the timings of two consecutive
-# idle default runs (2-core AMD EPYC, 2026-11-25; tests/benchmarks/ranking_stability.py), ranked by pareto_table:
-# 254 of 264 cells named the same winner, the other 10 were tie-marked, none differed unmarked.
-TIE_RTOL = 0.05
-
-
-def pareto(results: pd.DataFrame, ladder: pd.DataFrame, failed: set | None = None,
-           tolerance: pd.DataFrame | None = None) -> pd.DataFrame:
-    """Per case and accuracy target, the cheapest run whose attitude_err reaches it, with ties and the runs not
-    recommended (pareto_table). Candidates: every timed run of the sweep, fixed-step and adaptive (at the engine's
-    default tolerance; the truth has no error of its own and is none), the dt ladders' points and the tolerance
-    ladders' points (tolerance.csv, pareto_candidates)."""
-    # an adaptive row whose error is exactly 0 is the reference its errors are measured against (the sliding ladder's
-    # equation); the rigid bodies' truth has no error at all. Neither is a contender.
-    sweep = results[results["dt"].notna() | (results["attitude_err"] != 0.0)].copy()
-    sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
-    sweep["us_per_sim_s_spread"] = sweep["us_per_step_spread"] * sweep["steps"] / sweep["t_end"]
-    sweep["source"] = SOURCE_SWEEP
-    ladder = ladder.copy()
-    ladder["source"] = SOURCE_LADDER
-    frames = [sweep, ladder] + ([pareto_candidates(tolerance)] if tolerance is not None else [])
-    both = pd.concat([_candidate_columns(f) for f in frames if len(f)] or [_candidate_columns(sweep)],
-                     ignore_index=True)
-    return pareto_table(both, list(dict.fromkeys(results["case"])), failed or set())
-
-
-_CANDIDATE_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "tolerance", "attitude_err",
-                      "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "status")
-
-
-def _candidate_columns(frame_: pd.DataFrame) -> pd.DataFrame:
-    """A candidate frame with exactly _CANDIDATE_COLUMNS (NaN where it has none)."""
-    frame_ = frame_.copy()
-    for column in _CANDIDATE_COLUMNS:
-        if column not in frame_:
-            frame_[column] = math.nan
-    return frame_[list(_CANDIDATE_COLUMNS)]
-
-
-def pareto_candidates(tolerance: pd.DataFrame) -> pd.DataFrame:
-    """The tolerance ladders' points (tolerance.csv) as Pareto candidates: adaptive (dt NaN), with their tolerance,
-    source SOURCE_TOLERANCE."""
-    points = tolerance.copy()
-    points["dt"] = math.nan
-    points["source"] = SOURCE_TOLERANCE
-    return _candidate_columns(points)
-
-
-def setting(row) -> str:
-    """How a run was set: its step (dt=...), its requested tolerance (tol=...) or the engine's default tolerance."""
-    dt, tol = row.get("dt", math.nan), row.get("tolerance", math.nan)
-    if isinstance(dt, (int, float)) and math.isfinite(dt):
-        return f"dt={dt:.3g}"
-    if isinstance(tol, (int, float)) and math.isfinite(tol):
-        return f"tol={tol:.0e}"
-    return "default tol"
-
-
-def _candidate_name(row) -> str:
-    return f"{_name(row)} {setting(row)}"
-
-
-def _candidate(row) -> str:
-    return f"{_candidate_name(row)} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
-
-
-def is_failed(failed_set: set[tuple[str, str, str]], engine: str, formulation: str, integrator: str) -> bool:
-    """Whether a run's integrator failed a verdict (harness.verdicts.failed_integrators; "*" matches any engine and
-    formulation)."""
-    return (engine, formulation, integrator) in failed_set or ("*", "*", integrator) in failed_set
-
-
-def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()) -> pd.DataFrame:
-    """The Pareto table from candidate runs (columns case, engine, formulation, integrator, dt, attitude_err,
-    us_per_sim_s, us_per_sim_s_spread, rhs_per_sim_s, steps, source, status; optionally tolerance), fixed-step (dt)
-    and adaptive (dt NaN) alike: an adaptive run competes on its cost like any other.
-
-    Per case and target: among the ok runs reaching the target whose integrator passed its verdicts (failed: a set of
-    (engine, formulation, integrator), harness.verdicts.failed_integrators), the cheapest; every run within the timing
-    noise of it (TIE_RTOL, the spreads) is a tie, listed in `ties`, and the winner among the tied is the one with the
-    fewest right-hand-side evaluations per simulated second (a cost noise cannot touch), then the cheapest; where a
-    tied run has no count (rhs_per_sim_s NaN: heyoka's taylor), the cheapest. Runs that noise alone tells apart (the
-    same evaluations and the same attitude_err, e.g. two names of one computation) are taken in name order, so that
-    two runs of the sweep name the same one.
-    `not_recommended` names the cheaper runs left out because their integrator failed a verdict."""
-    runs = runs.fillna({"formulation": ""})
-    runs = runs[(runs["status"] == Status.OK.value) & np.isfinite(runs["attitude_err"].astype(float))
-                & np.isfinite(runs["us_per_sim_s"].astype(float))]
-    bad = np.array([is_failed(set(failed), r.engine, r.formulation, r.integrator) for r in runs.itertuples()],
-                   dtype=bool)
-    records = []
-    for case in cases:
-        in_case = (runs["case"] == case).to_numpy()
-        for target in ACCURACY_TARGETS:
-            reach = in_case & (runs["attitude_err"] <= target).to_numpy()
-            good, excluded = runs[reach & ~bad], runs[reach & bad]
-            if good.empty:
-                records.append({"case": case, "target": target, "engine": "", "formulation": "", "integrator": "",
-                                "source": "none reached it" if excluded.empty else "only runs that failed a verdict",
-                                "ties": "", "not_recommended": "; ".join(_candidate(r) for _, r in
-                                                                          excluded.nsmallest(3, "us_per_sim_s")
-                                                                          .iterrows())})
-                continue
-            cheapest = good.loc[good["us_per_sim_s"].idxmin()]
-            noise = np.maximum(good["us_per_sim_s_spread"].fillna(0.0).to_numpy(float)
-                               + (0.0 if not math.isfinite(cheapest["us_per_sim_s_spread"])
-                                  else cheapest["us_per_sim_s_spread"]),
-                               TIE_RTOL * cheapest["us_per_sim_s"])
-            tied = good[(good["us_per_sim_s"].to_numpy(float) - cheapest["us_per_sim_s"]) <= noise]
-            rhs = tied["rhs_per_sim_s"].astype(float)
-            # the evaluations decide a tie only where every tied run counts them (heyoka's taylor does not: a
-            # Taylor step has no stages), else the best time does
-            rhs = rhs if rhs.notna().all() else pd.Series(0.0, index=tied.index)
-            best = tied.loc[tied.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
-            # Two idle default runs named different winners in 11 of 264 cells only because MuJoCo's euler and
-            # implicitfast (bit-identical on a ball joint) swapped places by a few per cent of time.
-            twins = tied[(rhs == rhs[best.name]) & (tied["attitude_err"] == best["attitude_err"])]
-            best = twins.loc[min(twins.index, key=lambda i: _candidate_name(twins.loc[i]))]
-            cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
-            records.append({"case": case, "target": target, **{c: best.get(c, math.nan) for c in _CELL_COLUMNS},
-                            "ties": "; ".join(_candidate(r) for i, r in tied.iterrows() if i != best.name),
-                            "not_recommended": "; ".join(_candidate(r) for _, r in
-                                                         cheaper_bad.nsmallest(3, "us_per_sim_s").iterrows())})
-    return pd.DataFrame(records, columns=list(PARETO_COLUMNS))
-
-
-def _name(row) -> str:
-    return " ".join(str(x) for x in (row["engine"], row["formulation"], row["integrator"]) if isinstance(x, str) and x)
 
 
 # ------------------------------------------------------------------------------------------------ tolerance ladders

@@ -21,37 +21,47 @@ TERMINAL_VERDICTS = 20
 
 
 def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
-    """Per accuracy target, over every case of pareto.csv: how many cases some run reaches, and the case whose
-    cheapest run is dearest (the target's worst case)."""
+    """Per engine scope of pareto.csv, then `any` (every run): per accuracy target, on how many cases some run of the
+    scope reaches it, the run named most often, and the case whose cheapest run is dearest (the target's worst case);
+    where no case is reached, why (pareto.csv's `source`)."""
     from stereodyn.harness import workprecision
-    from stereodyn.harness.fitting import setting
+    from stereodyn.harness.pareto import ANY, scope_rows, scopes, setting
 
-    pareto = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
-                                         ("formulation", "engine", "integrator"))
-    if pareto is None or pareto.empty:
+    table = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
+                                        ("formulation", "engine", "integrator", "scope", "source"))
+    if table is None or table.empty:
         return []
-    lines = ["cheapest run reaching an accuracy (max attitude error), pareto.csv:"]
-    cases = pareto["case"].nunique()
-    for target in targets:
-        # atol 0: np.isclose's default 1e-8 would take 1e-9 .. 1e-12 for one target
-        hit = pareto[np.isclose(pareto["target"], target, rtol=1e-9, atol=0.0) & (pareto["engine"] != "")]
-        hit = hit.drop_duplicates("case")
-        if hit.empty:
-            lines.append(f"  <= {target:.0e}: no case reaches it")
-            continue
-        counts: dict[str, int] = {}
-        for _, row in hit.iterrows():
-            counts[_method(row)] = counts.get(_method(row), 0) + 1
-        best, wins = max(counts.items(), key=lambda kv: kv[1])
-        dearest = hit.loc[hit["us_per_sim_s"].idxmax()]
-        lines.append(f"  <= {target:.0e}: {len(hit)}/{cases} cases; most often {best} ({wins}); dearest "
-                     f"{dearest['case']}: {_method(dearest)} {setting(dearest)} "
-                     f"({dearest['us_per_sim_s']:.3g} µs/s)")
+    lines = ["cheapest run reaching an accuracy (max attitude error), per engine and over all (pareto.csv):"]
+    cases = table["case"].nunique()
+    for scope in [*scopes(table), ANY]:
+        rows = scope_rows(table, scope)
+        name = _method if scope == ANY else _own_method
+        for k, target in enumerate(targets):
+            head = f"  {scope:10s} " if k == 0 else " " * 13
+            # atol 0: np.isclose's default 1e-8 would take 1e-9 .. 1e-12 for one target
+            at = rows[np.isclose(rows["target"], target, rtol=1e-9, atol=0.0)]
+            hit = at[at["engine"] != ""].drop_duplicates("case")
+            if hit.empty:
+                why = at["source"].value_counts() if "source" in at else pd.Series(dtype=int)
+                lines.append(f"{head}<= {target:.0e}: no case" + (" (" + ", ".join(
+                    f"{reason}: {count}" for reason, count in why.items()) + ")" if len(why) else ""))
+                continue
+            counts = hit.apply(name, axis=1).value_counts(sort=False)
+            best = counts.idxmax()
+            dearest = hit.loc[hit["us_per_sim_s"].idxmax()]
+            lines.append(f"{head}<= {target:.0e}: {len(hit)}/{cases} cases, most often {best} ({counts[best]}); "
+                         f"dearest {dearest['case']}: {name(dearest)} {setting(dearest)} "
+                         f"({dearest['us_per_sim_s']:.3g} µs/s)")
     return lines
 
 
 def _method(row) -> str:
     return " ".join(str(row[c]) for c in ("engine", "formulation", "integrator") if isinstance(row[c], str) and row[c])
+
+
+def _own_method(row) -> str:
+    """A run named within its engine's scope: formulation and integrator."""
+    return " ".join(str(row[c]) for c in ("formulation", "integrator") if isinstance(row[c], str) and row[c])
 
 
 def terminal_lines(df: pd.DataFrame, found: list, out_dir: Path, report: Path | None = None) -> list[str]:

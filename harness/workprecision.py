@@ -1,8 +1,8 @@
 """Work–precision: the phase of `stereodyn run` after the sweep, and its report sections.
 
-Measuring is harness.dt_ladders (dt ladders, stability bisection) and harness.tolerance_ladders (adaptive methods
-against the requested tolerance), fitting harness.fitting (orders, round-off floors, tolerance proportionality, the
-Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the report's
+Measuring is harness.run.dt_ladders (dt ladders, stability bisection) and harness.run.tolerance_ladders (adaptive
+methods against the requested tolerance), fitting harness.fitting (orders, round-off floors, tolerance proportionality,
+the Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the report's
 markdown.
 
 Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, per short ladder, and per
@@ -20,17 +20,18 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks, dt_ladders
-from stereodyn.harness.cases import Case
-from stereodyn.harness import tolerance_ladders
-from stereodyn.harness.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
+from stereodyn.harness.scenes import checks
+from stereodyn.harness.run import dt_ladders
+from stereodyn.harness.scenes.cases import Case
+from stereodyn.harness.run import tolerance_ladders
+from stereodyn.harness.run.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
                                           Family, families, run_ladders)
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
                                        _name, convergence_table, declared_order, note_group, order_checks, pareto,
                                        pareto_table, setting, sweep_orders, tolerance_fits, with_state_err)
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
-from stereodyn.harness.results import write_atomic
+from stereodyn.harness.run.results import write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -78,7 +79,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
-    """The families that get a short ladder (harness.dt_ladders.run_short_ladder), each with its sweep runs and its
+    """The families that get a short ladder (harness.run.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
@@ -122,7 +123,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
     DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
     no order) or "off". Writes ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and appends
-    the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.runner.worker_pool)
+    the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.run.sweep.worker_pool)
     the ladders run on; None runs them here."""
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained
@@ -195,41 +196,11 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
     tolerance-against-error figure (harness.report.build draws them)."""
     lines: list[str] = []
     pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source", "ties",
-                                                             "not_recommended"))
+                                                             "not_recommended", "scope"))
     if pareto_df is not None and len(pareto_df):
-        lines += ["## What to use", "",
-                  "Per case and accuracy target (max attitude error, rad, up to the case's horizon): the cheapest run "
-                  "that reaches it (pareto.csv), fixed-step (dt=) or adaptive: the sweep's runs (an adaptive one at "
-                  "its engine's default tolerance, 'default tol'), the dt ladders' points and the tolerance ladders' "
-                  "(tol=, the requested tolerance; pareto.csv `source` says which). The truth is no contender: it "
-                  "is what the errors are measured against. Cost in µs of stepping per simulated second. Timings are "
-                  "comparable within one report only; each run is timed alone (best of up to 3). '**tie** with N': "
-                  "N other runs cost the same within the timing noise (pareto.csv `ties`, the sum of their spreads, "
-                  f"at least {TIE_RTOL:.0%}); the one shown needs the fewest right-hand-side evaluations per simulated "
-                  "second (the cheapest where a tied run does not count them: heyoka's taylor; runs with the same "
-                  "evaluations and the same error in name order). A run whose "
-                  "integrator failed a verdict is never shown; a cheaper one is named as not recommended.", ""]
-        targets = sorted(pareto_df["target"].unique(), reverse=True)
-        header = ["case"] + [f"≤ {t:.0e}" for t in targets]
-        rows = []
-        for case, group in pareto_df.groupby("case", sort=False):
-            cells = [case]
-            for target in targets:
-                hit = group[group["target"] == target]
-                row = hit.iloc[0] if len(hit) else None
-                if row is None or not row["engine"]:
-                    cell = "-"
-                else:
-                    cell = f"{_name(row)} {setting(row)} ({_num(row['us_per_sim_s'], '.3g')} µs/s)"
-                    ties = row.get("ties", "")
-                    if isinstance(ties, str) and ties:
-                        cell += f" **tie** with {ties.count(';') + 1}"
-                failed_runs = row.get("not_recommended", "") if row is not None else ""
-                if isinstance(failed_runs, str) and failed_runs:
-                    cell += f" (cheaper, not recommended: {failed_runs.split(';')[0]}, failed a verdict)"
-                cells.append(cell)
-            rows.append(cells)
-        lines += _md(header, rows) + [""]
+        from stereodyn.harness.report.what_to_use import what_to_use_lines
+
+        lines += what_to_use_lines(pareto_df)
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
     if convergence is not None and len(convergence):
         ladders = convergence[convergence["source"] == "ladder"]

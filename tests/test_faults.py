@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from stereodyn.harness import cli, processes
+from stereodyn.harness import cli
+from stereodyn.harness.run import processes
 from stereodyn.harness import engines as engine_registry
 
 INTERRUPTED = "stereodyn: interrupted"
@@ -69,7 +70,7 @@ def test_an_engine_whose_import_was_interrupted_is_not_unavailable():
 def test_an_interrupt_an_sdk_swallows_still_ends_the_command_with_130(monkeypatch, capsys):
     """Ctrl-C inside code that catches it (an SDK's callback, a broad except) and goes on: the command still ends
     with 130 and one line, whatever the command returned."""
-    from stereodyn.harness import cases
+    from stereodyn.harness.scenes import cases
 
     suite = cases.load_suite
 
@@ -90,14 +91,14 @@ def test_an_interrupt_an_sdk_swallows_still_ends_the_command_with_130(monkeypatc
 
 def test_a_run_broken_by_an_interrupt_is_no_row(monkeypatch):
     """A run whose failure the interrupt caused is not recorded as `failed` (it would be stored and reused)."""
-    from stereodyn.harness import runner
+    from stereodyn.harness.run import sweep
 
     monkeypatch.setattr(processes, "_interrupts", [0.0])
     with pytest.raises(KeyboardInterrupt):
         processes.raise_if_interrupted(RuntimeError("an SDK's wrapping of the interrupt"))
     monkeypatch.setattr(processes, "_interrupts", [])
     processes.raise_if_interrupted(RuntimeError("a real failure"))  # no interrupt: data, nothing raised
-    assert runner.raise_if_interrupted is processes.raise_if_interrupted
+    assert sweep.raise_if_interrupted is processes.raise_if_interrupted
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -107,7 +108,7 @@ def test_workers_die_with_a_parent_killed_before_they_finished_starting(tmp_path
     script = tmp_path / "parent.py"
     script.write_text(textwrap.dedent("""
         import os, signal, sys
-        from stereodyn.harness.runner import worker_pool
+        from stereodyn.harness.run.sweep import worker_pool
         pool_context = worker_pool(2, ())
         pool = pool_context.__enter__()
         print(" ".join(str(pid) for pid in pool._processes), flush=True)
@@ -128,7 +129,7 @@ def test_workers_die_with_a_parent_killed_before_they_finished_starting(tmp_path
 
 def test_a_worker_ignores_ctrl_c_from_its_first_moment():
     """Ctrl-C to the workers while they start (still importing): none prints or dies of it, every one ignores it."""
-    from stereodyn.harness.runner import worker_pool
+    from stereodyn.harness.run.sweep import worker_pool
 
     with worker_pool(2, ()) as pool:
         workers = list(pool._processes)

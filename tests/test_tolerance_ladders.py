@@ -111,6 +111,7 @@ def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine,
     # its points are candidates of "What to use": here the only ones, so they fill every cell they reach
     pareto = pd.read_csv(tmp_path / workprecision.PARETO_FILE, keep_default_na=False, na_values=[""])
     reached = pareto[pareto["engine"].notna()]
+    assert set(pareto["scope"]) == {"any", "stub"}  # the stub engine's scope holds the same runs
     assert len(reached) >= 5 and set(reached["integrator"]) == {"stub_dop853"}
     assert set(reached["source"]) <= {"sweep", "tolerance_ladder"} and "tolerance_ladder" in set(reached["source"])
     # the report: a "Tolerance ladders" section with the fit and the figure of error against tolerance
@@ -138,6 +139,43 @@ def test_the_tolerance_ladder_stops_at_a_point_over_its_budget(stub_engine):
     family = tolerance_ladders.AdaptiveFamily(_short_case(), "stub", "", "stub_dop853")
     points = tolerance_ladders.run_ladder(family, (1e-3, 1e-4, 1e-5), budget_s=0.0)
     assert len(points) == 1 and "ladder stopped after this point" in points[0]["message"]
+
+
+class _OmegaOffSimulation:
+    """The truth's own attitude (no attitude error at all) with ω 1e-5 too large: an error in ω alone."""
+
+    def __init__(self, case):
+        self.case = case
+
+    def run(self, grid):
+        from stereodyn.reference import truth
+
+        exact = truth.truth(self.case.body, self.case.quat0, self.case.omega0, grid.times)
+        return Trajectory(grid.times, exact.quat, exact.omega * (1 + 1e-5), Status.OK, "", math.nan, 100, 400, {})
+
+
+class OmegaOffEngine(StubEngine):
+    name = "stub"
+
+    def prepare(self, case, integrator, dt, tolerance=None):
+        return _OmegaOffSimulation(case)
+
+
+def test_err_over_tol_is_the_state_error_over_the_tolerance(monkeypatch):
+    """err_over_tol divides the state error (the max of attitude_err, omega_err, casimir_drift), not the attitude
+    error: a run whose attitude is exact but whose ω is off by 1e-5 is 10x over a tolerance of 1e-6."""
+    registered = engines._entry_points()
+    entry = type("_OmegaOffEntry", (_Entry,), {"load": lambda self: OmegaOffEngine})()
+    monkeypatch.setattr(engines, "_entry_points", lambda: {**registered, "stub": entry})
+    engines.get_engine.cache_clear()
+    try:
+        point = tolerance_ladders.measure(tolerance_ladders.AdaptiveFamily(_short_case(), "stub", "", "stub_dop853"),
+                                          1e-6)
+    finally:
+        engines.get_engine.cache_clear()
+    assert point["status"] == "ok" and point["attitude_err"] < 1e-15
+    assert point["omega_err"] == pytest.approx(1e-5, rel=1e-6)
+    assert point["state_err"] == point["omega_err"] and point["err_over_tol"] == pytest.approx(10.0, rel=1e-6)
 
 
 # ------------------------------------------------------------------------------------------------ the fit
@@ -185,6 +223,10 @@ def _fixed(integrator, dt, err, cost, spread=0.0, rhs=400.0):
             "rhs_per_sim_s": rhs, "status": "ok"}
 
 
+def _any(table: pd.DataFrame) -> pd.DataFrame:
+    return table[table["scope"] == "any"]
+
+
 def test_an_adaptive_point_cheaper_than_every_fixed_step_run_wins_its_cell():
     results = pd.DataFrame([_fixed("rk4", 0.01, 9e-7, 100.0), _fixed("rk4", 0.001, 9e-10, 1000.0),
                             # the sweep's adaptive row (dt NaN, default tolerance): 80 µs/s for 5e-9
@@ -194,8 +236,8 @@ def test_an_adaptive_point_cheaper_than_every_fixed_step_run_wins_its_cell():
                                "rhs_per_sim_s": 100.0, "steps": 10, "status": "ok"}
                               for tol, err, cost in ((1e-6, 5e-7, 40.0), (1e-10, 4e-11, 300.0))])
     table = fitting.pareto(results, pd.DataFrame(), tolerance=tolerance)
-    assert tuple(table.columns) == fitting.PARETO_COLUMNS and fitting.PARETO_COLUMNS[5:7] == ("dt", "tolerance")
-    table = table.set_index("target")
+    assert tuple(table.columns) == fitting.PARETO_COLUMNS and fitting.PARETO_COLUMNS[6:8] == ("dt", "tolerance")
+    table = _any(table).set_index("target")
     # 1e-6: the tolerance point (40) beats rk4 dt=0.01 (100): source and tolerance say where it came from
     cell = table.loc[1e-6]
     assert (cell.integrator, cell.source, cell.tolerance) == ("dop", "tolerance_ladder", 1e-6)
@@ -215,7 +257,7 @@ def test_an_adaptive_point_within_the_timing_noise_of_a_fixed_step_run_is_a_tie(
     tolerance = pd.DataFrame([{"case": "c", "engine": "e", "formulation": "", "integrator": "dop", "tolerance": 1e-6,
                                "attitude_err": 5e-7, "us_per_sim_s": 100.0 * (1 - 0.5 * rtol),
                                "us_per_sim_s_spread": 0.0, "rhs_per_sim_s": 900.0, "steps": 10, "status": "ok"}])
-    cell = fitting.pareto(results, pd.DataFrame(), tolerance=tolerance).set_index("target").loc[1e-6]
+    cell = _any(fitting.pareto(results, pd.DataFrame(), tolerance=tolerance)).set_index("target").loc[1e-6]
     # cheaper by half the tie floor: a tie, and the fixed-step run needs fewer evaluations, so it is shown
     assert (cell.integrator, cell.source) == ("rk4", "sweep") and "e dop tol=1e-06" in cell.ties
 
@@ -223,10 +265,10 @@ def test_an_adaptive_point_within_the_timing_noise_of_a_fixed_step_run_is_a_tie(
 def test_a_tie_with_a_run_that_does_not_count_its_evaluations_goes_to_the_cheaper():
     """heyoka's taylor has no right-hand-side count: a tie it is in is decided by the best time, not by a count it
     lacks (which would make it lose every tie, however much cheaper)."""
-    results = pd.DataFrame([_fixed("euler", 0.005, 9e-3, 1300.0, spread=1500.0, rhs=200.0),
+    results = pd.DataFrame([_fixed("euler", 0.005, 9e-3, 300.0, spread=40.0, rhs=200.0),
                             _fixed("taylor", math.nan, 3e-15, 270.0, rhs=math.nan)
                             | {"steps": 55.0, "us_per_step_spread": 10.0 * 2.0 / 55.0}])
-    cell = fitting.pareto(results, pd.DataFrame()).set_index("target").loc[1e-2]
+    cell = _any(fitting.pareto(results, pd.DataFrame())).set_index("target").loc[1e-2]
     assert cell.integrator == "taylor" and "e euler dt=0.005" in cell.ties  # still a tie, within euler's spread
 
 
@@ -234,7 +276,7 @@ def test_an_adaptive_row_with_no_error_at_all_is_the_reference_and_no_candidate(
     """The sliding ladder's equation (an adaptive row measured against itself: error exactly 0) never wins a cell."""
     results = pd.DataFrame([_fixed("rk4", 0.01, 9e-7, 100.0),
                             _fixed("theta", math.nan, 0.0, 1.0) | {"steps": 40.0, "us_per_step_spread": 0.0}])
-    table = fitting.pareto(results, pd.DataFrame()).set_index("target")
+    table = _any(fitting.pareto(results, pd.DataFrame())).set_index("target")
     assert table.loc[1e-6, "integrator"] == "rk4" and table.loc[1e-12, "source"] == "none reached it"
 
 

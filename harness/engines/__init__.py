@@ -29,8 +29,12 @@ def _entry_points() -> dict[str, EntryPoint]:
                               f"({found[entry.name].value} and {entry.value})")
         found[entry.name] = entry
     builtin = ("mujoco", "pinocchio", TRUTH_ENGINE)
-    return {name: found[name] for name in sorted(found, key=lambda n: (n not in builtin, builtin.index(n)
-                                                                        if n in builtin else 0, n))}
+
+    def rank(name: str) -> tuple:  # the built-ins, then stereodyn's optional extras, then third parties, by name
+        own = found[name].value.startswith(__name__ + ".")
+        return (name not in builtin, not own, builtin.index(name) if name in builtin else 0, name)
+
+    return {name: found[name] for name in sorted(found, key=rank)}
 
 
 def engine_names() -> tuple[str, ...]:

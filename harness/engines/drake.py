@@ -54,7 +54,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
@@ -312,7 +312,8 @@ class DrakeEngine(Engine):
         return float(FIXED_STEP.get(ADAPTIVE.get(integrator, integrator), math.nan))
 
     def unsupported(self, case: Case) -> str | None:
-        return precession_singular(case)
+        # SpatialInertia::IsPhysicallyValid() refuses a body that breaks the triangle inequality
+        return unphysical_inertia(case) or precession_singular(case)
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         if formulation == QUATERNION_FREE and np.any(np.asarray(case.body.com) != 0.0):

@@ -13,12 +13,14 @@ import numpy as np
 import pandas as pd
 
 from stereodyn.harness.report.markdown import markdown_table, number
+from stereodyn.harness.testing import energy_noise
 
 # Accuracy targets (max attitude error, rad) of the cost comparison.
 COST_TARGETS = (1e-3, 1e-6, 1e-9)
 # Energy trend from a stored series: the max deviation over the second half of the run against that over the first.
 # A bounded error (a symplectic method, an oscillating error) gives about 1; a secular drift that grows like t^p gives
-# 2^p >= 2 for p >= 1. Below ENERGY_NOISE (relative) the deviation is round-off and says nothing about a trend.
+# 2^p >= 2 for p >= 1. Below ENERGY_NOISE (relative), or round-off's share for the run's steps where that is more
+# (harness.testing.energy_noise: it grows with the steps), the deviation says nothing about a trend.
 SECULAR_GROWTH = 1.5
 ENERGY_NOISE = 1e-13
 
@@ -97,7 +99,9 @@ def energy_trend(series: dict[tuple, dict], integrator: str) -> tuple[str, float
         if half < 4 or not np.isfinite(y).all():
             continue
         first, second = np.max(y[:half]), np.max(y[half:])
-        if second <= ENERGY_NOISE:
+        t_end = values.get("t", [math.nan])[-1] or math.nan
+        steps = t_end / float(key[4]) if math.isfinite(t_end) else 0.0
+        if second <= max(ENERGY_NOISE, energy_noise(steps)):
             growths.append(1.0)
         elif first > 0:
             growths.append(second / first)

@@ -11,10 +11,10 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact import ORACLES as EXACT_SOLUTIONS
-from stereodyn.reference.sliding_ladder import Ladder, detachment_cosine
-from stereodyn.reference.torques import BodyTorque, CentralField, PrecessionTorque
+from ...reference.body import RigidBody
+from ...reference.exact import ORACLES as EXACT_SOLUTIONS
+from ...reference.sliding_ladder import Ladder, detachment_cosine
+from ...reference.torques import BodyTorque, CentralField, PrecessionTorque
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
@@ -50,7 +50,7 @@ _TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     "ladder": (frozenset({"mass", "half_length", "theta0", "theta_dot0", "g"}),
                frozenset({"mass", "half_length", "theta0", "g"})),
     "precession_torque": (frozenset({"theta", "l", "m3"}), frozenset({"theta", "l", "m3"})),
-    "body": (frozenset({"mass", "com", "inertia", "principal_moments"}), frozenset({"mass", "com"})),
+    "body": (frozenset({"mass", "com", "inertia", "principal_moments", "physical"}), frozenset({"mass", "com"})),
     "gravity": (frozenset({"g", "direction"}), frozenset({"g"})),
     "body_torque": (frozenset({"axis", "a", "b"}), frozenset({"axis", "a", "b"})),
     "central_field": (frozenset({"mu", "radius", "direction", "orbit_rate"}), frozenset({"mu", "radius", "direction"})),
@@ -103,6 +103,7 @@ class Case:
     path: Path | None = None
     precession_torque: PrecessionTorque | None = None
     kind: str = RIGID_BODY
+    physical: bool = True               # [body] physical = false: the triangle inequalities are not required
 
     @property
     def body(self) -> RigidBody:
@@ -118,7 +119,8 @@ class Case:
 @dataclass(frozen=True, eq=False)
 class LadderCase:
     """A sliding-ladder scene (kind "sliding_ladder", FORMULARY T5): a planar, constrained one-degree-of-freedom
-    rod, not a body with a fixed point; harness.sliding_ladder runs it. ladder: reference.sliding_ladder.Ladder."""
+    rod, not a body with a fixed point; harness.scenes.sliding_ladder runs it.
+    ladder: reference.sliding_ladder.Ladder."""
 
     name: str
     description: str
@@ -206,6 +208,35 @@ def with_overrides(case: Case, *, t_end: float | None = None, dt: float | Iterab
         new_dt = parser.steps(dt if isinstance(dt, (int, float)) else list(dt), "run.dt", new_t_end)
     horizon = None if case.horizon is None else min(case.horizon, new_t_end)
     return dataclasses.replace(case, t_end=new_t_end, dt=new_dt, horizon=horizon)
+
+
+def triangle_broken(moments: np.ndarray, scale: float) -> str | None:
+    """How principal moments break the triangle inequality A_i + A_j >= A_k (to TRIANGLE_RTOL * scale), or None."""
+    a1, a2, a3 = np.sort(moments)   # the only inequality that can fail is the smallest two against the largest
+    if a1 + a2 < a3 - TRIANGLE_RTOL * scale:
+        return f"principal moments {_fmt(np.array([a1, a2, a3]))}: {a1 + a2:.6g} < {a3:.6g}"
+    return None
+
+
+def inertia_about_com(inertia: np.ndarray, mass: float, com: np.ndarray) -> np.ndarray:
+    """(3, 3) kg m^2 about the centre of mass from the inertia about O (Huygens–Steiner, FORMULARY T2)."""
+    return inertia - mass * (com @ com * np.eye(3) - np.outer(com, com))
+
+
+def unphysical_inertia(case: Case) -> str | None:
+    """Why a case's body is no mass distribution (the triangle inequality broken about O or about the centre of
+    mass; only a case with [body] physical = false has one), or None. An engine that builds a physical body skips
+    such a case with this reason."""
+    if getattr(case, "physical", True):
+        return None
+    scale = float(np.linalg.eigvalsh(case.inertia)[-1])
+    for where, inertia in (("about O", case.inertia),
+                           ("about the centre of mass", inertia_about_com(case.inertia, case.mass, case.com))):
+        broken = triangle_broken(np.linalg.eigvalsh(inertia), scale)
+        if broken:
+            return (f"[body] physical = false: the inertia {where} breaks the triangle inequality A_i + A_j >= A_k "
+                    f"({broken}), which this engine's body requires")
+    return None
 
 
 # ----------------------------------------------------------------------------------------------------- validation
@@ -307,7 +338,7 @@ class _Parser:
             return self.ladder_case(data)
         self.table(data, "")
         name, description, tags = self.words(data)
-        mass, com, inertia = self.body(data["body"])
+        mass, com, inertia, physical = self.body(data["body"])
         gravity, gravity_direction = 0.0, np.array([0.0, 0.0, -1.0])
         if "gravity" in data:
             gravity, gravity_direction = self.gravity(data["gravity"])
@@ -336,7 +367,8 @@ class _Parser:
         case = Case(name=name, description=description, tags=tags, mass=mass, com=com, inertia=inertia,
                     gravity=gravity, gravity_direction=gravity_direction, quat0=quat0, omega0=omega0, t_end=t_end,
                     dt=dt, samples=samples, oracle=oracle, horizon=horizon, body_torque=body_torque,
-                    central_field=central_field, path=Path(self.path), precession_torque=precession_torque)
+                    central_field=central_field, path=Path(self.path), precession_torque=precession_torque,
+                    physical=physical)
         if oracle is not None:
             self.oracle_applies(case)
         return case
@@ -385,8 +417,13 @@ class _Parser:
         return PrecessionTorque(theta=theta, l=self.number(data["l"], "precession_torque.l"),
                                 m3=self.number(data["m3"], "precession_torque.m3"))
 
-    def body(self, data: Any) -> tuple[float, np.ndarray, np.ndarray]:
+    def body(self, data: Any) -> tuple[float, np.ndarray, np.ndarray, bool]:
+        """mass, com, inertia about O, physical. physical = false (Euler's equations only, not a mass distribution:
+        e.g. Hairer–Lubich–Wanner's I = (2, 1, 2/3)) lifts the triangle inequalities; every other rule holds."""
         self.table(data, "body")
+        physical = data.get("physical", True)
+        if not isinstance(physical, bool):
+            raise self.fail("body.physical", f"must be true or false, got {_describe(physical)}")
         mass = self.positive(data["mass"], "body.mass")
         com = self.vector(data["com"], "body.com", 3)
         if ("inertia" in data) == ("principal_moments" in data):
@@ -407,12 +444,12 @@ class _Parser:
         if moments_o[0] < MIN_SCALE:
             raise self.fail(key, f"principal moments about O must be >= {MIN_SCALE:g} (docs/limits.md; eigenvalues "
                                  f"{_fmt(moments_o)})")
-        scale = float(moments_o[-1])
-        self.triangle(moments_o, scale, key, "about O")
-        inertia_g = inertia - mass * (com @ com * np.eye(3) - np.outer(com, com))
-        self.triangle(np.linalg.eigvalsh(inertia_g), scale, key,
-                      "about the centre of mass (Huygens–Steiner with body.mass and body.com)")
-        return mass, com, inertia
+        if physical:
+            scale = float(moments_o[-1])
+            self.triangle(moments_o, scale, key, "about O")
+            self.triangle(np.linalg.eigvalsh(inertia_about_com(inertia, mass, com)), scale, key,
+                          "about the centre of mass (Huygens–Steiner with body.mass and body.com)")
+        return mass, com, inertia, physical
 
     def inertia_matrix(self, value: Any, key: str) -> np.ndarray:
         if not isinstance(value, list) or len(value) != 3 or not all(isinstance(r, list) and len(r) == 3 for r in value):
@@ -425,10 +462,10 @@ class _Parser:
         return 0.5 * (matrix + matrix.T)
 
     def triangle(self, moments: np.ndarray, scale: float, key: str, where: str) -> None:
-        a1, a2, a3 = np.sort(moments)   # the only inequality that can fail is the smallest two against the largest
-        if a1 + a2 < a3 - TRIANGLE_RTOL * scale:
-            raise self.fail(key, f"inertia {where} must satisfy the triangle inequality A_i + A_j >= A_k "
-                                 f"(principal moments {_fmt(np.array([a1, a2, a3]))}: {a1 + a2:.6g} < {a3:.6g})")
+        broken = triangle_broken(moments, scale)
+        if broken:
+            raise self.fail(key, f"inertia {where} must satisfy the triangle inequality A_i + A_j >= A_k ({broken}; "
+                                 f"body.physical = false allows it for Euler's equations)")
 
     def gravity(self, data: Any) -> tuple[float, np.ndarray]:
         self.table(data, "gravity")
