@@ -89,6 +89,12 @@ DEFAULT_TOLERANCE = 1e-8
 # (the discrete plant is Drake's first-order method), bogacki_shampine3 (a second RK3) and the implicit schemes
 # (3-10x an explicit step: Newton iterations, Jacobians by finite differences). Measured cost of the default sweep's
 # Drake rows: docs/ENGINES.md.
+# What each scheme is (harness.engines.methods); the discrete plant's update is semi-implicit Euler. Drake's models step
+# other coordinates than the ball-joint engines (roll-pitch-yaw, a free quaternion), so a first-order method agrees
+# with theirs only to O(dt).
+METHODS = {DISCRETE: "semi_implicit_euler", "explicit_euler": "explicit_euler", "semi_explicit_euler":
+           "semi_implicit_euler", "runge_kutta2": "rk2", "runge_kutta3": "rk3", "runge_kutta5": "rk5",
+           "implicit_euler": "implicit_euler"}
 DEFAULT_SWEEP = (DISCRETE, "runge_kutta2", "runge_kutta3", "runge_kutta3" + ADAPTIVE_SUFFIX)
 
 
@@ -310,6 +316,10 @@ class DrakeEngine(Engine):
         if integrator == DISCRETE:
             return 1.0
         return float(FIXED_STEP.get(ADAPTIVE.get(integrator, integrator), math.nan))
+
+    def method(self, integrator: str) -> str:
+        """The adaptive runs have no dt to be compared at: none."""
+        return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
         # SpatialInertia::IsPhysicallyValid() refuses a body that breaks the triangle inequality
