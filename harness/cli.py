@@ -13,9 +13,12 @@ def _interrupted_while_loading(signum, frame) -> None:
 
 
 # Started as the command (the `stereodyn` script, python -m stereodyn or this file), Ctrl-C while the modules below
-# load ends in one line; main() puts Python's handler back once they are in. Imported as a library: untouched.
+# load ends in one line; main() then puts the command's handler (run/processes.py: on_interrupt). Imported as a
+# library: untouched.
+# A pool worker (which imports this module as its __main__'s) ignores Ctrl-C: harness/run/processes.py.
 if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or __name__ == "__main__"
-                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))):
+                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))) \
+        and not __import__("stereodyn.harness.run.processes").harness.run.processes.is_worker():
     signal.signal(signal.SIGINT, _interrupted_while_loading)
 
 import argparse  # noqa: E402  (after the handler, on purpose)
@@ -555,8 +558,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
-    if signal.getsignal(signal.SIGINT) is _interrupted_while_loading:
-        signal.signal(signal.SIGINT, signal.default_int_handler)  # loaded: KeyboardInterrupt, handled below
+    from stereodyn.harness.run import processes
+
+    processes.forget_interrupts()
+    if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
+        signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
     try:
         args = _parser().parse_args(argv)
@@ -565,18 +571,26 @@ def main(argv: list[str] | None = None) -> int:
     commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
                 "check": cmd_check, "export": cmd_export, "advise": cmd_advise, "compare": cmd_compare, "integrators": cmd_integrators}
     try:
-        return commands[args.command](args)
+        code = commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
             CompareError) as exc:
-        print(f"stereodyn: error: {exc}", file=sys.stderr)
-        return 2
+        code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"stereodyn: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
+        code = _error(f"{where}{exc.strerror or exc}")
     except KeyboardInterrupt:
+        code = 130
+    if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
+    return code
+
+
+def _error(message: str) -> int:
+    """Bad input: one line on stderr (a newline or other control character in a name or path is escaped), exit 2."""
+    line = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in message)
+    print(f"stereodyn: error: {line}", file=sys.stderr)
+    return 2
 
 
 if __name__ == "__main__":
