@@ -20,7 +20,8 @@ MOVED = {  # old module under stereodyn.harness -> its path now
     "store": "run.store", "timing": "run.timing", "tolerance_ladders": "analysis.tolerance_ladders",
     "compare": "analysis.compare", "fitting": "analysis.fitting", "gate": "analysis.gate",
     "summary": "analysis.summary", "verdicts": "analysis.verdicts", "workprecision": "analysis.workprecision",
-    "pareto": "analysis.pareto",  # not in 0.2.0: for branches begun before the move
+    # not in 0.2.0: for branches begun before these moved
+    "pareto": "analysis.pareto", "step_advice": "analysis.step_advice",
 }
 PACKAGE = "stereodyn.harness"
 

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import timing
+from stereodyn.harness.run import timing
 from stereodyn.harness.analysis import pareto as pareto_module
 from stereodyn.harness.analysis import summary
 from stereodyn.harness.analysis.pareto import ANY, pareto_table

@@ -1,7 +1,7 @@
 """The command line (DESIGN §5). Exit codes: 0 done (failed runs are data), 1 check failed, 2 bad input, 130 stopped.
 
-This module holds the parser and the dispatch; each command is a module of this package (run.py, check.py, ...)
-with a `main(args) -> int`.
+This module holds the parser, the checks commands share and the dispatch; each command is a module of this package
+(run.py, check.py, ...) with a `main(args) -> int`.
 """
 from __future__ import annotations
 
@@ -16,9 +16,8 @@ def _interrupted_while_loading(signum, frame) -> None:
 
 
 # Started as the command (the `stereodyn` script, python -m stereodyn, or python -m stereodyn.harness.cli: while
-# locating that, Python loads this package with argv[0] "-m"), Ctrl-C while the modules below
-# load ends in one line; main() then puts the command's handler (run/processes.py: on_interrupt). Imported as a
-# library: untouched.
+# locating that, Python loads this package with argv[0] "-m"), Ctrl-C while the modules below load ends in one line;
+# main() then puts the command's handler (harness/run/processes.py: on_interrupt). Imported as a library: untouched.
 # A pool worker (which imports this module as its __main__'s) ignores Ctrl-C: harness/run/processes.py.
 if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or sys.argv[0] == "-m"
                  or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))) \
@@ -36,7 +35,7 @@ from pathlib import Path  # noqa: E402
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
 case_files = CaseError = engine_names = EngineError = None
 # Each command is the module of its name in this package, with main(args) -> int.
-COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "compare", "integrators")
+COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators")
 _commands: dict = {}
 
 DEFAULT_OUT = "out"
@@ -102,6 +101,20 @@ def _scale(text: str) -> float:
     return value
 
 
+def _targets(text: str) -> list[float]:
+    """Accuracy targets: rad, each finite and in (0, 1)."""
+    values = []
+    for item in (item.strip() for item in text.split(",")):
+        try:
+            value = float(item)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {item[:40]!r}") from None
+        if not (math.isfinite(value) and 0.0 < value < 1.0):
+            raise argparse.ArgumentTypeError(f"must be in (0, 1) rad, got {value:g}")
+        values.append(value)
+    return values
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="stereodyn", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -165,6 +178,19 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
+    advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
+                                                 "reaches an accuracy on a case, checked by runs")
+    advise.add_argument("case", metavar="CASE_OR_FILE", help="a suite case name or a .toml path")
+    advise.add_argument("--engine", required=True, help="the engine whose integrators to advise on")
+    advise.add_argument("--integrator", type=_list, default=None,
+                        help="comma-separated (default: the engine's default sweep with a declared order or error "
+                             "control)")
+    advise.add_argument("--formulation", default=None, help="the engine's model (default quaternion, or its first)")
+    advise.add_argument("--target", type=_targets, default=None,
+                        help="max attitude error over the case's horizon, rad, comma-separated (default 1e-3,1e-6,1e-9)")
+    advise.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing the case's t_end")
+    advise.add_argument("--max-steps", type=_count, default=None, metavar="N",
+                        help="smallest dt tried = t_end / N (default 200000)")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
     export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
@@ -187,11 +213,11 @@ def select_cases(args) -> list:
     if len(set(names)) != len(names):
         raise BadInput(f"case names must be unique in a run: {', '.join(sorted(names))}")
     if args.dt is not None or args.t_end is not None:
-        chosen = [_override(c, args) for c in chosen]
+        chosen = [override(c, args) for c in chosen]
     return chosen
 
 
-def _override(case, args):
+def override(case, args):
     """The case with --t-end / --dt; a value they make invalid is the option's fault, not the case file's."""
     try:
         return case_files.with_overrides(case, t_end=args.t_end, dt=args.dt)

@@ -118,9 +118,9 @@ class Engine:
         """What the integrator is, in the vocabulary of harness.engines.methods ("semi_implicit_euler", "rk4", ...):
         runs of the same method and dt on a case are compared across engines (agreement.csv). Default: the
         registry's method of a registered integrator; "" (compared with nothing) for one it does not know."""
-        from stereodyn.harness.engines import methods
+        from .methods import registered_method  # (not `from . import methods`: the package imports this module)
 
-        return methods.registered_method(integrator, self.state_space or "lie")
+        return registered_method(integrator, self.state_space or "lie")
 
     def adaptive(self, integrator: str) -> bool:
         """Whether an integrator chooses its own steps (its runs have dt None; prepare takes tolerance=...). Default:
