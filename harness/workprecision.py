@@ -227,6 +227,9 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
         from stereodyn.harness.report.what_to_use import what_to_use_lines
 
         lines += what_to_use_lines(pareto_df)
+    from stereodyn.harness.report.advice import advice_lines
+
+    lines += advice_lines(read_optional(Path(out_dir) / ADVICE_FILE, ("formulation", "engine", "integrator", "note")))
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
     if convergence is not None and len(convergence):
         ladders = convergence[convergence["source"] == "ladder"]
