@@ -1,6 +1,6 @@
-"""The report's work–precision sections: "What to use" (pareto.csv, harness.report.what_to_use), "Convergence, round-off
-floors and stability" (convergence.csv) and "Tolerance ladders" (tolerance_fit.csv), from the tables that
-harness.analysis.workprecision writes."""
+"""The report's work–precision sections: "What to use" (pareto.csv, harness.report.what_to_use), "Step-size advice"
+(advice.csv, harness.report.advice), "Convergence, round-off floors and stability" (convergence.csv) and "Tolerance
+ladders" (tolerance_fit.csv), from the tables that harness.analysis.workprecision writes."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,16 +9,17 @@ import numpy as np
 
 from ..analysis.fitting import ASYMPTOTIC_MAX, ROUNDOFF_MARGIN, SUPERCONVERGENT, _name, note_group
 from ..analysis import dt_ladders
-from ..analysis.workprecision import (CONVERGENCE_FILE, PARETO_FILE, SHORT_MAX_EVALS, SHORT_MAX_STEPS, TOLERANCE_FIT_FILE,
-                                      read_optional)
+from ..analysis.workprecision import (ADVICE_FILE, CONVERGENCE_FILE, PARETO_FILE, SHORT_MAX_EVALS, SHORT_MAX_STEPS,
+                                      TOLERANCE_FIT_FILE, read_optional)
 from ..analysis.dt_ladders import SHORT_LADDER, STABLE_ENERGY_DRIFT
 from . import sections
+from .advice import advice_lines
 from .markdown import markdown_table as _md, number as _num
 from .what_to_use import what_to_use_lines
 
 
 def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None) -> list[str]:
-    """The report's "What to use", "Convergence" and "Tolerance ladders" sections, from pareto.csv, convergence.csv
+    """The report's "What to use", "Step-size advice", "Convergence" and "Tolerance ladders" sections, from pareto.csv, convergence.csv
     and tolerance_fit.csv (each left out without its file). tolerance_figures: case -> the path of its
     tolerance-against-error figure (harness.report.build draws them)."""
     lines: list[str] = []
@@ -26,6 +27,7 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
                                                              "not_recommended", "scope"))
     if pareto_df is not None and len(pareto_df):
         lines += what_to_use_lines(pareto_df)
+    lines += advice_lines(read_optional(Path(out_dir) / ADVICE_FILE, ("formulation", "engine", "integrator", "note")))
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
     if convergence is not None and len(convergence):
         ladders = convergence[convergence["source"] == "ladder"]
