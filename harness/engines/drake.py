@@ -23,6 +23,7 @@ LeafSystem from the context's time and state at every derivative evaluation, eve
 """
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -35,6 +36,14 @@ EPS = float(np.finfo(float).eps)
 # in 4000 at dt = 1e-3, each a full step's cost). The slack lets the m-th step absorb it; every step is still dt to
 # within 8 eps steps relative (2e-9 at 1e6 steps), and the run takes exactly `steps` steps (tests/test_drake.py).
 STRETCH_ULPS = 8.0
+
+def _not_an_interrupt(record) -> bool:
+    """pydrake logs a Ctrl-C during its import as a multi-line CRITICAL record; the interrupt itself propagates
+    (harness.engines) and the command ends in one line."""
+    return "KeyboardInterrupt" not in record.getMessage()
+
+
+logging.getLogger("drake").addFilter(_not_an_interrupt)
 try:
     from pydrake.common.eigen_geometry import Quaternion
     from pydrake.math import RollPitchYaw

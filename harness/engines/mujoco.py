@@ -20,9 +20,12 @@ import os
 
 from xml.sax.saxutils import quoteattr
 
-import mujoco
-import numpy as np
-from mujoco import rollout
+# No rendering here: without this, importing mujoco imports glfw, which starts a Python subprocess to read its
+# library's version (~0.1 s in every process; a Ctrl-C during it printed that child's "Fatal Python error").
+os.environ.setdefault("MUJOCO_GL", "disable")
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+from mujoco import rollout  # noqa: E402
 
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,

@@ -25,8 +25,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from stereodyn.harness.engines.base import FLOAT64
-from stereodyn.harness.run.results import TableError, read_results, with_precision, write_atomic
+from ..engines.base import FLOAT64
+from ..run.results import TableError, read_results, with_precision, write_atomic
 
 # precision: a baseline or table of stereodyn 0.2.0 has none, and its runs were float64.
 KEY = ("case", "engine", "formulation", "integrator", "precision", "dt")
