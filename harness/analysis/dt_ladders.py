@@ -205,7 +205,7 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
     frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     row = {**family.columns, "stable_dt_max": stable_dt, "source": LADDER,
-           **fit(frame, declared, EPS[family.precision])}
+           **fit(frame, declared, family.precision)}
     if stability_note:
         row["note"] = "; ".join(x for x in (row["note"], stability_note) if x)
     return points, row
@@ -259,7 +259,7 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
             stops.append(f"dt = {dt if last else edge['dt']:.3g} is the " + (
                 f"largest tried (t_end / {MIN_STEPS})" if direction == 1 else f"smallest tried (t_end / {max_steps})"))
     row = {**family.columns, "stable_dt_max": math.nan, "source": SHORT_LADDER}
-    row.update(fit(frame(), declared, EPS[family.precision]))
+    row.update(fit(frame(), declared, family.precision))
     if not math.isfinite(row["order"]):
         row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *_short_reason(family, marked())])
     return new, row
@@ -343,5 +343,5 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor 
         rows.append(results[index][1])
     # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
     time_points([p for p in points if p.get("source") == LADDER],
-                {(f.case.name, f.engine, f.formulation, f.integrator): f for f in chosen})
+                {f.key: f for f in chosen})
     return points, rows

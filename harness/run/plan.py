@@ -29,6 +29,7 @@ class RunSpec:
     precision: str = FLOAT64  # the run's floating-point precision (Engine.precisions)
     precision_rank: int = 0
     keep_states: bool = False  # return the recorded states with the row ("_states"), for --save-trajectories
+    compared: bool = False     # return them too for the cross-engine agreement (agreement_candidates)
 
     @property
     def label(self) -> str:
@@ -115,3 +116,18 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
                             why = reason or (integrator and engine.unsupported_run(case, formulation, integrator))
                             (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
     return specs, skipped
+
+
+def agreement_candidates(specs: list[RunSpec]) -> set[int]:
+    """Indices of the fixed-step rigid-body runs whose states the cross-engine agreement compares: those whose
+    integrator names a method (Engine.method) that another engine also runs on the same case and dt."""
+    methods = {}
+    for index, spec in enumerate(specs):
+        if spec.dt is not None and spec.case.kind != SLIDING_LADDER:
+            method = get_engine(spec.engine).method(spec.integrator)
+            if method:
+                methods[index] = (spec.case.name, spec.dt, method)
+    engines: dict[tuple, set[str]] = {}
+    for index, key in methods.items():
+        engines.setdefault(key, set()).add(specs[index].engine)
+    return {index for index, key in methods.items() if len(engines[key]) > 1}

@@ -27,7 +27,7 @@ from . import timing
 from .. import integrators as integrator_registry
 from ..scenes.cases import SLIDING_LADDER, Case
 from ..engines import get_engine
-from .plan import RunSpec, base_row, plan
+from .plan import RunSpec, agreement_candidates, base_row, plan
 from ..trajectory import Status, Trajectory
 from ..grid import TimeGrid, time_grid
 from .distributed import run_on_cluster
@@ -118,7 +118,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         if spec.dt is None:
             row["steps"] = traj.steps
         row["rhs_per_sim_s"] = rhs_per_sim_s(spec, traj.rhs_evals, row["steps"], grid.t_end)
-        if spec.keep_states:
+        if spec.keep_states or spec.compared:
             row["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega}
         row.update(metrics.drifts(spec.case, traj, truth.applicable))
         row.update(metrics.torque_metrics(spec.case, traj))
@@ -294,7 +294,7 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
 def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | None, out_dir: Path,
               jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
               resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
-              pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
+              pool: ProcessPoolExecutor | None = None, agreement: list | None = None) -> pd.DataFrame:
     """Run everything and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -304,12 +304,18 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
     save_trajectories: also write each run's recorded states to out_dir/trajectories/<key>.npz (Store.put_states);
     with resume, a stored run without its file is redone.
+    agreement: a list the sweep appends the states of the runs the cross-engine agreement compares to (plan.
+    agreement_candidates; harness.analysis.agreement's entries), kept in memory; a resumed run's come from
+    out_dir/trajectories where it saved them, else it is left out.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
     specs, skipped_rows = plan(cases, engines, integrators)
     if save_trajectories:  # the sliding ladder records another state (harness.scenes.sliding_ladder): none to save
         specs = [dataclasses.replace(s, keep_states=True) if s.case.kind != SLIDING_LADDER else s for s in specs]
+    if agreement is not None:
+        candidates = agreement_candidates(specs)
+        specs = [dataclasses.replace(s, compared=True) if i in candidates else s for i, s in enumerate(specs)]
     specs.sort(key=_cost, reverse=True)
     results_path = out_dir / "results.csv"
     with Store(out_dir) as store:
@@ -340,8 +346,10 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             key = keys[id(spec)]
             series = row.pop("_series", None)
             states = row.pop("_states", None)
+            if states is not None and spec.compared and row.get("status") == Status.OK.value:
+                _compare(spec, states)
             if not row.get("_lost"):
-                if states is not None:  # before the record: a stored record means its states are there too
+                if states is not None and spec.keep_states:  # before the record: its states are there too
                     store.put_states(key, row, states)
                 store.put(key, identities[id(spec)], row, series)
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
@@ -351,6 +359,18 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                 publish()
             progress.advance(spec.label, _cost(spec), str(row.get("status", "")))
 
+        def _compare(spec: RunSpec, states: dict) -> None:
+            agreement.append({"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
+                              "integrator": spec.integrator, "precision": spec.precision, "dt": spec.dt,
+                              "method": get_engine(spec.engine).method(spec.integrator), "horizon": spec.case.horizon,
+                              "rank": tuple(_ranks(spec).values()), **states})
+
+        for spec in specs:  # resumed runs: their states where the earlier run saved them
+            key = keys[id(spec)]
+            if spec.compared and key in stored and stored[key].get("status") == Status.OK.value \
+                    and store.states_path(key).is_file():
+                with np.load(store.states_path(key)) as saved:
+                    _compare(spec, {name: saved[name] for name in ("times", "quat", "omega")})
         publish()
         pending = [s for s in specs if keys[id(s)] not in stored]
         local_jobs = 1 if scheduler else jobs or os.cpu_count() or 1
