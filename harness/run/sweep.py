@@ -34,7 +34,7 @@ from ..trajectory import Status, Trajectory
 from ..grid import TimeGrid, time_grid
 from .distributed import run_on_cluster
 from ..environment import environment as current_environment
-from .processes import exit_with_parent
+from .processes import exit_with_parent, raise_if_interrupted, starting_workers
 from .progress import ProgressBar
 from .results import frame, write_results
 from .store import Store, run_key
@@ -130,6 +130,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False,
     except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
         row = {**base_row(spec, grid), **budget.failed_row(exc)}
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
+        raise_if_interrupted(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
 
@@ -183,7 +184,8 @@ def _warm_run(spec: RunSpec):
             run = lambda: sim.run(grid)  # noqa: E731
         run()
         return run
-    except Exception:
+    except Exception as exc:
+        raise_if_interrupted(exc)
         return None
 
 
@@ -273,15 +275,19 @@ def _local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proc
         return
     jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
     # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_init_worker, initargs=(engines, budget.configured()))
+    pool = None
     try:
-        for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all now
-            pool.submit(int)
+        with starting_workers():  # tied to this process, deaf to Ctrl-C, from their first moment (harness.processes)
+            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_init_worker, initargs=(engines, budget.configured()))
+            for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all
+                pool.submit(int)
         yield pool
     except BaseException:
         # Python < 3.14 has no public way to end a pool's workers, hence the private process table, read before
         # shutdown() empties it.
+        if pool is None:
+            raise
         processes = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for process in processes:
@@ -389,6 +395,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                     try:
                         truths[case.name] = compute_truth(case, case.dt, certify, budgets.truth_s)
                     except Exception as exc:  # a truth that cannot be computed fails its case's runs, as data
+                        raise_if_interrupted(exc)
                         failure = {"status": Status.FAILED.value,
                                    "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]}
                         if isinstance(exc, budget.BudgetExceeded):  # stored as such: --resume redoes it if raised

@@ -32,6 +32,7 @@ from ..scenes.cases import Case
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
 from ..engines import get_engine
 from ..trajectory import Status
+from .processes import raise_if_interrupted
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
@@ -120,6 +121,7 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=str(exc))
     except Exception as exc:  # a point that breaks is data, as in the sweep
+        raise_if_interrupted(exc)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
@@ -138,6 +140,7 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
     except budget.BudgetExceeded as exc:
         return [_failed_point(family, tolerances[0], f"truth failed: {exc}")]
     except Exception as exc:
+        raise_if_interrupted(exc)
         return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
     points = []
     for tolerance in sorted(tolerances, reverse=True):

@@ -22,6 +22,7 @@ from .. import budget
 from ..engines import get_engine
 from ..trajectory import SlidingLadderTrajectory, Status
 from ..grid import time_grid
+from ..run.processes import raise_if_interrupted
 from ...reference import sliding_ladder as ref_ladder
 
 # The models whose rows get a detachment_angle check: the equation's event (the reference engine's "theta") and the
@@ -73,6 +74,7 @@ def execute(spec, base_row: dict, timed: bool = True, budgets: budget.Budgets | 
     except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
         row = {**base_row, **budget.failed_row(exc)}
     except Exception as exc:  # a run that breaks is data
+        raise_if_interrupted(exc)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
 
