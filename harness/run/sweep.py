@@ -304,7 +304,7 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
     completes."""
     if pool is None:
         for spec in specs:
-            finished(spec, execute(spec, truths[spec.case.name], budgets=budgets))
+            finished(spec, execute(spec, truths[spec.case.name]))  # this process's budgets
         return
     futures: dict[Future, RunSpec] = {pool.submit(execute, s, truths[s.case.name], False, budgets): s for s in specs}
     for future in as_completed(futures):
@@ -319,7 +319,7 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
 def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | None, out_dir: Path,
               jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
               resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
-              pool: ProcessPoolExecutor | None = None, budgets: budget.Budgets | None = None) -> pd.DataFrame:
+              pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
     """Run everything and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -332,7 +332,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
-    budgets = budgets or budget.configured()
+    budgets = budget.configured()  # the command's (harness.budget.configure), for every run, truth and --resume
     specs, skipped_rows = plan(cases, engines, integrators)
     if save_trajectories:  # the sliding ladder records another state (harness.scenes.sliding_ladder): none to save
         specs = [dataclasses.replace(s, keep_states=True) if s.case.kind != SLIDING_LADDER else s for s in specs]
