@@ -33,6 +33,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
+from stereodyn.harness.budget import check
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
 from stereodyn.harness.engines.mujoco import scene, torque_mode
@@ -131,6 +132,7 @@ class WarpSimulation:
                 for _ in range(target - done):
                     launch(step)
                 done = target
+                check()  # the run's wall-time budget (harness.budget)
                 quat[index], omega[index] = qpos.numpy()[0], qvel.numpy()[0]  # a read-back synchronises
                 if not sample_good(quat[index].tolist(), omega[index].tolist(), self.limit2):
                     diverged_at = float(grid.times[index])

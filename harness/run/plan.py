@@ -38,9 +38,10 @@ class RunSpec:
         precision = f" {self.precision}" if self.precision != FLOAT64 else ""
         return f"{self.case.name} {self.engine}{formulation} {self.integrator}{precision}{dt}"
 
-    def prepare(self):
-        """The engine's simulation of this run (Engine.prepare with the run's keywords; not timed)."""
-        engine = get_engine(self.engine)
+    def prepare(self, engine: Engine | None = None):
+        """The engine's simulation of this run (Engine.prepare with the run's keywords; not timed). engine: the
+        loaded engine of self.engine (default: the registry's)."""
+        engine = engine or get_engine(self.engine)
         return engine.prepare(self.case, self.integrator, self.dt,
                               **prepare_keywords(engine, self.formulation, self.integrator, self.precision))
 

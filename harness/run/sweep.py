@@ -120,7 +120,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False,
         return sliding_ladder.execute(spec, row, timed, budgets)
     try:
         engine = get_engine(spec.engine)
-        sim = budget.prepared(spec.prepare, budgets.prepare_s)
+        sim = budget.prepared(lambda: spec.prepare(engine), budgets.prepare_s)
         with budget.within("run", budgets.run_s):
             _accuracy_run(spec, truth, grid, sim, engine, row)
         if timed and row["status"] == Status.OK.value:
@@ -150,7 +150,7 @@ def _accuracy_run(spec: RunSpec, truth: CaseTruth, grid: TimeGrid, sim, engine, 
     row["oracle_err"] = oracles.oracle_err(spec.case, traj, truth.times, truth.exact_quat)
     # theory checks; the perturbed reruns some of them need are untimed, like the accuracy run
     row[checks.ROW_KEY] = checks.measure(spec.case, traj, lambda case: dataclasses.replace(
-        spec, case=case).prepare().run(grid))
+        spec, case=case).prepare(engine).run(grid))
     if not spec.is_truth:
         truth_quat, truth_omega = truth.on(grid)
         row.update(metrics.errors(traj, truth_quat, truth_omega, spec.case.horizon))
@@ -176,7 +176,7 @@ def _warm_run(spec: RunSpec):
             run = sliding_ladder.timed_run(spec, sliding_ladder._grid(spec))
         else:
             grid = _grid(spec)
-            sim = spec.prepare()
+            sim = spec.prepare(get_engine(spec.engine))
             run = lambda: sim.run(grid)  # noqa: E731
         run()
         return run
