@@ -60,6 +60,13 @@ def _list(text: str) -> list[str]:
     return items
 
 
+def _path(text: str) -> Path:
+    """A path option: an empty one would be the current folder (--out '' wrote the tables there)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path")
+    return Path(text)
+
+
 def _count(text: str) -> int:
     try:
         value = int(text)
@@ -80,6 +87,9 @@ def _floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError("expected at least one number")
     if len(values) > case_files.MAX_DTS:
         raise argparse.ArgumentTypeError(f"at most {case_files.MAX_DTS} steps, got {len(values)}")
+    twice = sorted({v for v in values if values.count(v) > 1})
+    if twice:  # the same run twice: two rows with one key
+        raise argparse.ArgumentTypeError(f"{', '.join(f'{v:g}' for v in twice)} given twice")
     return values
 
 
@@ -107,7 +117,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--integrators", type=_list, default=None, help="comma-separated (default: each engine's all)")
     run.add_argument("--dt", type=_floats, default=None, help="comma-separated steps, replacing each case's list")
     run.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing each case's t_end")
-    run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
+    run.add_argument("--out", type=_path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
     run.add_argument("--jobs", type=_count, default=None, help="local worker processes (default: all cores)")
     run.add_argument("--no-certify", action="store_true",
                      help="skip the quadruple-precision rerun (~0.2 s a case) that bounds each truth's error "
@@ -137,14 +147,17 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--extremes", action="store_true",
                      help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
-    report.add_argument("dir", type=Path)
+    report.add_argument("dir", type=_path)
+    _allow_partial(report)
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
-    baseline.add_argument("dir", type=Path)
-    baseline.add_argument("--out", type=Path, required=True, metavar="FILE", help="baseline file to write (JSON)")
+    baseline.add_argument("dir", type=_path)
+    baseline.add_argument("--out", type=_path, required=True, metavar="FILE", help="baseline file to write (JSON)")
+    _allow_partial(baseline)
     gate = commands.add_parser("check", help="exit 1 and print the rows of DIR that got worse than the baseline")
-    gate.add_argument("dir", type=Path)
-    gate.add_argument("--baseline", type=Path, required=True, metavar="FILE")
-    gate.add_argument("--tolerances", type=Path, default=None, metavar="FILE.toml",
+    gate.add_argument("dir", type=_path)
+    gate.add_argument("--baseline", type=_path, required=True, metavar="FILE")
+    _allow_partial(gate)
+    gate.add_argument("--tolerances", type=_path, default=None, metavar="FILE.toml",
                        help="[default] factor/floor, [metric.NAME] factor/floor, [time] factor")
     gate.add_argument("--factor", type=float, default=None,
                        help="a drift or error may grow to factor * baseline + floor (default 2, every metric)")
@@ -153,18 +166,24 @@ def _parser() -> argparse.ArgumentParser:
                        help="also fail when us_per_step exceeds this factor times the baseline's")
     compare = commands.add_parser("compare", help="two runs side by side: environments, then every row's metrics as "
                                                    "ratios B/A, largest changes first (OUT/compare.md, OUT/compare.html)")
-    compare.add_argument("a", type=Path, metavar="A", help="result directory or baseline file (the reference)")
-    compare.add_argument("b", type=Path, metavar="B", help="result directory or baseline file (the new run)")
-    compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
+    compare.add_argument("a", type=_path, metavar="A", help="result directory or baseline file (the reference)")
+    compare.add_argument("b", type=_path, metavar="B", help="result directory or baseline file (the new run)")
+    compare.add_argument("--out", type=_path, default=None, metavar="DIR", help="where to write (default: B)")
+    _allow_partial(compare)
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
     export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
-    export.add_argument("--out", type=Path, default=None, metavar="FILE", help="default: standard output")
+    export.add_argument("--out", type=_path, default=None, metavar="FILE", help="default: standard output")
     export.add_argument("--integrator", default=None, help="MJCF only: MuJoCo integrator (default rk4)")
     export.add_argument("--dt", type=_scale, default=None, help="MJCF only: timestep (default: the case's first dt)")
     return parser
+
+
+def _allow_partial(parser) -> None:
+    parser.add_argument("--allow-partial", action="store_true",
+                        help="read a folder an unfinished (interrupted or killed) sweep left, as it is")
 
 
 def _select_cases(args) -> list:
@@ -173,8 +192,8 @@ def _select_cases(args) -> list:
         suite = case_files.load_suite(case_files.suite_dir() / "extreme")
     if args.cases:
         chosen = [case_files.find_case(name, suite) for name in args.cases]
-    else:  # --case-file alone runs just those files; nothing at all runs the suite
-        chosen = [] if args.case_file else list(suite)
+    else:  # --case-file alone runs just those files; nothing at all (or --extremes) runs the suite
+        chosen = [] if args.case_file and not getattr(args, "extremes", False) else list(suite)
     chosen += [case_files.load_case(path) for path in args.case_file]
     names = [c.name for c in chosen]
     if len(set(names)) != len(names):
@@ -261,7 +280,7 @@ def cmd_run(args) -> int:
     from stereodyn.harness import summary, verdicts, workprecision
     from stereodyn.harness.run.sweep import run_sweep, worker_pool
 
-    from stereodyn.harness.run.store import folder_lock
+    from stereodyn.harness.run.store import folder_lock, mark_complete
 
     _check_names(args)
     if args.certify and args.no_certify:
@@ -270,12 +289,17 @@ def cmd_run(args) -> int:
     progress = ProgressBar(enabled=not args.quiet)
     _output_folder(args.out, "--out")
     _quiet_engines(args.out)
+    if args.scheduler:  # before any truth is computed
+        from stereodyn.harness.run.distributed import check_cluster
+
+        check_cluster(args.scheduler)
     with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
         # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
         with worker_pool(args.jobs, tuple(args.engines)) as pool:
             df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs,
                            certify=not args.no_certify, progress=progress, resume=args.resume,
-                           scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool)
+                           scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool,
+                           final=False)
             _work_precision(args, chosen, df, pool, progress)
         found = verdicts.evaluate(args.out, df, chosen)
         # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
@@ -284,6 +308,7 @@ def cmd_run(args) -> int:
             print(drift_table_text(df))
         progress.stage("report: report.md, figures, report.html")
         markdown, html = write_reports(args.out, df)
+        mark_complete(args.out)  # the last write: check, baseline, compare and report read the folder from now on
         print("\n".join(summary.terminal_lines(df, found, args.out, html)))
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     if args.strict and verdicts.failed(found):
@@ -323,13 +348,14 @@ def cmd_report(args) -> int:
     from stereodyn.harness.report.build import write_reports
 
     from stereodyn.harness.run.results import TableError
-    from stereodyn.harness.run.store import folder_lock
+    from stereodyn.harness.run.store import completeness, folder_lock
 
     results = args.dir / "results.csv"
     if not results.is_file():
         raise BadInput(f"{results}: file not found")
     _output_folder(args.dir, "report DIR")
     with folder_lock(args.dir):
+        warnings = completeness(args.dir, args.allow_partial)
         try:
             markdown, html = write_reports(args.dir)
         except (KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
@@ -338,17 +364,20 @@ def cmd_report(args) -> int:
             # a table that read but does not hold what stereodyn writes (a column of text where numbers belong, ...)
             raise BadInput(f"{args.dir}: malformed tables, cannot render the report "
                            f"({type(exc).__name__}: {' '.join(str(exc).split())[:160]})") from None
+    _warn(warnings)  # after the tables read: a folder that cannot be read is one line, the error
     print(f"wrote {markdown} and {html}")
     return 0
 
 
 def cmd_baseline(args) -> int:
     from stereodyn.harness import gate
-    from stereodyn.harness.run.store import read_manifest
+    from stereodyn.harness.run.store import read_manifest, reading
 
     _output_file(args.out, "--out")
-    manifest = read_manifest(args.dir) or {}
-    table, orders = gate.read_table(args.dir), gate.read_orders(args.dir)
+    with reading(args.dir, args.allow_partial) as warnings:  # never a folder a command is writing, nor unfinished
+        manifest = read_manifest(args.dir) or {}
+        table, orders = gate.read_table(args.dir), gate.read_orders(args.dir)
+    _warn(warnings)  # after the tables read: a folder that cannot be read is one line, the error
     rows = gate.write_baseline(table, args.out, manifest.get("environment"), orders)
     print(f"wrote {args.out} ({rows} rows, {0 if orders is None else len(orders)} fitted orders)")
     return 0
@@ -373,17 +402,20 @@ def cmd_check(args) -> int:
             per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
     if args.time_factor is not None:
         tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
-    from stereodyn.harness.run.store import read_manifest
+    from stereodyn.harness.run.store import read_manifest, reading
 
     base = gate.read_baseline_file(args.baseline)
     baseline = base.rows
-    current = gate.read_table(args.dir)
+    with reading(args.dir, args.allow_partial) as warnings:  # never a folder a command is writing, nor unfinished
+        current = gate.read_table(args.dir)
+        orders = gate.read_orders(args.dir) if base.orders else None
+        environment = (read_manifest(args.dir) or {}).get("environment")
     used = sorted({m for row in baseline for m in gate.metric_columns(row) if row.get(m) is not None})
     missing = [m for m in used if m not in current.columns]
     if missing:  # else every row would read as NaN, i.e. worse
         raise BadInput(f"{args.dir / 'results.csv'}: missing columns {', '.join(missing)} (the baseline has them)")
-    orders = gate.read_orders(args.dir) if base.orders else None
-    changes = gate.environment_changes(base.environment, (read_manifest(args.dir) or {}).get("environment"))
+    _warn(warnings)  # after the tables read: a folder that cannot be read is one line, the error
+    changes = gate.environment_changes(base.environment, environment)
     print(f"environment: {', '.join(changes)}" if changes else "environment: as in the baseline")
     findings = gate.compare(current, baseline, tolerances)
     order_findings = gate.compare_orders(orders, base.orders)
@@ -410,9 +442,25 @@ def cmd_check(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from stereodyn.harness.compare import compare
+    from contextlib import ExitStack
 
-    markdown, html, head = compare(args.a, args.b, args.out)
+    from stereodyn.harness.compare import compare
+    from stereodyn.harness.run.store import STORE_DIR, completeness, folder_lock, reading
+
+    out = args.out if args.out is not None else args.b
+    warnings = []
+    with ExitStack() as held:
+        # The folder written (B or --out) is locked as `run` locks it, when it is a result folder; the folders read
+        # are read only when no command writes them, and complete (or --allow-partial).
+        written = (out / STORE_DIR).is_dir()
+        if written:
+            held.enter_context(folder_lock(out))
+        for folder in dict.fromkeys(p for p in (args.a, args.b) if p.is_dir()):
+            same = written and os.path.realpath(folder) == os.path.realpath(out)
+            warnings += (completeness(folder, args.allow_partial) if same
+                         else held.enter_context(reading(folder, args.allow_partial)))
+        markdown, html, head = compare(args.a, args.b, args.out)
+    _warn(warnings)  # after the tables read: a folder that cannot be read is one line, the error
     print("\n".join(head))
     print(f"wrote {markdown} and {html}")
     return 0
@@ -459,7 +507,7 @@ def main(argv: list[str] | None = None) -> int:
         from stereodyn.harness.gate import GateError
         from stereodyn.harness.run.distributed import ClusterError
         from stereodyn.harness.export import ExportError
-        from stereodyn.harness.run.store import StoreBusy
+        from stereodyn.harness.run.store import FolderNotReady, StoreBusy
         from stereodyn.harness.run.results import TableError
         from stereodyn.harness.compare import CompareError
     except KeyboardInterrupt:
@@ -480,7 +528,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
-            CompareError) as exc:
+            CompareError, FolderNotReady) as exc:
         code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
@@ -494,10 +542,19 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _error(message: str) -> int:
-    """Bad input: one line on stderr (a newline or other control character in a name or path is escaped), exit 2."""
-    line = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in message)
-    print(f"stereodyn: error: {line}", file=sys.stderr)
+    """Bad input: one line on stderr, exit 2."""
+    print(f"stereodyn: error: {_one_line(message)}", file=sys.stderr)
     return 2
+
+
+def _warn(lines: list[str]) -> None:
+    for line in lines:
+        print(f"stereodyn: warning: {_one_line(line)}", file=sys.stderr)
+
+
+def _one_line(text: str) -> str:
+    """A newline or other control character in a name or a path, escaped: a message stays one line."""
+    return "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)
 
 
 if __name__ == "__main__":
