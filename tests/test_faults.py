@@ -417,7 +417,7 @@ def test_extremes_with_a_case_file_runs_both(tmp_path):
     case = tmp_path / "case.toml"
     case.write_text(BASE)
     args = argparse.Namespace(cases=[], case_file=[str(case)], extremes=True, dt=None, t_end=None)
-    names = [c.name for c in cli._select_cases(args)]
+    names = [c.name for c in cli.select_cases(args)]
     from stereodyn.harness.scenes import cases
 
     extreme = [c.name for c in cases.load_suite(cases.suite_dir() / "extreme")]

@@ -33,14 +33,14 @@ import numpy as np
 import pandas as pd
 
 from ..scenes import metrics
-from .. import fitting
+from . import fitting
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..engines import get_engine
-from ..fitting import declared_order, fit
+from .fitting import declared_order, fit
 from ..grid import time_grid
-from . import timing
+from ..run import timing
 from ..trajectory import Status
-from .processes import raise_if_interrupted
+from ..run.processes import raise_if_interrupted
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
@@ -61,7 +61,7 @@ SHORT_POINTS, SHORT_TARGET = 6, 3
 @dataclass(frozen=True)
 class Family:
     """Runs of one case x engine x formulation x integrator, which differ only in dt (a dt ladder) or in the
-    requested tolerance (a tolerance ladder, harness.run.tolerance_ladders)."""
+    requested tolerance (a tolerance ladder, harness.analysis.tolerance_ladders)."""
 
     case: Case
     engine: str
@@ -284,7 +284,7 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
              formulations: tuple[str, ...] | None = None) -> list[Family]:
     """The fixed-step run families a sweep of these cases would have (harness.run.plan.plan's selection)."""
-    from .plan import plan
+    from ..run.plan import plan
 
     specs, _ = plan(cases, engines, integrators)
     out = {}

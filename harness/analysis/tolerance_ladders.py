@@ -7,7 +7,7 @@ with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: r
 grid of the sweep's adaptive rows (harness.run.sweep.truth_grid). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
-(harness.run.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
+(harness.analysis.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
 evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the quaternion at its default,
 truth-grade tolerance) is not a ladder point: every point names its tolerance, and heyoka's taylor joins at the
 loose ones like any other adaptive method.
@@ -26,12 +26,12 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable
 
 from ..scenes import metrics
-from . import timing
+from ..run import timing
 from ..scenes.cases import Case
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
 from ..engines import get_engine
 from ..trajectory import Status
-from .processes import raise_if_interrupted
+from ..run.processes import raise_if_interrupted
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
@@ -76,7 +76,7 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
 # ------------------------------------------------------------------------------------------------ one point
 
 def _grid(case: Case):
-    from .sweep import truth_grid  # the sweep's grid of adaptive rows
+    from ..run.sweep import truth_grid  # the sweep's grid of adaptive rows
 
     return truth_grid(case)
 

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from stereodyn.harness.readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
-from stereodyn.harness.run.results import METRIC_SUFFIXES, TableError, read_results, write_atomic
+from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
+from ..run.results import METRIC_SUFFIXES, TableError, read_results, write_atomic
 
 KEY = ("case", "engine", "formulation", "integrator", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
