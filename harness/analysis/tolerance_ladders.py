@@ -25,6 +25,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable
 
+from .. import budget
 from ..scenes import metrics
 from ..run import timing
 from ..scenes.cases import Case
@@ -96,8 +97,9 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
            "integrator": family.integrator, "tolerance": float(tolerance), "t_end": grid.t_end}
     start = time.perf_counter()
     try:
-        sim = _prepare(family, tolerance)
-        traj = sim.run(grid)
+        sim = budget.prepared(lambda: _prepare(family, tolerance))
+        with budget.within("run", budget.configured().run_s):
+            traj = sim.run(grid)
         row["_accuracy_s"] = time.perf_counter() - start
         row.update(status=traj.status.value, message=traj.message, steps=traj.steps, rhs_evals=traj.rhs_evals,
                    rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan,
@@ -107,12 +109,17 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
         if truth is None:
             from ...reference import truth as reference_truth
 
-            truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
+            with budget.within("truth", budget.configured().truth_s):
+                truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times,
+                                              deadline=budget.deadline())
         row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
         parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
         row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
             if math.isfinite(row["attitude_err"]) else math.nan
         row["err_over_tol"] = row["state_err"] / float(tolerance)
+    except budget.BudgetExceeded as exc:  # the ladder stops here (run_ladder: the point took longer than its budget)
+        row.setdefault("_accuracy_s", time.perf_counter() - start)
+        row.update(status=Status.FAILED.value, message=str(exc))
     except Exception as exc:  # a point that breaks is data, as in the sweep
         raise_if_interrupted(exc)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
@@ -127,7 +134,11 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
         from ...reference import truth as reference_truth
 
         case = family.case
-        truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times)
+        with budget.within("truth", budget.configured().truth_s):
+            truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times,
+                                          deadline=budget.deadline())
+    except budget.BudgetExceeded as exc:
+        return [_failed_point(family, tolerances[0], f"truth failed: {exc}")]
     except Exception as exc:
         raise_if_interrupted(exc)
         return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]

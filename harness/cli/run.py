@@ -14,6 +14,7 @@ def main(args) -> int:
     from ..report.markdown import drift_table_text
     from ..analysis import summary, verdicts, workprecision
     from ..run.sweep import run_sweep, worker_pool
+    from .. import budget
 
     from ..run.store import folder_lock, mark_complete
 
@@ -24,6 +25,7 @@ def main(args) -> int:
     progress = ProgressBar(enabled=not args.quiet)
     output_folder(args.out, "--out")
     _quiet_engines(args.out)
+    budget.configure(budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget))  # workers inherit it
     if args.scheduler:  # before any truth is computed
         from ..run.distributed import check_cluster
 
