@@ -60,11 +60,24 @@ class UnavailableEngine(Engine):
         raise RuntimeError(self.reason)
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is among the causes of exc (an extension module's init wraps it in ImportError)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def _load(name: str, entry: EntryPoint) -> Engine:
     where = f"engine plug-in {name!r} ({entry.value})"
     try:
         cls = entry.load()
     except ImportError as exc:  # its SDK (or the plug-in's own module) is missing: its runs are skipped
+        if _interrupted(exc):  # not missing: Ctrl-C while it loaded (pybind11 reports it as "initialization failed")
+            raise KeyboardInterrupt from exc
         return UnavailableEngine(name, f"{name} engine unavailable: {exc}")
     except Exception as exc:
         raise EngineError(f"{where}: does not load: {type(exc).__name__}: {exc}".splitlines()[0]) from exc

@@ -40,6 +40,7 @@ from ..fitting import declared_order, fit
 from ..grid import time_grid
 from . import timing
 from ..trajectory import Status
+from .processes import raise_if_interrupted
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
@@ -108,6 +109,7 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
         if timed and traj.status is Status.OK:
             row.update(_timed(sim, grid))
     except Exception as exc:  # a point that breaks is data, as in the sweep
+        raise_if_interrupted(exc)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
 

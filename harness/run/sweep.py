@@ -32,7 +32,7 @@ from ..trajectory import Status, Trajectory
 from ..grid import TimeGrid, time_grid
 from .distributed import run_on_cluster
 from ..environment import environment as current_environment
-from .processes import exit_with_parent
+from .processes import exit_with_parent, raise_if_interrupted, starting_workers
 from .progress import ProgressBar
 from .results import frame, write_results
 from .store import Store, run_key
@@ -135,6 +135,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         if timed and traj.status is Status.OK:
             row.update(_timing_columns(timing.measure(lambda: sim.run(grid)), row["steps"]))
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
+        raise_if_interrupted(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
 
@@ -163,7 +164,8 @@ def _warm_run(spec: RunSpec):
             run = lambda: sim.run(grid)  # noqa: E731
         run()
         return run
-    except Exception:
+    except Exception as exc:
+        raise_if_interrupted(exc)
         return None
 
 
@@ -250,15 +252,19 @@ def _local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proc
         return
     jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
     # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_init_worker, initargs=(engines,))
+    pool = None
     try:
-        for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all now
-            pool.submit(int)
+        with starting_workers():  # tied to this process, deaf to Ctrl-C, from their first moment (harness.processes)
+            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_init_worker, initargs=(engines,))
+            for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all
+                pool.submit(int)
         yield pool
     except BaseException:
         # Python < 3.14 has no public way to end a pool's workers, hence the private process table, read before
         # shutdown() empties it.
+        if pool is None:
+            raise
         processes = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for process in processes:
@@ -363,6 +369,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                     try:
                         truths[case.name] = compute_truth(case, case.dt, certify)
                     except Exception as exc:  # a truth that cannot be computed fails its case's runs, as data
+                        raise_if_interrupted(exc)
                         reason = f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]
                         for spec in [s for s in pending if s.case is case]:
                             finished(spec, {**base_row(spec, None), "status": Status.FAILED.value, "message": reason})

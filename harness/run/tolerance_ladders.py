@@ -31,6 +31,7 @@ from ..scenes.cases import Case
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
 from ..engines import get_engine
 from ..trajectory import Status
+from .processes import raise_if_interrupted
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
@@ -113,6 +114,7 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
             if math.isfinite(row["attitude_err"]) else math.nan
         row["err_over_tol"] = row["state_err"] / float(tolerance)
     except Exception as exc:  # a point that breaks is data, as in the sweep
+        raise_if_interrupted(exc)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
@@ -127,6 +129,7 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
         case = family.case
         truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times)
     except Exception as exc:
+        raise_if_interrupted(exc)
         return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
     points = []
     for tolerance in sorted(tolerances, reverse=True):

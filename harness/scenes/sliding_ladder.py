@@ -21,6 +21,7 @@ from . import checks
 from ..engines import get_engine
 from ..trajectory import SlidingLadderTrajectory, Status
 from ..grid import time_grid
+from ..run.processes import raise_if_interrupted
 from ...reference import sliding_ladder as ref_ladder
 
 # The models whose rows get a detachment_angle check: the equation's event (the reference engine's "theta") and the
@@ -67,6 +68,7 @@ def execute(spec, base_row: dict, timed: bool = True) -> dict:
             row.update(wall_s=measured.best, us_per_step=measured.best / max(1, grid.steps) * 1e6,
                        us_per_step_spread=measured.spread / max(1, grid.steps) * 1e6)
     except Exception as exc:  # a run that breaks is data
+        raise_if_interrupted(exc)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
 
