@@ -41,7 +41,7 @@ for _module in ("genesis", "torch"):
                           f"the CPU wheel is enough)")
 
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
 from stereodyn.reference.torques import torque_function
@@ -51,7 +51,6 @@ MODELS = (BALL, FREE)
 INTEGRATORS = ("euler", "implicitfast", "approximate_implicitfast")
 # their gs.integrator members
 _MEMBERS = {"euler": "Euler", "implicitfast": "implicitfast", "approximate_implicitfast": "approximate_implicitfast"}
-FLOAT64, FLOAT32 = "float64", "float32"
 PRECISIONS = (FLOAT64, FLOAT32)
 # What each integrator is on the ball joint (harness.engines.methods): the same semi-implicit Euler as MuJoCo's euler
 # (measured: 1e-15 apart over 200 steps); on the free body implicitfast is Genesis's own.

@@ -34,7 +34,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
 from stereodyn.reference.rotations import quat_to_matrix
@@ -46,7 +46,6 @@ DEVICE = "cpu"
 BALL, FREE = "ball", "free"
 MODELS = (BALL, FREE)
 SOLVERS = {"featherstone": "SolverFeatherstone", "semi_implicit": "SolverSemiImplicit", "xpbd": "SolverXPBD"}
-FLOAT32 = "float32"
 # What each solver is (harness.engines.methods): featherstone's ball joint updates the velocity first; its quaternion
 # update is first order (q + dt/2 omega q, renormalised), not the exponential map, so it agrees with the other
 # semi-implicit Eulers only to O(dt) (measured 8e-5 rad after 200 steps of 1e-2 s against MuJoCo's euler).
