@@ -172,6 +172,9 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
+    commands.add_parser("engines", help="list every registered engine: origin (built in, or the plug-in's "
+                                        "distribution and version), installed or the install command, models, "
+                                        "integrators, precision")
     advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
                                                  "reaches an accuracy on a case, checked by runs")
     advise.add_argument("case", metavar="CASE_OR_FILE", help="a suite case name or a .toml path")
@@ -452,6 +455,13 @@ def cmd_integrators(args) -> int:
     return 0
 
 
+def cmd_engines(args) -> int:
+    from stereodyn.harness.engines.catalog import render, rows
+
+    print(render(rows()))
+    return 0
+
+
 def cmd_advise(args) -> int:
     from stereodyn.harness.run import advice as advising
     from stereodyn.harness.scenes.cases import SLIDING_LADDER
@@ -569,7 +579,8 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
     commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
-                "check": cmd_check, "export": cmd_export, "advise": cmd_advise, "compare": cmd_compare, "integrators": cmd_integrators}
+                "check": cmd_check, "export": cmd_export, "advise": cmd_advise, "compare": cmd_compare, "integrators": cmd_integrators,
+                "engines": cmd_engines}
     try:
         code = commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
