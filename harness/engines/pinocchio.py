@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from stereodyn.harness import integrators
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory
 from stereodyn.harness.engines.base import Engine, precession_singular
@@ -230,7 +231,11 @@ class PinocchioEngine(Engine):
     export_formats = ("urdf",)
 
     def export(self, case: Case, fmt: str, integrator: str | None, dt: float | None) -> str:
-        """URDF: the body, its ball joint as a three-joint gimbal (integrator and dt do not apply)."""
+        """URDF: the body, its ball joint as a three-joint gimbal. A URDF holds no stepper: an integrator or a dt is
+        refused rather than silently dropped."""
+        if integrator is not None or dt is not None:
+            raise ValueError(f"--{'integrator' if integrator is not None else 'dt'}: applies to a format that holds a "
+                             f"stepper (mjcf), not to {fmt}")
         return urdf(case)
 
     def integrators(self) -> tuple[str, ...]:
@@ -354,8 +359,9 @@ class PinocchioLadderSimulation:
         step, dt, done = self.integrator.stepper(self.system, grid.dt), grid.dt, 0
         with np.errstate(all="ignore"):
             for sample, target in enumerate(samples[1:].tolist(), start=1):
-                for k in range(done, target):
-                    _, y = step(k * dt, None, y)
+                for piece in budget.pieces(done, target):
+                    for k in piece:
+                        _, y = step(k * dt, None, y)
                 done = target
                 state[sample] = y
                 if not np.all(np.isfinite(y)):

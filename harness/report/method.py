@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.report.markdown import markdown_table, number
-from stereodyn.harness.testing import energy_noise
+from ..testing import energy_noise
+from . import sections
+from .markdown import markdown_table, number
 
 # Accuracy targets (max attitude error, rad) of the cost comparison.
 COST_TARGETS = (1e-3, 1e-6, 1e-9)
@@ -39,8 +40,8 @@ def origin(cls) -> str:
 def integrator_rows() -> list[dict]:
     """Every integrator `stereodyn run --integrators` accepts: the registry's classes (each state space) with their
     metadata and origin, then each engine's own integrators (MuJoCo's) that the registry does not hold."""
-    from stereodyn.harness import integrators as registry
-    from stereodyn.harness.engines import engine_names, get_engine
+    from .. import integrators as registry
+    from ..engines import engine_names, get_engine
 
     rows = []
     for space in registry.state_spaces():
@@ -51,8 +52,8 @@ def integrator_rows() -> list[dict]:
                          "energy_bounded": getattr(cls, "energy_bounded", False),
                          "default_sweep": getattr(cls, "default_sweep", True), "origin": origin(cls),
                          "description": cls.description})
-    from stereodyn.harness.engines.catalog import origin as engine_origin
-    from stereodyn.harness.fitting import declared_order
+    from ..engines.catalog import origin as engine_origin
+    from ..analysis.fitting import declared_order
 
     for engine in engine_names():
         try:
@@ -163,7 +164,7 @@ def _labelled(table: pd.DataFrame | None) -> pd.DataFrame | None:
 def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | None = None) -> list[str]:
     """The report section "Each integrator (your method)": a subsection per integrator that ran (an engine's own
     named with its engine, own_label)."""
-    from stereodyn.harness import workprecision
+    from ..analysis import workprecision
 
     truth_rows = df["integrator"].astype(str) == "taylor"
     df = _labelled(df[~truth_rows])
@@ -214,3 +215,8 @@ def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | No
         rows.append([name, row.get("origin", "?"), _text(declared), orders, stable, floor, trend,
                      *[costs[t] for t in COST_TARGETS]])
     return lines + markdown_table(header, rows) + [""]
+
+
+@sections.register("each-integrator", 40)
+def _each_integrator(context: sections.Context) -> list[str]:
+    return method_lines(context.results, context.out_dir, context.series)

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -15,6 +14,7 @@ from ...reference.body import RigidBody
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
 from ...reference.sliding_ladder import Ladder, detachment_cosine
 from ...reference.torques import BodyTorque, CentralField, PrecessionTorque
+from ..readers import ReadError, read_toml
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
@@ -38,6 +38,10 @@ MAX_MAGNITUDE = 1e6
 MIN_SCALE = 1e-9
 MAX_SAMPLES = 100_000      # recorded states per run
 MAX_STEPS = 10_000_000     # t_end / dt per run: 10x the extremes' long horizon (1e6 steps)
+# A case's name is in every row of results.csv and checks.csv, in each store record and in the report's tables: a
+# 100 000-character name made a 38 MB results.csv and a 2 MB one hung the report (issue 22); 200 characters is a few
+# times the longest a report table shows on one line.
+MAX_NAME = 200
 MAX_DTS = 32               # steps in one dt list: the truth samples the union of their grids, <= 3.2e6 states (180 MB)
 MIN_SIN_THETA = 1e-9       # torque (41): cot θ stays <= 1e9
 
@@ -148,20 +152,13 @@ def load_case(path: str | Path) -> Case | LadderCase:
     """Read and validate one case file. Bad input raises CaseError naming the file, the key and the rule."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
+        data = read_toml(path)
     except FileNotFoundError:
         raise CaseError(path, "-", "file not found") from None
     except OSError as exc:
         raise CaseError(path, "-", f"cannot read file ({exc.strerror or exc})") from None
-    try:
-        # utf-8-sig: a byte-order mark (as some editors write) is accepted and dropped
-        data = tomllib.loads(raw.decode("utf-8-sig"))
-    except UnicodeDecodeError:
-        raise CaseError(path, "-", "invalid TOML: not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(path, "-", "invalid TOML: " + " ".join(str(exc).split())[:300]) from None
-    except RecursionError:  # tomllib recurses once per nesting level: thousands of [[[...]]] exhaust the stack
-        raise CaseError(path, "-", "invalid TOML: arrays or tables nested too deep") from None
+    except ReadError as exc:  # too large (/dev/zero), not UTF-8, not TOML, nested too deep, a 5000-digit integer
+        raise CaseError(path, "-", str(exc)) from None
     return _Parser(path).case(data)
 
 
@@ -323,6 +320,8 @@ class _Parser:
             if t_end / step > MAX_STEPS:
                 raise self.fail(item_key, f"t_end / dt must be <= {MAX_STEPS:.0e} steps (docs/limits.md), "
                                           f"got {t_end / step:.3g}")
+            if step in result:  # the same runs twice: rows with one key
+                raise self.fail(item_key, f"{step:g} given twice")
             result.append(step)
         return tuple(result)
 
@@ -380,6 +379,9 @@ class _Parser:
             raise self.fail("name", "must not be empty")
         if not name.isprintable():  # XML (MJCF, URDF) cannot carry control characters, and a table row breaks on them
             raise self.fail("name", f"must hold printable characters only, got {_short(name)}")
+        if len(name) > MAX_NAME:
+            raise self.fail("name", f"must be at most {MAX_NAME} characters (it is in every row and table), got "
+                                    f"{len(name)}")
         description = self.string(data.get("description", ""), "description")
         tags = data.get("tags", [])
         if not isinstance(tags, list):
