@@ -31,7 +31,9 @@ def guide_files() -> dict[str, str]:
 def installed(tmp_path_factory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("engine-example")
     files = guide_files()
-    assert sorted(files) == ["pyproject.toml", "stereodyn_toy_engine/__init__.py", "tests/test_toy_engine.py"]
+    # the package's module and its test, by folder and name
+    assert sorted((Path(p).parent.name, Path(p).name) for p in files) == [
+        ("", "pyproject.toml"), ("stereodyn_toy_engine", "__init__.py"), ("tests", "test_toy_engine.py")]
     meta = tomllib.loads(files["pyproject.toml"])
     assert meta["project"]["entry-points"]["stereodyn.engines"] == {"toy_euler": "stereodyn_toy_engine:ToyEngine"}
     # built by the stand-in backend (tests/plugin_packages.py: no network, no wheel package needed) from the guide's
