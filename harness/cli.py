@@ -13,9 +13,12 @@ def _interrupted_while_loading(signum, frame) -> None:
 
 
 # Started as the command (the `stereodyn` script, python -m stereodyn or this file), Ctrl-C while the modules below
-# load ends in one line; main() puts Python's handler back once they are in. Imported as a library: untouched.
+# load ends in one line; main() then puts the command's handler (run/processes.py: on_interrupt). Imported as a
+# library: untouched.
+# A pool worker (which imports this module as its __main__'s) ignores Ctrl-C: harness/run/processes.py.
 if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or __name__ == "__main__"
-                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))):
+                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))) \
+        and not __import__("stereodyn.harness.run.processes").harness.run.processes.is_worker():
     signal.signal(signal.SIGINT, _interrupted_while_loading)
 
 import argparse  # noqa: E402  (after the handler, on purpose)
@@ -92,6 +95,20 @@ def _scale(text: str) -> float:
     return value
 
 
+def _targets(text: str) -> list[float]:
+    """Accuracy targets: rad, each finite and in (0, 1)."""
+    values = []
+    for item in (item.strip() for item in text.split(",")):
+        try:
+            value = float(item)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {item[:40]!r}") from None
+        if not (math.isfinite(value) and 0.0 < value < 1.0):
+            raise argparse.ArgumentTypeError(f"must be in (0, 1) rad, got {value:g}")
+        values.append(value)
+    return values
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="stereodyn", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -155,6 +172,19 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
+    advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
+                                                 "reaches an accuracy on a case, checked by runs")
+    advise.add_argument("case", metavar="CASE_OR_FILE", help="a suite case name or a .toml path")
+    advise.add_argument("--engine", required=True, help="the engine whose integrators to advise on")
+    advise.add_argument("--integrator", type=_list, default=None,
+                        help="comma-separated (default: the engine's default sweep with a declared order or error "
+                             "control)")
+    advise.add_argument("--formulation", default=None, help="the engine's model (default quaternion, or its first)")
+    advise.add_argument("--target", type=_targets, default=None,
+                        help="max attitude error over the case's horizon, rad, comma-separated (default 1e-3,1e-6,1e-9)")
+    advise.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing the case's t_end")
+    advise.add_argument("--max-steps", type=_count, default=None, metavar="N",
+                        help="smallest dt tried = t_end / N (default 200000)")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
     export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
@@ -422,6 +452,72 @@ def cmd_integrators(args) -> int:
     return 0
 
 
+def cmd_advise(args) -> int:
+    from stereodyn.harness.run import advice as advising
+    from stereodyn.harness.scenes import scene_of
+    from stereodyn.harness.summary import TERMINAL_TARGETS
+
+    if args.engine not in engine_names():
+        raise BadInput(f"--engine: unknown engine {args.engine}; valid: {', '.join(engine_names())}")
+    case = case_files.find_case(args.case)
+    if not scene_of(case).work_precision:  # the step search reads an attitude error's convergence (dt ladders)
+        raise BadInput(f"{args.case}: {scene_of(case).title} has no attitude error to advise on")
+    if args.t_end is not None:
+        args.dt = None
+        case = _override(case, args)
+    max_steps = args.max_steps or ADVISE_MAX_STEPS
+    if max_steps < 2 * advising.MIN_STEPS or case.t_end / max_steps < case_files.MIN_SCALE:
+        raise BadInput(f"--max-steps: must be >= {2 * advising.MIN_STEPS} and keep t_end / N >= "
+                       f"{case_files.MIN_SCALE:g}, got {max_steps}")
+    try:
+        families = advising.families_to_advise(case, args.engine, args.integrator, args.formulation)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    if not families:
+        from stereodyn.harness.engines import get_engine
+
+        engine = get_engine(args.engine)
+        raise BadInput(f"--engine {args.engine}: nothing to advise on case {case.name}"
+                       + (f" ({engine.unsupported(case)})" if engine.unsupported(case) else ""))
+    targets = tuple(sorted(args.target or TERMINAL_TARGETS, reverse=True))
+    say = lambda text: print(f"stereodyn: {text}", file=sys.stderr)  # noqa: E731
+    table, why = advising.advise(case, families, targets, max_steps, say)
+    print("\n".join(advice_lines(case, table, why, families)))
+    return 0
+
+
+ADVISE_MAX_STEPS = 200_000   # advise's smallest dt: t_end / 200000, the full ladders' (RK4's floor is above it)
+
+
+def advice_lines(case, table, why: dict, families) -> list[str]:
+    """`stereodyn advise`'s answer: per family and target, the step (`dt = VALUE`) or tolerance, checked."""
+    horizon = case.horizon if case.horizon is not None else case.t_end
+    lines = [f"{case.name}: the largest step that keeps the max attitude error over 0 … {horizon:g} s within the "
+             "target (checked by runs)"]
+    for family, adaptive in families:
+        name = " ".join(x for x in (family.engine, family.formulation, family.integrator) if x)
+        if family.key in why:
+            lines.append(f"{name}: no advice, no fitted order ({why[family.key]})")
+            continue
+        rows = table[(table["engine"] == family.engine) & (table["formulation"] == family.formulation)
+                     & (table["integrator"] == family.integrator)]
+        what = "tolerance" if adaptive else "dt"
+        for _, row in rows.iterrows():
+            head = f"{name}, error <= {row['target']:.0e} rad: "
+            if not math.isfinite(row[what]):
+                lines.append(head + row["note"])
+                continue
+            cost = f", {row['us_per_sim_s']:.3g} µs per simulated s" if math.isfinite(row["us_per_sim_s"]) else ""
+            fails = (f"; {what} = {row['fails_at']:.4g} gives {row['error_fails']:.2g}"
+                     if math.isfinite(row["fails_at"]) else "")
+            unit = " s" if what == "dt" else ""
+            lines.append(head + f"{what} = {row[what]:.4g}{unit} (error {row['error_checked']:.2g}{cost}{fails})"
+                         + (f" [{row['note']}]" if row["note"] else ""))
+            lines.append(f"    model: error ≈ C {what}^{row['order']:.2f}, estimate {what} = {row['estimate']:.3g}; "
+                         f"{int(row['runs'])} check runs")
+    return lines
+
+
 def cmd_export(args) -> int:
     from stereodyn.harness.export import export
     from stereodyn.harness.run.results import write_atomic
@@ -462,28 +558,39 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
-    if signal.getsignal(signal.SIGINT) is _interrupted_while_loading:
-        signal.signal(signal.SIGINT, signal.default_int_handler)  # loaded: KeyboardInterrupt, handled below
+    from stereodyn.harness.run import processes
+
+    processes.forget_interrupts()
+    if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
+        signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
     try:
         args = _parser().parse_args(argv)
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
     commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
-                "check": cmd_check, "export": cmd_export, "compare": cmd_compare, "integrators": cmd_integrators}
+                "check": cmd_check, "export": cmd_export, "advise": cmd_advise, "compare": cmd_compare, "integrators": cmd_integrators}
     try:
-        return commands[args.command](args)
+        code = commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
             CompareError) as exc:
-        print(f"stereodyn: error: {exc}", file=sys.stderr)
-        return 2
+        code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"stereodyn: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
+        code = _error(f"{where}{exc.strerror or exc}")
     except KeyboardInterrupt:
+        code = 130
+    if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
+    return code
+
+
+def _error(message: str) -> int:
+    """Bad input: one line on stderr (a newline or other control character in a name or path is escaped), exit 2."""
+    line = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in message)
+    print(f"stereodyn: error: {line}", file=sys.stderr)
+    return 2
 
 
 if __name__ == "__main__":

@@ -20,7 +20,9 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from stereodyn.harness import step_advice
 from stereodyn.harness.scenes import checks
+from stereodyn.harness.run import advice as advising
 from stereodyn.harness.run import dt_ladders
 from stereodyn.harness.scenes import scene_of
 from stereodyn.harness.scenes.cases import Case
@@ -28,6 +30,7 @@ from stereodyn.harness.run import tolerance_ladders
 from stereodyn.harness.run.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
                                           Family, families, run_ladders)
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.pareto import ACCURACY_TARGETS
 from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
                                        _name, convergence_table, declared_order, note_group, order_checks, pareto,
                                        pareto_table, setting, sweep_orders, tolerance_fits, with_state_err)
@@ -38,6 +41,12 @@ __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "
            "analyse", "read_optional", "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
 
 LADDER_FILE, CONVERGENCE_FILE, PARETO_FILE = "ladder.csv", "convergence.csv", "pareto.csv"
+ADVICE_FILE = "advice.csv"
+# The default run's checked advice: the laddered families (DEFAULT_LADDER's 28 with an order or slope) at 1e-3 and
+# 1e-6 rad; every laddered family at every Pareto target with --dt-ladder. Measured on the committed default run's
+# tables (tests/benchmarks/bench_advice.py, 2 workers, load average 11 from the other helpers): 1e-3 and 1e-6: 26 s,
+# 117 check runs; 1e-6 alone 20 s; with 1e-9 as well 91 s (Drake's and scipy's BDF/Radau tight runs: seconds each).
+DEFAULT_ADVICE_TARGETS = (1e-3, 1e-6)
 TOLERANCE_FILE, TOLERANCE_FIT_FILE = "tolerance.csv", "tolerance_fit.csv"
 TEXT_COLUMNS = ("formulation", "engine", "integrator", "message")
 FULL_MAX_STEPS = 200_000     # --dt-ladder: rk4 reaches its round-off floor on the suite's cases well before this
@@ -173,6 +182,10 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     _write(tolerance_df, paths["tolerance"])
     _write(tolerance_fits(tolerance_df), paths["tolerance_fit"])
     _write(pareto(results, ladder_df, tolerance=tolerance_df), paths["pareto"])
+    if ladder != "off":
+        paths["advice"] = out_dir / ADVICE_FILE
+        _write(_advice(results, chosen, adaptive, ladder, ladder_df, tolerance_df, convergence,
+                       max_steps or DEFAULT_MAX_STEPS, pool, progress), paths["advice"])
     checks_path = out_dir / checks.CHECKS_FILE
     existing = checks.read_checks(checks_path) if checks_path.is_file() else pd.DataFrame(columns=list(checks.COLUMNS))
     existing = existing[existing["quantity"] != ORDER_QUANTITY]
@@ -180,6 +193,19 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         else order_checks(convergence)
     write_atomic(checks_path, merged.to_csv(index=False, float_format="%.17g"))
     return paths
+
+
+def _advice(results: pd.DataFrame, chosen: list[Family], adaptive: list[Family], ladder: str,
+            ladder_df: pd.DataFrame, tolerance_df: pd.DataFrame, convergence: pd.DataFrame, max_steps: int,
+            pool, progress) -> pd.DataFrame:
+    """advice.csv (harness.run.advice): the laddered families with a fitted order or slope (the dt and tolerance
+    ladders: DEFAULT_LADDER's in the default run, every family with --dt-ladder), at DEFAULT_ADVICE_TARGETS, or every
+    Pareto target with --dt-ladder."""
+    targets = ACCURACY_TARGETS if ladder == "full" else DEFAULT_ADVICE_TARGETS
+    tasks = advising.advice_tasks(chosen, adaptive, results, ladder_df, tolerance_df, convergence,
+                                  tolerance_fits(tolerance_df))
+    return advising.run_advice(tasks, targets, max_steps, pool, progress) if tasks else \
+        pd.DataFrame(columns=list(step_advice.ADVICE_COLUMNS))
 
 
 # ------------------------------------------------------------------------------------------------ the report
@@ -202,6 +228,9 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
         from stereodyn.harness.report.what_to_use import what_to_use_lines
 
         lines += what_to_use_lines(pareto_df)
+    from stereodyn.harness.report.advice import advice_lines
+
+    lines += advice_lines(read_optional(Path(out_dir) / ADVICE_FILE, ("formulation", "engine", "integrator", "note")))
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
     if convergence is not None and len(convergence):
         ladders = convergence[convergence["source"] == "ladder"]

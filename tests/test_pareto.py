@@ -6,7 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import pareto as pareto_module, summary, timing
+from stereodyn.harness import summary
+from stereodyn.harness.run import timing
 from stereodyn.harness.pareto import ANY, pareto_table
 
 RATIO = 1.5  # issue 21: no winner or tie-mate above 1.5x the fastest of its cell (not the module constant: a test of it)

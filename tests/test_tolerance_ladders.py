@@ -141,6 +141,43 @@ def test_the_tolerance_ladder_stops_at_a_point_over_its_budget(stub_engine):
     assert len(points) == 1 and "ladder stopped after this point" in points[0]["message"]
 
 
+class _OmegaOffSimulation:
+    """The truth's own attitude (no attitude error at all) with ω 1e-5 too large: an error in ω alone."""
+
+    def __init__(self, case):
+        self.case = case
+
+    def run(self, grid):
+        from stereodyn.reference import truth
+
+        exact = truth.truth(self.case.body, self.case.quat0, self.case.omega0, grid.times)
+        return Trajectory(grid.times, exact.quat, exact.omega * (1 + 1e-5), Status.OK, "", math.nan, 100, 400, {})
+
+
+class OmegaOffEngine(StubEngine):
+    name = "stub"
+
+    def prepare(self, case, integrator, dt, tolerance=None):
+        return _OmegaOffSimulation(case)
+
+
+def test_err_over_tol_is_the_state_error_over_the_tolerance(monkeypatch):
+    """err_over_tol divides the state error (the max of attitude_err, omega_err, casimir_drift), not the attitude
+    error: a run whose attitude is exact but whose ω is off by 1e-5 is 10x over a tolerance of 1e-6."""
+    registered = engines._entry_points()
+    entry = type("_OmegaOffEntry", (_Entry,), {"load": lambda self: OmegaOffEngine})()
+    monkeypatch.setattr(engines, "_entry_points", lambda: {**registered, "stub": entry})
+    engines.get_engine.cache_clear()
+    try:
+        point = tolerance_ladders.measure(tolerance_ladders.AdaptiveFamily(_short_case(), "stub", "", "stub_dop853"),
+                                          1e-6)
+    finally:
+        engines.get_engine.cache_clear()
+    assert point["status"] == "ok" and point["attitude_err"] < 1e-15
+    assert point["omega_err"] == pytest.approx(1e-5, rel=1e-6)
+    assert point["state_err"] == point["omega_err"] and point["err_over_tol"] == pytest.approx(10.0, rel=1e-6)
+
+
 # ------------------------------------------------------------------------------------------------ the fit
 
 def _points(slope: float, c: float, floor: float, tolerances=tolerance_ladders.TOLERANCES, steps=1000):

@@ -23,6 +23,7 @@ LeafSystem from the context's time and state at every derivative evaluation, eve
 """
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -35,6 +36,14 @@ EPS = float(np.finfo(float).eps)
 # in 4000 at dt = 1e-3, each a full step's cost). The slack lets the m-th step absorb it; every step is still dt to
 # within 8 eps steps relative (2e-9 at 1e6 steps), and the run takes exactly `steps` steps (tests/test_drake.py).
 STRETCH_ULPS = 8.0
+
+def _not_an_interrupt(record) -> bool:
+    """pydrake logs a Ctrl-C during its import as a multi-line CRITICAL record; the interrupt itself propagates
+    (harness.engines) and the command ends in one line."""
+    return "KeyboardInterrupt" not in record.getMessage()
+
+
+logging.getLogger("drake").addFilter(_not_an_interrupt)
 try:
     from pydrake.common.eigen_geometry import Quaternion
     from pydrake.math import RollPitchYaw
@@ -80,6 +89,12 @@ DEFAULT_TOLERANCE = 1e-8
 # (the discrete plant is Drake's first-order method), bogacki_shampine3 (a second RK3) and the implicit schemes
 # (3-10x an explicit step: Newton iterations, Jacobians by finite differences). Measured cost of the default sweep's
 # Drake rows: docs/ENGINES.md.
+# What each scheme is (harness.engines.methods); the discrete plant's update is semi-implicit Euler. Drake's models step
+# other coordinates than the ball-joint engines (roll-pitch-yaw, a free quaternion), so a first-order method agrees
+# with theirs only to O(dt).
+METHODS = {DISCRETE: "semi_implicit_euler", "explicit_euler": "explicit_euler", "semi_explicit_euler":
+           "semi_implicit_euler", "runge_kutta2": "rk2", "runge_kutta3": "rk3", "runge_kutta5": "rk5",
+           "implicit_euler": "implicit_euler"}
 DEFAULT_SWEEP = (DISCRETE, "runge_kutta2", "runge_kutta3", "runge_kutta3" + ADAPTIVE_SUFFIX)
 
 
@@ -306,6 +321,10 @@ class DrakeEngine(Engine):
         if integrator == DISCRETE:
             return 1.0
         return float(FIXED_STEP.get(ADAPTIVE.get(integrator, integrator), math.nan))
+
+    def method(self, integrator: str) -> str:
+        """The adaptive runs have no dt to be compared at: none."""
+        return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
         # SpatialInertia::IsPhysicallyValid() refuses a body that breaks the triangle inequality

@@ -38,6 +38,7 @@ from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..scenes.rigid_body import state_err
 from ..trajectory import Status
 from . import timing
+from .processes import raise_if_interrupted
 from .measure import measure as run_measure, prepare as prepare_run, rate
 from .spec import Family, base_row  # noqa: F401 (Family: part of this API)
 
@@ -66,6 +67,7 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
     try:
         truth = case_truth_on(run) if with_truth else None
     except Exception as exc:  # a point that breaks is data, as in the sweep
+        raise_if_interrupted(exc)
         return {**base_row(run, run.grid), "source": LADDER, "status": Status.FAILED.value,
                 "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]}
     row = run_measure(run, truth, full=False, timed=_timed if timed else None)

@@ -10,6 +10,7 @@ from typing import Callable
 from ..engines import get_engine
 from ..scenes import scene_of
 from ..trajectory import Status
+from .processes import raise_if_interrupted
 from .spec import RunKey, base_row
 
 
@@ -47,6 +48,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         if timed is not None and traj.status is Status.OK:
             row.update(timed(sim, grid))
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
+        raise_if_interrupted(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row

@@ -35,6 +35,8 @@ def plan(cases: list, engines: list[str], integrators: list[str] | None) -> tupl
             variants = tuple(model.variants()) or ("",)
             for integrator_rank, integrator in enumerate(model.integrators(chosen) or ([""] if reason else [])):
                 dts = (None,) if integrator and engine.adaptive(integrator) else case.dt
+                if integrator and integrators is None and dts != (None,):
+                    dts = engine.default_dts(case, integrator, tuple(dts))
                 for formulation_rank, formulation in enumerate(variants):
                     if integrator and integrators is None and not model.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)

@@ -16,7 +16,7 @@ from ..engines import get_engine
 from ..trajectory import Status
 from . import timing
 from .measure import measure
-from .processes import exit_with_parent
+from .processes import exit_with_parent, starting_workers
 from .spec import RunSpec, base_row
 
 # The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
@@ -80,15 +80,19 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proce
         return
     jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
     # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_init_worker, initargs=(engines,))
+    pool = None
     try:
-        for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all now
-            pool.submit(int)
+        with starting_workers():  # tied to this process, deaf to Ctrl-C, from their first moment (harness.processes)
+            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_init_worker, initargs=(engines,))
+            for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all
+                pool.submit(int)
         yield pool
     except BaseException:
         # Python < 3.14 has no public way to end a pool's workers, hence the private process table, read before
         # shutdown() empties it.
+        if pool is None:
+            raise
         processes = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for process in processes:

@@ -11,6 +11,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..trajectory import Status
+from .processes import raise_if_interrupted
 
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
@@ -170,7 +171,8 @@ def time_runs(runs: list, steps: list[float], prepare: Callable) -> list[dict]:
             sim, grid = prepare(run)
             sim.run(grid)  # the warm-up: caches, lazily compiled code
             warm.append(lambda sim=sim, grid=grid: sim.run(grid))
-        except Exception:
+        except Exception as exc:
+            raise_if_interrupted(exc)
             warm.append(None)
     kept = [i for i, call in enumerate(warm) if call is not None]
     measured = measure_interleaved([warm[i] for i in kept])

@@ -4,7 +4,7 @@ tolerances, per point the error achieved and the cost.
 For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of
 TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared
 with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: rtol = atol = tol) and run on the
-grid of the sweep's adaptive rows (harness.run.sweep.truth_grid). Each point is one untimed accuracy run (errors
+grid of the sweep's adaptive rows (RunKey.grid, harness.run.spec). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
 (harness.run.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
@@ -29,6 +29,7 @@ from ..scenes.rigid_body import state_err
 from ..trajectory import Status
 from . import timing
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family, case_truth_on
+from .processes import raise_if_interrupted
 from .measure import measure as run_measure, prepare as prepare_run, rate
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
@@ -82,6 +83,7 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
     try:
         truth = case_truth_on(run) if truth is None else truth
     except Exception as exc:
+        raise_if_interrupted(exc)
         return {**_failed_point(family, tolerance, f"truth failed: {type(exc).__name__}: {exc}"), "_accuracy_s": 0.0}
     measured = run_measure(run, truth, full=False)
     row.update({k: v for k, v in measured.items() if k in TOLERANCE_COLUMNS or k == "_accuracy_s"})
@@ -101,6 +103,7 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
     try:
         truth = case_truth_on(family.run(tolerance=tolerances[0]))
     except Exception as exc:
+        raise_if_interrupted(exc)
         return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
     points = []
     for tolerance in sorted(tolerances, reverse=True):

@@ -5,6 +5,7 @@ from typing import Callable
 
 from ..grid import TimeGrid, time_grid
 from ..scenes import scene_of
+from .processes import raise_if_interrupted
 from .spec import RunKey
 
 
@@ -31,5 +32,6 @@ def sweep_truths(cases: list, needed: Callable[[object], bool], certify: bool, p
         try:
             truths[case.name] = case_truth(case, certify)
         except Exception as exc:
+            raise_if_interrupted(exc)
             failed(case, f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0])
     return truths
