@@ -1,4 +1,4 @@
-"""Step-size advice (issue 21 item 2): the error model and the checked search (harness.step_advice) on known error
+"""Step-size advice (issue 21 item 2): the error model and the checked search (harness.analysis.step_advice) on known error
 functions, then `stereodyn advise` on a case file outside the suite (MuJoCo rk4, 1e-6 rad)."""
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import step_advice
-from stereodyn.harness.step_advice import CHECK_RATIO, error_model, search
+from stereodyn.harness.analysis import step_advice
+from stereodyn.harness.analysis.step_advice import CHECK_RATIO, error_model, search
 
 
 def _law(c: float, p: float, floor: float = 0.0, unstable_above: float = math.inf):
@@ -141,7 +141,8 @@ def test_advise_refuses_bad_input_in_one_line(argv, words, capsys):
 def test_the_default_run_writes_checked_advice_and_the_report_shows_it_per_engine(tmp_path):
     """The default ladders' families get advice.csv rows at 1e-3 and 1e-6 rad, each checked: the dt reaches the
     target, the checked dt above it (at most 1.25x) does not, and the advised run is timed."""
-    from stereodyn.harness import workprecision
+    from stereodyn.harness.analysis import workprecision
+    from stereodyn.harness.report.workprecision import report_lines
     from stereodyn.harness.run.sweep import run_sweep
     from stereodyn.harness.scenes.cases import find_case, with_overrides
 
@@ -159,6 +160,6 @@ def test_the_default_run_writes_checked_advice_and_the_report_shows_it_per_engin
     assert (bracketed["error_fails"] > bracketed["target"]).all() and bracketed["note"].isna().all()
     assert (bracketed["fails_at"] <= bracketed["dt"] * CHECK_RATIO * (1 + 1e-9)).all()
     assert (advice["us_per_sim_s"] > 0).all() and (advice["order"] - 4.0).abs().max() < 0.3
-    text = "\n".join(workprecision.report_lines(tmp_path))
+    text = "\n".join(report_lines(tmp_path))
     section = text.split("## Step-size advice")[1].split("\n## ")[0]
     assert "### mujoco" in section and f"| dt = {advice['dt'].iloc[1]:.4g} |" in section

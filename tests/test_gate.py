@@ -5,7 +5,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, gate, plan
+from stereodyn.harness import cli, plan
+from stereodyn.harness.analysis import gate
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines import UnavailableEngine, engine_names, get_engine
 

@@ -14,7 +14,8 @@ import pandas as pd
 import pytest
 from matplotlib import image as mpimg
 
-from stereodyn.harness import cli, summary, testing
+from stereodyn.harness import cli, testing
+from stereodyn.harness.analysis import summary
 from stereodyn.harness.report import figures
 from stereodyn.harness.report.method import energy_trend
 
@@ -309,14 +310,14 @@ def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
 
 def test_the_default_suites_summary_fits_in_80_lines():
     """On the committed default suite (reports/default: 1001 runs, 9 of them diverged for one reason)."""
-    from stereodyn.harness import verdicts
+    from stereodyn.harness.analysis import verdicts
     from stereodyn.harness.results import read_results
 
     folder = Path(__file__).resolve().parents[1] / "reports" / "default"
     df = read_results(folder / "results.csv")
     lines = summary.terminal_lines(df, verdicts.read(folder) or [], folder, folder / "report.html")
     assert len(lines) <= 80  # 9 lines measured (17 before the formulations modelled the torques: 11 reasons)
-    from stereodyn.harness.pareto import scopes
+    from stereodyn.harness.analysis.pareto import scopes
 
     engines = scopes(pd.read_csv(folder / "pareto.csv"))  # none in a pareto.csv from before the scopes
     assert lines[-1].startswith("report: ") and sum("<= 1e-" in line for line in lines) == 3 * (1 + len(engines))

@@ -10,10 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import dt_ladders, fitting, workprecision
+from stereodyn.harness import dt_ladders
+from stereodyn.harness.analysis import fitting, workprecision
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.dt_ladders import Family, run_short_ladder
-from stereodyn.harness.fitting import fit
+from stereodyn.harness.analysis.fitting import fit
 
 T_END = 10.0
 
@@ -67,7 +68,7 @@ def test_two_points_steeper_than_declared_are_refused_three_are_superconvergence
 
 
 def test_the_order_verdict_does_not_fail_a_superconvergent_case_alone():
-    from stereodyn.harness import verdicts
+    from stereodyn.harness.analysis import verdicts
 
     def row(case, order, note=""):
         return {"case": case, "engine": "e", "formulation": "", "integrator": "m", "order": order,

@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 from scipy.integrate import solve_ivp
 
-from stereodyn.harness import engines, fitting, runner, tolerance_ladders, workprecision
+from stereodyn.harness import engines, runner, tolerance_ladders
+from stereodyn.harness.analysis import fitting, workprecision
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines.base import Engine
 from stereodyn.harness.report import build
@@ -281,7 +282,7 @@ def test_an_adaptive_row_with_no_error_at_all_is_the_reference_and_no_candidate(
 
 
 def test_the_default_run_ladders_the_adaptive_methods_of_each_engines_default_sweep():
-    from stereodyn.harness import workprecision
+    from stereodyn.harness.analysis import workprecision
     from stereodyn.harness.cases import find_case
     from stereodyn.harness.engines import UnavailableEngine, get_engine
 

@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness import metrics
 from stereodyn.harness.cases import find_case, load_suite
 from stereodyn.harness.engines import get_engine

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness.run import pool as run_pool
-from stereodyn.harness import cli, dt_ladders, runner, timing, verdicts, workprecision
+from stereodyn.harness import cli, dt_ladders, runner, timing
+from stereodyn.harness.analysis import verdicts, workprecision
 from stereodyn.harness import integrators as registry
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK

@@ -100,7 +100,7 @@ class Engine:
         or not passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine
         says otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
         absolute tolerance (scipy: rtol = atol = tol; heyoka: tol; Drake: set_target_accuracy(tol)). The tolerance
-        ladders (harness.run.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
+        ladders (harness.analysis.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
         adaptive run's Trajectory fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0
         where the method has them.
         """
@@ -129,9 +129,9 @@ class Engine:
         """What the integrator is, in the vocabulary of harness.engines.methods ("semi_implicit_euler", "rk4", ...):
         runs of the same method and dt on a case are compared across engines (agreement.csv). Default: the
         registry's method of a registered integrator; "" (compared with nothing) for one it does not know."""
-        from stereodyn.harness.engines import methods
+        from .methods import registered_method  # (not `from . import methods`: the package imports this module)
 
-        return methods.registered_method(integrator, self.state_space or "lie")
+        return registered_method(integrator, self.state_space or "lie")
 
     def adaptive(self, integrator: str) -> bool:
         """Whether an integrator chooses its own steps (its runs have dt None; prepare takes tolerance=...). Default:

@@ -6,8 +6,8 @@ import math
 
 import pandas as pd
 
-from stereodyn.harness.report.markdown import markdown_table, number
-from stereodyn.harness.step_advice import CHECK_RATIO
+from ..analysis.step_advice import CHECK_RATIO
+from .markdown import markdown_table, number
 
 
 def advice_lines(table: pd.DataFrame) -> list[str]:

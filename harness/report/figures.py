@@ -12,19 +12,21 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
+from ...reference.integrals import INTEGRALS
+
 # keeps the default report.html under 2 MB with every figure (1.97 MB; with Drake's and scipy's rows 72 gave 2.39 MB, 64
 # gave 2.11 MB)
 DPI = 60
 PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
-QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift", "lagrange": "Lagrange ω₃ drift",
-              "kovalevskaya": "Kovalevskaya integral", "chaplygin": "Goryachev–Chaplygin",
-              "hess": "Hess K·k drift", "self_excited": "self-excited (36)", "attitude_err": "attitude error (rad)"}
+# (The registry's integrals with a label, reference.integrals, then the attitude error.)
+QUANTITIES = {**{name: i.label for name, i in INTEGRALS.items() if i.label is not None},
+              "attitude_err": "attitude error (rad)"}
 
 
 def linestyle(engine: str) -> str:
     """The engine's line style (Engine.linestyle); an engine no longer registered gets the base class's."""
-    from stereodyn.harness.engines import Engine, EngineError, get_engine
+    from ..engines import Engine, EngineError, get_engine
 
     try:
         return get_engine(engine).linestyle

@@ -18,7 +18,8 @@ import pandas as pd
 
 from stereodyn.harness import workprecision
 from stereodyn.harness.fitting import tolerance_fits
-from stereodyn.harness.run import advice as advising, sweep as runner
+from stereodyn.harness.analysis import advice as advising
+from stereodyn.harness.run import sweep as runner
 from stereodyn.harness.run.dt_ladders import families
 from stereodyn.harness.run.results import read_results
 from stereodyn.harness.scenes import cases as case_files

@@ -1,5 +1,5 @@
 """Step-size advice, the runs (advice.csv; issue 21 item 2): per run family and accuracy target, the model's setting
-checked by runs (harness.step_advice.search), each run one ladder point (harness.dt_ladders.measure, or
+checked by runs (harness.analysis.step_advice.search), each run one ladder point (harness.dt_ladders.measure, or
 harness.tolerance_ladders.measure for an adaptive method: the one measure path of the ladders), the advised runs then
 timed alone in the parent (the ladders' timing phase). Used by `stereodyn run` (workprecision.analyse) and
 `stereodyn advise`.
@@ -12,10 +12,10 @@ from typing import Callable
 
 import pandas as pd
 
-from stereodyn.harness.run import dt_ladders, tolerance_ladders
-from stereodyn.harness.run.dt_ladders import MIN_STEPS, Family
-from stereodyn.harness.step_advice import ADVICE_COLUMNS, error_model, rounded, search
-from stereodyn.harness.trajectory import Status
+from . import dt_ladders, tolerance_ladders
+from .dt_ladders import MIN_STEPS, Family
+from .step_advice import ADVICE_COLUMNS, error_model, rounded, search
+from ..trajectory import Status
 
 # The tolerances an advice may name: the tolerance ladders' range (harness.tolerance_ladders.TOLERANCES).
 TOLERANCE_LO, TOLERANCE_HI = min(tolerance_ladders.TOLERANCES), max(tolerance_ladders.TOLERANCES)
@@ -151,7 +151,7 @@ def advice_tasks(fixed: list[Family], adaptive: list[Family], results: pd.DataFr
     """run_advice's tasks after a sweep: each fixed-step family with a fitted order (convergence.csv), its points
     the sweep's runs and its ladder points (ladder.csv); each adaptive family with a fitted slope (tolerance_fit.csv),
     its points the tolerance ladder's (tolerance.csv)."""
-    from stereodyn.harness.fitting import with_state_err
+    from .fitting import with_state_err
 
     keys = ["case", "engine", "formulation", "integrator"]
     sweep = results[results["dt"].notna()].fillna({"formulation": ""})
@@ -181,7 +181,7 @@ def families_to_advise(case, engine_name: str, integrators: list[str] | None,
     """The families `stereodyn advise` checks: the integrators named, or the engine's default-sweep integrators
     with a declared order or error control, on one formulation (the one named, else quaternion or the engine's
     first). Bad names raise ValueError with the valid ones."""
-    from stereodyn.harness.engines import get_engine
+    from ..engines import get_engine
 
     engine = get_engine(engine_name)
     own = tuple(engine.formulations())
@@ -212,7 +212,7 @@ def advise(case, families: list[tuple[Family, bool]], targets: tuple[float, ...]
     three points are asymptotic, harness.dt_ladders.run_short_ladder) for the order, or for an adaptive method the
     default tolerance ladder (1e-3, 1e-5 … 1e-13) for its slope; then the checked search per target and the advised
     runs timed. Returns advice.csv's rows and, per family key without an order, why."""
-    from stereodyn.harness import fitting
+    from . import fitting
 
     tasks, why = [], {}
     for family, adaptive in families:

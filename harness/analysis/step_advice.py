@@ -2,7 +2,7 @@
 asymptotic range (s the step dt, or the requested tolerance of an adaptive method), and the checked search for the
 largest setting whose max attitude error reaches a target.
 
-The search is given a function that runs the family at a setting and returns the error (harness.advising runs it):
+The search is given a function that runs the family at a setting and returns the error (harness.analysis.advice runs it):
 it starts just inside the model's estimate, steps once by CHECK_RATIO to the other side, then doubles or halves until
 a setting that reaches the target and one that does not are known, and bisects (geometrically) until they are within
 CHECK_RATIO. The setting advised is the one that reaches it, with its measured error. A target the family cannot
@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import fitting
+from . import fitting
 
 CHECK_RATIO = 1.25        # the advised setting reaches the target, CHECK_RATIO times it (checked) does not
 MAX_CHECK_RUNS = 10       # runs per target at most (a good model needs 2; a bracket from scratch ~6)

@@ -7,7 +7,7 @@ with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: r
 grid of the sweep's adaptive rows (RunKey.grid, harness.run.spec). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
-(harness.run.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
+(harness.analysis.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
 evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the quaternion at its default,
 truth-grade tolerance) is not a ladder point: every point names its tolerance, and heyoka's taylor joins at the
 loose ones like any other adaptive method.
@@ -27,10 +27,10 @@ from ..engines import get_engine
 from ..scenes.cases import Case
 from ..scenes.rigid_body import state_err
 from ..trajectory import Status
-from . import timing
+from ..run import timing
+from ..run.measure import measure as run_measure, prepare as prepare_run, rate
+from ..run.processes import raise_if_interrupted
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family, case_truth_on
-from .processes import raise_if_interrupted
-from .measure import measure as run_measure, prepare as prepare_run, rate
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",

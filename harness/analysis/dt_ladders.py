@@ -31,16 +31,16 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from .. import fitting
-from ..fitting import declared_order, fit
+from . import fitting
+from .fitting import declared_order, fit
 from ..scenes import scene_of
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..scenes.rigid_body import state_err
 from ..trajectory import Status
-from . import timing
-from .processes import raise_if_interrupted
-from .measure import measure as run_measure, prepare as prepare_run, rate
-from .spec import Family, base_row  # noqa: F401 (Family: part of this API)
+from ..run import timing
+from ..run.processes import raise_if_interrupted
+from ..run.measure import measure as run_measure, prepare as prepare_run, rate
+from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
@@ -254,7 +254,7 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
              formulations: tuple[str, ...] | None = None) -> list[Family]:
     """The fixed-step run families a sweep of these cases would have (harness.run.plan.plan's selection)."""
-    from .plan import plan
+    from ..run.plan import plan
 
     specs, _ = plan(cases, engines, integrators)
     out = {}

@@ -1,0 +1,28 @@
+"""The report's "Verdicts" section, from DIR/verdicts.csv (harness.analysis.verdicts)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..analysis.verdicts import FAIL, UNMEASURED, read, summary_lines
+from . import sections
+from .markdown import markdown_table
+
+
+def report_lines(out_dir: Path) -> list[str]:
+    """The section's lines (empty without verdicts.csv)."""
+    verdicts = read(out_dir)
+    if verdicts is None:
+        return []
+    lines = ["## Verdicts", "", summary_lines(verdicts)[0] + ". Failed verdicts come first; each row states its rule.",
+             ""]
+    ordered = sorted(verdicts, key=lambda v: (v.status != FAIL, v.status != UNMEASURED))
+    if ordered:
+        rows = [[("**FAIL**" if v.status == FAIL else v.status), v.verdict, v.subject, v.detail, v.rule]
+                for v in ordered]
+        lines += markdown_table(["status", "verdict", "subject", "finding", "rule"], rows) + [""]
+    return lines
+
+
+@sections.register("verdicts", 10)
+def _verdicts(context: sections.Context) -> list[str]:
+    return report_lines(context.out_dir)
