@@ -37,7 +37,9 @@ class RunKey:
 
     @property
     def is_truth(self) -> bool:
-        return (self.engine, self.formulation, self.integrator) == (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR)
+        """The truth's own row (no errors against itself); a tolerance ladder's point of the same method is a run."""
+        return (self.engine, self.formulation, self.integrator) == (TRUTH_ENGINE, TRUTH_FORMULATION,
+                                                                    TRUTH_INTEGRATOR) and self.tolerance is None
 
     @property
     def grid(self) -> TimeGrid:
