@@ -124,3 +124,14 @@ def test_a_0_2_0_plugin_with_the_ladder_hooks_still_runs_it_and_is_told():
     model = Old().models()["sliding_ladder"]
     assert isinstance(model, SceneModel) and model.variants() == ("m",) and model.integrators(["a"]) == ["a"]
     assert model.prepare(None, "m", "a", 0.1) == ("ladder", "m", "a", 0.1)
+
+
+def test_export_asks_the_engines_model_of_the_scene():
+    from stereodyn.harness.export import ExportError, export
+
+    ladder = cases.find_case("sliding-ladder")
+    with pytest.raises(ExportError, match="sliding-ladder: the sliding ladder has two MuJoCo models"):
+        export(ladder, "mjcf")
+    with pytest.raises(ExportError, match="sliding-ladder: no urdf export of this scene's model"):
+        export(ladder, "urdf")
+    assert export(cases.find_case("free-asymmetric"), "mjcf").startswith('<mujoco model="free-asymmetric">')

@@ -228,6 +228,10 @@ class SceneModel:
         """The simulation of one run (not timed): its run(grid) returns the scene's trajectory."""
         raise NotImplementedError(f"{type(self).__name__} does not implement prepare")
 
+    def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
+        """The model as text in one of the engine's export_formats (`stereodyn export`). Default: none."""
+        raise ValueError(f"{case.name}: no {fmt} export of this scene's model")
+
 
 class RigidBodyModel(SceneModel):
     """The rigid body with a fixed point as an engine models it through the Engine hooks (0.2.0's protocol)."""
@@ -249,6 +253,9 @@ class RigidBodyModel(SceneModel):
 
     def torque_mode(self, case) -> str:
         return self.engine.torque_mode(case)
+
+    def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
+        return self.engine.export(case, fmt, integrator, dt)
 
     def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None):
         # formulation= only for an engine with formulations, tolerance= only when requested: the 0.2.0 signatures

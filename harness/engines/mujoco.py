@@ -482,6 +482,10 @@ class LadderModel(SceneModel):
     def variants(self) -> tuple[str, ...]:
         return LADDER_MODELS
 
+    def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
+        raise ValueError(f"{case.name}: the sliding ladder has two MuJoCo models (bilateral, unilateral): "
+                         "ladder_mjcf(case.ladder, model, integrator, dt) writes either")
+
     def prepare(self, case, variant: str, integrator: str, dt: float | None,
                 tolerance: float | None = None) -> LadderSimulation:
         return LadderSimulation(case.ladder, variant, integrator, dt)
