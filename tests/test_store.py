@@ -12,9 +12,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from stereodyn.harness.run.timing import DISTURBED
-from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli
+from stereodyn.harness.run.timing import DISTURBED
 from stereodyn.harness.cases import find_case
 from stereodyn.harness.store import Store, StoreBusy, run_identity, run_key
 
@@ -25,8 +24,8 @@ SWEEP = ["lagrange-top", "kovalevskaya", "--engines", "mujoco,pinocchio", "--t-e
 
 
 def table(out: Path) -> pd.DataFrame:
-    """results.csv less its timings, and less the 'timing disturbed' marks the timing phase appends to a message (on a
-    loaded machine they come and go from run to run: they are timings too; as tests/test_distributed.py)."""
+    """results.csv less its timings, and less the 'timing disturbed' marks of the timing phase (they come and go from
+    run to run on a loaded machine: timings too; tests/test_distributed.py)."""
     df = pd.read_csv(out / "results.csv")
     marks = df["message"].astype("string").str.replace(rf"(; )?{DISTURBED}:[^;]*", "", regex=True)
     return df.drop(columns=TIMINGS).assign(message=marks.replace("", pd.NA))
@@ -164,16 +163,16 @@ def test_ctrl_c_stops_a_parallel_sweep_keeping_every_finished_run(uninterrupted,
 
 
 def test_a_run_whose_worker_died_is_not_stored_and_is_retried(tmp_path, monkeypatch):
-    from stereodyn.harness import runner
+    from stereodyn.harness.run import pool as run_pool
 
     argv = ["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler,rk4", "--t-end", "0.2",
             "--dt", "1e-2", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
     real = run_pool.sweep_run
 
-    def crash_rk4(spec, truth):
+    def crash_rk4(spec, truth, budgets=None):
         if spec.integrator == "rk4":
             return run_pool.worker_failed_row(spec, BrokenPipeError("worker gone"))
-        return real(spec, truth)
+        return real(spec, truth, budgets)
 
     monkeypatch.setattr(run_pool, "sweep_run", crash_rk4)
     assert cli.main(argv) == 0

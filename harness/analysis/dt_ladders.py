@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from .. import budget
 from . import fitting
 from .fitting import declared_order, fit
 from ..scenes import scene_of
@@ -65,7 +66,10 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
     point's grid), then timed runs when timed. Never raises."""
     run = family.run(dt=float(dt))
     try:
-        truth = case_truth_on(run) if with_truth else None
+        with budget.within("run", budget.configured().run_s):  # the point's truth under a run's budget, as before
+            truth = case_truth_on(run) if with_truth else None
+    except budget.BudgetExceeded as exc:
+        return {**base_row(run, run.grid), "source": LADDER, "status": Status.FAILED.value, "message": str(exc)}
     except Exception as exc:  # a point that breaks is data, as in the sweep
         raise_if_interrupted(exc)
         return {**base_row(run, run.grid), "source": LADDER, "status": Status.FAILED.value,

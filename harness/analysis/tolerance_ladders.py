@@ -20,9 +20,11 @@ The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one
 """
 from __future__ import annotations
 
+import math
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable
 
+from .. import budget
 from ..engines import get_engine
 from ..scenes.cases import Case
 from ..scenes.rigid_body import state_err
@@ -81,7 +83,11 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
     run = family.run(tolerance=float(tolerance))
     row = {"tolerance": float(tolerance)}
     try:
-        truth = case_truth_on(run) if truth is None else truth
+        if truth is None:
+            with budget.within("truth", budget.configured().truth_s):
+                truth = case_truth_on(run)
+    except budget.BudgetExceeded as exc:  # the ladder stops here (run_ladder: the point took longer than its budget)
+        return {**_failed_point(family, tolerance, str(exc)), "_accuracy_s": math.inf}
     except Exception as exc:
         raise_if_interrupted(exc)
         return {**_failed_point(family, tolerance, f"truth failed: {type(exc).__name__}: {exc}"), "_accuracy_s": 0.0}
@@ -101,7 +107,10 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
                budget_s: float = POINT_BUDGET_S) -> list[dict]:
     """The accuracy runs of one family's ladder, loose to tight, stopping early (module docstring). Never raises."""
     try:
-        truth = case_truth_on(family.run(tolerance=tolerances[0]))
+        with budget.within("truth", budget.configured().truth_s):
+            truth = case_truth_on(family.run(tolerance=tolerances[0]))
+    except budget.BudgetExceeded as exc:
+        return [_failed_point(family, tolerances[0], f"truth failed: {exc}")]
     except Exception as exc:
         raise_if_interrupted(exc)
         return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]

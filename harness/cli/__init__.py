@@ -33,7 +33,7 @@ from pathlib import Path  # noqa: E402
 
 # The command's modules (numpy, the SDKs behind them) are imported by main() inside its Ctrl-C handling (_load), so an
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
-case_files = CaseError = engine_names = EngineError = None
+case_files = CaseError = engine_names = EngineError = budget = None
 # Each command is the module of its name in this package, with main(args) -> int.
 COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators")
 _commands: dict = {}
@@ -101,6 +101,18 @@ def _scale(text: str) -> float:
     return value
 
 
+def _seconds(text: str) -> float:
+    """A wall-time budget: finite, in [MIN_BUDGET_S, MAX_BUDGET_S] s (docs/limits.md)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text[:40]!r}") from None
+    if not (math.isfinite(value) and budget.MIN_BUDGET_S <= value <= budget.MAX_BUDGET_S):
+        raise argparse.ArgumentTypeError(f"must be finite and in [{budget.MIN_BUDGET_S:g}, {budget.MAX_BUDGET_S:g}] "
+                                         f"s (docs/limits.md), got {value:g}")
+    return value
+
+
 def _targets(text: str) -> list[float]:
     """Accuracy targets: rad, each finite and in (0, 1)."""
     values = []
@@ -154,6 +166,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--strict", action="store_true",
                      help="exit 1 when a verdict fails (declared against fitted order, bounded energy, the truth's "
                           "invariants, oracle and theory checks), one line per failed verdict")
+    for what, default, meaning in (
+            ("run", budget.RUN_BUDGET_S, "one row's accuracy run with its metrics and checks (a ladder point's too)"),
+            ("prepare", budget.PREPARE_BUDGET_S, "one Engine.prepare: model building and compilation"),
+            ("truth", budget.TRUTH_BUDGET_S, "one case's truth and its real128 certification")):
+        run.add_argument(budget.FLAGS[what], type=_seconds, default=default, metavar="S",
+                         help=f"wall-time budget of {meaning}, s (default {default:g}); past it the row is failed, "
+                              "its message naming the budget, and --resume redoes it only once the budget is raised")
     run.add_argument("--extremes", action="store_true",
                      help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
@@ -282,7 +301,8 @@ def check_names(args) -> None:
 
 
 def _load() -> None:
-    global case_files, CaseError, engine_names, EngineError
+    global case_files, CaseError, engine_names, EngineError, budget
+    from stereodyn.harness import budget
     from ..scenes import cases as case_files
     from ..scenes.cases import CaseError
     from ..engines import EngineError, engine_names

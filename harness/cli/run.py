@@ -14,6 +14,7 @@ def main(args) -> int:
     from ..report.markdown import drift_table_text
     from ..analysis import summary, verdicts, workprecision
     from ..run.sweep import run_sweep, worker_pool
+    from .. import budget
 
     from ..run.store import folder_lock
 
@@ -24,6 +25,7 @@ def main(args) -> int:
     progress = ProgressBar(enabled=not args.quiet)
     output_folder(args.out, "--out")
     _quiet_engines(args.out)
+    budget.configure(budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget))  # workers inherit it
     with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
         # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
         with worker_pool(args.jobs, tuple(args.engines)) as pool:

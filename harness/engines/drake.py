@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 
 import numpy as np
 
@@ -50,10 +51,11 @@ try:
     from pydrake.multibody.plant import MultibodyPlant
     from pydrake.multibody.tree import BallRpyJoint, QuaternionFloatingJoint, SpatialInertia, UnitInertia
     from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
-    from pydrake.systems.framework import DiagramBuilder, LeafSystem
+    from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
@@ -229,12 +231,15 @@ class DrakeSimulation:
         # non-finite runs on as NaN at the same cost and the divergence rule is applied afterwards
         rows = [self.x0]
         advance, copy, append = self.simulator.AdvanceTo, vector.CopyToVector, rows.append
+        out_of_time = self._watch(budget.deadline())
         error = None
         try:
             for t in times[1:]:
                 advance(t)
                 append(copy())
         except (RuntimeError, ValueError, OverflowError) as exc:  # a Drake error ends the run at the context's time
+            if out_of_time():
+                raise budget.exceeded() from None
             error = exc
         stopped = context.get_time()
         recorded = len(rows)
@@ -266,6 +271,24 @@ class DrakeSimulation:
             omega[bad:] = np.nan
         return Trajectory(grid.times, quat, omega, status, message, diverged_at, int(steps), int(rhs_evals),
                           info={"torque_mode": self.torque_mode})
+
+    def _watch(self, deadline: float | None):
+        """The run's wall-time budget (harness.budget) as the simulator's monitor, called after every step (the steps
+        run in C++ inside AdvanceTo): past the deadline the step fails, and the returned function says so. No monitor
+        without a deadline (the timing phase's runs), so a timed step costs what it did."""
+        if deadline is None:
+            self.simulator.clear_monitor()
+            return lambda: False
+        clock, diagram, passed = time.monotonic, self.diagram, [False]
+
+        def monitor(context):
+            if clock() > deadline:
+                passed[0] = True
+                return EventStatus.Failed(diagram, "wall-time budget exceeded")
+            return EventStatus.Succeeded()
+
+        self.simulator.set_monitor(monitor)
+        return lambda: passed[0]
 
     def failure(self, error: Exception, stopped: float) -> str:
         text = str(error)

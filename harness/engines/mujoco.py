@@ -27,6 +27,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 from mujoco import rollout  # noqa: E402
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                                           diverged_trajectory, sample_good, samples_good)
@@ -181,6 +182,7 @@ class MujocoSimulation:
         buffer = np.empty((1, min(CHUNK_STEPS, grid.steps), state.shape[1]))
         done, next_sample = 0, 1
         while done < grid.steps:
+            budget.check()  # the run's wall-time budget, between chunks (each ~10 ms of C)
             n = min(CHUNK_STEPS, grid.steps - done)
             rows = buffer[:, :n]  # first axis has length 1, so the slice is still C-contiguous
             # Row i of the output is the state after step done + i + 1. The shapes are right by construction, so the
@@ -256,8 +258,9 @@ class TorqueSimulation(MujocoSimulation):
         quat[0], omega[0] = data.qpos, data.qvel
         done = 0
         for index, target in enumerate(samples[1:].tolist(), start=1):
-            for _ in range(target - done):
-                step(model, data)
+            for piece in budget.pieces(done, target):
+                for _ in piece:
+                    step(model, data)
             done = target
             quat[index], omega[index] = data.qpos, data.qvel
             if not sample_good(quat[index].tolist(), omega[index].tolist(), self.limit2):
@@ -393,7 +396,7 @@ class LadderSimulation:
         state[0], speed[0], angle[0] = first, first[3], first[2]
         worst, sample = violation[0], 1
         model, data, step = self.model, self.data, mujoco.mj_step
-        for index in range(1, grid.steps + 1):
+        for index in (index for piece in budget.pieces(1, grid.steps + 1) for index in piece):
             step(model, data)
             current, off = self._planar()
             speed[index], angle[index] = current[3], current[2]

@@ -7,6 +7,7 @@ import math
 import time
 from typing import Callable
 
+from .. import budget
 from ..engines import get_engine
 from ..scenes import scene_of
 from ..trajectory import Status
@@ -25,28 +26,35 @@ def prepare(run: RunKey):
 
 
 def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = False,
-            timed: Callable[[object, object], dict] | None = None) -> dict:
+            timed: Callable[[object, object], dict] | None = None, budgets: budget.Budgets | None = None) -> dict:
     """One run's row: base columns, the untimed accuracy run, the scene's metrics (against truth: the scene's truth
     on a set of grids that holds the run's, or None for no errors), with full the sweep's extras (checks, series).
     timed(simulation, grid) -> timing columns, when given, times the run after the accuracy run (its warm-up).
-    `_accuracy_s` is the prepare-and-run wall time (a budget's measure, not a timing). Never raises: a run that
-    breaks is a failed row."""
+    `_accuracy_s` is the prepare-and-run wall time (a budget's measure, not a timing). budgets (default this
+    process's, harness.budget): prepare under its prepare budget, the run with its metrics and checks under its run
+    budget; past one, a failed row naming it (and `_budget`, which the store keeps). Never raises: a run that breaks
+    is a failed row."""
+    budgets = budgets or budget.configured()
     grid = run.grid
     row = base_row(run, grid)
     start = time.perf_counter()
     try:
         scene, model = scene_of(run.case), model_of(run)
-        sim = model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance)
-        traj = sim.run(grid)
-        row["_accuracy_s"] = time.perf_counter() - start
-        row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
+        sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance),
+                              budgets.prepare_s)
+        with budget.within("run", budgets.run_s):
+            traj = sim.run(grid)
+            row["_accuracy_s"] = time.perf_counter() - start
+            row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
 
-        def rerun(case):
-            return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance).run(grid)
+            def rerun(case):
+                return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance).run(grid)
 
-        row.update(scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states))
+            row.update(scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states))
         if timed is not None and traj.status is Status.OK:
             row.update(timed(sim, grid))
+    except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
+        row = {**base_row(run, grid), **budget.failed_row(exc), "_accuracy_s": time.perf_counter() - start}
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
         raise_if_interrupted(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.setdefault("_accuracy_s", time.perf_counter() - start)

@@ -11,7 +11,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from typing import Callable
 
-from .. import integrators as integrator_registry
+from .. import budget, integrators as integrator_registry
 from ..engines import get_engine
 from ..trajectory import Status
 from . import timing
@@ -49,9 +49,12 @@ def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
             "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
-def _init_worker(engines: tuple[str, ...]) -> None:
-    """A pool worker's start-up: ignore Ctrl-C and import the engines' SDKs now, while the parent computes the truths,
-    rather than in the worker's first run."""
+def _init_worker(engines: tuple[str, ...], budgets: budget.Budgets | None = None) -> None:
+    """A pool worker's start-up: ignore Ctrl-C, take the parent's budgets (for the ladders' points, which run here
+    too) and import the engines' SDKs now, while the parent computes the truths, rather than in the worker's first
+    run."""
+    if budgets is not None:
+        budget.configure(budgets)
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
     # must not die mid-run on it and send back a traceback instead of a row.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -84,7 +87,7 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proce
     try:
         with starting_workers():  # tied to this process, deaf to Ctrl-C, from their first moment (harness.processes)
             pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                                       initializer=_init_worker, initargs=(engines,))
+                                       initializer=_init_worker, initargs=(engines, budget.configured()))
             for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all
                 pool.submit(int)
         yield pool
@@ -103,20 +106,21 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proce
     pool.shutdown(wait=False)
 
 
-def sweep_run(spec: RunSpec, truth) -> dict:
-    """A sweep's run on a worker: measure() with the sweep's extras (checks, series, --save-trajectories' states)."""
-    return measure(spec, truth, full=True, keep_states=spec.keep_states)
+def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> dict:
+    """A sweep's run on a worker: measure() with the sweep's extras (checks, series, --save-trajectories' states),
+    within the budgets (default this process's)."""
+    return measure(spec, truth, full=True, keep_states=spec.keep_states, budgets=budgets)
 
 
 def run_local(specs: list[RunSpec], truths: dict, pool: ProcessPoolExecutor | None,
-              finished: Callable[[RunSpec, dict], None]) -> None:
+              finished: Callable[[RunSpec, dict], None], budgets: budget.Budgets | None = None) -> None:
     """Run the specs in this process (pool None) or on the pool, in the order given; finished(spec, row) as each
     completes."""
     if pool is None:
         for spec in specs:
-            finished(spec, sweep_run(spec, truths.get(spec.case.name)))
+            finished(spec, sweep_run(spec, truths.get(spec.case.name)))  # this process's budgets
         return
-    futures: dict[Future, RunSpec] = {pool.submit(sweep_run, s, truths.get(s.case.name)): s for s in specs}
+    futures: dict[Future, RunSpec] = {pool.submit(sweep_run, s, truths.get(s.case.name), budgets): s for s in specs}
     for future in as_completed(futures):
         spec = futures[future]
         try:

@@ -4,6 +4,7 @@ exceptions. The jobs around it have their own modules: the plan (plan.py), one r
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 import time
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from .. import budget
 from ..environment import environment as current_environment
 from ..scenes import checks, scene_of
 from ..scenes.rigid_body import CaseTruth, compute_truth, truth_grid  # noqa: F401 (0.2.0's names here)
@@ -45,10 +47,10 @@ class SweepOptions:
     save_trajectories: bool = False
 
 
-def execute(spec: RunSpec, truth, timed: bool = False) -> dict:
+def execute(spec: RunSpec, truth, timed: bool = False, budgets: budget.Budgets | None = None) -> dict:
     """One sweep run's row (measure.measure with the sweep's extras), timed when asked (the sweep times afterwards,
     alone: time_specs)."""
-    row = sweep_run(spec, truth)
+    row = sweep_run(spec, truth, budgets)
     if timed and row.get("status") == Status.OK.value:
         row.update(time_spec(spec, row["steps"]))
     return row
@@ -60,8 +62,9 @@ def time_specs(specs: list[RunSpec], steps: list[float]) -> list[dict]:
 
 
 def time_spec(spec: RunSpec, steps: float) -> dict:
-    """The timing columns of one finished ok run, timed alone. {} when it fails here."""
-    return time_specs([spec], [steps])[0]
+    """The timing columns of one finished ok run, timed alone (the disturbed mark is the timing phase's). {} when it
+    fails here."""
+    return {k: v for k, v in time_specs([spec], [steps])[0].items() if not k.startswith("_")}
 
 
 _cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # the names of 0.2.0's runner
@@ -95,14 +98,17 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
         specs = [dataclasses.replace(s, keep_states=True) if scene_of(s.case).keeps_states else s for s in specs]
     specs.sort(key=cost, reverse=True)
     results_path = out_dir / "results.csv"
+    budgets = budget.configured()  # the command's (harness.budget.configure), for every run, truth and --resume
     with Store(out_dir) as store:
         identities = {id(s): s.identity(store, options.certify) for s in specs}
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
         stored: dict[str, dict] = {}  # key -> row of every run of this sweep done so far
         if options.resume:
             stored = {keys[id(s)]: record["row"] for s in specs if (record := store.get(keys[id(s)])) is not None
+                      # reused unless its states are wanted and missing, or it was stopped by a budget raised since
                       and not (s.keep_states and record["row"]["status"] != Status.FAILED.value
-                               and not store.states_path(keys[id(s)]).is_file())}
+                               and not store.states_path(keys[id(s)]).is_file())
+                      and budget.still_holds(record.get("budget"), budgets)}
         environment = current_environment()
 
         def table() -> pd.DataFrame:
@@ -125,7 +131,7 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
             if not row.get("_lost"):
                 if states is not None:  # before the record: a stored record means its states are there too
                     store.put_states(key, row, states)
-                store.put(key, identities[id(spec)], row, series)
+                store.put(key, identities[id(spec)], row, series, row.get("_budget"))
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
             # The run is safe in the store already; re-assembling the tables after every run was quadratic in the
             # sweep (seconds per run at ~1000 rows), so refresh them at most every PUBLISH_EVERY_S and at the end.
@@ -141,20 +147,21 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
         with own_pool as pool:
             progress.stage(f"truths of {len(cases)} cases, then {len(pending)} runs on {local_jobs} workers")
 
-            def truth_failed(case, reason: str) -> None:  # a truth that cannot be computed fails its case's runs
+            def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
                 nonlocal pending
                 for spec in [s for s in pending if s.case is case]:
-                    finished(spec, {**base_row(spec, None), "status": Status.FAILED.value, "message": reason})
+                    finished(spec, {**base_row(spec, None), **failure})
                 pending = [s for s in pending if s.case is not case]
 
             truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
-                                  progress.phase, truth_failed)
+                                  progress.phase, truth_failed, budgets)
             progress.start(len(pending), sum(cost(s) for s in pending), resumed=len(specs) - len(pending))
             try:
                 if options.scheduler:
-                    run_on_cluster(options.scheduler, pending, truths, sweep_run, finished, worker_failed_row)
+                    run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
+                                   finished, worker_failed_row)
                 else:
-                    run_local(pending, truths, pool, finished)
+                    run_local(pending, truths, pool, finished, budgets)
             finally:
                 publish()
                 progress.close()

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import integrators as integrator_registry
+from .. import budget, integrators as integrator_registry
 from ..grid import TimeGrid, time_grid
 from ...reference import truth as reference_truth
 from .base import register
@@ -51,9 +51,12 @@ def truth_grid(case: Case) -> TimeGrid:
     return time_grid(case.t_end, case.t_end / (case.samples - 1), case.samples)
 
 
-def compute_truth(case: Case, dts: tuple[float, ...], certify: bool) -> CaseTruth:
-    """The truth on every grid of the case's dt list and its own grid (the sweep's)."""
-    return SCENE.truth(case, [time_grid(case.t_end, dt, case.samples) for dt in dts] + [truth_grid(case)], certify)
+def compute_truth(case: Case, dts: tuple[float, ...], certify: bool, budget_s: float | None = None) -> CaseTruth:
+    """The truth on every grid of the case's dt list and its own grid (the sweep's), certified by a real128 rerun
+    when certify; both within the truth budget (budget_s, default harness.budget's configured one)."""
+    with budget.within("truth", budget.configured().truth_s if budget_s is None else budget_s):
+        return SCENE.truth(case, [time_grid(case.t_end, dt, case.samples) for dt in dts] + [truth_grid(case)],
+                           certify)
 
 
 def rhs_per_sim_s(dt: float | None, integrator: str, rhs_evals: int, steps: float, t_end: float) -> float:
@@ -89,13 +92,15 @@ class RigidBodyScene:
 
     def truth(self, case: Case, grids: list[TimeGrid], certify: bool) -> CaseTruth:
         times = np.unique(np.concatenate([g.times for g in grids]))
-        result = reference_truth.truth(case.body, case.quat0, case.omega0, times)
+        # within the caller's budget (harness.budget.within): heyoka stops at its deadline
+        result = reference_truth.truth(case.body, case.quat0, case.omega0, times, deadline=budget.deadline())
         bound = reference_truth.TruthBound(math.nan, math.nan)
         if certify:
             horizon = case.horizon if case.horizon is not None else case.t_end
             certified = truth_grid(case).times
             bound = reference_truth.truth_bound(case.body, case.quat0, case.omega0,
-                                                certified[certified <= horizon * (1 + 1e-12)])
+                                                certified[certified <= horizon * (1 + 1e-12)],
+                                                deadline=budget.deadline())
         return CaseTruth(times, result.quat, result.omega, bound.attitude, applicable_integrals(case),
                          exact_attitude(case, times), bound.omega)
 

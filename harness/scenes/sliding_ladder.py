@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import budget
 from ..grid import TimeGrid
 from ..trajectory import SlidingLadderTrajectory, Status
 from ...reference import sliding_ladder as ref_ladder
@@ -68,7 +69,7 @@ class SlidingLadderScene:
     def metrics(self, run, model, traj: SlidingLadderTrajectory, grid: TimeGrid, truth, full: bool, rerun,
                 keep_states: bool = False) -> dict:
         out = {"torque_mode": "none"}
-        equation = ref_ladder.solve(run.case.ladder, grid.times)
+        equation = ref_ladder.solve(run.case.ladder, grid.times, deadline=budget.deadline())
         out.update(ladder_metrics(run, traj, equation))
         violation = out.pop("_violation")
         if full:
