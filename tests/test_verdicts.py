@@ -290,9 +290,9 @@ def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypat
     timed_in_execute = []
     real_measure = run_pool.measure
 
-    def spy(spec, truth=None, full=True, keep_states=False, timed=None):
+    def spy(spec, truth=None, full=True, keep_states=False, timed=None, budgets=None):
         timed_in_execute.append(timed is not None)
-        return real_measure(spec, truth, full, keep_states, timed)
+        return real_measure(spec, truth, full, keep_states, timed, budgets)
 
     monkeypatch.setattr(run_pool, "measure", spy)
     case = find_case("free-asymmetric")
