@@ -27,7 +27,7 @@ from .plan import RunSpec, base_row, plan
 from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
 from .progress import ProgressBar
 from .results import frame, write_results
-from .store import Store, run_key
+from .store import Store, mark_complete, run_key
 from .truth import sweep_truths
 
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
@@ -73,7 +73,7 @@ _cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # 
 def run_sweep(cases: list, engines: list[str], integrators: list[str] | None, out_dir: Path,
               jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
               resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
-              pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
+              pool: ProcessPoolExecutor | None = None, final: bool = True) -> pd.DataFrame:
     """Run everything and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -83,14 +83,16 @@ def run_sweep(cases: list, engines: list[str], integrators: list[str] | None, ou
     certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
     save_trajectories: also write each run's recorded states to out_dir/trajectories/<key>.npz (Store.put_states);
     with resume, a stored run without its file is redone.
+    final: the sweep is all that writes the folder: mark it complete at the end (runs.json; harness.run.store
+    mark_complete). `stereodyn run` marks it itself, after the work–precision tables and the report.
     """
     options = SweepOptions(None if integrators is None else tuple(integrators), jobs, certify, resume, scheduler,
                            save_trajectories)
-    return _sweep(cases, engines, out_dir, options, progress or ProgressBar(enabled=False), pool)
+    return _sweep(cases, engines, out_dir, options, progress or ProgressBar(enabled=False), pool, final)
 
 
 def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions, progress: ProgressBar,
-           pool: ProcessPoolExecutor | None) -> pd.DataFrame:
+           pool: ProcessPoolExecutor | None, final: bool) -> pd.DataFrame:
     out_dir.mkdir(parents=True, exist_ok=True)
     integrators = None if options.integrators is None else list(options.integrators)
     specs, skipped_rows = plan(cases, engines, integrators)
@@ -181,6 +183,8 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
             store.put(key, identities[id(spec)], row, record.get("series") if record else None)
         if untimed:
             publish()
+        if final:
+            mark_complete(out_dir)
         return table()
 
 
