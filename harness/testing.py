@@ -20,6 +20,8 @@ Both helpers raise AssertionError with the measured numbers, so pytest shows why
 from __future__ import annotations
 
 import math
+from collections import abc
+from pathlib import Path
 from typing import Iterable
 
 import numpy as np
@@ -78,12 +80,17 @@ def _resolve(integrator: str | type[Integrator], state_space: str) -> type[Integ
 
 
 def _case(case: str | Case) -> Case:
-    return case if isinstance(case, Case) else find_case(case)
+    return find_case(case) if isinstance(case, (str, Path)) else case
+
+
+def _one(case) -> bool:
+    """Whether an argument is one case (a name, a path or a case) rather than several."""
+    return isinstance(case, (str, Path)) or not isinstance(case, abc.Iterable)
 
 
 def _cases(cases: str | Case | Iterable[str | Case]) -> list[Case]:
     """One case (a name or a Case) or several, as a list: "lagrange-top" is one case, not twelve letters."""
-    if isinstance(cases, (str, Case)):
+    if _one(cases):
         return [_case(cases)]
     return [_case(case) for case in cases]
 
@@ -118,7 +125,7 @@ def measured_order(integrator: str | type[Integrator], case: str | Case | Iterab
     on a case over t_end, from the dt values whose error lies in ORDER_ERR_RANGE. dts default: 0.1 down to 0.00625 by
     halves. `case` is a name or Case (returns the order) or a list of them (returns {case name: order}). engine: run
     on that engine (module docstring)."""
-    if not isinstance(case, (str, Case)):
+    if not _one(case):
         return {c.name: measured_order(integrator, c, dts, state_space, formulation, t_end, engine)
                 for c in _cases(case)}
     cls, name = _named(integrator, state_space, engine)
