@@ -125,6 +125,7 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False,
                               budgets.prepare_s)
         with budget.within("run", budgets.run_s):
             _accuracy_run(spec, truth, grid, sim, engine, formulation, row)
+            budget.check()  # a loop that could not be stopped inside (one compiled call) is judged when it returns
         if timed and row["status"] == Status.OK.value:
             row.update(_timing_columns(timing.measure(lambda: sim.run(grid)), row["steps"]))
     except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts

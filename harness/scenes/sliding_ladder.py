@@ -67,6 +67,7 @@ def execute(spec, base_row: dict, timed: bool = True, budgets: budget.Budgets | 
             equation = ref_ladder.solve(ladder, grid.times, deadline=budget.deadline())
             row.update(metrics(spec, traj, equation))
             row[checks.ROW_KEY] = check_rows(spec, traj, row)
+            budget.check()  # a loop that could not be stopped inside is judged when it returns
         if timed and traj.status is Status.OK:
             measured = timing.measure(lambda: sim.run(grid))
             row.update(wall_s=measured.best, us_per_step=measured.best / max(1, grid.steps) * 1e6,
