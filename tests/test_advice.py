@@ -43,11 +43,19 @@ def test_known_points_are_reused_and_an_unstable_step_counts_as_not_reaching():
     assert set(known) >= set(calls)  # the runs join the shared points
 
 
-def test_a_target_below_the_round_off_floor_says_so():
-    error_at, _ = _law(1e2, 4.0, floor=2e-12)
-    advice = search(error_at, 1e-13, (1e-13 / 1e2) ** 0.25, lo=1e-6, hi=1.0)
-    assert math.isnan(advice.setting) and advice.note.startswith("below the method's floor")
+@pytest.mark.parametrize("floor, target", [(2e-12, 1e-13),   # float64 round-off
+                                           (3e-6, 1e-6)])     # a float32 engine's precision
+def test_a_target_below_the_methods_floor_says_so(floor, target):
+    error_at, _ = _law(1e2, 4.0, floor=floor)
+    advice = search(error_at, target, (target / 1e2) ** 0.25, lo=1e-6, hi=1.0)
+    assert math.isnan(advice.setting) and advice.note.startswith("below the method's floor"), advice
     assert advice.runs <= step_advice.MAX_CHECK_RUNS
+
+
+def test_a_saturated_error_is_no_floor():
+    """A chaotic case's error saturates near pi above the asymptotic range: not falling there is no floor."""
+    advice = search(lambda dt: 3.0, 1e-6, 1e-2, lo=1e-3, hi=1.0)
+    assert math.isnan(advice.setting) and advice.note.startswith("beyond the step cap: not reached"), advice
 
 
 def test_a_target_beyond_the_step_cap_says_so_after_checking_the_cap():

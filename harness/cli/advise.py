@@ -66,11 +66,11 @@ def advice_lines(case, table, why: dict, families) -> list[str]:
                 lines.append(head + row["note"])
                 continue
             cost = f", {row['us_per_sim_s']:.3g} µs per simulated s" if math.isfinite(row["us_per_sim_s"]) else ""
-            fails = (f"; {what} = {row['fails_at']:.4g} gives {row['error_fails']:.2g}"
+            fails = (f"; {what} = {row['fails_at']:.4g} gives {row['error_fails']:.3g}"
                      if math.isfinite(row["fails_at"]) else "")
             unit = " s" if what == "dt" else ""
-            lines.append(head + f"{what} = {row[what]:.4g}{unit} (error {row['error_checked']:.2g}{cost}{fails})"
+            lines.append(head + f"{what} = {row[what]:.4g}{unit} (error {row['error_checked']:.3g}{cost}{fails})"
                          + (f" [{row['note']}]" if row["note"] else ""))
             lines.append(f"    model: error ≈ C {what}^{row['order']:.2f}, estimate {what} = {row['estimate']:.3g}; "
-                         f"{int(row['runs'])} check runs")
+                         f"{int(row['runs'])} check run{'' if int(row['runs']) == 1 else 's'}")
     return lines
