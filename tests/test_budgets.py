@@ -86,7 +86,7 @@ def test_the_sliding_ladder_stops_at_the_run_budget(engine, model, integrator, d
     # the extreme rod of issue 22: l = 1e-9 m, g = 1e6 m/s^2 (sqrt(g/l) ~ 3e7 rad/s) for the equation
     ladder = dataclasses.replace(case.ladder, mass=1e6, half_length=1e-9, g=1e6) if dt is None else case.ladder
     case = dataclasses.replace(case, ladder=ladder, t_end=LONG if dt else 1.5, dt=(dt or 1e-3,))
-    sim = _engine(engine).prepare_sliding_ladder(case, model, integrator, dt)
+    sim = _engine(engine).models()["sliding_ladder"].prepare(case, model, integrator, dt)
     grid = time_grid(case.t_end, dt or case.t_end / 99, 100)
     with pytest.raises(budget.BudgetExceeded):
         with budget.within("run", 0.05):

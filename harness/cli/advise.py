@@ -12,14 +12,14 @@ from ..scenes import cases as case_files
 
 def main(args) -> int:
     from ..analysis import advice as advising
-    from ..scenes.cases import SLIDING_LADDER
+    from ..scenes import scene_of
     from ..analysis.summary import TERMINAL_TARGETS
 
     if args.engine not in engine_names():
         raise BadInput(f"--engine: unknown engine {args.engine}; valid: {', '.join(engine_names())}")
     case = case_files.find_case(args.case)
-    if case.kind == SLIDING_LADDER:
-        raise BadInput(f"{args.case}: a sliding ladder has no attitude error to advise on")
+    if not scene_of(case).work_precision:  # the step search reads an attitude error's convergence (dt ladders)
+        raise BadInput(f"{args.case}: {scene_of(case).title} has no attitude error to advise on")
     if args.t_end is not None:
         args.dt = None
         case = override(case, args)

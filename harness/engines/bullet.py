@@ -228,9 +228,6 @@ class BulletEngine(Engine):
     def torque_mode(self, case: Case) -> str:
         return "step" if case.body.has_external_torque else "none"
 
-    def sliding_ladder_unsupported(self) -> str:
-        return "bullet adapter does not model the sliding ladder"
-
     def prepare(self, case: Case, integrator: str, dt: float | None, **options) -> BulletSimulation:
         if integrator != STEP:
             raise KeyError(f"unknown integrator {integrator!r} for the bullet engine; valid: {STEP}")
