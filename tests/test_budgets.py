@@ -53,14 +53,18 @@ def _engine(name):
 
 # Every built-in loop: the harness's integrators (Pinocchio, the reference formulations), MuJoCo's rollout chunks and
 # its Python step loop (a torque), scipy's methods, heyoka's Taylor runs, Drake's fixed-step and error-controlled
-# integrators (its simulator's monitor), and the sliding ladder's models and equation.
+# integrators (its simulator's monitor), Bullet's and MuJoCo Warp's step loops, and the sliding ladder's models and
+# equation. Not MJX: its rollout is one compiled XLA call (docs/limits.md, "Time").
 RIGID = [("free-asymmetric", "pinocchio", "", "rk4", 1e-4), ("free-asymmetric", "mujoco", "", "rk4", 1e-4),
          ("self-excited-conic", "mujoco", "", "rk4", 1e-4),
          ("free-asymmetric", "reference", "quaternion", "rk4", 1e-4),
          ("free-asymmetric", "reference", "quaternion", "scipy_rk45", None),
          ("free-asymmetric", "reference", "gibbs", "taylor", None),
          ("free-asymmetric", "drake", "rpy_ball", "runge_kutta2", 1e-4),
-         ("free-asymmetric", "drake", "rpy_ball", "runge_kutta3_adaptive", None)]
+         ("free-asymmetric", "drake", "rpy_ball", "runge_kutta3_adaptive", None),
+         ("free-asymmetric", "bullet", "", "semi_implicit_euler", 1e-4),
+         ("self-excited-conic", "bullet", "", "semi_implicit_euler", 1e-4),
+         ("free-asymmetric", "warp", "", "euler", 1e-4)]
 
 
 @pytest.mark.parametrize("name, engine, formulation, integrator, dt", RIGID)

@@ -40,6 +40,7 @@ for _module in ("genesis", "torch"):
         raise ImportError(f"No module named {_module!r}; install the extra: {INSTALL} (Genesis also needs torch: "
                           f"the CPU wheel is enough)")
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
@@ -163,11 +164,12 @@ class GenesisSimulation:
         bad = None
         for i in range(1, len(samples)):
             if torque is None:  # the hot loop: Genesis's steps, one state read a sample
-                for _ in range(samples[i] - samples[i - 1]):
-                    step()
+                for piece in budget.pieces(samples[i - 1], samples[i]):  # the run's wall-time budget
+                    for _ in piece:
+                        step()
             else:  # every step: the torque from the step's time and state (body components), then the step
                 try:
-                    for k in range(samples[i - 1], samples[i]):
+                    for k in (k for piece in budget.pieces(samples[i - 1], samples[i]) for k in piece):
                         q, w = self._state()
                         force[offset:offset + 3] = torque(k * dt, tuple(q.tolist()), tuple(w.tolist()))
                         self.entity.control_dofs_force(force)

@@ -33,6 +33,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
@@ -107,8 +108,9 @@ class NewtonSimulation:
         poses[0], twists[0] = body_q.numpy()[0], body_qd.numpy()[0]
         recorded = len(samples)
         for i in range(1, len(samples)):  # the hot loop: graph replays, one state read a sample
-            for _ in range(samples[i] - samples[i - 1]):
-                launch(graph)
+            for piece in budget.pieces(samples[i - 1], samples[i]):  # the run's wall-time budget
+                for _ in piece:
+                    launch(graph)
             wp.synchronize_device(DEVICE)
             poses[i], twists[i] = body_q.numpy()[0], body_qd.numpy()[0]
             if not (np.isfinite(poses[i]).all() and np.isfinite(twists[i]).all()):

@@ -51,6 +51,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
                 return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance).run(grid)
 
             row.update(scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states))
+            budget.check()  # a loop that could not be stopped inside (one compiled call, MJX's) is judged here
         if timed is not None and traj.status is Status.OK:
             row.update(timed(sim, grid))
     except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
