@@ -2,7 +2,7 @@
 asymptotic range (s the step dt, or the requested tolerance of an adaptive method), and the checked search for the
 largest setting whose max attitude error reaches a target.
 
-The search is given a function that runs the family at a setting and returns the error (harness.analysis.advice runs it):
+The search is given a function that runs the family at a setting and returns the error (analysis.advice runs it):
 it starts just inside the model's estimate, steps once by CHECK_RATIO to the other side, then doubles or halves until
 a setting that reaches the target and one that does not are known, and bisects (geometrically) until they are within
 CHECK_RATIO. The setting advised is the one that reaches it, with its measured error. A target the family cannot
@@ -47,7 +47,7 @@ class ErrorModel:
 
 def error_model(points: pd.DataFrame, order: float, setting: str = "dt") -> ErrorModel | None:
     """The model of a family's max attitude error with the fitted order (convergence.csv's, or a tolerance ladder's
-    slope): C from the points in the asymptotic range (harness.fitting.regimes on state_err; points: columns
+    slope): C from the points in the asymptotic range (harness.analysis.fitting.regimes on state_err; points: columns
     `setting`, steps, status, state_err, attitude_err), the geometric mean of attitude_err / setting^order. None
     without an order or such a point."""
     if not (math.isfinite(order) and order > 0) or points.empty:
@@ -167,7 +167,7 @@ def search(error_at: Callable[[float], float], target: float, estimate: float, l
 
 def _stalled(known: dict[float, float], fail: float) -> bool:
     """Whether the error at `fail` and the next coarser setting tried shows a floor: both ok, below the floor band
-    (harness.fitting.FLOOR_MAX) and falling with a local slope below FLOOR_SLOPE."""
+    (harness.analysis.fitting.FLOOR_MAX) and falling with a local slope below FLOOR_SLOPE."""
     coarser = sorted(s for s in known if s > fail and math.isfinite(known[s]))
     if not coarser or not math.isfinite(known[fail]):
         return False

@@ -237,7 +237,7 @@ def _init_worker(engines: tuple[str, ...]) -> None:
 
 def worker_pool(jobs: int | None, engines: tuple[str, ...]):
     """The local process pool of `stereodyn run`, shared by the sweep (run_sweep(pool=...)) and the dt ladders
-    (harness.workprecision.analyse(pool=...)); None when jobs is 1. A context manager: Ctrl-C inside it ends the
+    (analysis.workprecision.analyse(pool=...)); None when jobs is 1. A context manager: Ctrl-C inside it ends the
     workers at once."""
     return _local_pool(jobs or os.cpu_count() or 1, 2, engines)
 
