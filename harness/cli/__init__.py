@@ -306,6 +306,7 @@ def main(argv: list[str] | None = None) -> int:
         from ..run.store import StoreBusy
         from ..run.results import TableError
         from ..analysis.compare import CompareError
+        from ..report.sections import SectionError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
@@ -322,7 +323,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = _commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
-            CompareError) as exc:
+            CompareError, SectionError) as exc:
         code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
