@@ -162,4 +162,4 @@ def test_the_default_run_writes_checked_advice_and_the_report_shows_it_per_engin
     assert (advice["us_per_sim_s"] > 0).all() and (advice["order"] - 4.0).abs().max() < 0.3
     text = "\n".join(report_lines(tmp_path))
     section = text.split("## Step-size advice")[1].split("\n## ")[0]
-    assert "### mujoco" in section and f"| dt = {advice['dt'].iloc[1]:.4g} |" in section
+    assert "### mujoco: step sizes" in section and f"| dt = {advice['dt'].iloc[1]:.4g} |" in section

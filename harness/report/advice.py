@@ -19,7 +19,7 @@ def advice_lines(table: pd.DataFrame) -> list[str]:
              "What to use): the largest step dt, or for an adaptive method the largest requested tolerance, that "
              "reaches it (advice.csv). Estimated from the fitted error model C·dt^p on the asymptotic range, then "
              f"checked by runs: the setting shown reaches the target, {CHECK_RATIO:g} times it (or less: 'fails at') "
-             "does not. 'error' and 'µs/s' are the advised run's own, measured; a target beyond the step cap or "
+             "does not. 'error checked' and 'µs/s' are the advised run's own, measured; a target beyond the step cap or "
              "below the method's floor says so instead. The default run checks the families with a dt or tolerance "
              "ladder at 1e-3 and 1e-6 rad; `--dt-ladder` every laddered family at every target; `stereodyn advise "
              "CASE --engine E` any case and engine.", ""]
@@ -31,6 +31,9 @@ def advice_lines(table: pd.DataFrame) -> list[str]:
             cells.append([row["case"], " ".join(x for x in (row["formulation"], row["integrator"]) if x),
                           f"{row['target']:.0e}", setting, number(row["error_checked"], ".2g"),
                           number(row["us_per_sim_s"], ".3g"), number(row["fails_at"], ".4g"), row["note"]])
-        lines += [f"### {engine}", "", *markdown_table(["case", "integrator", "target", "advised", "error",
-                                                        "µs/s", "fails at", "note"], cells), ""]
+        # "### mujoco" is What to use's heading (and the page's anchor): this one names the section too. The error
+        # column is not "error": that header is graded red to green, and an error that meets its target is no alarm.
+        lines += [f"### {engine}: step sizes", "", *markdown_table(["case", "integrator", "target", "advised",
+                                                                    "error checked", "µs/s", "fails at", "note"],
+                                                                   cells), ""]
     return lines

@@ -148,7 +148,7 @@ def _timing_columns(measured: timing.Timing, steps: float) -> dict:
 
 def time_spec(spec: RunSpec, steps: float) -> dict:
     """The timing columns of one finished ok run, timed alone (time_specs of one run). {} when it fails here."""
-    return time_specs([spec], [steps])[0]
+    return {k: v for k, v in time_specs([spec], [steps])[0].items() if not k.startswith("_")}
 
 
 def _warm_run(spec: RunSpec):
