@@ -43,11 +43,19 @@ def test_known_points_are_reused_and_an_unstable_step_counts_as_not_reaching():
     assert set(known) >= set(calls)  # the runs join the shared points
 
 
-def test_a_target_below_the_round_off_floor_says_so():
-    error_at, _ = _law(1e2, 4.0, floor=2e-12)
-    advice = search(error_at, 1e-13, (1e-13 / 1e2) ** 0.25, lo=1e-6, hi=1.0)
-    assert math.isnan(advice.setting) and advice.note.startswith("below the method's floor")
+@pytest.mark.parametrize("floor, target", [(2e-12, 1e-13),   # float64 round-off
+                                           (3e-6, 1e-6)])     # a float32 engine's precision
+def test_a_target_below_the_methods_floor_says_so(floor, target):
+    error_at, _ = _law(1e2, 4.0, floor=floor)
+    advice = search(error_at, target, (target / 1e2) ** 0.25, lo=1e-6, hi=1.0)
+    assert math.isnan(advice.setting) and advice.note.startswith("below the method's floor"), advice
     assert advice.runs <= step_advice.MAX_CHECK_RUNS
+
+
+def test_a_saturated_error_is_no_floor():
+    """A chaotic case's error saturates near pi above the asymptotic range: not falling there is no floor."""
+    advice = search(lambda dt: 3.0, 1e-6, 1e-2, lo=1e-3, hi=1.0)
+    assert math.isnan(advice.setting) and advice.note.startswith("beyond the step cap: not reached"), advice
 
 
 def test_a_target_beyond_the_step_cap_says_so_after_checking_the_cap():
@@ -163,3 +171,9 @@ def test_the_default_run_writes_checked_advice_and_the_report_shows_it_per_engin
     text = "\n".join(report_lines(tmp_path))
     section = text.split("## Step-size advice")[1].split("\n## ")[0]
     assert "### mujoco: step sizes" in section and f"| dt = {advice['dt'].iloc[1]:.4g} |" in section
+
+
+def test_a_missed_target_prints_with_the_digits_that_show_it_missed():
+    from stereodyn.harness.cli.advise import _above
+
+    assert _above(1.00386e-06, 1e-6) == "1.00386e-06" and _above(2.34e-06, 1e-6) == "2.34e-06"

@@ -12,6 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli
 from stereodyn.harness.report.build import figure_stem
 from stereodyn.harness.store import Store, StoreBusy, folder_lock
@@ -152,13 +153,13 @@ def test_jobs_are_capped_at_the_number_of_runs(tmp_path, monkeypatch):
     from stereodyn.harness import runner
 
     seen = []
-    original = runner.ProcessPoolExecutor
+    original = run_pool.ProcessPoolExecutor
 
     def pool(*args, **kwargs):
         seen.append(kwargs["max_workers"])
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(runner, "ProcessPoolExecutor", pool)
+    monkeypatch.setattr(run_pool, "ProcessPoolExecutor", pool)
     path = case_file(tmp_path, BASE.replace("dt = [1e-2]", "dt = [1e-2, 5e-3]"))
     assert cli.main(["run", "--case-file", str(path), "--engines", "mujoco", "--integrators", "rk4", "--jobs", "16",
                      "--quiet", "--out", str(tmp_path / "out")]) == 0
@@ -181,8 +182,15 @@ def test_a_name_with_a_double_quote_runs_everywhere_and_exports_xml_that_parses(
         assert ET.parse(target).getroot().get(root) == name
 
 
+def test_a_name_longer_than_200_characters_is_one_line_exit_2(tmp_path, capsys):
+    """docs/limits.md: a name is in every row and table (100 000 characters made a 38 MB results.csv)."""
+    path = case_file(tmp_path, BASE.replace('name = "base"', f'name = "{"x" * 201}"'))
+    one_line_error(cli.main(["run", "--case-file", str(path), "--out", str(tmp_path / "out"), *FAST]), capsys,
+                   str(path), "name: must be at most 200 characters", "got 201")
+
+
 def test_two_non_ascii_names_keep_distinct_bounded_figures(tmp_path):
-    names = ["тело", "物体", "x" * 5000]
+    names = ["тело", "物体", "x" * 200]  # the longest name allowed
     stems = {figure_stem(n) for n in names}
     assert len(stems) == 3 and all(len(s) <= 49 and s.isascii() for s in stems)
     files = [case_file(tmp_path, BASE.replace('name = "base"', f'name = "{n}"'), f"c{i}.toml")

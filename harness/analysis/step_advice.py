@@ -121,7 +121,7 @@ def search(error_at: Callable[[float], float], target: float, estimate: float, l
         if bracket()[0] is None:
             error = known[rounded(lo)]
             return Advice(math.nan, math.nan, rounded(lo), error, runs,
-                          f"beyond the step cap: the model needs {what} = {estimate:.3g}, below {lo:.4g}"
+                          f"{_beyond(what)}: the model needs {what} = {estimate:.3g}, below {lo:.4g}"
                           + (f" ({cap})" if cap else "") + f", where the error is {error:.3g}")
     # first just inside the estimate, then one CHECK_RATIO step across it: a good model is checked in two runs
     first = rounded(clip(estimate / math.sqrt(ratio))) if modelled else math.nan
@@ -165,15 +165,22 @@ def search(error_at: Callable[[float], float], target: float, estimate: float, l
                                                          if fail is not None else ""))
 
 
+def _beyond(what: str) -> str:
+    """The words of a target the smallest setting allowed does not reach."""
+    return "beyond the step cap" if what == "dt" else f"beyond the tightest {what}"
+
+
 def _stalled(known: dict[float, float], fail: float) -> bool:
-    """Whether the error at `fail` and the next coarser setting tried shows a floor: both ok, below the floor band
-    (harness.analysis.fitting.FLOOR_MAX) and falling with a local slope below FLOOR_SLOPE."""
+    """Whether the error at `fail` and the next coarser setting tried shows a floor: both ok, in the asymptotic range
+    or below (<= analysis.fitting.ASYMPTOTIC_MAX) and falling with a local slope below FLOOR_SLOPE. Not fitting's
+    FLOOR_MAX (1e-6): a float32 engine's floor lies near 1e-5 rad; a saturated error (a chaotic separation, ~pi) lies
+    above the range and is no floor."""
     coarser = sorted(s for s in known if s > fail and math.isfinite(known[s]))
     if not coarser or not math.isfinite(known[fail]):
         return False
     above = coarser[0]
     e0, e1 = known[above], known[fail]
-    if not (e0 <= fitting.FLOOR_MAX and e0 > 0 and e1 > 0):
+    if not (e0 <= fitting.ASYMPTOTIC_MAX and e0 > 0 and e1 > 0):
         return False
     return math.log(e0 / e1) / math.log(above / fail) < FLOOR_SLOPE
 
@@ -191,5 +198,5 @@ def _not_reached(known: dict[float, float], lo: float, what: str, cap: str, runs
     error = known[at]
     why = "not ok" if not math.isfinite(error) else f"error {error:.3g}"
     return Advice(math.nan, math.nan, at, error, runs,
-                  f"beyond the step cap: not reached down to {what} = {at:.4g}" + (f" ({cap})" if cap else "")
+                  f"{_beyond(what)}: not reached down to {what} = {at:.4g}" + (f" ({cap})" if cap else "")
                   + f", {why}" + (f"; the model needs {what} = {estimate:.3g}" if math.isfinite(estimate) else ""))

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 
 import numpy as np
 
@@ -50,12 +51,13 @@ try:
     from pydrake.multibody.plant import MultibodyPlant
     from pydrake.multibody.tree import BallRpyJoint, QuaternionFloatingJoint, SpatialInertia, UnitInertia
     from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
-    from pydrake.systems.framework import DiagramBuilder, LeafSystem
+    from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
 from stereodyn.reference.rotations import quat_to_matrix
@@ -229,12 +231,15 @@ class DrakeSimulation:
         # non-finite runs on as NaN at the same cost and the divergence rule is applied afterwards
         rows = [self.x0]
         advance, copy, append = self.simulator.AdvanceTo, vector.CopyToVector, rows.append
+        out_of_time = self._watch(budget.deadline())
         error = None
         try:
             for t in times[1:]:
                 advance(t)
                 append(copy())
         except (RuntimeError, ValueError, OverflowError) as exc:  # a Drake error ends the run at the context's time
+            if out_of_time():
+                raise budget.exceeded() from None
             error = exc
         stopped = context.get_time()
         recorded = len(rows)
@@ -267,6 +272,24 @@ class DrakeSimulation:
         return Trajectory(grid.times, quat, omega, status, message, diverged_at, int(steps), int(rhs_evals),
                           info={"torque_mode": self.torque_mode})
 
+    def _watch(self, deadline: float | None):
+        """The run's wall-time budget (harness.budget) as the simulator's monitor, called after every step (the steps
+        run in C++ inside AdvanceTo): past the deadline the step fails, and the returned function says so. No monitor
+        without a deadline (the timing phase's runs), so a timed step costs what it did."""
+        if deadline is None:
+            self.simulator.clear_monitor()
+            return lambda: False
+        clock, diagram, passed = time.monotonic, self.diagram, [False]
+
+        def monitor(context):
+            if clock() > deadline:
+                passed[0] = True
+                return EventStatus.Failed(diagram, "wall-time budget exceeded")
+            return EventStatus.Succeeded()
+
+        self.simulator.set_monitor(monitor)
+        return lambda: passed[0]
+
     def failure(self, error: Exception, stopped: float) -> str:
         text = str(error)
         if self.model == RPY_BALL and "singularity" in text and "Rpy" in text:
@@ -287,6 +310,11 @@ class DrakeSimulation:
                 quat, w_world = states[:, :4].copy(), states[:, 7:10]
             omega = np.einsum("nji,nj->ni", quat_to_matrix(quat), w_world)
         return quat, omega
+
+
+# Why a scene has no Drake model (the skipped row's message).
+UNMODELLED = {SLIDING_LADDER: "drake: the sliding ladder needs bilateral constraints, which Drake's continuous "
+                              "MultibodyPlant lacks (the discrete plant's are compliant): not modelled exactly"}
 
 
 class DrakeEngine(Engine):
@@ -339,9 +367,8 @@ class DrakeEngine(Engine):
     def torque_mode(self, case: Case) -> str:
         return "input_port" if case.body.has_external_torque else "none"
 
-    def sliding_ladder_unsupported(self) -> str:
-        return ("drake: the sliding ladder needs bilateral constraints, which Drake's continuous MultibodyPlant "
-                "lacks (the discrete plant's are compliant): not modelled exactly")
+    def unmodelled(self, scene) -> str:
+        return UNMODELLED.get(scene.kind) or super().unmodelled(scene)
 
     def prepare(self, case: Case, integrator: str, dt: float | None, formulation: str = RPY_BALL,
                 tolerance: float | None = None) -> DrakeSimulation:

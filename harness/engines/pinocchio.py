@@ -16,9 +16,10 @@ import numpy as np
 import pinocchio as pin
 
 from stereodyn.harness import integrators
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.base import check_stepper
 from stereodyn.harness.integrators.ensemble import integrate_ensemble
@@ -122,8 +123,6 @@ def urdf(case: Case) -> str:
     the file gives g d to set in the tool (Pinocchio: model.gravity.linear).
     Raises ValueError for a case this adapter cannot model exactly.
     """
-    if case.kind != "rigid_body":
-        raise ValueError(f"{case.name}: the Pinocchio adapter does not model the {case.kind} scene")
     reason = PinocchioEngine().unsupported(case)
     present = [f"[{name}]" for name in ("body_torque", "central_field", "precession_torque")
                if getattr(case, name) is not None]
@@ -230,7 +229,11 @@ class PinocchioEngine(Engine):
     export_formats = ("urdf",)
 
     def export(self, case: Case, fmt: str, integrator: str | None, dt: float | None) -> str:
-        """URDF: the body, its ball joint as a three-joint gimbal (integrator and dt do not apply)."""
+        """URDF: the body, its ball joint as a three-joint gimbal. A URDF holds no stepper: an integrator or a dt is
+        refused rather than silently dropped."""
+        if integrator is not None or dt is not None:
+            raise ValueError(f"--{'integrator' if integrator is not None else 'dt'}: applies to a format that holds a "
+                             f"stepper (mjcf), not to {fmt}")
         return urdf(case)
 
     def integrators(self) -> tuple[str, ...]:
@@ -258,18 +261,25 @@ class PinocchioEngine(Engine):
         threads contending with other processes (a sweep's workers) made a 64-member RK4 ensemble 6x slower."""
         return PinocchioEnsemble(case, self.prepare(case, integrator, dt), quat0, omega0, threads)
 
-    def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.scenes.sliding_ladder): rows name them in the formulation column."""
+    def models(self) -> dict:
+        return {**super().models(), SLIDING_LADDER: LadderModel()}
+
+
+class LadderModel(SceneModel):
+    """The sliding ladder (harness.scenes.sliding_ladder): rows name the model in the formulation column."""
+
+    def variants(self) -> tuple[str, ...]:
         return LADDER_MODELS
 
-    def sliding_ladder_integrators(self, chosen: list[str]) -> list[str]:
+    def integrators(self, chosen: list[str]) -> list[str]:
         """The chosen integrators that step the ladder: those that also work on a vector state (its configuration
         is R³, not the rotation group)."""
         vector = set(integrators.names(state_space="vector"))
         return [name for name in chosen if name in vector]
 
-    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float) -> "PinocchioLadderSimulation":
-        return PinocchioLadderSimulation(case.ladder, model, integrator, dt)
+    def prepare(self, case, variant: str, integrator: str, dt: float | None,
+                tolerance: float | None = None) -> "PinocchioLadderSimulation":
+        return PinocchioLadderSimulation(case.ladder, variant, integrator, dt)
 
 
 # --- the sliding ladder (harness.scenes.sliding_ladder, FORMULARY T5) -------------------------------------------
@@ -339,7 +349,7 @@ class PinocchioLadderSimulation:
         if model not in LADDER_MODELS:
             raise KeyError(f"unknown ladder model {model!r} for the Pinocchio adapter; "
                            f"valid: {', '.join(LADDER_MODELS)}")
-        self.ladder, self.kind, self.dt = ladder, model, float(dt)
+        self.ladder, self.variant, self.dt = ladder, model, float(dt)
         self.integrator = integrators.get(integrator, state_space="vector")()
         self.system = LadderSystem(ladder)
 
@@ -354,8 +364,9 @@ class PinocchioLadderSimulation:
         step, dt, done = self.integrator.stepper(self.system, grid.dt), grid.dt, 0
         with np.errstate(all="ignore"):
             for sample, target in enumerate(samples[1:].tolist(), start=1):
-                for k in range(done, target):
-                    _, y = step(k * dt, None, y)
+                for piece in budget.pieces(done, target):
+                    for k in piece:
+                        _, y = step(k * dt, None, y)
                 done = target
                 state[sample] = y
                 if not np.all(np.isfinite(y)):

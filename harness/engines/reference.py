@@ -9,9 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 from stereodyn.harness import integrators
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators import scipy_ivp
 from stereodyn.reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
@@ -65,7 +66,8 @@ class TaylorSimulation:
 
     def run(self, grid: TimeGrid) -> Trajectory:
         result = ref_formulations.integrate_taylor(self.formulation, self.case.body, self.case.quat0, self.case.omega0,
-                                                   grid.times, chart_changes=self.chart_changes, tol=self.tol)
+                                                   grid.times, chart_changes=self.chart_changes, tol=self.tol,
+                                                   deadline=budget.deadline())  # OutOfTime: the run's budget
         status = Status.DIVERGED if result.message else Status.OK
         return Trajectory(grid.times, result.quat, result.omega, status, result.message, result.stopped_at,
                           steps=result.steps, info={"wall_s": result.wall_s}, chart_changes=result.chart_changes)
@@ -120,10 +122,27 @@ class SlidingLadderEquation:
         self.ladder = ladder
 
     def run(self, grid: TimeGrid) -> SlidingLadderTrajectory:
-        motion = ref_ladder.solve(self.ladder, grid.times)
+        motion = ref_ladder.solve(self.ladder, grid.times, deadline=budget.deadline())
         state = ref_ladder.planar_state(self.ladder, motion.theta, motion.theta_dot)
         return SlidingLadderTrajectory(grid.times, state, ref_ladder.constraint_violation(self.ladder, state),
                                        steps=grid.steps, detach_angle=motion.detach_angle)
+
+
+class LadderEquationModel(SceneModel):
+    """The sliding ladder's equation (harness.scenes.sliding_ladder), on heyoka whatever the sweep's integrators."""
+
+    def variants(self) -> tuple[str, ...]:
+        return (SLIDING_LADDER_EQUATION,)
+
+    def integrators(self, chosen: list[str]) -> list[str]:
+        return [TAYLOR]
+
+    def prepare(self, case, variant: str, integrator: str, dt: float | None,
+                tolerance: float | None = None) -> SlidingLadderEquation:
+        if (variant, integrator) != (SLIDING_LADDER_EQUATION, TAYLOR):
+            raise KeyError(f"the reference engine solves the sliding ladder's equation only "
+                           f"({SLIDING_LADDER_EQUATION!r} with {TAYLOR!r}), not {variant!r} with {integrator!r}")
+        return SlidingLadderEquation(case.ladder)
 
 
 class ReferenceEngine(Engine):
@@ -138,18 +157,8 @@ class ReferenceEngine(Engine):
     linestyle = ":"
     packages = ("heyoka",)
 
-    def sliding_ladder_models(self) -> tuple[str, ...]:
-        return (SLIDING_LADDER_EQUATION,)
-
-    def sliding_ladder_integrators(self, chosen: list[str]) -> list[str]:
-        """The equation runs on heyoka whatever the sweep's integrators."""
-        return [TAYLOR]
-
-    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float | None) -> SlidingLadderEquation:
-        if (model, integrator) != (SLIDING_LADDER_EQUATION, TAYLOR):
-            raise KeyError(f"the reference engine solves the sliding ladder's equation only "
-                           f"({SLIDING_LADDER_EQUATION!r} with {TAYLOR!r}), not {model!r} with {integrator!r}")
-        return SlidingLadderEquation(case.ladder)
+    def models(self) -> dict:
+        return {**super().models(), SLIDING_LADDER: LadderEquationModel()}
 
     def formulations(self) -> tuple[str, ...]:
         return tuple(ref_formulations.FORMULATIONS)

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -12,9 +11,11 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ...reference.body import RigidBody
+from .base import kinds, scene
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
-from ...reference.sliding_ladder import Ladder, detachment_cosine
+from ...reference.sliding_ladder import Ladder
 from ...reference.torques import BodyTorque, CentralField, PrecessionTorque
+from ..readers import ReadError, read_toml
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
@@ -23,7 +24,6 @@ ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "
 TORQUE_ORACLES = ("self_excited_spinup", "self_excited_uniform")
 # Scene kinds (top-level `kind`): a rigid body with a fixed point (default), and the sliding ladder (FORMULARY T5).
 RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"
-KINDS = (RIGID_BODY, SLIDING_LADDER)
 
 DEFAULT_SAMPLES = 1000
 UNIT_TOL = 1e-9            # |v| within this of 1 is normalised, further off is an error (DESIGN §3)
@@ -38,6 +38,10 @@ MAX_MAGNITUDE = 1e6
 MIN_SCALE = 1e-9
 MAX_SAMPLES = 100_000      # recorded states per run
 MAX_STEPS = 10_000_000     # t_end / dt per run: 10x the extremes' long horizon (1e6 steps)
+# A case's name is in every row of results.csv and checks.csv, in each store record and in the report's tables: a
+# 100 000-character name made a 38 MB results.csv and a 2 MB one hung the report (issue 22); 200 characters is a few
+# times the longest a report table shows on one line.
+MAX_NAME = 200
 MAX_DTS = 32               # steps in one dt list: the truth samples the union of their grids, <= 3.2e6 states (180 MB)
 MIN_SIN_THETA = 1e-9       # torque (41): cot θ stays <= 1e9
 
@@ -45,10 +49,6 @@ _TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     # table: (allowed keys, required keys)
     "": (frozenset({"name", "description", "tags", "kind", "body", "gravity", "body_torque", "central_field",
                     "precession_torque", "initial", "run", "expect"}), frozenset({"body", "initial", "run"})),
-    "ladder_case": (frozenset({"name", "description", "tags", "kind", "ladder", "run"}),
-                    frozenset({"kind", "ladder", "run"})),
-    "ladder": (frozenset({"mass", "half_length", "theta0", "theta_dot0", "g"}),
-               frozenset({"mass", "half_length", "theta0", "g"})),
     "precession_torque": (frozenset({"theta", "l", "m3"}), frozenset({"theta", "l", "m3"})),
     "body": (frozenset({"mass", "com", "inertia", "principal_moments", "physical"}), frozenset({"mass", "com"})),
     "gravity": (frozenset({"g", "direction"}), frozenset({"g"})),
@@ -148,20 +148,13 @@ def load_case(path: str | Path) -> Case | LadderCase:
     """Read and validate one case file. Bad input raises CaseError naming the file, the key and the rule."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
+        data = read_toml(path)
     except FileNotFoundError:
         raise CaseError(path, "-", "file not found") from None
     except OSError as exc:
         raise CaseError(path, "-", f"cannot read file ({exc.strerror or exc})") from None
-    try:
-        # utf-8-sig: a byte-order mark (as some editors write) is accepted and dropped
-        data = tomllib.loads(raw.decode("utf-8-sig"))
-    except UnicodeDecodeError:
-        raise CaseError(path, "-", "invalid TOML: not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(path, "-", "invalid TOML: " + " ".join(str(exc).split())[:300]) from None
-    except RecursionError:  # tomllib recurses once per nesting level: thousands of [[[...]]] exhaust the stack
-        raise CaseError(path, "-", "invalid TOML: arrays or tables nested too deep") from None
+    except ReadError as exc:  # too large (/dev/zero), not UTF-8, not TOML, nested too deep, a 5000-digit integer
+        raise CaseError(path, "-", str(exc)) from None
     return _Parser(path).case(data)
 
 
@@ -252,8 +245,10 @@ class _Parser:
 
     # --- shapes and types
 
-    def table(self, data: Any, key: str) -> dict:
-        allowed, required = _TABLES[key]
+    def table(self, data: Any, key: str, schema: tuple[frozenset[str], frozenset[str]] | None = None) -> dict:
+        """data, checked to be a table with only allowed keys and every required one: schema (allowed, required),
+        default the case format's own for the key."""
+        allowed, required = _TABLES[key] if schema is None else schema
         if not isinstance(data, dict):
             raise self.fail(key, "must be a table")
         prefix = f"{key}." if key else ""
@@ -323,19 +318,25 @@ class _Parser:
             if t_end / step > MAX_STEPS:
                 raise self.fail(item_key, f"t_end / dt must be <= {MAX_STEPS:.0e} steps (docs/limits.md), "
                                           f"got {t_end / step:.3g}")
+            if step in result:  # the same runs twice: rows with one key
+                raise self.fail(item_key, f"{step:g} given twice")
             result.append(step)
         return tuple(result)
 
     # --- the file
 
-    def case(self, data: dict) -> Case | LadderCase:
+    def case(self, data: dict):
+        """The case of a file's TOML, parsed by the scene its `kind` names (harness.scenes.base; default the rigid
+        body)."""
         kind = RIGID_BODY
         if isinstance(data, dict) and "kind" in data:
             kind = self.string(data["kind"], "kind")
-            if kind not in KINDS:
-                raise self.fail("kind", f"unknown scene kind {kind!r} (known: {', '.join(KINDS)})")
-        if kind == SLIDING_LADDER:
-            return self.ladder_case(data)
+            if kind not in kinds():
+                raise self.fail("kind", f"unknown scene kind {kind!r} (known: {', '.join(kinds())})")
+        return scene(kind).parse(self, data)
+
+    def rigid_body(self, data: dict) -> Case:
+        """A rigid body with a fixed point (DESIGN §3)."""
         self.table(data, "")
         name, description, tags = self.words(data)
         mass, com, inertia, physical = self.body(data["body"])
@@ -380,31 +381,14 @@ class _Parser:
             raise self.fail("name", "must not be empty")
         if not name.isprintable():  # XML (MJCF, URDF) cannot carry control characters, and a table row breaks on them
             raise self.fail("name", f"must hold printable characters only, got {_short(name)}")
+        if len(name) > MAX_NAME:
+            raise self.fail("name", f"must be at most {MAX_NAME} characters (it is in every row and table), got "
+                                    f"{len(name)}")
         description = self.string(data.get("description", ""), "description")
         tags = data.get("tags", [])
         if not isinstance(tags, list):
             raise self.fail("tags", f"must be a list of strings, got {_describe(tags)}")
         return name, description, tuple(self.string(tag, f"tags[{i}]") for i, tag in enumerate(tags))
-
-    def ladder_case(self, data: dict) -> LadderCase:
-        self.table(data, "ladder_case")
-        name, description, tags = self.words(data)
-        table = self.table(data["ladder"], "ladder")
-        theta0 = self.number(table["theta0"], "ladder.theta0")
-        if not 0.0 < theta0 < 0.5 * math.pi:
-            raise self.fail("ladder.theta0", f"must be in (0, pi/2) rad (from the wall), got {theta0:g}")
-        theta_dot0 = self.number(table.get("theta_dot0", 0.0), "ladder.theta_dot0")
-        if theta_dot0 < 0.0:
-            raise self.fail("ladder.theta_dot0", f"must be >= 0 (the ladder slides down), got {theta_dot0:g}")
-        ladder = Ladder(mass=self.positive(table["mass"], "ladder.mass"),
-                        half_length=self.positive(table["half_length"], "ladder.half_length"),
-                        theta0=theta0, theta_dot0=theta_dot0, g=self.positive(table["g"], "ladder.g"))
-        if not detachment_cosine(ladder) < math.cos(theta0):
-            raise self.fail("ladder.theta_dot0", "the wall would pull at t = 0 (cos theta_detach = "
-                                                 f"{detachment_cosine(ladder):.6g} >= cos theta0): too fast a start")
-        t_end, dt, samples = self.run(data["run"])
-        return LadderCase(name=name, description=description, tags=tags, ladder=ladder, t_end=t_end, dt=dt,
-                          samples=samples, path=Path(self.path))
 
     def precession_torque(self, data: Any) -> PrecessionTorque:
         self.table(data, "precession_torque")
