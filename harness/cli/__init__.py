@@ -348,6 +348,7 @@ def main(argv: list[str] | None = None) -> int:
         from ..run.store import FolderNotReady, StoreBusy
         from ..run.results import TableError
         from ..analysis.compare import CompareError
+        from ..report.sections import SectionError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
@@ -364,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = _commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
-            CompareError, FolderNotReady) as exc:
+            CompareError, FolderNotReady, SectionError) as exc:
         code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
