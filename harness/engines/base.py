@@ -16,12 +16,7 @@ if TYPE_CHECKING:
     from stereodyn.harness.grid import TimeGrid
 
 
-# Floating-point precision of a run (results.csv `precision`): part of a row's identity. A table without the column
-# (stereodyn 0.2.0) holds float64 runs.
-FLOAT64, FLOAT32 = "float64", "float32"
-PRECISIONS = (FLOAT64, FLOAT32)
-# Unit round-off of each precision: the order fitter's round-off margin uses the row's own (harness.analysis.fitting).
-EPS = {FLOAT64: float(np.finfo(np.float64).eps), FLOAT32: float(np.finfo(np.float32).eps)}
+from stereodyn.harness.precision import EPS, FLOAT32, FLOAT64, PRECISIONS  # noqa: F401 (part of this API)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from typing import Callable
 
 from .. import budget
 from ..engines import get_engine
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status
 from .processes import raise_if_interrupted

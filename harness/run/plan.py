@@ -4,7 +4,7 @@ its run families from it."""
 from __future__ import annotations
 
 from ..engines import get_engine
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..scenes.cases import SLIDING_LADDER
 from ..scenes import scene_of
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)

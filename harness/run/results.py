@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..readers import MAX_TABLE_BYTES
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..grid import TimeGrid, time_grid
 from ..trajectory import Status
 

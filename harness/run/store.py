@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..scenes.cases import Case
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..environment import code_origin, library_versions, source_fingerprint
 from ..scenes.checks import ROW_KEY
 from ..readers import ReadError, read_json

@@ -27,7 +27,7 @@ from scipy.optimize import brentq
 
 from .cases import Case
 from ..trajectory import Status, Trajectory
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..run.results import SORT_KEYS, write_atomic
 from ...reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
 from ...reference.rotations import quat_conj, quat_mul, quat_to_matrix
