@@ -28,7 +28,6 @@ from scipy.optimize import brentq
 from .cases import Case
 from ..trajectory import Status, Trajectory
 from ..precision import FLOAT64
-from ..run.results import SORT_KEYS, write_atomic
 from ...reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
 from ...reference.rotations import quat_conj, quat_mul, quat_to_matrix
 
@@ -392,6 +391,8 @@ GRIOLI = Check("grioli", _grioli_theory, _grioli_measured)
 
 def table(rows: list[dict]) -> pd.DataFrame:
     """checks.csv's table from result rows (each with its ROW_KEY list), in the results table's row order."""
+    from ..run.results import SORT_KEYS  # not at import: run.results imports the scenes (a cycle)
+
     order = sorted(range(len(rows)), key=lambda i: tuple(rows[i].get(key, 0) for key in SORT_KEYS))
     records = [{**{column: rows[i].get(column) for column in RUN_COLUMNS}, **check}
                for i in order for check in rows[i].get(ROW_KEY) or ()]
@@ -405,6 +406,8 @@ def table(rows: list[dict]) -> pd.DataFrame:
 
 def write_checks(rows: list[dict], path: Path) -> None:
     """Write checks.csv atomically; full precision, since a period is checked to 1e-10 and more."""
+    from ..run.results import write_atomic
+
     write_atomic(Path(path), table(rows).to_csv(index=False, float_format="%.17g"))
 
 
