@@ -15,6 +15,8 @@ import pandas as pd
 from . import dt_ladders, tolerance_ladders
 from .dt_ladders import MIN_STEPS, Family
 from .step_advice import ADVICE_COLUMNS, error_model, rounded, search
+from ..precision import FLOAT64
+from ..run.results import with_precision
 from ..trajectory import Status
 
 # The tolerances an advice may name: the tolerance ladders' range (harness.analysis.tolerance_ladders.TOLERANCES).
@@ -79,7 +81,7 @@ def advise_family(family: Family, adaptive: bool, known: list[dict], order: floa
 def _row(family: Family, target: float, what: str, setting: float = math.nan, **columns) -> dict:
     row = {c: math.nan for c in ADVICE_COLUMNS} | {
         "case": family.case.name, "engine": family.engine, "formulation": family.formulation,
-        "integrator": family.integrator, "target": target, "note": ""}
+        "integrator": family.integrator, "precision": family.precision, "target": target, "note": ""}
     row[what] = setting
     row["error_checked"] = columns.pop("error", math.nan)
     row.update(columns)
@@ -117,27 +119,32 @@ def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tup
     return pd.DataFrame(rows, columns=list(ADVICE_COLUMNS)).fillna({"formulation": "", "note": ""})
 
 
+def _family(point: dict) -> tuple:
+    """The family key (Family.key: case, engine, formulation, integrator, precision) of a point or row."""
+    return (point["case"], point["engine"], point["formulation"], point["integrator"],
+            point.get("precision") or FLOAT64)
+
+
 def _time_advised(rows: list[dict], untimed: dict[int, list[dict]], tasks) -> None:
     """Time the advised runs that have no timing yet (each once, whatever the targets sharing it), here and alone,
     and fill their rows' us_per_sim_s, in place."""
     fixed = {family.key: family for family, adaptive, _, _ in tasks if not adaptive}
     adaptive = {family.key: family for family, is_adaptive, _, _ in tasks if is_adaptive}
     points = [point for index in sorted(untimed) for point in untimed[index]]
-    dt_points = [p for p in points if (p["case"], p["engine"], p["formulation"], p["integrator"]) in fixed]
-    tol_points = [p for p in points if (p["case"], p["engine"], p["formulation"], p["integrator"]) in adaptive]
+    dt_points = [p for p in points if _family(p) in fixed]
+    tol_points = [p for p in points if _family(p) in adaptive]
     if dt_points:
         dt_ladders.time_points(dt_points, fixed)
     if tol_points:
         tolerance_ladders.time_points(tol_points, adaptive)
     cost = {}
     for p in dt_points:
-        cost[(p["case"], p["engine"], p["formulation"], p["integrator"], "dt", p["dt"])] = p.get("us_per_sim_s")
+        cost[(*_family(p), "dt", p["dt"])] = p.get("us_per_sim_s")
     for p in tol_points:
-        cost[(p["case"], p["engine"], p["formulation"], p["integrator"], "tolerance", p["tolerance"])] = \
-            p.get("us_per_sim_s")
+        cost[(*_family(p), "tolerance", p["tolerance"])] = p.get("us_per_sim_s")
     for row in rows:
         what = "tolerance" if math.isfinite(row["tolerance"]) else "dt"
-        found = cost.get((row["case"], row["engine"], row["formulation"], row["integrator"], what, row[what]))
+        found = cost.get((*_family(row), what, row[what]))
         if found is not None and math.isfinite(found):
             row["us_per_sim_s"] = found
 
@@ -151,9 +158,11 @@ def advice_tasks(fixed: list[Family], adaptive: list[Family], results: pd.DataFr
     """run_advice's tasks after a sweep: each fixed-step family with a fitted order (convergence.csv), its points
     the sweep's runs and its ladder points (ladder.csv); each adaptive family with a fitted slope (tolerance_fit.csv),
     its points the tolerance ladder's (tolerance.csv)."""
-    from .fitting import with_state_err
+    from .fitting import FAMILY, with_state_err
 
-    keys = ["case", "engine", "formulation", "integrator"]
+    keys = list(FAMILY)
+    results, ladder, tolerance, convergence, tolerance_fit = (
+        with_precision(t) if len(t) else t for t in (results, ladder, tolerance, convergence, tolerance_fit))
     sweep = results[results["dt"].notna()].fillna({"formulation": ""})
     if len(sweep):
         sweep = with_state_err(sweep)

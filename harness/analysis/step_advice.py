@@ -27,7 +27,7 @@ FLOOR_SLOPE = fitting.FLOOR_SLOPE   # walking finer, an error falling slower tha
 
 # advice.csv: the setting is dt (fixed-step) or tolerance (adaptive), the other empty. fails_at / error_fails: the
 # checked setting CHECK_RATIO above (or less) that does not reach the target; estimate: the model's setting.
-ADVICE_COLUMNS = ("case", "engine", "formulation", "integrator", "target", "dt", "tolerance", "error_checked",
+ADVICE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "target", "dt", "tolerance", "error_checked",
                   "us_per_sim_s", "fails_at", "error_fails", "estimate", "order", "runs", "note")
 
 
