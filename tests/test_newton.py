@@ -78,3 +78,11 @@ def test_a_runaway_run_is_a_diverged_row(newton):
     assert run.status is Status.DIVERGED and "not finite or |omega|" in run.message
     bad = int(np.searchsorted(grid.times, run.diverged_at))
     assert np.isnan(run.quat[bad:]).all() and np.isfinite(run.quat[:bad]).all()
+
+
+def test_the_default_sweep_is_the_general_cases_at_one_coarse_stable_step(newton):
+    heavy, torqued = find_case("heavy-asymmetric"), find_case("self-excited-conic")
+    assert newton.default_dts(heavy, "featherstone", heavy.dt) == (1e-2,)  # not 0.3: beyond Euler's stability
+    assert newton.default_run(heavy, "ball", "xpbd") and not newton.default_run(heavy, "free", "xpbd")
+    assert not newton.default_run(find_case("hess"), "ball", "featherstone")
+    assert "no external torque" in newton.unsupported(torqued)
