@@ -74,7 +74,7 @@ def _genesis(precision: str):
     if _context["precision"] != precision:
         if _context["precision"] is not None:
             gs.destroy()
-        gs.init(backend=gs.cpu, precision="64" if precision == FLOAT64 else "32", logging_level="warning")
+        gs.init(backend=gs.cpu, precision="64" if precision == FLOAT64 else "32", logging_level="error")
         _context["precision"] = precision
         _context["generation"] += 1
     return gs
