@@ -93,9 +93,6 @@ def _floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError("expected at least one number")
     if len(values) > case_files.MAX_DTS:
         raise argparse.ArgumentTypeError(f"at most {case_files.MAX_DTS} steps, got {len(values)}")
-    twice = sorted({v for v in values if values.count(v) > 1})
-    if twice:  # the same run twice: two rows with one key
-        raise argparse.ArgumentTypeError(f"{', '.join(f'{v:g}' for v in twice)} given twice")
     return values
 
 
