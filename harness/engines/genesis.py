@@ -36,7 +36,8 @@ INSTALL = "pip install 'stereodyn[genesis]'"
 # Genesis does not declare torch; importing it costs 15-30 s, so the SDK is imported on the first prepare and only
 # its presence is checked here (the registry turns an ImportError into skipped rows whose reason is this message).
 for _module in ("genesis", "torch"):
-    if importlib.util.find_spec(_module) is None:
+    _spec = importlib.util.find_spec(_module)
+    if _spec is None or _spec.origin is None:  # absent, or a folder an uninstall left behind (a namespace package)
         raise ImportError(f"No module named {_module!r}; install the extra: {INSTALL} (Genesis also needs torch: "
                           f"the CPU wheel is enough)")
 
