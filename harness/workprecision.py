@@ -121,7 +121,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
     DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
-    no order) or "off". Writes ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and appends
+    no order), "short" (those short ladders only: a run of named cases) or "off". Writes ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and appends
     the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.runner.worker_pool)
     the ladders run on; None runs them here."""
     out_dir = Path(out_dir)
@@ -149,7 +149,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     rigid_results = results[~results["case"].isin(other_kinds)]
     sweep_rows = sweep_orders(rigid_results, laddered)
     short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered) \
-        if ladder == "default" else []
+        if ladder in ("default", "short") else []
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
         if chosen or short else ([], [])

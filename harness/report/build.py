@@ -37,9 +37,12 @@ def _run_name(row) -> str:
     return figures.run_label(row) + dt
 
 
-def summary_lines(df: pd.DataFrame) -> list[str]:
+def summary_lines(df: pd.DataFrame, failed: set = frozenset()) -> list[str]:
     """Per case: the most accurate fixed-step run, and the cheapest one within SUMMARY_ACCURACY (adaptive runs are the
-    truth and its relatives, not contenders)."""
+    truth and its relatives, not contenders) whose integrator passed its verdicts, as pareto.csv chooses (failed:
+    harness.verdicts.failed_integrators); where only runs that failed a verdict reach it, pareto.csv's words say so."""
+    from stereodyn.harness.pareto import NONE_REACHED, ONLY_FAILED, is_failed
+
     rows = []
     for case, group in df.groupby("case", sort=False):
         ok = group[(group["status"] == "ok") & np.isfinite(group["attitude_err"]) & np.isfinite(group["dt"])]
@@ -48,9 +51,11 @@ def summary_lines(df: pd.DataFrame) -> list[str]:
             continue
         best = ok.loc[ok["attitude_err"].idxmin()]
         timed = ok[(ok["attitude_err"] <= SUMMARY_ACCURACY) & np.isfinite(ok["wall_s"])]
-        cheap = timed.loc[(timed["wall_s"] / timed["t_end"]).idxmin()] if len(timed) else None
+        passed = timed[[not is_failed(failed, r["engine"], r["formulation"] if isinstance(r["formulation"], str)
+                                      else "", r["integrator"]) for _, r in timed.iterrows()]] if failed else timed
+        cheap = passed.loc[(passed["wall_s"] / passed["t_end"]).idxmin()] if len(passed) else None
         rows.append([case, _run_name(best), _num(best["attitude_err"]),
-                     "-" if cheap is None else _run_name(cheap),
+                     (ONLY_FAILED if len(timed) else NONE_REACHED) if cheap is None else _run_name(cheap),
                      "-" if cheap is None else _num(cheap["wall_s"] / cheap["t_end"] * 1e6, ".3g")])
     return _md_table(["case", "most accurate fixed-step run", "att_err",
                       f"cheapest fixed-step run with att_err <= {SUMMARY_ACCURACY:g}", "us per simulated s"],
@@ -226,7 +231,8 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, 
     from stereodyn.harness.report.method import method_lines
 
     front = workprecision.report_lines(out_dir, tolerance_paths) + method_lines(df, out_dir, series)
-    markdown = report_markdown(df, summary=summary_lines(df), sections=checks_lines(df, out_dir), env=env,
+    failed = verdicts.failed_integrators(verdicts.read(out_dir) or [])
+    markdown = report_markdown(df, summary=summary_lines(df, failed), sections=checks_lines(df, out_dir), env=env,
                                verdicts=verdicts.report_lines(out_dir), front=front, case_extras=case_extras)
     figures_dir = out_dir / FIGURES_DIR
     figures_dir.mkdir(exist_ok=True)
