@@ -252,13 +252,13 @@ def cmd_cases(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from stereodyn.harness.progress import ProgressBar
+    from stereodyn.harness.run.progress import ProgressBar
     from stereodyn.harness.report.build import write_reports
     from stereodyn.harness.report.markdown import drift_table_text
     from stereodyn.harness import summary, verdicts, workprecision
-    from stereodyn.harness.runner import run_sweep, worker_pool
+    from stereodyn.harness.run.sweep import run_sweep, worker_pool
 
-    from stereodyn.harness.store import folder_lock
+    from stereodyn.harness.run.store import folder_lock
 
     _check_names(args)
     if args.certify and args.no_certify:
@@ -323,8 +323,8 @@ def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
 def cmd_report(args) -> int:
     from stereodyn.harness.report.build import write_reports
 
-    from stereodyn.harness.results import TableError
-    from stereodyn.harness.store import folder_lock
+    from stereodyn.harness.run.results import TableError
+    from stereodyn.harness.run.store import folder_lock
 
     results = args.dir / "results.csv"
     if not results.is_file():
@@ -345,7 +345,7 @@ def cmd_report(args) -> int:
 
 def cmd_baseline(args) -> int:
     from stereodyn.harness import gate
-    from stereodyn.harness.store import read_manifest
+    from stereodyn.harness.run.store import read_manifest
 
     _output_file(args.out, "--out")
     manifest = read_manifest(args.dir) or {}
@@ -374,7 +374,7 @@ def cmd_check(args) -> int:
             per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
     if args.time_factor is not None:
         tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
-    from stereodyn.harness.store import read_manifest
+    from stereodyn.harness.run.store import read_manifest
 
     base = gate.read_baseline_file(args.baseline)
     baseline = base.rows
@@ -428,7 +428,7 @@ def cmd_integrators(args) -> int:
 
 def cmd_export(args) -> int:
     from stereodyn.harness.export import export
-    from stereodyn.harness.results import write_atomic
+    from stereodyn.harness.run.results import write_atomic
 
     if args.out is not None:
         _output_file(args.out, "--out")
@@ -443,8 +443,8 @@ def cmd_export(args) -> int:
 
 def _load() -> None:
     global case_files, CaseError, engine_names, EngineError
-    from stereodyn.harness import cases as case_files
-    from stereodyn.harness.cases import CaseError
+    from stereodyn.harness.scenes import cases as case_files
+    from stereodyn.harness.scenes.cases import CaseError
     from stereodyn.harness.engines import EngineError, engine_names
 
 
@@ -458,10 +458,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _load()
         from stereodyn.harness.gate import GateError
-        from stereodyn.harness.distributed import ClusterError
+        from stereodyn.harness.run.distributed import ClusterError
         from stereodyn.harness.export import ExportError
-        from stereodyn.harness.store import StoreBusy
-        from stereodyn.harness.results import TableError
+        from stereodyn.harness.run.store import StoreBusy
+        from stereodyn.harness.run.results import TableError
         from stereodyn.harness.compare import CompareError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)

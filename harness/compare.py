@@ -194,7 +194,7 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, 
     """Write compare.md, compare.html, compare.csv (and the figure) to `out` (default: B, which must then be a
     directory); return the two pages and the headline lines for the terminal."""
     from stereodyn.harness.report import html
-    from stereodyn.harness.results import write_atomic
+    from stereodyn.harness.run.results import write_atomic
 
     if out is None:
         if Path(path_b).is_file():

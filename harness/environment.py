@@ -13,7 +13,7 @@ from importlib import metadata
 from pathlib import Path
 
 # The libraries whose version can change any result (heyoka: the truth); each engine adds its own (Engine.packages). A
-# result is keyed by all of them (harness.store).
+# result is keyed by all of them (harness.run.store).
 CORE_PACKAGES = ("numpy", "scipy")
 TRUTH_PACKAGES = ("heyoka", "stereodyn")
 
@@ -46,7 +46,7 @@ def library_versions() -> dict[str, str]:
 # package alone would miss them in an editable install).
 SOURCE_PACKAGES = ("stereodyn", "stereodyn.harness", "stereodyn.reference", "stereodyn.cases")
 # Files of those folders that are not code a row depends on alone: caches, and the case files (*.toml under
-# stereodyn.cases), whose content is in each run's key already (harness.store.case_content); hashing them here would
+# stereodyn.cases), whose content is in each run's key already (harness.run.store.case_content); hashing them here would
 # redo every case's runs when one case changes.
 _IGNORED_SUFFIXES = (".pyc", ".pyo")
 

@@ -6,7 +6,7 @@ body, its ball joint as a three-joint gimbal).
 """
 from __future__ import annotations
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case
 
 
 class ExportError(ValueError):

@@ -21,7 +21,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks
+from stereodyn.harness.scenes import checks
 from stereodyn.harness.engines import EngineError, get_engine
 from stereodyn.harness.trajectory import Status
 # The Pareto table has its own module; its names stay importable from here.
@@ -142,7 +142,7 @@ def reason(marked: pd.DataFrame) -> str:
 
 
 # The kinds of reason a convergence row's note gives, by the words that start them (the report counts families by
-# these): fit() and harness.dt_ladders write them.
+# these): fit() and harness.run.dt_ladders write them.
 NOTE_GROUPS = (
     (SUPERCONVERGENT, SUPERCONVERGENT),
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),

@@ -20,8 +20,8 @@ from typing import Iterable
 import numpy as np
 
 from stereodyn.harness import integrators as registry
-from stereodyn.harness import metrics
-from stereodyn.harness.cases import Case, find_case, with_overrides
+from stereodyn.harness.scenes import metrics
+from stereodyn.harness.scenes.cases import Case, find_case, with_overrides
 from stereodyn.harness.engines import engine_for_state_space, get_engine
 from stereodyn.harness.fitting import order_slope
 from stereodyn.harness.trajectory import Status

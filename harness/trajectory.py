@@ -114,7 +114,7 @@ def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, b
 
 @dataclass(frozen=True, eq=False)
 class SlidingLadderTrajectory:
-    """The sliding ladder's recorded states (harness.sliding_ladder): not a body with a fixed point.
+    """The sliding ladder's recorded states (harness.scenes.sliding_ladder): not a body with a fixed point.
 
     times: (n,) s. state: (n, 6) x, y (m, centre of the rod; wall x = 0, floor y = 0), θ (rad from the wall), and
     their rates (m/s, rad/s). violation: (n,) m, how far the model's ends are off the wall and floor (bilateral:

@@ -25,10 +25,10 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
+from stereodyn.harness.scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
 from stereodyn.harness.fitting import SUPERCONVERGENT
-from stereodyn.harness.metrics import DRIFT_COLUMNS
-from stereodyn.harness.results import write_atomic
+from stereodyn.harness.scenes.metrics import DRIFT_COLUMNS
+from stereodyn.harness.run.results import write_atomic
 from stereodyn.harness.fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
 from stereodyn.harness.engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
                                       engine_for_state_space)
@@ -40,7 +40,7 @@ PASS, FAIL, UNMEASURED = "pass", "fail", "not measured"
 # `run --strict` fails it as it fails FAIL, yet "What to use" still recommends its runs (no claim was disproved).
 NO_REASON = "not measured, no reason"
 # Why a case has no fitted order, where the reason excuses it (the words of the convergence note, written by
-# harness.fitting and harness.dt_ladders' short ladders; fitting.NOTE_GROUPS) -> the reason in a reader's words.
+# harness.fitting and harness.run.dt_ladders' short ladders; fitting.NOTE_GROUPS) -> the reason in a reader's words.
 EXCUSES = (("exact for this motion", "exact for this motion"),
            ("round-off for every stable dt", "at the precision floor (error at round-off for every stable dt)"),
            ("error at round-off for every dt up to", "at the precision floor (error at round-off up to the largest "
@@ -273,7 +273,7 @@ def truth_verdicts(results: pd.DataFrame, checks_table: pd.DataFrame | None) -> 
 def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy: bool = True) -> list[Verdict]:
     """Every verdict of a run folder (convergence.csv and checks.csv when present) and its results table; cases: the
     run's Case objects, whose tags say which are chaotic. Writes DIR/verdicts.csv."""
-    from stereodyn.harness import checks
+    from stereodyn.harness.scenes import checks
     from stereodyn.harness import workprecision
 
     out_dir = Path(out_dir)

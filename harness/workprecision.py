@@ -1,8 +1,8 @@
 """Work–precision: the phase of `stereodyn run` after the sweep, and its report sections.
 
-Measuring is harness.dt_ladders (dt ladders, stability bisection) and harness.tolerance_ladders (adaptive methods
-against the requested tolerance), fitting harness.fitting (orders, round-off floors, tolerance proportionality, the
-Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the report's
+Measuring is harness.run.dt_ladders (dt ladders, stability bisection) and harness.run.tolerance_ladders (adaptive
+methods against the requested tolerance), fitting harness.fitting (orders, round-off floors, tolerance proportionality,
+the Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the report's
 markdown.
 
 Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, per short ladder, and per
@@ -20,17 +20,18 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks, dt_ladders
-from stereodyn.harness.cases import Case
-from stereodyn.harness import tolerance_ladders
-from stereodyn.harness.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
+from stereodyn.harness.scenes import checks
+from stereodyn.harness.run import dt_ladders
+from stereodyn.harness.scenes.cases import Case
+from stereodyn.harness.run import tolerance_ladders
+from stereodyn.harness.run.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
                                           Family, families, run_ladders)
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
                                        _name, convergence_table, declared_order, note_group, order_checks, pareto,
                                        pareto_table, setting, sweep_orders, tolerance_fits, with_state_err)
 from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
-from stereodyn.harness.results import write_atomic
+from stereodyn.harness.run.results import write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -78,7 +79,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
-    """The families that get a short ladder (harness.dt_ladders.run_short_ladder), each with its sweep runs and its
+    """The families that get a short ladder (harness.run.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
@@ -121,8 +122,9 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
     DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
-    no order), "short" (those short ladders only: a run of named cases) or "off". Writes ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and appends
-    the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.runner.worker_pool)
+    no order), "short" (those short ladders only: a run of named cases) or "off". Writes ladder.csv, convergence.csv,
+    tolerance.csv, tolerance_fit.csv, pareto.csv and appends the orders to checks.csv; returns the paths written.
+    pool: the sweep's worker pool (harness.run.sweep.worker_pool)
     the ladders run on; None runs them here."""
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained

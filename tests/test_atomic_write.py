@@ -1,4 +1,4 @@
-"""write_atomic (harness/results.py): a write that fails mid-way leaves the old file intact and no temporary."""
+"""write_atomic (harness/run/results.py): a write that fails mid-way leaves the old file intact and no temporary."""
 import os
 
 import pytest

@@ -342,7 +342,7 @@ def test_a_sigkilled_sweep_leaves_no_process_and_the_next_run_no_temporary(tmp_p
         assert len(_session_processes(process.pid)) >= 3  # the sweep and its two workers at least
         os.kill(process.pid, signal.SIGKILL)  # the parent alone: its workers are orphaned
         process.wait()
-        # the orphaned workers poll their parent every PARENT_POLL_S = 0.5 s (harness/processes.py) and are gone
+        # the orphaned workers poll their parent every PARENT_POLL_S = 0.5 s (harness/run/processes.py) and are gone
         # ~0.5 s later on an idle machine; the 60 s bound only keeps a loaded machine from failing the test (under
         # load it failed the former fixed 5 s wait), it is not a timing check
         deadline = time.monotonic() + 60

@@ -265,7 +265,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="compare with the committed files, write nothing")
     parser.add_argument("--out", type=Path, default=CASES_DIR, help=f"folder (default {CASES_DIR})")
     args = parser.parse_args(argv)
-    from stereodyn.harness.cases import load_case  # validates every file as the suite will, [expect] oracle included
+    from stereodyn.harness.scenes.cases import load_case  # validates every file as the suite will, [expect] oracle
+    # included
 
     stale = []
     for spec in specs():

@@ -10,7 +10,7 @@ from stereodyn.harness.trajectory import Trajectory
 from stereodyn.reference.torques import PRECESSION_SINGULAR_ANGLE, transverse_angle
 
 if TYPE_CHECKING:
-    from stereodyn.harness.cases import Case
+    from stereodyn.harness.scenes.cases import Case
     from stereodyn.harness.grid import TimeGrid
 
 
@@ -34,7 +34,8 @@ class Engine:
     state_space: str | None = None
     # The formulation harness.testing runs a registered integrator on ("" for an engine without formulations).
     default_formulation: str = ""
-    # Cost of one right-hand-side evaluation of one step, µs (the sweep's scheduler ranks runs by it: harness.runner).
+    # Cost of one right-hand-side evaluation of one step, µs (the sweep's scheduler ranks runs by it:
+    # harness.run.sweep).
     pass_us: float = 5.0
     # Matplotlib line style of this engine's lines in the report's figures.
     linestyle: str = "-."
@@ -60,7 +61,7 @@ class Engine:
         or not passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine
         says otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
         absolute tolerance (scipy: rtol = atol = tol; heyoka: tol; Drake: set_target_accuracy(tol)). The tolerance
-        ladders (harness.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
+        ladders (harness.run.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
         adaptive run's Trajectory fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0
         where the method has them.
         """
@@ -87,7 +88,7 @@ class Engine:
 
     def default_run(self, case: "Case", formulation: str, integrator: str) -> bool:
         """Whether a sweep that names no integrators (no --integrators) runs this formulation/integrator pair on the
-        case (harness.plan). Default: every pair. An engine leaves out costly variants whose findings a smaller
+        case (harness.run.plan). Default: every pair. An engine leaves out costly variants whose findings a smaller
         selection already shows; naming the integrator runs it everywhere."""
         return True
 
@@ -116,8 +117,8 @@ class Engine:
         raise NotImplementedError(f"engine {self.name!r} does not run ensembles")
 
     def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.sliding_ladder; rows name them in the formulation column). Default:
-        none, and the scene's row is skipped with sliding_ladder_unsupported()."""
+        """The sliding ladder's models (harness.scenes.sliding_ladder; rows name them in the formulation column).
+        Default: none, and the scene's row is skipped with sliding_ladder_unsupported()."""
         return ()
 
     def sliding_ladder_unsupported(self) -> str:

@@ -45,7 +45,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness.cases import Case, unphysical_inertia
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample

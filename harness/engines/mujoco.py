@@ -10,7 +10,7 @@ every RK4 stage included, with that stage's qpos, qvel and time. Refreshing qfrc
 instead would hold the torque through the stages and make RK4 first order (tests/test_torques.py shows it). Torqued
 scenes are stepped from Python with mj_step (the callback is process-global: set for the run, restored after).
 
-The sliding ladder (harness.sliding_ladder) is built here too, as planar rods: sliding_ladder_simulation().
+The sliding ladder (harness.scenes.sliding_ladder) is built here too, as planar rods: sliding_ladder_simulation().
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from stereodyn.harness.cases import Case, unphysical_inertia
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                                           diverged_trajectory, sample_good, samples_good)
 from stereodyn.harness.engines.base import Engine, precession_singular
@@ -264,7 +264,8 @@ class TorqueSimulation(MujocoSimulation):
         return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, self.stages * grid.steps)
 
 
-# The sliding ladder (harness.sliding_ladder, FORMULARY T5). Soft constraints and contacts relax on this time constant (s):
+# The sliding ladder (harness.scenes.sliding_ladder, FORMULARY T5). Soft constraints and contacts relax on this
+# time constant (s):
 # the smallest MuJoCo keeps stable at the suite's steps (it clamps solref's time constant to >= 2 dt), so the
 # constraint violation it leaves is as small as MuJoCo allows.
 LADDER_SOLREF = 2e-3
@@ -463,7 +464,7 @@ class MujocoEngine(Engine):
         return MujocoSimulation(case, integrator, dt)
 
     def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.sliding_ladder): rows name them in the formulation column."""
+        """The sliding ladder's models (harness.scenes.sliding_ladder): rows name them in the formulation column."""
         return LADDER_MODELS
 
     def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float) -> LadderSimulation:

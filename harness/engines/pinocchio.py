@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from stereodyn.harness import integrators
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
@@ -259,7 +259,7 @@ class PinocchioEngine(Engine):
         return PinocchioEnsemble(case, self.prepare(case, integrator, dt), quat0, omega0, threads)
 
     def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.sliding_ladder): rows name them in the formulation column."""
+        """The sliding ladder's models (harness.scenes.sliding_ladder): rows name them in the formulation column."""
         return LADDER_MODELS
 
     def sliding_ladder_integrators(self, chosen: list[str]) -> list[str]:
@@ -272,7 +272,7 @@ class PinocchioEngine(Engine):
         return PinocchioLadderSimulation(case.ladder, model, integrator, dt)
 
 
-# --- the sliding ladder (harness.sliding_ladder, FORMULARY T5) ------------------------------------------------------
+# --- the sliding ladder (harness.scenes.sliding_ladder, FORMULARY T5) -------------------------------------------
 # One model: the rod's ends held on the wall and the floor by two bilateral constraints, solved exactly at every stage
 # by Pinocchio's constrained dynamics (pin.forwardDynamics with the constraint Jacobian: the KKT system of M, J and
 # the drift J̇v, Lagrange multipliers for the two normal forces). A unilateral wall needs contact complementarity,

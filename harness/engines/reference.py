@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereodyn.harness import integrators
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid

@@ -1,7 +1,7 @@
 """The report of an output folder: report.md, the figures it shows (DIR/figures/*.png), and report.html.
 
 Sources, all in the folder: results.csv (the table), runs.json and store/ (the sweep's environment and each run's
-invariant series, harness.store), checks.csv when some check wrote it (DESIGN §4).
+invariant series, harness.run.store), checks.csv when some check wrote it (DESIGN §4).
 """
 from __future__ import annotations
 
@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks as theory_checks
+from stereodyn.harness.scenes import checks as theory_checks
 from stereodyn.harness import workprecision
 from stereodyn.harness.report import figures, html
 from stereodyn.harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
-from stereodyn.harness.processes import exit_with_parent
-from stereodyn.harness.results import read_results, write_atomic
-from stereodyn.harness.store import read_manifest, read_records
+from stereodyn.harness.run.processes import exit_with_parent
+from stereodyn.harness.run.results import read_results, write_atomic
+from stereodyn.harness.run.store import read_manifest, read_records
 
 FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")

@@ -217,7 +217,7 @@ def _truth_for(adaptive: pd.DataFrame, panel: pd.DataFrame) -> pd.DataFrame:
 
 def figure_quantities(series: list[dict]) -> list[str]:
     """The rows of an invariants figure: each quantity of QUANTITIES that some shown series recorded (a special
-    integral only where the case meets its conditions, harness.series)."""
+    integral only where the case meets its conditions, harness.scenes.series)."""
     return [q for q in QUANTITIES if any(q in s and any(v is not None for v in s[q]) for s in series)]
 
 

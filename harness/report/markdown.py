@@ -64,10 +64,10 @@ DEFINITIONS = """\
   NaN when a sample comes within 0.05 rad of omega || u, where (41) is singular. torque_mode: how the torque entered
   the engine: rhs (the reference's equations), qfrc_applied (MuJoCo, a constant torque set once), passive_callback
   (MuJoCo's mjcb_passive, seen at every RK4 stage), stage (Pinocchio, tau at every stage), none.
-- Sliding ladder (kind sliding_ladder, harness.sliding_ladder): rows are the equation theta'' = 3g/(4l) sin theta (engine
-  reference, formulation theta) and MuJoCo's bilateral and unilateral models (formulation column). energy_drift: the
-  rod's energy 1/2 m|v_G|^2 + 1/2 (m l^2/3) theta'^2 + m g y_G; attitude_err: |theta - theta_equation| (rad),
-  omega_err likewise for theta', up to the equation's detachment for the unilateral model. checks.csv: the
+- Sliding ladder (kind sliding_ladder, harness.scenes.sliding_ladder): rows are the equation
+  theta'' = 3g/(4l) sin theta (engine reference, formulation theta) and MuJoCo's bilateral and unilateral models
+  (formulation column). energy_drift: the rod's energy 1/2 m|v_G|^2 + 1/2 (m l^2/3) theta'^2 + m g y_G;
+  attitude_err: |theta - theta_equation| (rad), omega_err likewise for theta', up to the equation's detachment for the unilateral model. checks.csv: the
   detachment angle against arccos((2/3) cos theta0 + 4 l theta0'^2 / (9 g)), energy drift, constraint violation (m)."""
 
 

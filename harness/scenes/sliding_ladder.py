@@ -1,5 +1,5 @@
 """The sliding ladder in a sweep (kind "sliding_ladder", FORMULARY T5): its own runs, metrics and check rows, beside
-the rigid-body path of harness.runner (which routes a LadderCase here).
+the rigid-body path of harness.run.sweep (which routes a LadderCase here).
 
 Rows: the equation (engine reference, formulation "theta", integrator taylor: reference.sliding_ladder, whose heyoka event
 gives the detachment), every MuJoCo model (formulation "bilateral" or "unilateral", harness.engines.mujoco) with each
@@ -17,11 +17,11 @@ import math
 
 import numpy as np
 
-from stereodyn.harness import checks
-from stereodyn.harness.engines import get_engine
-from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status
-from stereodyn.harness.grid import time_grid
-from stereodyn.reference import sliding_ladder as ref_ladder
+from . import checks
+from ..engines import get_engine
+from ..trajectory import SlidingLadderTrajectory, Status
+from ..grid import time_grid
+from ...reference import sliding_ladder as ref_ladder
 
 # The models whose rows get a detachment_angle check: the equation's event (the reference engine's "theta") and the
 # unilateral model's wall push (MuJoCo's); a bilateral model never leaves the wall.
@@ -51,7 +51,7 @@ def timed_run(spec, grid):
 
 def execute(spec, base_row: dict, timed: bool = True) -> dict:
     """One ladder run's row (metrics, checks, and timing when timed); never raises."""
-    from stereodyn.harness import timing
+    from ..run import timing
     row = dict(base_row)
     try:
         ladder, grid = spec.case.ladder, _grid(spec)

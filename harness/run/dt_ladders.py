@@ -2,7 +2,7 @@
 
 For a case × engine × formulation × integrator, a ladder is LADDER_POINTS log-spaced steps from the largest stable dt
 (found by bisection) down to t_end / max_steps, where the 4th-order methods reach their round-off floor. Each point is
-one untimed accuracy run (errors against the truth, energy drift) and separate timed runs (harness.timing: best of N
+one untimed accuracy run (errors against the truth, energy drift) and separate timed runs (harness.run.timing: best of N
 after the accuracy run as warm-up, within a budget), costed as µs of stepping per simulated second.
 
 The error whose order is fitted (harness.fitting) is the global error of the state, state_err = max(attitude_err,
@@ -20,7 +20,7 @@ the finest is above the range or failed, until SHORT_TARGET points are asymptoti
 walk's direction, dt leaves [t_end / max_steps, t_end / MIN_STEPS] or SHORT_POINTS points are spent. Its points are
 untimed: they are for the order only. Without an order, its note says where the points lie and why the walk stopped.
 
-The ladders run on the sweep's process pool (harness.runner.worker_pool), one task per family.
+The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one task per family.
 """
 from __future__ import annotations
 
@@ -32,14 +32,14 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import metrics
-from stereodyn.harness import fitting
-from stereodyn.harness.cases import CHAOTIC_TAGS, Case
-from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import declared_order, fit
-from stereodyn.harness.grid import time_grid
-from stereodyn.harness import timing
-from stereodyn.harness.trajectory import Status
+from ..scenes import metrics
+from .. import fitting
+from ..scenes.cases import CHAOTIC_TAGS, Case
+from ..engines import get_engine
+from ..fitting import declared_order, fit
+from ..grid import time_grid
+from . import timing
+from ..trajectory import Status
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
@@ -60,7 +60,7 @@ SHORT_POINTS, SHORT_TARGET = 6, 3
 @dataclass(frozen=True)
 class Family:
     """Runs of one case x engine x formulation x integrator, which differ only in dt (a dt ladder) or in the
-    requested tolerance (a tolerance ladder, harness.tolerance_ladders)."""
+    requested tolerance (a tolerance ladder, harness.run.tolerance_ladders)."""
 
     case: Case
     engine: str
@@ -98,7 +98,7 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
         drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
         row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
         if with_truth:
-            from stereodyn.reference import truth as reference_truth
+            from ...reference import truth as reference_truth
 
             truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
             row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
@@ -117,7 +117,7 @@ def _timed(sim, grid) -> dict:
 
 
 def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
-    """The ladders' timing phase (harness.timing.time_points: a timed run shares the cores with no other run)."""
+    """The ladders' timing phase (harness.run.timing.time_points: a timed run shares the cores with no other run)."""
     def prepare(row: dict):
         family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
         return _prepare(family, row["dt"]), time_grid(family.case.t_end, row["dt"], family.case.samples)
@@ -281,8 +281,8 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
 
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
              formulations: tuple[str, ...] | None = None) -> list[Family]:
-    """The fixed-step run families a sweep of these cases would have (harness.plan.plan's selection)."""
-    from stereodyn.harness.plan import plan
+    """The fixed-step run families a sweep of these cases would have (harness.run.plan.plan's selection)."""
+    from .plan import plan
 
     specs, _ = plan(cases, engines, integrators)
     out = {}

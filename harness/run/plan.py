@@ -1,15 +1,15 @@
 """The plan of a sweep: every case x engine x integrator x formulation x dt as a RunSpec, and the rows of the runs
-skipped up front (the engine cannot model the case). harness.runner executes the plan; harness.workprecision picks
+skipped up front (the engine cannot model the case). harness.run.sweep executes the plan; harness.workprecision picks
 its run families from it."""
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-from stereodyn.harness.cases import SLIDING_LADDER, Case
-from stereodyn.harness.engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, Engine, get_engine
-from stereodyn.harness.grid import TimeGrid, time_grid
-from stereodyn.harness.trajectory import Status
+from ..scenes.cases import SLIDING_LADDER, Case
+from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, Engine, get_engine
+from ..grid import TimeGrid, time_grid
+from ..trajectory import Status
 
 
 @dataclass(frozen=True)
@@ -55,8 +55,8 @@ def skipped_row(spec: RunSpec, reason: str) -> dict:
 
 def _sliding_ladder_specs(case, name: str, engine: Engine, engine_rank: int,
                           chosen: list[str]) -> tuple[list[RunSpec], list[dict]]:
-    """(runs, skipped rows) of one sliding-ladder case on one engine (harness.sliding_ladder runs them): each of the
-    engine's models (Engine.sliding_ladder_models, in the formulation column) with each of its integrators."""
+    """(runs, skipped rows) of one sliding-ladder case on one engine (harness.scenes.sliding_ladder runs them): each of
+    the engine's models (Engine.sliding_ladder_models, in the formulation column) with each of its integrators."""
     models = engine.sliding_ladder_models()
     if not models:
         return [], [skipped_row(RunSpec(case, name, "", None, engine_rank), engine.sliding_ladder_unsupported())]

@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 
-from stereodyn.harness.cases import Case
-from stereodyn.harness.trajectory import Trajectory
-from stereodyn.reference.exact import ORACLES
-from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
+from .cases import Case
+from ..trajectory import Trajectory
+from ...reference.exact import ORACLES
+from ...reference.rotations import attitude_angle, quat_to_matrix
 
-# Samples at t <= horizon * (1 + HORIZON_RTOL) count as within the horizon (as in harness.metrics.errors): a sample
-# time is steps * dt, which can land a rounding error past a horizon that is meant to include it.
+# Samples at t <= horizon * (1 + HORIZON_RTOL) count as within the horizon (as in harness.scenes.metrics.errors): a
+# sample time is steps * dt, which can land a rounding error past a horizon that is meant to include it.
 HORIZON_RTOL = 1e-12
 
 

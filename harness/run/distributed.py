@@ -26,7 +26,7 @@ def run_on_cluster(address: str, specs: Sequence, truths: dict, execute: Callabl
     except ImportError as exc:
         raise ClusterError(f"--scheduler needs dask.distributed ({exc}); install it with "
                            "pip install 'stereodyn[dask]'") from None
-    from stereodyn.harness.environment import library_versions
+    from ..environment import library_versions
 
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)

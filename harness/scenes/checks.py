@@ -25,11 +25,11 @@ import pandas as pd
 from numpy.polynomial import Polynomial
 from scipy.optimize import brentq
 
-from stereodyn.harness.cases import Case
-from stereodyn.harness.trajectory import Status, Trajectory
-from stereodyn.harness.results import SORT_KEYS, write_atomic
-from stereodyn.reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
-from stereodyn.reference.rotations import quat_conj, quat_mul, quat_to_matrix
+from .cases import Case
+from ..trajectory import Status, Trajectory
+from ..run.results import SORT_KEYS, write_atomic
+from ...reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
+from ...reference.rotations import quat_conj, quat_mul, quat_to_matrix
 
 ROW_KEY = "checks"      # a run's row carries its check rows under this key, so the result store keeps them with it
 CHECKS_FILE = "checks.csv"
@@ -412,7 +412,7 @@ def read_checks(path: Path) -> pd.DataFrame:
 # ------------------------------------------------------------------------------------------------- the report
 
 def _truth_mask(df: pd.DataFrame) -> pd.Series:
-    from stereodyn.harness.engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
+    from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
 
     return ((df["engine"] == TRUTH_ENGINE) & (df["formulation"] == TRUTH_FORMULATION)
             & (df["integrator"] == TRUTH_INTEGRATOR))

@@ -2,17 +2,17 @@
 
 Each series is the per-sample quantity whose maximum is the results table's column (same integrals, same scale), reduced
 to at most POINTS points by taking the maximum over consecutive buckets of samples, so a plot shows the envelope and
-never misses a peak. Stored with the run's record (harness.store), so it is kept small.
+never misses a peak. Stored with the run's record (harness.run.store), so it is kept small.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from stereodyn.harness.cases import Case
-from stereodyn.harness.trajectory import Trajectory
-from stereodyn.reference import torques
-from stereodyn.reference.integrals import INTEGRALS
-from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
+from .cases import Case
+from ..trajectory import Trajectory
+from ...reference import torques
+from ...reference.integrals import INTEGRALS
+from ...reference.rotations import attitude_angle, quat_to_matrix
 
 POINTS = 200
 DIGITS = 4  # significant digits kept: enough for a log-scale plot, a fifth of the bytes of a full double
@@ -21,7 +21,7 @@ DIGITS = 4  # significant digits kept: enough for a log-scale plot, a fifth of t
 def _deviation(case: Case, stem: str, traj: Trajectory) -> np.ndarray:
     """|I(t) - I(0)| / scale per sample (as reference.integrals.drift, before its maximum); NaN where not finite."""
     integral, body = INTEGRALS[stem], case.body
-    if stem == "energy" and body.has_external_torque:  # the energy (Jacobi) balance, as harness.metrics
+    if stem == "energy" and body.has_external_torque:  # the energy (Jacobi) balance, as harness.scenes.metrics
         if not (np.isfinite(traj.quat).all() and np.isfinite(traj.omega).all()):
             return np.full(len(traj.times), np.nan)
         deviation, scale = torques.energy_balance(body, traj.times, traj.quat, traj.omega)

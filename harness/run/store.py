@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from stereodyn.harness.cases import Case
-from stereodyn.harness.environment import code_origin, library_versions, source_fingerprint
-from stereodyn.harness.checks import ROW_KEY
-from stereodyn.harness.results import COLUMNS, write_atomic
-from stereodyn.harness.trajectory import Status
+from ..scenes.cases import Case
+from ..environment import code_origin, library_versions, source_fingerprint
+from ..scenes.checks import ROW_KEY
+from .results import COLUMNS, write_atomic
+from ..trajectory import Status
 
 STORE_DIR = "store"
 TRAJECTORIES_DIR = "trajectories"  # stereodyn run --save-trajectories: DIR/trajectories/<key>.npz
@@ -98,7 +98,7 @@ def folder_lock(out_dir: Path, store: bool = False) -> Iterator[None]:
 
 
 def remove_partial_files(out_dir: Path) -> list[Path]:
-    """Delete the temporary files of interrupted atomic writes (harness.results.write_atomic's .NAME.*.tmp) in the
+    """Delete the temporary files of interrupted atomic writes (harness.run.results.write_atomic's .NAME.*.tmp) in the
     folders stereodyn writes under DIR (TEMPORARY_FOLDERS)."""
     leftovers = [path for folder in TEMPORARY_FOLDERS for path in (Path(out_dir) / folder).glob(".*.tmp")]
     for path in leftovers:
@@ -144,13 +144,13 @@ def run_identity(case: Case, engine: str, formulation: str, integrator: str, dt:
 
 def integrator_classes(name: str) -> list[type]:
     """Every registered class called `name`, one per state space (an engine picks the one of its space)."""
-    from stereodyn.harness import integrators
+    from .. import integrators
 
     return [integrators.get(name, space) for space in integrators.state_spaces() if name in integrators.names(space)]
 
 
 def engine_class(name: str) -> type:
-    from stereodyn.harness.engines import get_engine
+    from ..engines import get_engine
 
     return type(get_engine(name))
 

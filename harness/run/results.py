@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from stereodyn.harness.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
+from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
            "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",

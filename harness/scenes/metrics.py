@@ -5,11 +5,11 @@ import math
 
 import numpy as np
 
-from stereodyn.harness.cases import Case
-from stereodyn.harness.trajectory import Trajectory
-from stereodyn.reference import torques
-from stereodyn.reference.integrals import INTEGRALS, drift
-from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
+from .cases import Case
+from ..trajectory import Trajectory
+from ...reference import torques
+from ...reference.integrals import INTEGRALS, drift
+from ...reference.rotations import attitude_angle, quat_to_matrix
 
 # Drift columns in table order; each is INTEGRALS[stem] where the reference implements it.
 DRIFT_COLUMNS = ("energy_drift", "momentum_drift", "casimir_drift", "lagrange_drift", "kovalevskaya_drift",

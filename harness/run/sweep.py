@@ -18,20 +18,25 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import checks, metrics, oracles, series, sliding_ladder, timing
-from stereodyn.harness import integrators as integrator_registry
-from stereodyn.harness.cases import SLIDING_LADDER, Case
-from stereodyn.harness.engines import get_engine
-from stereodyn.harness.plan import RunSpec, base_row, plan
-from stereodyn.harness.trajectory import Status, Trajectory
-from stereodyn.harness.grid import TimeGrid, time_grid
-from stereodyn.harness.distributed import run_on_cluster
-from stereodyn.harness.environment import environment as current_environment
-from stereodyn.harness.processes import exit_with_parent
-from stereodyn.harness.progress import ProgressBar
-from stereodyn.harness.results import frame, write_results
-from stereodyn.harness.store import Store, run_key
-from stereodyn.reference import truth as reference_truth
+from ..scenes import checks
+from ..scenes import metrics
+from ..scenes import oracles
+from ..scenes import series
+from ..scenes import sliding_ladder
+from . import timing
+from .. import integrators as integrator_registry
+from ..scenes.cases import SLIDING_LADDER, Case
+from ..engines import get_engine
+from .plan import RunSpec, base_row, plan
+from ..trajectory import Status, Trajectory
+from ..grid import TimeGrid, time_grid
+from .distributed import run_on_cluster
+from ..environment import environment as current_environment
+from .processes import exit_with_parent
+from .progress import ProgressBar
+from .results import frame, write_results
+from .store import Store, run_key
+from ...reference import truth as reference_truth
 
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
 
@@ -44,7 +49,7 @@ class CaseTruth:
     truth_err: rad, a bound on the truth's attitude error up to the case's horizon; truth_omega_err: a bound on its
     relative omega error (reference.truth.truth_bound: a quadruple-precision rerun plus the rounding of a float64
     comparison); both NaN when not certified (--no-certify).
-    exact_quat: (n, 4) the case's exact solution (harness.oracles) at the same times, or None without an oracle.
+    exact_quat: (n, 4) the case's exact solution (harness.scenes.oracles) at the same times, or None without an oracle.
     """
 
     times: np.ndarray
@@ -288,9 +293,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
               pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
     """Run everything and return the table.
 
-    Every finished run is stored at once (harness.store: out_dir/store/<key>.json) and out_dir/results.csv is
+    Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
     re-assembled from the store, atomically, after each; resume=True reuses the stored runs of this sweep instead of
-    redoing them. scheduler: a Dask scheduler address to run on (harness.distributed) instead of local processes.
+    redoing them. scheduler: a Dask scheduler address to run on (harness.run.distributed) instead of local processes.
     pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
     certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
     save_trajectories: also write each run's recorded states to out_dir/trajectories/<key>.npz (Store.put_states);
@@ -299,7 +304,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
     specs, skipped_rows = plan(cases, engines, integrators)
-    if save_trajectories:  # the sliding ladder records another state (harness.sliding_ladder): none to save
+    if save_trajectories:  # the sliding ladder records another state (harness.scenes.sliding_ladder): none to save
         specs = [dataclasses.replace(s, keep_states=True) if s.case.kind != SLIDING_LADDER else s for s in specs]
     specs.sort(key=_cost, reverse=True)
     results_path = out_dir / "results.csv"
@@ -351,7 +356,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             truths = {}
             progress.stage(f"truths of {len(cases)} cases, then {len(pending)} runs on {local_jobs} workers")
             for case in cases:
-                if case.kind == SLIDING_LADDER:  # harness.sliding_ladder solves the equation in each run
+                if case.kind == SLIDING_LADDER:  # harness.scenes.sliding_ladder solves the equation in each run
                     truths[case.name] = None
                 elif any(s.case is case for s in pending):
                     progress.phase(f"truth {case.name}")

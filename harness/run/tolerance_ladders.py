@@ -4,10 +4,10 @@ tolerances, per point the error achieved and the cost.
 For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of
 TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared
 with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: rtol = atol = tol) and run on the
-grid of the sweep's adaptive rows (harness.runner.truth_grid). Each point is one untimed accuracy run (errors
+grid of the sweep's adaptive rows (harness.run.sweep.truth_grid). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
-(harness.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
+(harness.run.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
 evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the quaternion at its default,
 truth-grade tolerance) is not a ladder point: every point names its tolerance, and heyoka's taylor joins at the
 loose ones like any other adaptive method.
@@ -16,7 +16,7 @@ A ladder walks from loose to tight and stops early, saying so in the last point'
 run took longer than POINT_BUDGET_S (the tighter points would each take longer still). The fits (tolerance
 proportionality, error below the tolerance) are harness.fitting.tolerance_fit.
 
-The ladders run on the sweep's process pool (harness.runner.worker_pool), one task per family.
+The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one task per family.
 """
 from __future__ import annotations
 
@@ -25,11 +25,12 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable
 
-from stereodyn.harness import metrics, timing
-from stereodyn.harness.cases import Case
-from stereodyn.harness.dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
-from stereodyn.harness.engines import get_engine
-from stereodyn.harness.trajectory import Status
+from ..scenes import metrics
+from . import timing
+from ..scenes.cases import Case
+from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
+from ..engines import get_engine
+from ..trajectory import Status
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
@@ -74,7 +75,7 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
 # ------------------------------------------------------------------------------------------------ one point
 
 def _grid(case: Case):
-    from stereodyn.harness.runner import truth_grid  # the sweep's grid of adaptive rows
+    from .sweep import truth_grid  # the sweep's grid of adaptive rows
 
     return truth_grid(case)
 
@@ -103,7 +104,7 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
         drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
         row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
         if truth is None:
-            from stereodyn.reference import truth as reference_truth
+            from ...reference import truth as reference_truth
 
             truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
         row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
@@ -121,7 +122,7 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
                budget_s: float = POINT_BUDGET_S) -> list[dict]:
     """The accuracy runs of one family's ladder, loose to tight, stopping early (module docstring). Never raises."""
     try:
-        from stereodyn.reference import truth as reference_truth
+        from ...reference import truth as reference_truth
 
         case = family.case
         truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times)
@@ -145,7 +146,7 @@ def _failed_point(family: AdaptiveFamily, tolerance: float, message: str) -> dic
 
 
 def time_points(points: list[dict], families_by_key: dict[tuple, AdaptiveFamily]) -> None:
-    """The timing phase, as the dt ladders' (harness.timing.time_points)."""
+    """The timing phase, as the dt ladders' (harness.run.timing.time_points)."""
     def prepare(row: dict):
         family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"])]
         return _prepare(family, row["tolerance"]), _grid(family.case)

@@ -1,6 +1,6 @@
 """A progress bar with an ETA over a sweep, on a terminal only: silent when the stream is not a TTY, or when disabled.
 
-The ETA weighs runs by their cost estimate (estimated seconds, harness.runner._cost), since the sweep starts the
+The ETA weighs runs by their cost estimate (estimated seconds, harness.run.sweep._cost), since the sweep starts the
 longest runs first and a count-based estimate would be far too pessimistic early on.
 """
 from __future__ import annotations

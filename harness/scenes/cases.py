@@ -11,10 +11,10 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact import ORACLES as EXACT_SOLUTIONS
-from stereodyn.reference.sliding_ladder import Ladder, detachment_cosine
-from stereodyn.reference.torques import BodyTorque, CentralField, PrecessionTorque
+from ...reference.body import RigidBody
+from ...reference.exact import ORACLES as EXACT_SOLUTIONS
+from ...reference.sliding_ladder import Ladder, detachment_cosine
+from ...reference.torques import BodyTorque, CentralField, PrecessionTorque
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
@@ -119,7 +119,8 @@ class Case:
 @dataclass(frozen=True, eq=False)
 class LadderCase:
     """A sliding-ladder scene (kind "sliding_ladder", FORMULARY T5): a planar, constrained one-degree-of-freedom
-    rod, not a body with a fixed point; harness.sliding_ladder runs it. ladder: reference.sliding_ladder.Ladder."""
+    rod, not a body with a fixed point; harness.scenes.sliding_ladder runs it.
+    ladder: reference.sliding_ladder.Ladder."""
 
     name: str
     description: str
