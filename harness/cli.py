@@ -112,8 +112,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--certify", action="store_true", help="accepted for old scripts: certifying is the default")
     run.add_argument("--save-trajectories", action="store_true",
                      help="also write each run's recorded states, the truth's included, to "
-                          "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body; case, engine, "
-                          "formulation, integrator, dt)")
+                          "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body, truth_quat and "
+                          "truth_omega on the same times; case, engine, formulation, integrator, dt) and their "
+                          "index, DIR/trajectories/index.csv")
     run.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per phase otherwise, on stderr)")
     run.add_argument("--verbose", action="store_true", help="also print every case's drift table")

@@ -119,8 +119,10 @@ def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict
         if spec.dt is None:
             row["steps"] = traj.steps
         row["rhs_per_sim_s"] = rhs_per_sim_s(spec, traj.rhs_evals, row["steps"], grid.t_end)
-        if spec.keep_states:
-            row["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega}
+        if spec.keep_states:  # with the truth on the run's own times, so that each file is audited on its own
+            truth_quat, truth_omega = truth.on(grid)
+            row["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega, "truth_quat": truth_quat,
+                              "truth_omega": truth_omega}
         row.update(metrics.drifts(spec.case, traj, truth.applicable))
         row.update(metrics.torque_metrics(spec.case, traj))
         row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
@@ -298,8 +300,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     redoing them. scheduler: a Dask scheduler address to run on (harness.run.distributed) instead of local processes.
     pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
     certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
-    save_trajectories: also write each run's recorded states to out_dir/trajectories/<key>.npz (Store.put_states);
-    with resume, a stored run without its file is redone.
+    save_trajectories: also write each run's recorded states, and the truth on its times, to
+    out_dir/trajectories/<key>.npz (Store.put_states) and their index, trajectories/index.csv; with resume, a stored
+    run without its file is redone.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
@@ -331,6 +334,9 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             checks.write_checks([{**stored[keys[id(s)]], **_ranks(s)} for s in specs if keys[id(s)] in stored],
                                 out_dir / checks.CHECKS_FILE)
             store.write_manifest([keys[id(s)] for s in specs if keys[id(s)] in stored], environment)
+            if save_trajectories:
+                store.write_trajectory_index([(stored[keys[id(s)]], keys[id(s)]) for s in specs
+                                              if s.keep_states and keys[id(s)] in stored])
 
         def finished(spec: RunSpec, row: dict) -> None:
             key = keys[id(spec)]
