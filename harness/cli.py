@@ -115,6 +115,9 @@ def _parser() -> argparse.ArgumentParser:
                           "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body, truth_quat and "
                           "truth_omega on the same times; case, engine, formulation, integrator, dt) and their "
                           "index, DIR/trajectories/index.csv")
+    run.add_argument("--self-contained", action="store_true",
+                     help="embed the figures in report.html (one file to send; larger) instead of linking "
+                          "DIR/figures/")
     run.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per phase otherwise, on stderr)")
     run.add_argument("--verbose", action="store_true", help="also print every case's drift table")
@@ -136,6 +139,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
     report.add_argument("dir", type=Path)
+    report.add_argument("--self-contained", action="store_true",
+                        help="embed the figures in report.html (one file to send; larger) instead of linking them")
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
     baseline.add_argument("dir", type=Path)
     baseline.add_argument("--out", type=Path, required=True, metavar="FILE", help="baseline file to write (JSON)")
@@ -281,7 +286,7 @@ def cmd_run(args) -> int:
         if args.verbose:
             print(drift_table_text(df))
         progress.stage("report: report.md, figures, report.html")
-        markdown, html = write_reports(args.out, df)
+        markdown, html = write_reports(args.out, df, self_contained=args.self_contained)
         print("\n".join(summary.terminal_lines(df, found, args.out, html)))
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     if args.strict and verdicts.strict_failures(found):
@@ -333,7 +338,7 @@ def cmd_report(args) -> int:
     _output_folder(args.dir, "report DIR")
     with folder_lock(args.dir):
         try:
-            markdown, html = write_reports(args.dir)
+            markdown, html = write_reports(args.dir, self_contained=args.self_contained)
         except (KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
             if isinstance(exc, TableError):
                 raise
