@@ -304,8 +304,8 @@ def _quiet_engines(out: Path) -> None:
 def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and the orders in checks.csv
     (harness.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
-    named cases or steps only the short ladders of the families their dt lists give no order; --dt-ladder every
-    family's; --no-ladder none."""
+    named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
+    (without --strict none); --dt-ladder every family's; --no-ladder none."""
     from stereodyn.harness import workprecision
 
     if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
@@ -315,7 +315,9 @@ def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
     elif args.no_ladder:
         mode = "off"
     elif args.cases or args.case_file or args.dt is not None:
-        mode = "short"  # a declared order the run's own dt lists cannot measure is measured before it is judged
+        # --strict judges: a declared order no case's dt list measured is measured (short ladders) before it is
+        # judged; without it such a claim is reported "not measured, no reason"
+        mode = "short" if args.strict else "off"
     else:
         mode = "default"
     if mode != "off" and progress is not None:

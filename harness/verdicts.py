@@ -165,7 +165,8 @@ def _unmeasured(group: pd.DataFrame, declared: float, excluded: set[str], base: 
     details = []
     for case, row in unexcused[:3]:
         note = str(row.get("note", "") or "").split(";")[0]
-        source = "its dt list (no short ladder ran)" if row.get("source", "") == "dt_list" else "a short ladder"
+        source = ("its dt list (no short ladder ran: --strict runs them)" if row.get("source", "") == "dt_list"
+                  else "a short ladder")
         details.append(f"{case}: {source}: {note}" if note else f"{case}: {source}")
     more = f" (+{len(unexcused) - 3} more)" if len(unexcused) > 3 else ""
     return Verdict("order", **base, status=NO_REASON,

@@ -22,7 +22,7 @@ import pandas as pd
 
 from stereodyn.harness.scenes import checks
 from stereodyn.harness.run import dt_ladders
-from stereodyn.harness.scenes.cases import Case
+from stereodyn.harness.scenes.cases import CHAOTIC_TAGS, Case
 from stereodyn.harness.run import tolerance_ladders
 from stereodyn.harness.run.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
                                           Family, families, run_ladders)
@@ -122,7 +122,8 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
     DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
-    no order), "short" (those short ladders only: a run of named cases) or "off". Writes ladder.csv, convergence.csv,
+    no order), "short" (those short ladders only, for the integrators no case's dt list measured: a --strict run of
+    named cases) or "off". Writes ladder.csv, convergence.csv,
     tolerance.csv, tolerance_fit.csv, pareto.csv and appends the orders to checks.csv; returns the paths written.
     pool: the sweep's worker pool (harness.run.sweep.worker_pool)
     the ladders run on; None runs them here."""
@@ -152,6 +153,12 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     sweep_rows = sweep_orders(rigid_results, laddered)
     short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered) \
         if ladder in ("default", "short") else []
+    if ladder == "short":  # only what the order verdicts need: integrators no non-chaotic case's dt list measured
+        chaotic = {c.name for c in rigid if set(c.tags) & set(CHAOTIC_TAGS)}
+        measured = {(r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
+                    if math.isfinite(r["order"]) and r["case"] not in chaotic}
+        short = [item for item in short
+                 if (item[0].engine, item[0].formulation, item[0].integrator) not in measured]
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
         if chosen or short else ([], [])

@@ -121,9 +121,12 @@ def test_strict_never_passes_a_claim_nothing_measured(plugins, tmp_path, capsys)
     line = next(x for x in err.splitlines() if x.startswith("verdict not measured:"))
     assert "rk4_claims_6 declares order 6; not measured, and no reason excuses it" in line
     assert "no short ladder ran" in line
-    # without --strict the run exits 0, and the claim (not disproved) keeps its runs in "What to use"
+    # without --strict no short ladder runs: the same verdict, exit 0, and the claim (not disproved) keeps its runs
+    # in "What to use"
     assert cli.main(["run", "free-asymmetric", "--t-end", "2", "--engines", "pinocchio", "--integrators",
-                     "rk4_claims_6", "--jobs", "1", "--quiet", "--no-ladder", "--out", str(tmp_path / "b")]) == 0
+                     "rk4_claims_6", "--jobs", "1", "--quiet", "--out", str(tmp_path / "b")]) == 0
+    table = pd.read_csv(tmp_path / "b" / "verdicts.csv", keep_default_na=False)
+    assert list(table[table.verdict == "order"].status) == [verdicts.NO_REASON]
     pareto = pd.read_csv(tmp_path / "b" / "pareto.csv", keep_default_na=False)
     assert "rk4_claims_6" in set(pareto.integrator)
 
