@@ -15,9 +15,13 @@ import warnings
 MOVED = {  # old module under stereodyn.harness -> its path now
     "cases": "scenes.cases", "checks": "scenes.checks", "metrics": "scenes.metrics", "oracles": "scenes.oracles",
     "series": "scenes.series", "sliding_ladder": "scenes.sliding_ladder",
-    "distributed": "run.distributed", "dt_ladders": "run.dt_ladders", "plan": "run.plan",
+    "distributed": "run.distributed", "dt_ladders": "analysis.dt_ladders", "plan": "run.plan",
     "processes": "run.processes", "progress": "run.progress", "results": "run.results", "runner": "run.sweep",
-    "store": "run.store", "timing": "run.timing", "tolerance_ladders": "run.tolerance_ladders",
+    "store": "run.store", "timing": "run.timing", "tolerance_ladders": "analysis.tolerance_ladders",
+    "compare": "analysis.compare", "fitting": "analysis.fitting", "gate": "analysis.gate",
+    "summary": "analysis.summary", "verdicts": "analysis.verdicts", "workprecision": "analysis.workprecision",
+    # not in 0.2.0: for branches begun before these moved
+    "pareto": "analysis.pareto", "step_advice": "analysis.step_advice",
 }
 PACKAGE = "stereodyn.harness"
 

@@ -23,7 +23,7 @@ from stereodyn.harness import integrators as registry
 from stereodyn.harness.scenes import metrics
 from stereodyn.harness.scenes.cases import Case, find_case, with_overrides
 from stereodyn.harness.engines import engine_for_state_space, get_engine
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators.base import Integrator

@@ -524,7 +524,8 @@ class FormulationRun:
 
 
 def integrate_taylor(name: str, body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray, *,
-                     chart_changes: bool = True, tol: float | None = None) -> FormulationRun:
+                     chart_changes: bool = True, tol: float | None = None,
+                     deadline: float | None = None) -> FormulationRun:
     """Integrate formulation `name` from (quat0 (4,) wxyz, omega0 (3,) rad/s body) with heyoka (tolerance tol,
     relative and absolute; None: truth.TRUTH_TOL) and sample at times ((n,) s, increasing, from 0).
 
@@ -532,11 +533,11 @@ def integrate_taylor(name: str, body: RigidBody, quat0: np.ndarray, omega0: np.n
     the event time. With chart_changes False the event is the singularity guard instead, and the run stops there.
     "quaternion" at the default tolerance is the truth itself. Heyoka's time runs on across chart changes (the
     turning central field).
-    Raises ValueError on bad input or a propagation that fails.
+    Raises ValueError on bad input or a propagation that fails, truth.OutOfTime past deadline (time.monotonic()).
     """
     times = np.asarray(times, dtype=float)
     if name == Quaternion.name:
-        result = truth.truth(body, quat0, omega0, times, tol=tol)
+        result = truth.truth(body, quat0, omega0, times, tol=tol, deadline=deadline)
         return FormulationRun(result.times, result.quat, result.omega, result.steps, None, result.wall_s)
     formulation = get(name, body)
     if times.ndim != 1 or times.size == 0 or times[0] != 0.0 or not np.all(np.isfinite(times)) \
@@ -561,7 +562,8 @@ def integrate_taylor(name: str, body: RigidBody, quat0: np.ndarray, omega0: np.n
             # propagate_grid wants the grid to start at the current time; that point is a sample only at t = 0.
             sample_now = times[filled] == now
             grid = times[filled:] if sample_now else np.concatenate([[now], times[filled:]])
-            outcome, _, _, taken, _, samples = integrator.propagate_grid(grid)
+            outcome, _, _, taken, _, samples = integrator.propagate_grid(grid, callback=truth.step_callback(deadline))
+            truth.stopped_at_deadline(outcome, f"{name} propagation", float(integrator.time))
             steps += int(taken)
             samples = np.asarray(samples)[0 if sample_now else 1:]
             if samples.shape[0]:

@@ -25,16 +25,29 @@ from stereodyn.reference.rotations import quat_to_matrix
 STRUCTURE_RTOL = 1e-9
 
 
+def _never(body: RigidBody) -> bool:
+    return False
+
+
+def _always(body: RigidBody) -> bool:
+    return True
+
+
 @dataclass(frozen=True)
 class Integral:
-    """A conserved quantity of the motion, for the drift columns of the results table.
+    """A conserved quantity of the motion: the one declaration of its drift column (DESIGN §7).
 
-    name: column stem; the drift column is f"{name}_drift".
+    name: column stem; the drift column is f"{name}_drift" (`column`), in INTEGRALS' order.
     applies(body, quat0 (4,), omega0 (3,) rad/s body) -> bool: the structural conditions hold.
     value(body, quat (n, 4), omega (n, 3) rad/s body) -> (n,) or (n, 3) (a world vector).
     scale(body, quat0, omega0) -> float > 0: what a drift is divided by.
     exact: the value the integral must keep whatever the initial state (the Casimir's 1), or None to measure the
         drift from the value at t = 0.
+    under_torque(body) -> bool: it keeps its meaning under the body's external torque (the energy as its balance,
+        harness.metrics); without one, `applies` alone decides.
+    Display, read by every table, figure and page: short (the drift tables' header), label (the invariants
+    figure's axis; None: not drawn), graded (report.html colours its cells by size), definition (the report's
+    Definitions).
     """
 
     name: str
@@ -42,6 +55,15 @@ class Integral:
     value: Callable[[RigidBody, np.ndarray, np.ndarray], np.ndarray]
     scale: Callable[[RigidBody, np.ndarray, np.ndarray], float]
     exact: float | None = None
+    under_torque: Callable[[RigidBody], bool] = _never
+    short: str = ""
+    label: str | None = None
+    graded: bool = True
+    definition: str = ""
+
+    @property
+    def column(self) -> str:
+        return f"{self.name}_drift"
 
 
 def drift(integral: Integral, body: RigidBody, quat: np.ndarray, omega: np.ndarray) -> float:
@@ -303,16 +325,50 @@ def _self_excited_scale(body, quat0, omega0):
     return _nonzero(float(abs(first) + abs(second)))
 
 
+def _momentum_under_torque(body: RigidBody) -> bool:
+    """K along a central field's fixed direction is conserved: no orbit rate, no gravity, no other torque."""
+    field = body.central_field
+    return (field is not None and field.orbit_rate == 0.0 and not body.has_gravity
+            and not torques.has_nonpotential_torque(body))
+
+
+# The registry of drift columns, in table order. A new invariant is one entry here (DESIGN §7): the results table,
+# the drift tables (report.md, --verbose), report.html's grading, the invariants figure and the Definitions read it.
 INTEGRALS: dict[str, Integral] = {
-    "energy": Integral("energy", lambda body, quat0, omega0: True, _energy_value, _energy_scale),
-    "momentum": Integral("momentum", lambda body, quat0, omega0: True, _momentum_value, _momentum_scale),
+    "energy": Integral("energy", lambda body, quat0, omega0: True, _energy_value, _energy_scale,
+                       under_torque=_always, short="energy", label="energy |E−E₀|/scale",
+                       definition="kinetic + potential of uniform gravity (under an external torque the balance "
+                                  "below)"),
+    "momentum": Integral("momentum", lambda body, quat0, omega0: True, _momentum_value, _momentum_scale,
+                         under_torque=_momentum_under_torque, short="momentum", label="momentum drift",
+                         definition="the world angular momentum K about O for a torque-free body, its vertical "
+                                    "component K.d under gravity"),
     "casimir": Integral("casimir", lambda body, quat0, omega0: True, _casimir_value,
-                        lambda body, quat0, omega0: 1.0, exact=1.0),
-    "lagrange": Integral("lagrange", _lagrange_applies, _lagrange_value, _lagrange_scale),
-    "kovalevskaya": Integral("kovalevskaya", _kovalevskaya_applies, _kovalevskaya_value, _kovalevskaya_scale),
-    "chaplygin": Integral("chaplygin", _chaplygin_applies, _chaplygin_value, _chaplygin_scale),
-    "hess": Integral("hess", _hess_applies, _hess_value, _hess_scale),
+                        lambda body, quat0, omega0: 1.0, exact=1.0, under_torque=_always, short="casimir",
+                        definition="| |q|^2 - 1 | of the recorded quaternion (= ||H| - 1| for the heavy body)"),
+    "lagrange": Integral("lagrange", _lagrange_applies, _lagrange_value, _lagrange_scale, short="lagrange",
+                         label="Lagrange ω₃ drift", definition="omega along the symmetry axis"),
+    "kovalevskaya": Integral("kovalevskaya", _kovalevskaya_applies, _kovalevskaya_value, _kovalevskaya_scale,
+                             short="kovalevskaya", label="Kovalevskaya integral",
+                             definition="|(p1 + i p2)^2 + (m g / A3)(c1 + i c2)(H1 + i H2)|^2 with H the downward "
+                                        "vertical in body axes"),
+    "chaplygin": Integral("chaplygin", _chaplygin_applies, _chaplygin_value, _chaplygin_scale, short="chaplygin",
+                          label="Goryachev–Chaplygin", definition="(p1^2 + p2^2) p3 + lambda^2 p1 H3"),
+    "hess": Integral("hess", _hess_applies, _hess_value, _hess_scale, short="hess", label="Hess K·k drift",
+                     definition="K.k"),
     # (36), the conic-cylinder invariant of a body torque along a principal axis (G12)
     "self_excited": Integral("self_excited", lambda body, quat0, omega0: torques.self_excited_applies(body),
-                             _self_excited_value, _self_excited_scale),
+                             _self_excited_value, _self_excited_scale, under_torque=_always, short="self_excited",
+                             label="self-excited (36)",
+                             definition="the conic-cylinder invariant (36) A1/(A2-A3) p1^2 - A2/(A3-A1) p2^2 in the "
+                                        "principal frame with i3 along the torque axis (any torque along i3, no "
+                                        "other torque)"),
 }
+DRIFT_COLUMNS = tuple(integral.column for integral in INTEGRALS.values())
+
+
+def applicable(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> tuple[str, ...]:
+    """The names of the integrals this body and initial state have: structural conditions, and under an external
+    torque only those that keep their meaning."""
+    return tuple(name for name, integral in INTEGRALS.items() if integral.applies(body, quat0, omega0)
+                 and (not body.has_external_torque or integral.under_torque(body)))

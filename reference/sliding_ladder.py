@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import heyoka as hy
 import numpy as np
 
+from stereodyn.reference.truth import step_callback, stopped_at_deadline
+
 # The Taylor tolerance of the reference ladder: machine precision, as the truth's.
 LADDER_TOL = 1e-16
 
@@ -129,20 +131,23 @@ def _reset(integrator, ladder: Ladder) -> None:
     integrator.pars[0] = 0.75 * ladder.g / ladder.half_length
 
 
-def solve(ladder: Ladder, times: np.ndarray) -> LadderMotion:
-    """The equation (5.23) from (θ0, θ̇0) at times ((n,) s, increasing, from 0), and where Φ1 changes sign."""
+def solve(ladder: Ladder, times: np.ndarray, deadline: float | None = None) -> LadderMotion:
+    """The equation (5.23) from (θ0, θ̇0) at times ((n,) s, increasing, from 0), and where Φ1 changes sign.
+    truth.OutOfTime when time.monotonic() passes deadline (None: none) first."""
     times = np.asarray(times, dtype=float)
     detach_time = detach = math.nan
     integrator, lock = _integrator(True)
     with lock:
         _reset(integrator, ladder)
-        outcome = integrator.propagate_until(float(times[-1]))[0]
+        outcome = integrator.propagate_until(float(times[-1]), callback=step_callback(deadline))[0]
+        stopped_at_deadline(outcome, "ladder propagation", float(integrator.time))
         if outcome.value == -1:  # the terminal event: Φ1 = 0 within the span
             detach_time, detach = float(integrator.time), float(integrator.state[0])
     integrator, lock = _integrator(False)
     with lock:
         _reset(integrator, ladder)
-        outcome, *_, samples = integrator.propagate_grid(times)
+        outcome, *_, samples = integrator.propagate_grid(times, callback=step_callback(deadline))
+        stopped_at_deadline(outcome, "ladder propagation", float(integrator.time))
     samples = np.asarray(samples)
     if outcome != hy.taylor_outcome.time_limit or samples.shape[0] != times.size:
         raise ValueError(f"ladder propagation stopped with outcome {outcome} before t = {times[-1]}")

@@ -36,6 +36,25 @@ TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)
 MAX_TRUTH_STEPS = 1_000_000
 
 PRECISIONS = ("double", "quad")
+
+
+class OutOfTime(Exception):
+    """A heyoka propagation stopped at its wall-time deadline (step_callback); the harness names the budget."""
+
+
+def step_callback(deadline: float | None):
+    """heyoka's step callback that stops a propagation once time.monotonic() passes deadline; None without one."""
+    if deadline is None:
+        return None
+    clock = time.monotonic
+    return lambda integrator: clock() <= deadline
+
+
+def stopped_at_deadline(outcome, what: str, reached: float) -> None:
+    """Raise OutOfTime when a propagation's outcome is the step callback's stop."""
+    if outcome == hy.taylor_outcome.cb_stop:
+        raise OutOfTime(f"{what} stopped at its wall-time deadline at t = {reached:.6g} s")
+
 _FP_TYPE = {"double": float, "quad": hy.real128}
 _TOLERANCE = {"double": TRUTH_TOL, "quad": TRUTH_TOL_QUAD}
 # Upper-triangle index pairs of a symmetric 3x3 matrix, in the parameter layout above.
@@ -236,13 +255,13 @@ def _parameters(body: RigidBody, fp_type) -> np.ndarray:
 
 
 def truth(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray, *,
-          precision: str = "double", tol: float | None = None) -> TruthResult:
+          precision: str = "double", tol: float | None = None, deadline: float | None = None) -> TruthResult:
     """Integrate from (quat0 (4,) wxyz, omega0 (3,) rad/s body) and sample at times ((n,) s, increasing, from 0).
 
     precision "double" (tolerance TRUTH_TOL) or "quad" (heyoka real128, TRUTH_TOL_QUAD; results rounded to float64);
     tol: another tolerance (relative and absolute, heyoka's tol), e.g. a loose one for a tolerance ladder: the run
     is then no truth. quat0 is normalised in the working precision. Raises ValueError on bad input or an
-    unsuccessful propagation.
+    unsuccessful propagation, OutOfTime when time.monotonic() passes deadline (None: no deadline) before the end.
     """
     integrator, lock = taylor_integrator(precision, tol)
     fp_type = _FP_TYPE[precision]
@@ -268,8 +287,11 @@ def truth(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndar
         integrator.pars[:] = _parameters(body, fp_type)
         start = time.perf_counter()
         outcome, _, _, steps, _, samples = integrator.propagate_grid(times.astype(fp_type),
-                                                                     max_steps=MAX_TRUTH_STEPS)
+                                                                     max_steps=MAX_TRUTH_STEPS,
+                                                                     callback=step_callback(deadline))
         wall = time.perf_counter() - start
+        reached = float(integrator.time)
+    stopped_at_deadline(outcome, f"truth propagation ({precision})", reached)
     # propagate_grid reports time_limit when it reached the last grid point.
     if outcome == hy.taylor_outcome.step_limit:
         raise ValueError(f"truth propagation ({precision}) took more than {MAX_TRUTH_STEPS} Taylor steps before "
@@ -324,11 +346,13 @@ class TruthBound:
     omega: float
 
 
-def truth_bound(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray) -> TruthBound:
+def truth_bound(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray, times: np.ndarray,
+                deadline: float | None = None) -> TruthBound:
     """The bounds of the double truth's error over `times`, from a quadruple-precision (real128) rerun (derivation
-    above ATTITUDE_ALLOWANCE). Costs one real128 propagation: ~0.1-0.3 s for the suite's cases."""
-    double = truth(body, quat0, omega0, times, precision="double")
-    quad = truth(body, quat0, omega0, times, precision="quad")
+    above ATTITUDE_ALLOWANCE). Costs one real128 propagation: ~0.1-0.3 s for the suite's cases. OutOfTime past
+    deadline (time.monotonic())."""
+    double = truth(body, quat0, omega0, times, precision="double", deadline=deadline)
+    quad = truth(body, quat0, omega0, times, precision="quad", deadline=deadline)
     attitude = float(np.max(attitude_angle(quat_to_matrix(double.quat), quat_to_matrix(quad.quat))))
     scale = float(np.max(np.linalg.norm(quad.omega, axis=1))) or 1.0
     omega = float(np.max(np.linalg.norm(double.omega - quad.omega, axis=1))) / scale

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 from test_euler_angles import lagrange_through_vertical
 
-from stereodyn.harness import fitting, tolerance_ladders
+from stereodyn.harness import tolerance_ladders
+from stereodyn.harness.analysis import fitting
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines.reference import ReferenceEngine
 from stereodyn.harness.grid import time_grid

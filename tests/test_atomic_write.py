@@ -65,3 +65,29 @@ def test_a_write_replaces_the_file_readable_by_all(tmp_path):
     write_atomic(target, "new")
     assert target.read_text() == "new" and (target.stat().st_mode & 0o777) == 0o644
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
+
+
+def test_the_temporary_file_is_beside_the_target(tmp_path, monkeypatch):
+    """A rename is atomic only within one file system: the temporary is written in the target's folder, never in the
+    system's temporary folder (here another folder, as /tmp often is another file system), and named .NAME.*.tmp so
+    that the next command into the folder removes it if a kill left it (harness.store.remove_partial_files)."""
+    elsewhere = tmp_path / "system-temp"
+    elsewhere.mkdir()
+    monkeypatch.setenv("TMPDIR", str(elsewhere))
+    monkeypatch.setattr(results.tempfile, "tempdir", str(elsewhere))
+    target = tmp_path / "out" / "results.csv"
+    target.parent.mkdir()
+    renamed = []
+    real_replace = os.replace
+
+    def spy(src, dst):
+        renamed.append((os.path.realpath(src), os.path.realpath(dst)))
+        assert sorted(p.name for p in elsewhere.iterdir()) == []
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(results.os, "replace", spy)
+    write_atomic(target, "a,b\n1,2\n")
+    [(src, dst)] = renamed
+    assert os.path.dirname(src) == os.path.dirname(dst) == os.path.realpath(target.parent)
+    assert os.path.basename(src).startswith(".results.csv.") and src.endswith(".tmp")
+    assert target.read_text() == "a,b\n1,2\n" and sorted(p.name for p in target.parent.iterdir()) == ["results.csv"]

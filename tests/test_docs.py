@@ -191,4 +191,4 @@ def test_unresolved_citations_and_missing_files_are_caught():
     assert unresolved("ENGINES", ["§1"]) == ["§1"]  # ENGINES.md has no numbered sections
     assert not _exists("../shared/DESIGN.md", ROOT / "harness" / "x.py")
     assert not _exists("shared/FORMULARY.md", ROOT / "harness" / "x.py")
-    assert _exists("harness/cli.py", ROOT / "README.md") and _exists("DESIGN.md", ROOT / "harness" / "x.py")
+    assert _exists("harness/cli/__init__.py", ROOT / "README.md") and _exists("DESIGN.md", ROOT / "harness" / "x.py")

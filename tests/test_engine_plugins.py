@@ -3,6 +3,7 @@ are registered there; a third-party engine package, installed in a temporary dir
 old-style plug-in is refused naming it; and no engine name is spelled in the harness outside its adapter and the
 registry."""
 import ast
+import importlib.metadata
 import subprocess
 import sys
 import textwrap
@@ -121,8 +122,11 @@ def test_the_external_engine_is_listed_and_old_or_broken_plugins_are_refused(ins
     result = _run(installed, "-c", code, cwd=tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     lines = result.stdout.splitlines()
-    # drake: a built-in whose SDK is an optional extra (registered whether or not it is installed)
-    assert lines[0] == "names mujoco,pinocchio,reference,drake,toy,toy_broken,toy_nosdk,toy_old"
+    # the built-ins, then stereodyn's engines whose SDK is an optional extra (registered whether or not it is
+    # installed), by name, then third parties' by name
+    extras = ",".join(sorted(set(_OWN) - {"mujoco", "pinocchio", "reference"}))
+    assert {"bullet", "drake"} <= set(_OWN)
+    assert lines[0] == f"names mujoco,pinocchio,reference,{extras},toy,toy_broken,toy_nosdk,toy_old"
     # a module that cannot be imported (a missing SDK) makes the engine's runs skipped, with the reason
     assert lines[1].startswith("nosdk toy_nosdk engine unavailable: No module named")
     old, broken = lines[2], lines[3]
@@ -161,10 +165,13 @@ def test_engine_error_is_a_value_error():
 
 # ------------------------------------------------------------------------------------------------ engine names
 
-ENGINE_NAMES = {"mujoco", "pinocchio", "reference", "drake"}
+# stereodyn's own engines (built in or an optional extra): every entry point of the group in its pyproject.toml
+_OWN = {entry.name: entry.value.split(":")[0] for entry in importlib.metadata.entry_points(group="stereodyn.engines")
+        if entry.value.startswith("stereodyn.harness.engines.")}
+ENGINE_NAMES = set(_OWN)
 # Where an engine name may be spelled: its adapter and the registry (and tests, outside harness/).
-ALLOWED = {Path("harness/engines/__init__.py"), Path("harness/engines/mujoco.py"),
-           Path("harness/engines/pinocchio.py"), Path("harness/engines/reference.py"), Path("harness/engines/drake.py")}
+ALLOWED = {Path("harness/engines/__init__.py")} | {
+    Path("harness/engines", module.rsplit(".", 1)[1] + ".py") for module in _OWN.values()}
 
 
 def _engine_name_literals(path: Path) -> list[tuple[int, str]]:

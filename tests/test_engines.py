@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import stereodyn.harness.integrators as integrators
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.cases import BodyTorque, Case, CentralField
 from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness import cli, plan
 from stereodyn.harness.cases import Case, find_case, load_suite
 from stereodyn.harness.engines import get_engine

@@ -14,7 +14,8 @@ import pandas as pd
 import pytest
 from matplotlib import image as mpimg
 
-from stereodyn.harness import cli, summary, testing
+from stereodyn.harness import cli, testing
+from stereodyn.harness.analysis import summary
 from stereodyn.harness.report import figures
 from stereodyn.harness.report.method import energy_trend
 
@@ -204,6 +205,24 @@ def test_compare_names_the_environment_first_then_the_changed_row(ran, tmp_path)
     assert code == 0 and "attitude_err x10" in stdout and (tmp_path / "c" / "compare.md").is_file()
 
 
+def test_compare_counts_an_improvement_as_a_change(ran, tmp_path):
+    """A change is |log10 B/A|: a run ten times better in B is "changed 10x or more" (ratio 0.1), as a worsening is."""
+    out, _, _ = ran
+    a, b = tmp_path / "a", tmp_path / "b"
+    shutil.copytree(out, a)
+    shutil.copytree(out, b)
+    results = pd.read_csv(b / "results.csv", dtype={"formulation": str})
+    better = (results["engine"] == "pinocchio") & (results["integrator"] == "rk4") & (results["dt"] == 1e-2) & (
+        results["case"] == "lagrange-top")
+    assert better.sum() == 1
+    results.loc[better, "attitude_err"] /= 10
+    results.to_csv(b / "results.csv", index=False, float_format="%.17g")
+    code, stdout, _ = _main(["compare", str(a), str(b)])
+    assert code == 0
+    assert "1 rows changed 10x or more; first: lagrange-top pinocchio rk4 dt=0.01 (attitude_err x0.1)" in stdout
+    assert "### changed 10x or more (1 rows)" in (b / "compare.md").read_text()
+
+
 @pytest.mark.parametrize("argv, message", [
     (["missing-dir", "B"], "missing-dir: no such result directory or baseline file"),
     (["A", "base.json"], "base.json: a baseline file, not a directory: give --out DIR for compare.md"),
@@ -291,14 +310,14 @@ def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
 
 def test_the_default_suites_summary_fits_in_80_lines():
     """On the committed default suite (reports/default: 1001 runs, 9 of them diverged for one reason)."""
-    from stereodyn.harness import verdicts
+    from stereodyn.harness.analysis import verdicts
     from stereodyn.harness.results import read_results
 
     folder = Path(__file__).resolve().parents[1] / "reports" / "default"
     df = read_results(folder / "results.csv")
     lines = summary.terminal_lines(df, verdicts.read(folder) or [], folder, folder / "report.html")
     assert len(lines) <= 80  # 9 lines measured (17 before the formulations modelled the torques: 11 reasons)
-    from stereodyn.harness.pareto import scopes
+    from stereodyn.harness.analysis.pareto import scopes
 
     engines = scopes(pd.read_csv(folder / "pareto.csv"))  # none in a pareto.csv from before the scopes
     assert lines[-1].startswith("report: ") and sum("<= 1e-" in line for line in lines) == 3 * (1 + len(engines))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import stereodyn.harness.integrators as integrators
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, Integrator, get, names, register

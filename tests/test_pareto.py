@@ -1,4 +1,4 @@
-"""The Pareto table's scopes and tie rules (harness.pareto, issue 21 item 1) and the timing phase's re-time of a
+"""The Pareto table's scopes and tie rules (harness.analysis.pareto, issue 21 item 1) and the timing phase's re-time of a
 disturbed measurement (harness.timing)."""
 from __future__ import annotations
 
@@ -6,8 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import pareto as pareto_module, summary, timing
-from stereodyn.harness.pareto import ANY, pareto_table
+from stereodyn.harness.run import timing
+from stereodyn.harness.analysis import pareto as pareto_module
+from stereodyn.harness.analysis import summary
+from stereodyn.harness.analysis.pareto import ANY, pareto_table
 
 RATIO = 1.5  # issue 21: no winner or tie-mate above 1.5x the fastest of its cell (not the module constant: a test of it)
 
@@ -164,12 +166,13 @@ def test_a_disturbed_timing_is_re_timed_once_and_marked_when_still_disturbed(mon
 
 
 def test_the_report_shows_each_engines_table_before_any(tmp_path):
-    from stereodyn.harness import workprecision
+    from stereodyn.harness.analysis import workprecision
+    from stereodyn.harness.report.workprecision import report_lines
 
     runs = _candidates([("reference", "taylor", 1e-12, 50.0, 1.0, np.nan), ("mujoco", "rk4", 1e-7, 400.0, 5.0, 400.0),
                         ("pinocchio", "rk4", 1e-10, 900.0, 5.0, 400.0)])
     pareto_table(runs, ["c"]).to_csv(tmp_path / workprecision.PARETO_FILE, index=False)
-    text = "\n".join(workprecision.report_lines(tmp_path))
+    text = "\n".join(report_lines(tmp_path))
     section = text.split("## What to use")[1]
     heads = [line for line in section.splitlines() if line.startswith("### ")]
     assert heads == ["### reference", "### mujoco", "### pinocchio", "### any engine"]

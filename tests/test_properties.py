@@ -106,7 +106,7 @@ option_values = st.one_of(st.sampled_from(["0", "-1", "nan", "inf", "5e-324", "1
 options = st.lists(st.one_of(
     st.tuples(st.sampled_from(["--dt", "--t-end", "--jobs", "--ladder-max-steps"]), option_values),
     st.tuples(st.sampled_from(["--engines", "--integrators"]),
-              st.sampled_from(["", "mujoco", "mujoco,mujoco", "rk4", "bullet", "mujoco,", "euler,rk4"]))),
+              st.sampled_from(["", "mujoco", "mujoco,mujoco", "rk4", "havok", "mujoco,", "euler,rk4"]))),
     max_size=2)
 
 

@@ -140,7 +140,7 @@ def test_a_missing_engine_makes_its_runs_skipped(tmp_path, monkeypatch):
 @pytest.mark.parametrize("argv, expected", [
     (["run", "no-such-case"], "no-such-case"),
     (["run", "--case-file", "missing.toml"], "missing.toml: -: file not found"),
-    (["run", "--engines", "bullet"], "unknown engine bullet"),
+    (["run", "--engines", "havok"], "unknown engine havok"),
     (["run", "--integrators", "leapfrog"], "valid:"),
     (["run", "--jobs", "0"], "--jobs"),
 ])

@@ -10,10 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import dt_ladders, fitting, workprecision
+from stereodyn.harness import dt_ladders
+from stereodyn.harness.analysis import fitting, workprecision
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.dt_ladders import Family, run_short_ladder
-from stereodyn.harness.fitting import fit
+from stereodyn.harness.analysis.fitting import fit
 
 T_END = 10.0
 
@@ -67,7 +68,7 @@ def test_two_points_steeper_than_declared_are_refused_three_are_superconvergence
 
 
 def test_the_order_verdict_does_not_fail_a_superconvergent_case_alone():
-    from stereodyn.harness import verdicts
+    from stereodyn.harness.analysis import verdicts
 
     def row(case, order, note=""):
         return {"case": case, "engine": "e", "formulation": "", "integrator": "m", "order": order,
@@ -161,6 +162,20 @@ def test_a_chaotic_case_above_the_range_says_so_and_a_saturated_error_stops_the_
     tried = _fake(monkeypatch, lambda dt, steps: 3.0)
     _, row = run_short_ladder(Family(case, "mujoco", "", "rk4"), _known(case, lambda dt, steps: 3.0), 8_000)
     assert tried == pytest.approx([2.5e-3]) and "state_err not falling above 0.03" in row["note"], row["note"]
+
+
+def test_a_walk_that_would_go_on_stops_at_six_points(monkeypatch):
+    """DESIGN §4: a short ladder adds at most 6 points. An error far above the range that falls fourfold per halving
+    (1e5 at dt = 5e-3: still 6 above 3e-2 after 6 halvings) would walk on; the seventh point is never run."""
+    case = with_overrides(find_case("kovalevskaya"), t_end=T_END, dt=[1e-2, 5e-3])
+
+    def far_above(dt, steps):
+        return 1e5 * (dt / 5e-3) ** 2
+
+    tried = _fake(monkeypatch, far_above)
+    new, row = run_short_ladder(Family(case, "mujoco", "", "rk4"), _known(case, far_above), 10_000_000)
+    assert tried == pytest.approx([5e-3 / 2 ** k for k in range(1, 7)], rel=1e-3)  # six halvings (4 digits each)
+    assert len(new) == 6 and "short ladder stopped at 6 points" in row["note"], row["note"]
 
 
 # ------------------------------------------------------------------------------------------------ real runs

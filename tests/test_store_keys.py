@@ -149,3 +149,109 @@ def test_a_malformed_record_is_redone_and_not_reported(tmp_path, damage):
     assert isinstance(redone["row"]["attitude_err"], float)
     timings = ["wall_s", "us_per_step", "us_per_step_spread"]  # measured anew, so not equal
     pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv").drop(columns=timings), good.drop(columns=timings))
+
+
+HORIZON_CASE = """name = "horizon"
+[body]
+mass = 1.0
+com = [0.0, 0.0, 0.0]
+principal_moments = [2.0, 1.5, 1.0]
+[initial]
+attitude = { euler_zxz = [0.3, 0.8, -0.5] }
+omega = [0.4, 0.1, 2.0]
+[run]
+t_end = 0.2
+dt = [1e-2]
+samples = 21
+[expect]
+horizon = HORIZON
+"""
+
+
+def test_a_changed_horizon_redoes_the_runs_under_resume(tmp_path):
+    """The horizon decides attitude_err (the max is taken up to it): a stored row measured to another horizon is
+    never served (the store key holds every field of the case, horizon included)."""
+    path, out = tmp_path / "horizon.toml", tmp_path / "out"
+    argv = ["run", "--case-file", str(path), "--engines", "pinocchio", "--integrators", "euler", "--jobs", "1",
+            "--quiet", "--out", str(out)]
+    path.write_text(HORIZON_CASE.replace("HORIZON", "0.2"))
+    assert cli.main(argv) == 0
+    first = json.loads((out / "runs.json").read_text())["runs"]
+    far = pd.read_csv(out / "results.csv").set_index("integrator")
+    path.write_text(HORIZON_CASE.replace("HORIZON", "0.1"))
+    assert cli.main([*argv, "--resume"]) == 0
+    second = json.loads((out / "runs.json").read_text())["runs"]
+    near = pd.read_csv(out / "results.csv").set_index("integrator")
+    assert len(second) == len(first) == 1 and not set(first) & set(second)  # redone under a new key
+    # Euler's error grows with time: up to 0.1 s it is about half of what it is up to 0.2 s
+    assert near.loc["euler", "attitude_err"] < 0.8 * far.loc["euler", "attitude_err"]
+
+
+ENGINE_PLUGIN = '''
+"""An engine plug-in outside stereodyn (no distribution owns this module): Pinocchio's simulation under its own name."""
+from stereodyn.harness import integrators
+from stereodyn.harness.engines.base import Engine
+
+
+class FingerprintEngine(Engine):
+    name = "fingerprint_engine"
+    state_space = "lie"
+    pass_us = 3.0
+
+    def integrators(self):
+        return ("rk4",)
+
+    def unsupported(self, case):
+        return None
+
+    def prepare(self, case, integrator, dt):
+        from stereodyn.harness.engines.pinocchio import PinocchioSimulation
+
+        return PinocchioSimulation(case, integrators.get(integrator)(), float(dt))
+'''
+
+
+class _EngineEntry:
+    """The entry point a plug-in package would install (group stereodyn.engines), loading FingerprintEngine."""
+
+    name, value = "fingerprint_engine", "stereodyn_fingerprint_engine:FingerprintEngine"
+
+    def load(self):
+        from stereodyn_fingerprint_engine import FingerprintEngine
+
+        return FingerprintEngine
+
+
+def test_an_edited_engine_plugin_redoes_only_its_runs_under_resume(tmp_path, monkeypatch):
+    from stereodyn.harness import engines
+
+    module = tmp_path / "plugins" / "stereodyn_fingerprint_engine.py"
+    module.parent.mkdir()
+    module.write_text(ENGINE_PLUGIN)
+    monkeypatch.syspath_prepend(str(module.parent))
+    monkeypatch.delitem(sys.modules, "stereodyn_fingerprint_engine", raising=False)
+    registered = engines._entry_points()
+    monkeypatch.setattr(engines, "_entry_points", lambda: {**registered, "fingerprint_engine": _EngineEntry()})
+    engines.get_engine.cache_clear()
+    environment.clear_fingerprints()
+    try:
+        out = tmp_path / "out"
+        argv = ["run", *SWEEP, "--engines", "fingerprint_engine,pinocchio", "--integrators", "rk4", "--out", str(out)]
+        assert cli.main(argv) == 0
+        first = json.loads((out / "runs.json").read_text())
+        assert first["code"]["engines"]["fingerprint_engine"]["distribution"] == "none"
+        records = {r["row"]["engine"]: r["key"] for r in read_records(out)}
+        before = mtimes(out)
+
+        module.write_text(ENGINE_PLUGIN + "# a change of code without a new version\n")
+        environment.clear_fingerprints()
+        assert cli.main([*argv, "--resume"]) == 0
+        after = json.loads((out / "runs.json").read_text())
+        assert records["pinocchio"] in after["runs"] and records["fingerprint_engine"] not in after["runs"]
+        assert mtimes(out)[f"{records['pinocchio']}.json"] == before[f"{records['pinocchio']}.json"]  # reused
+        assert after["code"]["engines"]["fingerprint_engine"]["source"] != \
+            first["code"]["engines"]["fingerprint_engine"]["source"]
+        assert set(pd.read_csv(out / "results.csv").engine) == {"fingerprint_engine", "pinocchio"}
+    finally:
+        engines.get_engine.cache_clear()
+        environment.clear_fingerprints()

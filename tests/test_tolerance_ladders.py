@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 from scipy.integrate import solve_ivp
 
-from stereodyn.harness import engines, fitting, runner, tolerance_ladders, workprecision
+from stereodyn.harness import engines, runner, tolerance_ladders
+from stereodyn.harness.analysis import fitting, workprecision
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.engines.base import Engine
 from stereodyn.harness.report import build
@@ -141,6 +142,43 @@ def test_the_tolerance_ladder_stops_at_a_point_over_its_budget(stub_engine):
     assert len(points) == 1 and "ladder stopped after this point" in points[0]["message"]
 
 
+class _OmegaOffSimulation:
+    """The truth's own attitude (no attitude error at all) with ω 1e-5 too large: an error in ω alone."""
+
+    def __init__(self, case):
+        self.case = case
+
+    def run(self, grid):
+        from stereodyn.reference import truth
+
+        exact = truth.truth(self.case.body, self.case.quat0, self.case.omega0, grid.times)
+        return Trajectory(grid.times, exact.quat, exact.omega * (1 + 1e-5), Status.OK, "", math.nan, 100, 400, {})
+
+
+class OmegaOffEngine(StubEngine):
+    name = "stub"
+
+    def prepare(self, case, integrator, dt, tolerance=None):
+        return _OmegaOffSimulation(case)
+
+
+def test_err_over_tol_is_the_state_error_over_the_tolerance(monkeypatch):
+    """err_over_tol divides the state error (the max of attitude_err, omega_err, casimir_drift), not the attitude
+    error: a run whose attitude is exact but whose ω is off by 1e-5 is 10x over a tolerance of 1e-6."""
+    registered = engines._entry_points()
+    entry = type("_OmegaOffEntry", (_Entry,), {"load": lambda self: OmegaOffEngine})()
+    monkeypatch.setattr(engines, "_entry_points", lambda: {**registered, "stub": entry})
+    engines.get_engine.cache_clear()
+    try:
+        point = tolerance_ladders.measure(tolerance_ladders.AdaptiveFamily(_short_case(), "stub", "", "stub_dop853"),
+                                          1e-6)
+    finally:
+        engines.get_engine.cache_clear()
+    assert point["status"] == "ok" and point["attitude_err"] < 1e-15
+    assert point["omega_err"] == pytest.approx(1e-5, rel=1e-6)
+    assert point["state_err"] == point["omega_err"] and point["err_over_tol"] == pytest.approx(10.0, rel=1e-6)
+
+
 # ------------------------------------------------------------------------------------------------ the fit
 
 def _points(slope: float, c: float, floor: float, tolerances=tolerance_ladders.TOLERANCES, steps=1000):
@@ -244,7 +282,7 @@ def test_an_adaptive_row_with_no_error_at_all_is_the_reference_and_no_candidate(
 
 
 def test_the_default_run_ladders_the_adaptive_methods_of_each_engines_default_sweep():
-    from stereodyn.harness import workprecision
+    from stereodyn.harness.analysis import workprecision
     from stereodyn.harness.cases import find_case
     from stereodyn.harness.engines import UnavailableEngine, get_engine
 

@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness import metrics
 from stereodyn.harness.cases import find_case, load_suite
 from stereodyn.harness.engines import get_engine
@@ -43,6 +43,22 @@ def test_work_energy_balance_holds_in_the_truth_and_fails_without_the_work():
     assert np.max(deviation) / scale <= 1e-12
     energy = sum(torques.energy_terms(case.body, times, result.quat, result.omega).values())
     assert np.ptp(energy) / scale > 1e-2  # control: the energy itself changes
+
+
+@pytest.mark.parametrize("name", ["self-excited-conic", "central-field-turning"])
+def test_the_torqued_energy_drift_is_relative(name):
+    """energy_drift under a torque is the balance's deviation over its scale (DESIGN §4): a body 8x heavier under an
+    8x torque moves the same way, with 8x the energy and work, and has the same drift."""
+    case = find_case(name)
+    grid = time_grid(2.0, 0.05, 41)
+    traj = get_engine("pinocchio").prepare(case, "euler", 0.05).run(grid)  # coarse Euler: a drift far from 0
+    heavier = dataclasses.replace(  # the gravity-gradient torque 3 mu / r^3 (k x I k) scales with I by itself
+        case, inertia=8.0 * case.inertia,
+        body_torque=case.body_torque and dataclasses.replace(case.body_torque, a=8.0 * case.body_torque.a,
+                                                             b=8.0 * case.body_torque.b))
+    drift = metrics.drifts(case, traj, ("energy",))["energy_drift"]
+    scaled = metrics.drifts(heavier, traj, ("energy",))["energy_drift"]
+    assert 1e-6 < drift < 1.0 and scaled == pytest.approx(drift, rel=1e-12)
 
 
 @pytest.mark.parametrize("name", ["central-field-fixed", "central-field-turning"])

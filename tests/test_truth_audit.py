@@ -12,7 +12,7 @@ from stereodyn.harness import cli
 from stereodyn.harness.cases import find_case
 from stereodyn.harness.store import read_manifest
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
-from stereodyn.reference.truth import ANGLE_ROUNDING, UNIT_ROUNDOFF
+from stereodyn.reference.truth import ANGLE_ROUNDING, UNIT_ROUNDOFF, truth, truth_bound
 
 T_END = 40.0
 ORDER = 30          # Taylor order of the mpmath reference
@@ -147,6 +147,36 @@ def test_attitude_angle_rounding_is_within_its_stated_allowance():
     with mp.workdps(40):
         worst = max(abs(computed[i] - exact_angle(first[i], _unit(second[i]))) for i in range(len(first)))
     assert 0 < worst <= ANGLE_ROUNDING / 1.5  # measured 8.9u over 2e5 pairs (6-8u over 3000); allowance 16u
+
+
+@pytest.mark.skipif(np.finfo(np.longdouble).eps > 1e-18, reason="needs an extended long double (x86-64, 64 bits)")
+def test_truth_err_covers_two_comparisons_at_their_worst_measured_rounding():
+    """truth_err = a + the allowance, a the float64 angle between the double and the real128 truth. It must cover our
+    comparison's rounding and an auditor's (each at the worst measured here: the float64 attitude_angle against the
+    exact angle of 200 000 random pairs 1e-16..1e-12 rad apart, in long double), plus 2u for rounding the real128
+    truth to float64 and 2u for the auditor's reference (reference.truth, above ATTITUDE_ALLOWANCE). Measured: worst
+    8.8u, so the bound needs >= a + 21.6u; it has a + 36u (a halved allowance, 18u, fails)."""
+    rng = np.random.default_rng(2024)
+    first = rng.normal(size=(200_000, 4))
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    second = first + rng.normal(size=first.shape) * 10.0 ** rng.uniform(-16, -12, size=(len(first), 1))
+    second /= np.linalg.norm(second, axis=1, keepdims=True)
+    computed = attitude_angle(quat_to_matrix(first), quat_to_matrix(second))
+    p, q = (x.astype(np.longdouble) / np.linalg.norm(x.astype(np.longdouble), axis=1, keepdims=True)
+            for x in (first, second))
+    (w1, x1, y1, z1), (w2, x2, y2, z2) = p.T, q.T
+    vec = np.stack([w1 * x2 - w2 * x1 - (y1 * z2 - z1 * y2), w1 * y2 - w2 * y1 - (z1 * x2 - x1 * z2),
+                    w1 * z2 - w2 * z1 - (x1 * y2 - y1 * x2)])
+    exact = 2 * np.arctan2(np.sqrt((vec * vec).sum(axis=0)), np.abs(w1 * w2 + x1 * x2 + y1 * y2 + z1 * z2))
+    worst = float(np.max(np.abs(computed - exact)))
+    assert worst > 4 * UNIT_ROUNDOFF  # the search does find rounding well above a single u
+    case = find_case("free-asymmetric")
+    times = np.linspace(0.0, 2.0, 11)
+    double = truth(case.body, case.quat0, case.omega0, times, precision="double")
+    quad = truth(case.body, case.quat0, case.omega0, times, precision="quad")
+    a = float(np.max(attitude_angle(quat_to_matrix(double.quat), quat_to_matrix(quad.quat))))
+    bound = truth_bound(case.body, case.quat0, case.omega0, times).attitude
+    assert bound >= a + 2 * worst + 4 * UNIT_ROUNDOFF, (bound / UNIT_ROUNDOFF, a / UNIT_ROUNDOFF, worst / UNIT_ROUNDOFF)
 
 
 def _unit(q: np.ndarray) -> list:

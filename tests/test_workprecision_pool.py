@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 from child_processes import ended, started_since
 
-from stereodyn.harness import runner, workprecision
+from stereodyn.harness import runner
+from stereodyn.harness.analysis import workprecision
 from stereodyn.harness.cases import find_case, with_overrides
 
 ROOT = Path(__file__).resolve().parents[1]

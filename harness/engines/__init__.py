@@ -29,8 +29,12 @@ def _entry_points() -> dict[str, EntryPoint]:
                               f"({found[entry.name].value} and {entry.value})")
         found[entry.name] = entry
     builtin = ("mujoco", "pinocchio", TRUTH_ENGINE)
-    return {name: found[name] for name in sorted(found, key=lambda n: (n not in builtin, builtin.index(n)
-                                                                        if n in builtin else 0, n))}
+
+    def rank(name: str) -> tuple:  # the built-ins, then stereodyn's optional extras, then third parties, by name
+        own = found[name].value.startswith(__name__ + ".")
+        return (name not in builtin, not own, builtin.index(name) if name in builtin else 0, name)
+
+    return {name: found[name] for name in sorted(found, key=rank)}
 
 
 def engine_names() -> tuple[str, ...]:
@@ -56,11 +60,24 @@ class UnavailableEngine(Engine):
         raise RuntimeError(self.reason)
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is among the causes of exc (an extension module's init wraps it in ImportError)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def _load(name: str, entry: EntryPoint) -> Engine:
     where = f"engine plug-in {name!r} ({entry.value})"
     try:
         cls = entry.load()
     except ImportError as exc:  # its SDK (or the plug-in's own module) is missing: its runs are skipped
+        if _interrupted(exc):  # not missing: Ctrl-C while it loaded (pybind11 reports it as "initialization failed")
+            raise KeyboardInterrupt from exc
         return UnavailableEngine(name, f"{name} engine unavailable: {exc}")
     except Exception as exc:
         raise EngineError(f"{where}: does not load: {type(exc).__name__}: {exc}".splitlines()[0]) from exc

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -12,6 +13,31 @@ from stereodyn.reference.torques import PRECESSION_SINGULAR_ANGLE, transverse_an
 if TYPE_CHECKING:
     from stereodyn.harness.scenes.cases import Case
     from stereodyn.harness.grid import TimeGrid
+
+
+# Floating-point precision of a run (results.csv `precision`): part of a row's identity. A table without the column
+# (stereodyn 0.2.0) holds float64 runs.
+FLOAT64, FLOAT32 = "float64", "float32"
+PRECISIONS = (FLOAT64, FLOAT32)
+# Unit round-off of each precision: the order fitter's round-off margin uses the row's own (harness.fitting).
+EPS = {FLOAT64: float(np.finfo(np.float64).eps), FLOAT32: float(np.finfo(np.float32).eps)}
+
+
+@dataclass(frozen=True)
+class KnownDeviation:
+    """A documented way an engine's integrator departs from what it declares, with its upstream reference.
+
+    quantity: what is measured ("order": the fitted convergence order, harness.verdicts); expected: the value the
+    deviation predicts, matched within tolerance; reference: where upstream documents (or fixes) it. While the
+    measurement matches it the integrator's verdict reads `known` (not failed; --strict passes); when it stops
+    matching and meets the declared value instead, the verdict reads `fixed upstream?`.
+    """
+
+    integrator: str
+    quantity: str
+    expected: float
+    tolerance: float
+    reference: str
 
 
 class Simulation(Protocol):
@@ -43,6 +69,8 @@ class Engine:
     packages: tuple[str, ...] = ()
     # Model formats `stereodyn export` can write through export(case, fmt, integrator, dt).
     export_formats: tuple[str, ...] = ()
+    # Documented departures of this engine's integrators from their declared behaviour (KnownDeviation).
+    known_deviations: tuple[KnownDeviation, ...] = ()
 
     # ---------------------------------------------------------------------------------------------- required
 
@@ -61,7 +89,7 @@ class Engine:
         or not passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine
         says otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
         absolute tolerance (scipy: rtol = atol = tol; heyoka: tol; Drake: set_target_accuracy(tol)). The tolerance
-        ladders (harness.run.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
+        ladders (harness.analysis.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
         adaptive run's Trajectory fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0
         where the method has them.
         """
@@ -81,6 +109,19 @@ class Engine:
 
         return integrators.in_default_sweep(integrator)
 
+    def precisions(self, integrator: str) -> tuple[str, ...]:
+        """The floating-point precisions (FLOAT64, FLOAT32) the integrator runs in, each a row of its own. Default:
+        float64 only. An engine declaring anything else gets prepare(..., precision=...) on every run."""
+        return (FLOAT64,)
+
+    def method(self, integrator: str) -> str:
+        """What the integrator is, in the vocabulary of harness.engines.methods ("semi_implicit_euler", "rk4", ...):
+        runs of the same method and dt on a case are compared across engines (agreement.csv). Default: the
+        registry's method of a registered integrator; "" (compared with nothing) for one it does not know."""
+        from .methods import registered_method  # (not `from . import methods`: the package imports this module)
+
+        return registered_method(integrator, self.state_space or "lie")
+
     def adaptive(self, integrator: str) -> bool:
         """Whether an integrator chooses its own steps (its runs have dt None; prepare takes tolerance=...). Default:
         none does."""
@@ -91,6 +132,11 @@ class Engine:
         case (harness.run.plan). Default: every pair. An engine leaves out costly variants whose findings a smaller
         selection already shows; naming the integrator runs it everywhere."""
         return True
+
+    def default_dts(self, case: "Case", integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
+        """The steps of the case's dt list a sweep that names no integrators runs. Default: all of them; an engine
+        that costs milliseconds a step keeps a coarse one."""
+        return dts
 
     def unsupported_run(self, case: "Case", formulation: str, integrator: str) -> str | None:
         """Why one formulation/integrator pair cannot model the case (the run is `skipped`), or None (default)."""

@@ -23,7 +23,9 @@ LeafSystem from the context's time and state at every derivative evaluation, eve
 """
 from __future__ import annotations
 
+import logging
 import math
+import time
 
 import numpy as np
 
@@ -35,16 +37,25 @@ EPS = float(np.finfo(float).eps)
 # in 4000 at dt = 1e-3, each a full step's cost). The slack lets the m-th step absorb it; every step is still dt to
 # within 8 eps steps relative (2e-9 at 1e6 steps), and the run takes exactly `steps` steps (tests/test_drake.py).
 STRETCH_ULPS = 8.0
+
+def _not_an_interrupt(record) -> bool:
+    """pydrake logs a Ctrl-C during its import as a multi-line CRITICAL record; the interrupt itself propagates
+    (harness.engines) and the command ends in one line."""
+    return "KeyboardInterrupt" not in record.getMessage()
+
+
+logging.getLogger("drake").addFilter(_not_an_interrupt)
 try:
     from pydrake.common.eigen_geometry import Quaternion
     from pydrake.math import RollPitchYaw
     from pydrake.multibody.plant import MultibodyPlant
     from pydrake.multibody.tree import BallRpyJoint, QuaternionFloatingJoint, SpatialInertia, UnitInertia
     from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
-    from pydrake.systems.framework import DiagramBuilder, LeafSystem
+    from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
@@ -80,6 +91,12 @@ DEFAULT_TOLERANCE = 1e-8
 # (the discrete plant is Drake's first-order method), bogacki_shampine3 (a second RK3) and the implicit schemes
 # (3-10x an explicit step: Newton iterations, Jacobians by finite differences). Measured cost of the default sweep's
 # Drake rows: docs/ENGINES.md.
+# What each scheme is (harness.engines.methods); the discrete plant's update is semi-implicit Euler. Drake's models step
+# other coordinates than the ball-joint engines (roll-pitch-yaw, a free quaternion), so a first-order method agrees
+# with theirs only to O(dt).
+METHODS = {DISCRETE: "semi_implicit_euler", "explicit_euler": "explicit_euler", "semi_explicit_euler":
+           "semi_implicit_euler", "runge_kutta2": "rk2", "runge_kutta3": "rk3", "runge_kutta5": "rk5",
+           "implicit_euler": "implicit_euler"}
 DEFAULT_SWEEP = (DISCRETE, "runge_kutta2", "runge_kutta3", "runge_kutta3" + ADAPTIVE_SUFFIX)
 
 
@@ -214,12 +231,15 @@ class DrakeSimulation:
         # non-finite runs on as NaN at the same cost and the divergence rule is applied afterwards
         rows = [self.x0]
         advance, copy, append = self.simulator.AdvanceTo, vector.CopyToVector, rows.append
+        out_of_time = self._watch(budget.deadline())
         error = None
         try:
             for t in times[1:]:
                 advance(t)
                 append(copy())
         except (RuntimeError, ValueError, OverflowError) as exc:  # a Drake error ends the run at the context's time
+            if out_of_time():
+                raise budget.exceeded() from None
             error = exc
         stopped = context.get_time()
         recorded = len(rows)
@@ -251,6 +271,24 @@ class DrakeSimulation:
             omega[bad:] = np.nan
         return Trajectory(grid.times, quat, omega, status, message, diverged_at, int(steps), int(rhs_evals),
                           info={"torque_mode": self.torque_mode})
+
+    def _watch(self, deadline: float | None):
+        """The run's wall-time budget (harness.budget) as the simulator's monitor, called after every step (the steps
+        run in C++ inside AdvanceTo): past the deadline the step fails, and the returned function says so. No monitor
+        without a deadline (the timing phase's runs), so a timed step costs what it did."""
+        if deadline is None:
+            self.simulator.clear_monitor()
+            return lambda: False
+        clock, diagram, passed = time.monotonic, self.diagram, [False]
+
+        def monitor(context):
+            if clock() > deadline:
+                passed[0] = True
+                return EventStatus.Failed(diagram, "wall-time budget exceeded")
+            return EventStatus.Succeeded()
+
+        self.simulator.set_monitor(monitor)
+        return lambda: passed[0]
 
     def failure(self, error: Exception, stopped: float) -> str:
         text = str(error)
@@ -301,6 +339,10 @@ class DrakeEngine(Engine):
         if integrator == DISCRETE:
             return 1.0
         return float(FIXED_STEP.get(ADAPTIVE.get(integrator, integrator), math.nan))
+
+    def method(self, integrator: str) -> str:
+        """The adaptive runs have no dt to be compared at: none."""
+        return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
         # SpatialInertia::IsPhysicallyValid() refuses a body that breaks the triangle inequality

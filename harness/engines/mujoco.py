@@ -20,10 +20,14 @@ import os
 
 from xml.sax.saxutils import quoteattr
 
-import mujoco
-import numpy as np
-from mujoco import rollout
+# No rendering here: without this, importing mujoco imports glfw, which starts a Python subprocess to read its
+# library's version (~0.1 s in every process; a Ctrl-C during it printed that child's "Fatal Python error").
+os.environ.setdefault("MUJOCO_GL", "disable")
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+from mujoco import rollout  # noqa: E402
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                                           diverged_trajectory, sample_good, samples_good)
@@ -106,11 +110,12 @@ def mjcf(case: Case, integrator: str, dt: float) -> str:
     reason = _runtime_torques(case)
     if reason:
         raise ValueError(f"{case.name}: {reason}")
-    return _scene(case, integrator, dt)
+    return scene(case, integrator, dt)
 
 
-def _scene(case: Case, integrator: str, dt: float) -> str:
-    """mjcf() without the export's refusal of run-time torques."""
+def scene(case: Case, integrator: str, dt: float, model_name: str | None = None) -> str:
+    """mjcf() without the export's refusal of run-time torques (the MJX and MuJoCo Warp adapters build on it).
+    model_name: the model's name (default the case's)."""
     if integrator not in INTEGRATORS:
         raise KeyError(f"unknown MuJoCo integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
     body = case.body
@@ -122,7 +127,7 @@ def _scene(case: Case, integrator: str, dt: float) -> str:
                          f"(principal moments {moments})")
     gravity = body.gravity * np.asarray(body.gravity_direction, dtype=float)
     full_inertia = (inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2])
-    return f"""<mujoco model={quoteattr(case.name)}>
+    return f"""<mujoco model={quoteattr(case.name if model_name is None else model_name)}>
   <option timestep="{float(dt)!r}" gravity="{_numbers(gravity)}" integrator="{INTEGRATORS[integrator][0]}">
     <flag contact="disable" constraint="disable" equality="disable" frictionloss="disable" limit="disable"
           damper="disable" autoreset="disable"/>
@@ -141,7 +146,7 @@ class MujocoSimulation:
     """A compiled scene; run() rolls it out from the case's initial state (every call starts afresh)."""
 
     def __init__(self, case: Case, integrator: str, dt: float):
-        self.xml = _scene(case, integrator, dt)
+        self.xml = scene(case, integrator, dt)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
         self.stages = INTEGRATORS[integrator][1]
@@ -180,6 +185,7 @@ class MujocoSimulation:
         buffer = np.empty((1, min(CHUNK_STEPS, grid.steps), state.shape[1]))
         done, next_sample = 0, 1
         while done < grid.steps:
+            budget.check()  # the run's wall-time budget, between chunks (each ~10 ms of C)
             n = min(CHUNK_STEPS, grid.steps - done)
             rows = buffer[:, :n]  # first axis has length 1, so the slice is still C-contiguous
             # Row i of the output is the state after step done + i + 1. The shapes are right by construction, so the
@@ -255,8 +261,9 @@ class TorqueSimulation(MujocoSimulation):
         quat[0], omega[0] = data.qpos, data.qvel
         done = 0
         for index, target in enumerate(samples[1:].tolist(), start=1):
-            for _ in range(target - done):
-                step(model, data)
+            for piece in budget.pieces(done, target):
+                for _ in piece:
+                    step(model, data)
             done = target
             quat[index], omega[index] = data.qpos, data.qvel
             if not sample_good(quat[index].tolist(), omega[index].tolist(), self.limit2):
@@ -392,7 +399,7 @@ class LadderSimulation:
         state[0], speed[0], angle[0] = first, first[3], first[2]
         worst, sample = violation[0], 1
         model, data, step = self.model, self.data, mujoco.mj_step
-        for index in range(1, grid.steps + 1):
+        for index in (index for piece in budget.pieces(1, grid.steps + 1) for index in piece):
             step(model, data)
             current, off = self._planar()
             speed[index], angle[index] = current[3], current[2]
@@ -426,6 +433,10 @@ class LadderSimulation:
 # Declared orders of MuJoCo's integrators (ENGINES.md: its Euler is semi-implicit, implicit/implicitfast are first
 # order, RK4 on a ball joint is RKMK, 4th order in MuJoCo 4).
 ORDERS = {"euler": 1, "implicit": 1, "implicitfast": 1, "rk4": 4}
+# What each integrator is (harness.engines.methods): Euler updates the velocity first; implicitfast on a ball joint is
+# the same update (its gyroscopic treatment is for free bodies: bit-identical here, ENGINES.md); implicit is MuJoCo's
+# own.
+METHODS = {"euler": "semi_implicit_euler", "implicitfast": "semi_implicit_euler", "rk4": "rk4"}
 DEFAULT_MJCF_INTEGRATOR = "rk4"
 
 
@@ -439,6 +450,9 @@ class MujocoEngine(Engine):
 
     def declared_order(self, integrator: str) -> float:
         return float(ORDERS.get(integrator, math.nan))
+
+    def method(self, integrator: str) -> str:
+        return METHODS.get(integrator, "")
 
     def torque_mode(self, case: Case) -> str:
         return torque_mode(case)

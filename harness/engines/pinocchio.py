@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from stereodyn.harness import integrators
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory
 from stereodyn.harness.engines.base import Engine, precession_singular
@@ -354,8 +355,9 @@ class PinocchioLadderSimulation:
         step, dt, done = self.integrator.stepper(self.system, grid.dt), grid.dt, 0
         with np.errstate(all="ignore"):
             for sample, target in enumerate(samples[1:].tolist(), start=1):
-                for k in range(done, target):
-                    _, y = step(k * dt, None, y)
+                for piece in budget.pieces(done, target):
+                    for k in piece:
+                        _, y = step(k * dt, None, y)
                 done = target
                 state[sample] = y
                 if not np.all(np.isfinite(y)):

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereodyn.harness import integrators
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
 from stereodyn.harness.engines.base import Engine, precession_singular
@@ -65,7 +66,8 @@ class TaylorSimulation:
 
     def run(self, grid: TimeGrid) -> Trajectory:
         result = ref_formulations.integrate_taylor(self.formulation, self.case.body, self.case.quat0, self.case.omega0,
-                                                   grid.times, chart_changes=self.chart_changes, tol=self.tol)
+                                                   grid.times, chart_changes=self.chart_changes, tol=self.tol,
+                                                   deadline=budget.deadline())  # OutOfTime: the run's budget
         status = Status.DIVERGED if result.message else Status.OK
         return Trajectory(grid.times, result.quat, result.omega, status, result.message, result.stopped_at,
                           steps=result.steps, info={"wall_s": result.wall_s}, chart_changes=result.chart_changes)
@@ -120,7 +122,7 @@ class SlidingLadderEquation:
         self.ladder = ladder
 
     def run(self, grid: TimeGrid) -> SlidingLadderTrajectory:
-        motion = ref_ladder.solve(self.ladder, grid.times)
+        motion = ref_ladder.solve(self.ladder, grid.times, deadline=budget.deadline())
         state = ref_ladder.planar_state(self.ladder, motion.theta, motion.theta_dot)
         return SlidingLadderTrajectory(grid.times, state, ref_ladder.constraint_violation(self.ladder, state),
                                        steps=grid.steps, detach_angle=motion.detach_angle)

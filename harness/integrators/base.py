@@ -19,6 +19,7 @@ from typing import Callable, ClassVar, Protocol
 
 import numpy as np
 
+from stereodyn.harness import budget
 from stereodyn.harness.trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
                                           sample_good)
 from stereodyn.harness.grid import TimeGrid
@@ -127,8 +128,9 @@ class Integrator(abc.ABC):
             for target in grid.sample_steps[1:].tolist():
                 g_last, v_last, start = g, v, done
                 try:
-                    for k in range(done, target):
-                        g, v = step(k * dt, g, v)  # t = k dt, not a running sum: no drift of t over 1e6 steps
+                    for piece in budget.pieces(done, target):  # the run's wall-time budget, checked between pieces
+                        for k in piece:
+                            g, v = step(k * dt, g, v)  # t = k dt, not a running sum: no drift of t over 1e6 steps
                 except ArithmeticError as exc:
                     bad_step, g_good = first_bad_step(step, observe, g_last, v_last, start, target, dt, limit2)
                     return diverged_trajectory(grid, _padded(quats, 4, n), _padded(omegas, 3, n), len(omegas) // 3,

@@ -24,6 +24,7 @@ import math
 import numpy as np
 from scipy import integrate
 
+from stereodyn.harness import budget
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.vector import VectorSystem
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
@@ -77,6 +78,7 @@ class ScipyIVP:
                 solver = self.solver_class(fun, t, y, t_end, rtol=self.tol, atol=self.tol)
                 restart = False
                 while solver.status == "running" and not restart:
+                    budget.check()  # the run's wall-time budget
                     if steps >= self.max_steps:
                         status, message = Status.FAILED, (f"scipy {self.method}: more than {self.max_steps} steps "
                                                           f"before t = {t_end:g} s (stopped at t = {solver.t:.6g} s)")

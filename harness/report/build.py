@@ -16,13 +16,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.scenes import checks as theory_checks
-from stereodyn.harness import workprecision
-from stereodyn.harness.report import figures, html
-from stereodyn.harness.report.markdown import markdown_table as _md_table, number as _num, report_markdown
-from stereodyn.harness.run.processes import exit_with_parent
-from stereodyn.harness.run.results import read_results, write_atomic
-from stereodyn.harness.run.store import read_manifest, read_records
+from ..scenes import checks as theory_checks
+from ..analysis import workprecision
+from ..analysis.verdicts import failed_integrators, read as read_verdicts
+from . import figures, html
+from . import sections
+# the modules whose sections the page shows besides this one's and markdown's (each registers its own)
+from . import method, verdicts, workprecision as work_precision_sections  # noqa: F401
+from .markdown import markdown_table as _md_table, number as _num
+from ..run.processes import exit_with_parent
+from ..run.results import read_results, write_atomic
+from ..run.store import read_manifest, read_records
 
 FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
@@ -40,8 +44,9 @@ def _run_name(row) -> str:
 def summary_lines(df: pd.DataFrame, failed: set = frozenset()) -> list[str]:
     """Per case: the most accurate fixed-step run, and the cheapest one within SUMMARY_ACCURACY (adaptive runs are the
     truth and its relatives, not contenders) whose integrator passed its verdicts, as pareto.csv chooses (failed:
-    harness.verdicts.failed_integrators); where only runs that failed a verdict reach it, pareto.csv's words say so."""
-    from stereodyn.harness.pareto import NONE_REACHED, ONLY_FAILED, is_failed
+    harness.analysis.verdicts.failed_integrators); where only runs that failed a verdict reach it, pareto.csv's words
+    say so."""
+    from ..analysis.pareto import NONE_REACHED, ONLY_FAILED, is_failed
 
     rows = []
     for case, group in df.groupby("case", sort=False):
@@ -60,6 +65,20 @@ def summary_lines(df: pd.DataFrame, failed: set = frozenset()) -> list[str]:
     return _md_table(["case", "most accurate fixed-step run", "att_err",
                       f"cheapest fixed-step run with att_err <= {SUMMARY_ACCURACY:g}", "us per simulated s"],
                      rows) + [""]
+
+
+@sections.register("summary", 20)
+def _summary(context: sections.Context) -> list[str]:
+    df = context.results
+    counts = df["status"].value_counts()
+    return ["## Summary", "", f"{len(df)} runs over {df['case'].nunique()} cases: "
+            + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "",
+            *summary_lines(df, failed_integrators(read_verdicts(context.out_dir) or []))]
+
+
+@sections.register("oracle-and-theory-checks", 80)
+def _checks(context: sections.Context) -> list[str]:
+    return checks_lines(context.results, context.out_dir)
 
 
 def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool,
@@ -229,13 +248,7 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained:
     env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
     if env is not None:
         env["report rendered"] = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
-    from stereodyn.harness import verdicts
-    from stereodyn.harness.report.method import method_lines
-
-    front = workprecision.report_lines(out_dir, tolerance_paths) + method_lines(df, out_dir, series)
-    failed = verdicts.failed_integrators(verdicts.read(out_dir) or [])
-    markdown = report_markdown(df, summary=summary_lines(df, failed), sections=checks_lines(df, out_dir), env=env,
-                               verdicts=verdicts.report_lines(out_dir), front=front, case_extras=case_extras)
+    markdown = sections.render(sections.Context(out_dir, df, series, env, case_extras, tolerance_paths))
     figures_dir = out_dir / FIGURES_DIR
     figures_dir.mkdir(exist_ok=True)
     for path, png in images.items():

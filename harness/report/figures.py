@@ -12,9 +12,11 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
+from ...reference.integrals import INTEGRALS
+
 # Readable at 100% (issue 21 item 5): a figure is drawn at DPI and never wider than MAX_WIDTH_PX, the width report.html
-# gives a figure in a 1400 px wide window, so the browser shows it at its own size; its smallest text, MIN_FONT_PT, is then MIN_FONT_PT * DPI / 72 =
-# 10.7 px. Panels that do not fit side by side in MAX_WIDTH_PX wrap to the next row (tests/test_figures_readable.py
+# gives a figure in a 1400 px wide window, so the browser shows it at its own size; its smallest text, MIN_FONT_PT, is
+# then MIN_FONT_PT * DPI / 72 = 10.7 px. Panels that do not fit side by side in MAX_WIDTH_PX wrap to the next row (tests/test_figures_readable.py
 # measures every figure of a report in Chromium). At 1400 px Chromium gives a case's figure 1337 px (1385 px of body
 # less its padding, the <details> border and indent).
 DPI = 96
@@ -26,14 +28,14 @@ TITLE_FONT_PT = 10    # panel titles
 SUPTITLE_FONT_PT = 11
 PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
-QUANTITIES = {"energy": "energy |E−E₀|/scale", "momentum": "momentum drift", "lagrange": "Lagrange ω₃ drift",
-              "kovalevskaya": "Kovalevskaya integral", "chaplygin": "Goryachev–Chaplygin",
-              "hess": "Hess K·k drift", "self_excited": "self-excited (36)", "attitude_err": "attitude error (rad)"}
+# (The registry's integrals with a label, reference.integrals, then the attitude error.)
+QUANTITIES = {**{name: i.label for name, i in INTEGRALS.items() if i.label is not None},
+              "attitude_err": "attitude error (rad)"}
 
 
 def linestyle(engine: str) -> str:
     """The engine's line style (Engine.linestyle); an engine no longer registered gets the base class's."""
-    from stereodyn.harness.engines import Engine, EngineError, get_engine
+    from ..engines import Engine, EngineError, get_engine
 
     try:
         return get_engine(engine).linestyle

@@ -14,11 +14,13 @@ import math
 import re
 from pathlib import Path
 
+from ...reference.integrals import INTEGRALS
+
 # Log10 range of the colour scale: 1e-16 (round-off) is green, 1 (nothing left of the quantity) is red.
 GRADE_RANGE = (-16.0, 0.0)
 STATUS_COLOURS = {"ok": "#d9f2d9", "diverged": "#ffd699", "failed": "#ff9f9f", "skipped": "#e0e0e0"}
-GRADED_HEADERS = {"energy", "momentum", "casimir", "lagrange", "kovalevskaya", "chaplygin", "hess", "att_err",
-                  "omega_err", "error"}
+# Headers whose cells are coloured by size: the registry's graded drift columns (reference.integrals) and the errors.
+GRADED_HEADERS = {*(i.short for i in INTEGRALS.values() if i.graded), "att_err", "omega_err", "error"}
 
 CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 110em; padding: 0 1em; color: #222; }

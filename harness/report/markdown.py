@@ -1,33 +1,30 @@
 """The drift table in the terminal and report.md."""
 from __future__ import annotations
 
-import math
-import re
+import textwrap
 from typing import Sequence
 
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.environment import environment
+from ..analysis.text import grouped_reasons, number, reason  # noqa: F401 (number, reason: part of this API)
+from ..environment import environment
+from . import sections
 
-TERMINAL_COLUMNS = ("engine", "formulation", "integrator", "dt", "status", "energy_drift", "momentum_drift",
-                    "casimir_drift",
-                    "lagrange_drift", "kovalevskaya_drift", "chaplygin_drift", "hess_drift", "attitude_err",
+from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS
+
+# The drift tables' columns: every drift column of the registry (reference.integrals), a case's table showing those it
+# has (_shown_columns).
+TERMINAL_COLUMNS = ("engine", "formulation", "integrator", "dt", "status", *DRIFT_COLUMNS, "attitude_err",
                     "omega_err", "truth_err", "us_per_step")
-SHORT = {"energy_drift": "energy", "momentum_drift": "momentum", "casimir_drift": "casimir",
-         "lagrange_drift": "lagrange", "kovalevskaya_drift": "kovalevskaya", "chaplygin_drift": "chaplygin",
-         "hess_drift": "hess", "attitude_err": "att_err", "omega_err": "omega_err", "us_per_step": "us/step",
-         "chart_changes": "charts"}
+SHORT = {**{integral.column: integral.short for integral in INTEGRALS.values()}, "attitude_err": "att_err",
+         "omega_err": "omega_err", "us_per_step": "us/step", "chart_changes": "charts"}
 
-DEFINITIONS = """\
+DEFINITIONS_TEMPLATE = """\
 - *_drift: max over the samples of |I(t) - I(0)| / scale, scale = the sum of the absolute values of the integral's
-  terms at t = 0 (for a vector or a dot product, the norms). energy: kinetic + potential of uniform gravity;
-  momentum: the world angular momentum K about O for a torque-free body, its vertical component K.d under gravity;
-  casimir: | |q|^2 - 1 | of the recorded quaternion (= ||H| - 1| for the heavy body); lagrange: omega along the
-  symmetry axis; kovalevskaya: |(p1 + i p2)^2 + (m g / A3)(c1 + i c2)(H1 + i H2)|^2 with H the downward vertical in
-  body axes; chaplygin: (p1^2 + p2^2) p3 + lambda^2 p1 H3; hess: K.k. A special integral is shown only on cases that
-  meet its conditions (FORMULARY G5-G8), NaN elsewhere. Every integral is computed from the recorded states by the same
-  code for every engine, never from an engine's own energy.
+  terms at t = 0 (for a vector or a dot product, the norms). {integrals}. A special integral is shown only on cases
+  that meet its conditions (FORMULARY G5-G8, G12), NaN elsewhere. Every integral is computed from the recorded states
+  by the same code for every engine, never from an engine's own energy.
 - attitude_err / attitude_err_end: max / final geodesic angle (rad) between the run's attitude and the truth's at the
   same times, up to the case's horizon; omega_err: max |omega - omega_truth| / max |omega_truth|.
 - truth: engine reference, integrator taylor (heyoka, adaptive, tolerance 1e-16); truth_err (rad) and
@@ -58,8 +55,7 @@ DEFINITIONS = """\
   conserved because the scene is stationary in the frame turning with the orbit (its Lagrangian in the relative
   angular velocity omega - Omega R^T z does not depend on time, and J is its Jacobi function); a body torque on top
   adds the work of M along omega - Omega R^T z. momentum: K.D along a fixed field's direction D (NaN otherwise).
-  self_excited: the conic-cylinder invariant (36) A1/(A2-A3) p1^2 - A2/(A3-A1) p2^2 in the principal frame with i3
-  along the torque axis (any torque along i3, no other torque). precession_axis_drift: max |e(t) - e(0)| of the
+  precession_axis_drift: max |e(t) - e(0)| of the
   world precession axis (40) e = sin(theta)(omega - (omega.u)u)/|omega x u| + cos(theta) u under torque (41);
   NaN when a sample comes within 0.05 rad of omega || u, where (41) is singular. torque_mode: how the torque entered
   the engine: rhs (the reference's equations), qfrc_applied (MuJoCo, a constant torque set once), passive_callback
@@ -69,6 +65,14 @@ DEFINITIONS = """\
   (formulation column). energy_drift: the rod's energy 1/2 m|v_G|^2 + 1/2 (m l^2/3) theta'^2 + m g y_G;
   attitude_err: |theta - theta_equation| (rad), omega_err likewise for theta', up to the equation's detachment for the unilateral model. checks.csv: the
   detachment angle against arccos((2/3) cos theta0 + 4 l theta0'^2 / (9 g)), energy drift, constraint violation (m)."""
+# The registry's definitions (reference.integrals), one per drift column, in table order.
+def _definitions() -> str:
+    drifts, rest = DEFINITIONS_TEMPLATE.split("\n- ", 1)
+    drifts = drifts.replace("{integrals}", "; ".join(f"{i.name}: {i.definition}" for i in INTEGRALS.values()))
+    return textwrap.fill(" ".join(drifts.split()), width=118, subsequent_indent="  ") + "\n- " + rest
+
+
+DEFINITIONS = _definitions()
 
 
 def _fmt(value, column: str) -> str:
@@ -110,15 +114,6 @@ def drift_table_text(df: pd.DataFrame) -> str:
     return "\n".join(out)
 
 
-def number(value, spec: str = ".2e") -> str:
-    """A table cell for a number: '-' for NaN, the text itself for a non-number."""
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    return "-" if math.isnan(value) else format(value, spec)
-
-
 def markdown_table(header: list[str], rows: list[list]) -> list[str]:
     """The lines of a Markdown table."""
     # A bar inside a cell (a message about |omega|, say) would end the cell: escape it.
@@ -134,35 +129,6 @@ def _markdown_table(cells: list[list[str]]) -> str:
 PROBLEMS = "Runs that did not complete"
 # Runs named per reason in "Runs that did not complete" (the CSV files hold every row).
 REASON_EXAMPLES = 3
-
-
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-
-
-def reason(message) -> str:
-    """A message with its numbers replaced by '…', so runs that stopped for the same reason share it."""
-    text = message if isinstance(message, str) else ""
-    return _NUMBER.sub("…", text).strip() or "(no message)"
-
-
-def _subject(row) -> str:
-    formulation = row.get("formulation", "")
-    formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
-    dt = row.get("dt")
-    dt = f" dt={dt:g}" if isinstance(dt, float) and np.isfinite(dt) else ""
-    return f"{row['case']} {row['engine']}{formulation} {row['integrator']}{dt}"
-
-
-def grouped_reasons(df: pd.DataFrame, statuses=("failed", "diverged", "skipped")) -> list[dict]:
-    """Runs that did not complete, one entry per (status, reason): count and the runs, most frequent first
-    (failures before divergences before skips on a tie)."""
-    rank = {s: i for i, s in enumerate(statuses)}
-    rows = df[df["status"].isin(statuses)]
-    groups: dict[tuple[str, str], list[str]] = {}
-    for _, row in rows.iterrows():
-        groups.setdefault((row["status"], reason(row.get("message"))), []).append(_subject(row))
-    entries = [{"status": s, "reason": r, "count": len(runs), "runs": runs} for (s, r), runs in groups.items()]
-    return sorted(entries, key=lambda e: (rank[e["status"]], -e["count"], e["reason"]))
 
 
 def problem_lines(df: pd.DataFrame) -> list[str]:
@@ -204,29 +170,43 @@ def case_lines(case: str, group: pd.DataFrame, extras: Sequence[str] = ()) -> li
     return lines + list(extras)
 
 
-def report_markdown(df: pd.DataFrame, summary: Sequence[str] = (), sections: Sequence[str] = (),
-                    env: dict[str, str] | None = None, verdicts: Sequence[str] = (), front: Sequence[str] = (),
-                    case_extras: dict[str, list[str]] | None = None) -> str:
-    """report.md, answers first: verdicts, summary, `front` (what to use, convergence, each integrator), the runs that
-    did not complete (grouped), formulations side by side, then a section per case (drift table and
-    case_extras[case], its figures), then `sections` (checks), definitions and the environment."""
-    counts = df["status"].value_counts()
-    lines = ["# stereodyn report", "", *verdicts, "## Summary", "",
-             f"{len(df)} runs over {df['case'].nunique()} cases: "
-             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "", *summary]
-    lines += [*front, *problem_lines(df), *formulation_lines(df)]
-    lines += ["## Cases", "",
-              "Per case: the drift table (DESIGN §4; every column in results.csv), the work–precision figure (max "
-              "attitude error against µs of stepping per simulated second, a panel per engine and formulation, "
-              "each integrator's points joined along dt, the dt ladder's included) and the invariants against time "
-              "(energy, momentum and the case's special integral, relative to their scale, and the attitude error: "
-              "the maximum over buckets of samples).", ""]
-    extras = case_extras or {}
-    for case, group in df.groupby("case", sort=False):
-        lines += case_lines(case, group, extras.get(case, ()))
-    lines += [*sections, "## Definitions", "", DEFINITIONS, "", "## Environment", ""]
-    lines += [f"- {key}: {value}" for key, value in (env or environment()).items()]
-    return "\n".join(lines) + "\n"
+@sections.register("title", 0)
+def _title(context: sections.Context) -> list[str]:
+    return ["# stereodyn report", ""]
+
+
+@sections.register("runs-that-did-not-complete", 50)
+def _problems(context: sections.Context) -> list[str]:
+    return problem_lines(context.results)
+
+
+@sections.register("formulations-side-by-side", 60)
+def _formulations(context: sections.Context) -> list[str]:
+    return formulation_lines(context.results)
+
+
+@sections.register("cases", 70)
+def cases_lines(context: sections.Context) -> list[str]:
+    """A section per case: its drift table, its divergences and its figures."""
+    lines = ["## Cases", "",
+             "Per case: the drift table (DESIGN §4; every column in results.csv), the work–precision figure (max "
+             "attitude error against µs of stepping per simulated second, a panel per engine and formulation, "
+             "each integrator's points joined along dt, the dt ladder's included) and the invariants against time "
+             "(energy, momentum and the case's special integral, relative to their scale, and the attitude error: "
+             "the maximum over buckets of samples).", ""]
+    for case, group in context.results.groupby("case", sort=False):
+        lines += case_lines(case, group, context.case_figures.get(case, ()))
+    return lines
+
+
+@sections.register("definitions", 90)
+def _definitions_section(context: sections.Context) -> list[str]:
+    return ["## Definitions", "", DEFINITIONS, ""]
+
+
+@sections.register("environment", 100)
+def _environment(context: sections.Context) -> list[str]:
+    return ["## Environment", "", *(f"- {key}: {value}" for key, value in (context.env or environment()).items())]
 
 
 FORMULATION_COLUMNS = ("formulation", "integrator", "dt", "status", "chart_changes", "energy_drift", "attitude_err",

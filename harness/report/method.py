@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.report.markdown import markdown_table, number
-from stereodyn.harness.testing import energy_noise
+from ..testing import energy_noise
+from . import sections
+from .markdown import markdown_table, number
 
 # Accuracy targets (max attitude error, rad) of the cost comparison.
 COST_TARGETS = (1e-3, 1e-6, 1e-9)
@@ -39,8 +40,8 @@ def origin(cls) -> str:
 def integrator_rows() -> list[dict]:
     """Every integrator `stereodyn run --integrators` accepts: the registry's classes (each state space) with their
     metadata and origin, then each engine's own integrators (MuJoCo's) that the registry does not hold."""
-    from stereodyn.harness import integrators as registry
-    from stereodyn.harness.engines import engine_names, get_engine
+    from .. import integrators as registry
+    from ..engines import engine_names, get_engine
 
     rows = []
     for space in registry.state_spaces():
@@ -60,7 +61,7 @@ def integrator_rows() -> list[dict]:
             continue
         for name in names:
             if name not in known:
-                from stereodyn.harness.fitting import declared_order
+                from ..analysis.fitting import declared_order
 
                 rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
                              "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
@@ -136,7 +137,7 @@ def cost_ratios(runs: pd.DataFrame, integrator: str, builtin: set[str], targets=
 
 def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | None = None) -> list[str]:
     """The report section "Each integrator (your method)": a subsection per integrator that ran."""
-    from stereodyn.harness import workprecision
+    from ..analysis import workprecision
 
     ran = [i for i in dict.fromkeys(df.loc[df["status"] == "ok", "integrator"].astype(str)) if i != "taylor"]
     if not ran:
@@ -182,3 +183,8 @@ def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | No
         rows.append([name, row.get("origin", "?"), _text(declared), orders, stable, floor, trend,
                      *[costs[t] for t in COST_TARGETS]])
     return lines + markdown_table(header, rows) + [""]
+
+
+@sections.register("each-integrator", 40)
+def _each_integrator(context: sections.Context) -> list[str]:
+    return method_lines(context.results, context.out_dir, context.series)

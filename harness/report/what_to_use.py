@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from stereodyn.harness.pareto import ANY, TIE_MAX_RATIO, TIE_RTOL, run_name, scope_rows, scopes, setting
-from stereodyn.harness.report.markdown import markdown_table, number
+from ..analysis.pareto import ANY, TIE_MAX_RATIO, TIE_RTOL, run_name, scope_rows, scopes, setting
+from .markdown import markdown_table, number
 
 
 def what_to_use_lines(table: pd.DataFrame) -> list[str]:

@@ -91,6 +91,8 @@ def plan(cases: list[Case], engines: list[str], integrators: list[str] | None) -
             reason = engine.unsupported(case)
             for integrator_rank, integrator in enumerate(chosen or ([""] if reason else [])):
                 dts = (None,) if integrator and engine.adaptive(integrator) else case.dt
+                if integrator and integrators is None and dts != (None,):
+                    dts = engine.default_dts(case, integrator, tuple(dts))
                 for formulation_rank, formulation in enumerate(formulations):
                     if integrator and integrators is None and not engine.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)

@@ -1,25 +1,148 @@
-"""Worker processes that never outlive the command: a pool worker exits within PARENT_POLL_S of its parent's death.
+"""Worker processes that never outlive the command, and never take its Ctrl-C.
 
 A SIGKILLed parent cannot end its pool; spawned workers then wait on their task queue forever (two idle ~185 MB
-workers and the multiprocessing resource tracker were seen alive 4 minutes after a SIGKILL), and the tracker lives as
-long as they do. Each worker therefore watches its parent from a daemon thread and exits when it is gone.
+workers and the multiprocessing resource tracker were seen alive 60 s after a SIGKILL), and the tracker lives as long
+as they do. A worker is tied to its parent from its first moment, whatever the start method:
+- the parent names itself in the environment (PARENT_ENV) before it starts one, so a worker knows whose child it is
+  even when that parent died before the worker ran a line (os.getppid() is then already init's: a watch started from
+  it would wait forever, as the pool initializer's did);
+- a spawned worker ties itself to the parent when stereodyn is first imported in it (stereodyn/__init__.py calls
+  worker_started), before the seconds of numpy and SDK imports that precede the pool initializer; a forked one in the
+  initializer (exit_with_parent);
+- the tie is the kernel's parent-death signal (Linux prctl PR_SET_PDEATHSIG: SIGKILL the moment the parent dies, even
+  inside a long C call that holds the GIL) and a thread that polls the parent every PARENT_POLL_S (elsewhere, and as a
+  second line).
+Ctrl-C reaches the whole process group; the parent handles it (stops the sweep, ends its workers). A worker ignores it
+from its start: the parent blocks SIGINT while it starts workers (the mask survives fork and exec; the kernel holds a
+blocked signal, so the parent's own Ctrl-C meanwhile is delivered when the block ends, never dropped) and the worker
+ignores it before it unblocks it, so no worker prints a traceback or a second "interrupted" line.
 """
 from __future__ import annotations
 
 import os
+import signal
+import sys
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
-PARENT_POLL_S = 0.5   # a killed sweep's workers are gone ~0.5 s later, well inside the 5 s the issue allows
+PARENT_POLL_S = 0.5   # the thread's poll: a killed sweep's workers are gone ~0.5 s later at the latest
+PARENT_ENV = "STEREODYN_POOL_PARENT"  # the pid of the process that starts workers (set by starting_workers)
+# The multiprocessing resource tracker, when its clients were killed, warns about the semaphores they left (it cleans
+# them up itself): noise for a user who pressed Ctrl-C or whose run was killed. It inherits the environment.
+_TRACKER_WARNING = "ignore:resource_tracker:UserWarning"
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
-def _watch(parent: int) -> None:
+def _parent_death_signal() -> bool:
+    """Ask the kernel to SIGKILL this process when its parent dies (Linux); False where that is not available."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _watch_pid(parent: int) -> None:
     while True:
         time.sleep(PARENT_POLL_S)
         if os.getppid() != parent:  # re-parented (to init or a subreaper): the parent is dead
             os._exit(1)
 
 
+def _watch_sentinel(sentinel: int) -> None:
+    from multiprocessing.connection import wait
+
+    wait([sentinel])  # readable (EOF) once the parent is gone: its end of the pipe closed with it
+    os._exit(1)
+
+
+def _watch(target, argument) -> None:
+    threading.Thread(target=target, args=(argument,), name=f"exit-with-parent-{target.__name__}", daemon=True).start()
+
+
 def exit_with_parent() -> None:
-    """Start the watch in this (worker) process; a pool initializer, or called first by one."""
-    threading.Thread(target=_watch, args=(os.getppid(),), name="exit-with-parent", daemon=True).start()
+    """The pool initializer's tie, whatever the start method: the parent-death signal on the process's parent, and a
+    thread that waits on multiprocessing's parent sentinel (the pipe from the process that made the pool: for the
+    forkserver method not the parent, which dies with it). Exits now when that process is gone already."""
+    import multiprocessing
+
+    _parent_death_signal()
+    parent = multiprocessing.parent_process()
+    if parent is None:  # not a multiprocessing child (called by hand): watch the parent's pid
+        _watch(_watch_pid, os.getppid())
+    else:
+        _watch(_watch_sentinel, parent.sentinel)
+
+
+def is_worker() -> bool:
+    """Whether this process is a worker that starting_workers started by spawn or forkserver (not a fork: a forked
+    worker runs no import, its pool initializer ties it)."""
+    return bool(os.environ.get(PARENT_ENV)) and "--multiprocessing-fork" in getattr(sys, "orig_argv", ())
+
+
+def worker_started() -> None:
+    """The first thing a spawned worker does (stereodyn/__init__.py): ignore Ctrl-C, tie itself to its parent, and
+    name itself the parent of any process it starts."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # ignored now: a pending one is dropped
+    parent = int(os.environ[PARENT_ENV])
+    _parent_death_signal()
+    if os.getppid() != parent:  # it died before the signal was armed (the signal covers every moment after)
+        os._exit(1)
+    _watch(_watch_pid, parent)
+    os.environ[PARENT_ENV] = str(os.getpid())
+
+
+@contextmanager
+def starting_workers() -> Iterator[None]:
+    """Around the code that starts worker processes: they know their parent (PARENT_ENV), start with Ctrl-C blocked,
+    and their resource tracker does not warn about what a killed process left. In this process a Ctrl-C meanwhile
+    is held and delivered at the end of the block (none is lost)."""
+    os.environ[PARENT_ENV] = str(os.getpid())
+    warnings = os.environ.get("PYTHONWARNINGS", "")
+    if _TRACKER_WARNING not in warnings.split(","):
+        os.environ["PYTHONWARNINGS"] = ",".join(w for w in (warnings, _TRACKER_WARNING) if w)
+    # The resource tracker first: starting it unblocks SIGINT in the calling thread (multiprocessing's own
+    # ensure_running), which would leave the workers started after it deaf to nothing.
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+
+# ------------------------------------------------------------------------------------------------------- Ctrl-C
+_interrupts: list[float] = []  # monotonic times of the Ctrl-Cs this process took (on_interrupt)
+
+
+def on_interrupt(signum, frame) -> None:
+    """The command's SIGINT handler: remember the interrupt, then raise KeyboardInterrupt as Python's own does. An
+    SDK that swallows or rewraps the KeyboardInterrupt (pybind11 turns one during a module's init into ImportError:
+    "initialization failed") cannot make the command end as if nothing happened: it ends with 130 (harness.cli)."""
+    _interrupts.append(time.monotonic())
+    raise KeyboardInterrupt
+
+
+def forget_interrupts() -> None:
+    """A new command starts (harness.cli.main, also called in-process by tests)."""
+    _interrupts.clear()
+
+
+def interrupted() -> bool:
+    """Whether this process took a Ctrl-C (on_interrupt)."""
+    return bool(_interrupts)
+
+
+def raise_if_interrupted(exc: BaseException) -> None:
+    """In an `except Exception` that records a failure as data: a failure the interrupt caused is no data."""
+    if interrupted():
+        raise KeyboardInterrupt from exc

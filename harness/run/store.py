@@ -298,11 +298,15 @@ class Store:
         record["row"] = _row_from_json(record["row"])
         return record
 
-    def put(self, key: str, identity: dict, row: dict, series: dict | None) -> None:
-        """Write one run's record atomically. row: the public columns (keys starting with "_" are dropped)."""
+    def put(self, key: str, identity: dict, row: dict, series: dict | None, budget: dict | None = None) -> None:
+        """Write one run's record atomically. row: the public columns (keys starting with "_" are dropped); budget:
+        for a run its wall-time budget stopped, which budget ({"what", "seconds"}, harness.budget.failed_row), so
+        that --resume redoes it only when that budget was raised (harness.budget.still_holds)."""
         public = {k: v for k, v in row.items() if not k.startswith("_")}
         record = {"format": FORMAT, "key": key, "identity": identity, "row": _plain(public),
                   "series": _plain(series)}
+        if budget is not None:
+            record["budget"] = _plain(budget)
         write_atomic(self.path(key), json.dumps(record, separators=(",", ":")) + "\n")
 
     def states_path(self, key: str) -> Path:

@@ -3,6 +3,7 @@ exceptions."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import multiprocessing
 import os
@@ -24,6 +25,7 @@ from ..scenes import oracles
 from ..scenes import series
 from ..scenes import sliding_ladder
 from . import timing
+from .. import budget
 from .. import integrators as integrator_registry
 from ..scenes.cases import SLIDING_LADDER, Case
 from ..engines import get_engine
@@ -32,7 +34,7 @@ from ..trajectory import Status, Trajectory
 from ..grid import TimeGrid, time_grid
 from .distributed import run_on_cluster
 from ..environment import environment as current_environment
-from .processes import exit_with_parent
+from .processes import exit_with_parent, raise_if_interrupted, starting_workers
 from .progress import ProgressBar
 from .results import frame, write_results
 from .store import Store, run_key
@@ -73,16 +75,20 @@ def truth_grid(case: Case) -> TimeGrid:
     return time_grid(case.t_end, case.t_end / (case.samples - 1), case.samples)
 
 
-def compute_truth(case: Case, dts: tuple[float, ...], certify: bool) -> CaseTruth:
+def compute_truth(case: Case, dts: tuple[float, ...], certify: bool, budget_s: float | None = None) -> CaseTruth:
+    """The case's truth on the union of its grids, certified by a real128 rerun when certify; both within the truth
+    budget (budget_s, default harness.budget's configured one): BudgetExceeded past it."""
     grids = [time_grid(case.t_end, dt, case.samples) for dt in dts] + [truth_grid(case)]
     times = np.unique(np.concatenate([g.times for g in grids]))
-    result = reference_truth.truth(case.body, case.quat0, case.omega0, times)
-    bound = reference_truth.TruthBound(math.nan, math.nan)
-    if certify:
-        horizon = case.horizon if case.horizon is not None else case.t_end
-        certified = truth_grid(case).times
-        bound = reference_truth.truth_bound(case.body, case.quat0, case.omega0,
-                                            certified[certified <= horizon * (1 + 1e-12)])
+    with budget.within("truth", budget.configured().truth_s if budget_s is None else budget_s):
+        result = reference_truth.truth(case.body, case.quat0, case.omega0, times, deadline=budget.deadline())
+        bound = reference_truth.TruthBound(math.nan, math.nan)
+        if certify:
+            horizon = case.horizon if case.horizon is not None else case.t_end
+            certified = truth_grid(case).times
+            bound = reference_truth.truth_bound(case.body, case.quat0, case.omega0,
+                                                certified[certified <= horizon * (1 + 1e-12)],
+                                                deadline=budget.deadline())
     return CaseTruth(times, result.quat, result.omega, bound.attitude, metrics.applicable_integrals(case),
                      oracles.exact_attitude(case, times), bound.omega)
 
@@ -101,44 +107,59 @@ def rhs_per_sim_s(spec: RunSpec, rhs_evals: int, steps: float, t_end: float) -> 
     return steps * _stages(spec.integrator) / t_end
 
 
-def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False) -> dict:
+def execute(spec: RunSpec, truth: CaseTruth | None, timed: bool = False,
+            budgets: budget.Budgets | None = None) -> dict:
     """Run one spec: an untimed accuracy run (also the warm-up), metrics, then, when timed, timed runs. Never raises.
-    The sweep runs it untimed and times every run afterwards, alone (time_spec)."""
+    The sweep runs it untimed and times every run afterwards, alone (time_spec). budgets (default: this process's,
+    harness.budget.configured): prepare under its prepare budget, the accuracy run with its metrics and checks under
+    its run budget; a run past one is a failed row naming it."""
+    budgets = budgets or budget.configured()
     grid = _grid(spec)
     row = base_row(spec, grid)
     if spec.case.kind == SLIDING_LADDER:  # not a body with a fixed point: its own runs and metrics
-        return sliding_ladder.execute(spec, row, timed)
+        return sliding_ladder.execute(spec, row, timed, budgets)
     try:
         formulation = {"formulation": spec.formulation} if spec.formulation else {}
         engine = get_engine(spec.engine)
-        sim = engine.prepare(spec.case, spec.integrator, spec.dt, **formulation)
-        traj: Trajectory = sim.run(grid)
-        row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
-                   chart_changes=math.nan if traj.chart_changes is None else traj.chart_changes,
-                   torque_mode=traj.info.get("torque_mode") or engine.torque_mode(spec.case))
-        if spec.dt is None:
-            row["steps"] = traj.steps
-        row["rhs_per_sim_s"] = rhs_per_sim_s(spec, traj.rhs_evals, row["steps"], grid.t_end)
-        if spec.keep_states:  # with the truth on the run's own times, so that each file is audited on its own
-            truth_quat, truth_omega = truth.on(grid)
-            row["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega, "truth_quat": truth_quat,
-                              "truth_omega": truth_omega}
-        row.update(metrics.drifts(spec.case, traj, truth.applicable))
-        row.update(metrics.torque_metrics(spec.case, traj))
-        row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
-        row["oracle_err"] = oracles.oracle_err(spec.case, traj, truth.times, truth.exact_quat)
-        # theory checks; the perturbed reruns some of them need are untimed, like the accuracy run
-        row[checks.ROW_KEY] = checks.measure(spec.case, traj, lambda case: get_engine(spec.engine).prepare(
-            case, spec.integrator, spec.dt, **formulation).run(grid))
-        if not spec.is_truth:
-            truth_quat, truth_omega = truth.on(grid)
-            row.update(metrics.errors(traj, truth_quat, truth_omega, spec.case.horizon))
-        row.update(truth_err=truth.truth_err, truth_omega_err=truth.truth_omega_err)
-        if timed and traj.status is Status.OK:
+        sim = budget.prepared(lambda: engine.prepare(spec.case, spec.integrator, spec.dt, **formulation),
+                              budgets.prepare_s)
+        with budget.within("run", budgets.run_s):
+            _accuracy_run(spec, truth, grid, sim, engine, formulation, row)
+        if timed and row["status"] == Status.OK.value:
             row.update(_timing_columns(timing.measure(lambda: sim.run(grid)), row["steps"]))
+    except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
+        row = {**base_row(spec, grid), **budget.failed_row(exc)}
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
+        raise_if_interrupted(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
+
+
+def _accuracy_run(spec: RunSpec, truth: CaseTruth, grid: TimeGrid, sim, engine, formulation: dict,
+                  row: dict) -> None:
+    """The untimed run of execute and everything measured from it, into row."""
+    traj: Trajectory = sim.run(grid)
+    row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
+               chart_changes=math.nan if traj.chart_changes is None else traj.chart_changes,
+               torque_mode=traj.info.get("torque_mode") or engine.torque_mode(spec.case))
+    if spec.dt is None:
+        row["steps"] = traj.steps
+    row["rhs_per_sim_s"] = rhs_per_sim_s(spec, traj.rhs_evals, row["steps"], grid.t_end)
+    if spec.keep_states:  # with the truth on the run's own times, so that each file is audited on its own
+        truth_quat, truth_omega = truth.on(grid)
+        row["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega, "truth_quat": truth_quat,
+                          "truth_omega": truth_omega}
+    row.update(metrics.drifts(spec.case, traj, truth.applicable))
+    row.update(metrics.torque_metrics(spec.case, traj))
+    row["_series"] = series.invariant_series(spec.case, traj, truth.applicable, truth.on(grid)[0])
+    row["oracle_err"] = oracles.oracle_err(spec.case, traj, truth.times, truth.exact_quat)
+    # theory checks; the perturbed reruns some of them need are untimed, like the accuracy run
+    row[checks.ROW_KEY] = checks.measure(spec.case, traj, lambda case: get_engine(spec.engine).prepare(
+        case, spec.integrator, spec.dt, **formulation).run(grid))
+    if not spec.is_truth:
+        truth_quat, truth_omega = truth.on(grid)
+        row.update(metrics.errors(traj, truth_quat, truth_omega, spec.case.horizon))
+    row.update(truth_err=truth.truth_err, truth_omega_err=truth.truth_omega_err)
 
 
 def _timing_columns(measured: timing.Timing, steps: float) -> dict:
@@ -149,7 +170,7 @@ def _timing_columns(measured: timing.Timing, steps: float) -> dict:
 
 def time_spec(spec: RunSpec, steps: float) -> dict:
     """The timing columns of one finished ok run, timed alone (time_specs of one run). {} when it fails here."""
-    return time_specs([spec], [steps])[0]
+    return {k: v for k, v in time_specs([spec], [steps])[0].items() if not k.startswith("_")}
 
 
 def _warm_run(spec: RunSpec):
@@ -165,7 +186,8 @@ def _warm_run(spec: RunSpec):
             run = lambda: sim.run(grid)  # noqa: E731
         run()
         return run
-    except Exception:
+    except Exception as exc:
+        raise_if_interrupted(exc)
         return None
 
 
@@ -221,9 +243,12 @@ def _worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
             "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
-def _init_worker(engines: tuple[str, ...]) -> None:
-    """A pool worker's start-up: ignore Ctrl-C and import the engines' SDKs now, while the parent computes the truths,
-    rather than in the worker's first run."""
+def _init_worker(engines: tuple[str, ...], budgets: budget.Budgets | None = None) -> None:
+    """A pool worker's start-up: ignore Ctrl-C, take the parent's budgets (for the ladders' points, which run here
+    too) and import the engines' SDKs now, while the parent computes the truths, rather than in the worker's first
+    run."""
+    if budgets is not None:
+        budget.configure(budgets)
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
     # must not die mid-run on it and send back a traceback instead of a row.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -252,15 +277,19 @@ def _local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proc
         return
     jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
     # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_init_worker, initargs=(engines,))
+    pool = None
     try:
-        for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all now
-            pool.submit(int)
+        with starting_workers():  # tied to this process, deaf to Ctrl-C, from their first moment (harness.processes)
+            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_init_worker, initargs=(engines, budget.configured()))
+            for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all
+                pool.submit(int)
         yield pool
     except BaseException:
         # Python < 3.14 has no public way to end a pool's workers, hence the private process table, read before
         # shutdown() empties it.
+        if pool is None:
+            raise
         processes = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for process in processes:
@@ -272,14 +301,14 @@ def _local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proc
 
 
 def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: ProcessPoolExecutor | None,
-               finished: Callable[[RunSpec, dict], None]) -> None:
+               finished: Callable[[RunSpec, dict], None], budgets: budget.Budgets | None = None) -> None:
     """Run the specs in this process (pool None) or on the pool, in the order given; finished(spec, row) as each
     completes."""
     if pool is None:
         for spec in specs:
-            finished(spec, execute(spec, truths[spec.case.name]))
+            finished(spec, execute(spec, truths[spec.case.name]))  # this process's budgets
         return
-    futures: dict[Future, RunSpec] = {pool.submit(execute, s, truths[s.case.name]): s for s in specs}
+    futures: dict[Future, RunSpec] = {pool.submit(execute, s, truths[s.case.name], False, budgets): s for s in specs}
     for future in as_completed(futures):
         spec = futures[future]
         try:
@@ -306,6 +335,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
+    budgets = budget.configured()  # the command's (harness.budget.configure), for every run, truth and --resume
     specs, skipped_rows = plan(cases, engines, integrators)
     if save_trajectories:  # the sliding ladder records another state (harness.scenes.sliding_ladder): none to save
         specs = [dataclasses.replace(s, keep_states=True) if s.case.kind != SLIDING_LADDER else s for s in specs]
@@ -317,9 +347,11 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
         stored: dict[str, dict] = {}  # key -> row of every run of this sweep done so far
         if resume:
+            # reused unless its states are wanted and missing, or it was stopped by a budget raised since
             stored = {keys[id(s)]: record["row"] for s in specs if (record := store.get(keys[id(s)])) is not None
                       and not (s.keep_states and record["row"]["status"] != Status.FAILED.value
-                               and not store.states_path(keys[id(s)]).is_file())}
+                               and not store.states_path(keys[id(s)]).is_file())
+                      and budget.still_holds(record.get("budget"), budgets)}
         environment = current_environment()
 
         def table() -> pd.DataFrame:
@@ -345,7 +377,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             if not row.get("_lost"):
                 if states is not None:  # before the record: a stored record means its states are there too
                     store.put_states(key, row, states)
-                store.put(key, identities[id(spec)], row, series)
+                store.put(key, identities[id(spec)], row, series, row.get("_budget"))
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
             # The run is safe in the store already; re-assembling the tables after every run was quadratic in the
             # sweep (seconds per run at ~1000 rows), so refresh them at most every PUBLISH_EVERY_S and at the end.
@@ -367,18 +399,23 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
                 elif any(s.case is case for s in pending):
                     progress.phase(f"truth {case.name}")
                     try:
-                        truths[case.name] = compute_truth(case, case.dt, certify)
+                        truths[case.name] = compute_truth(case, case.dt, certify, budgets.truth_s)
                     except Exception as exc:  # a truth that cannot be computed fails its case's runs, as data
-                        reason = f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]
+                        raise_if_interrupted(exc)
+                        failure = {"status": Status.FAILED.value,
+                                   "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]}
+                        if isinstance(exc, budget.BudgetExceeded):  # stored as such: --resume redoes it if raised
+                            failure = {**budget.failed_row(exc), "message": f"truth failed: {exc}"}
                         for spec in [s for s in pending if s.case is case]:
-                            finished(spec, {**base_row(spec, None), "status": Status.FAILED.value, "message": reason})
+                            finished(spec, {**base_row(spec, None), **failure})
                         pending = [s for s in pending if s.case is not case]
             progress.start(len(pending), sum(_cost(s) for s in pending), resumed=len(specs) - len(pending))
             try:
                 if scheduler:
-                    run_on_cluster(scheduler, pending, truths, execute, finished, _worker_failed_row)
+                    run_on_cluster(scheduler, pending, truths, functools.partial(execute, budgets=budgets), finished,
+                                   _worker_failed_row)
                 else:
-                    _run_local(pending, truths, pool, finished)
+                    _run_local(pending, truths, pool, finished, budgets)
             finally:
                 publish()
                 progress.close()

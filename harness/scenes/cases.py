@@ -38,6 +38,10 @@ MAX_MAGNITUDE = 1e6
 MIN_SCALE = 1e-9
 MAX_SAMPLES = 100_000      # recorded states per run
 MAX_STEPS = 10_000_000     # t_end / dt per run: 10x the extremes' long horizon (1e6 steps)
+# A case's name is in every row of results.csv and checks.csv, in each store record and in the report's tables: a
+# 100 000-character name made a 38 MB results.csv and a 2 MB one hung the report (issue 22); 200 characters is a few
+# times the longest a report table shows on one line.
+MAX_NAME = 200
 MAX_DTS = 32               # steps in one dt list: the truth samples the union of their grids, <= 3.2e6 states (180 MB)
 MIN_SIN_THETA = 1e-9       # torque (41): cot θ stays <= 1e9
 
@@ -380,6 +384,9 @@ class _Parser:
             raise self.fail("name", "must not be empty")
         if not name.isprintable():  # XML (MJCF, URDF) cannot carry control characters, and a table row breaks on them
             raise self.fail("name", f"must hold printable characters only, got {_short(name)}")
+        if len(name) > MAX_NAME:
+            raise self.fail("name", f"must be at most {MAX_NAME} characters (it is in every row and table), got "
+                                    f"{len(name)}")
         description = self.string(data.get("description", ""), "description")
         tags = data.get("tags", [])
         if not isinstance(tags, list):

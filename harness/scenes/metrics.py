@@ -8,31 +8,17 @@ import numpy as np
 from .cases import Case
 from ..trajectory import Trajectory
 from ...reference import torques
-from ...reference.integrals import INTEGRALS, drift
+# DRIFT_COLUMNS: the registry's (reference.integrals), re-exported where the results table's columns are listed
+from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS, applicable, drift  # noqa: F401
 from ...reference.rotations import attitude_angle, quat_to_matrix
 
-# Drift columns in table order; each is INTEGRALS[stem] where the reference implements it.
-DRIFT_COLUMNS = ("energy_drift", "momentum_drift", "casimir_drift", "lagrange_drift", "kovalevskaya_drift",
-                 "chaplygin_drift", "hess_drift", "self_excited_drift")
 ERROR_COLUMNS = ("attitude_err", "attitude_err_end", "omega_err")
 
 
-# Under an external torque (reference.torques) only these keep their meaning: energy as the energy (Jacobi)
-# balance, the Casimir, (36), and the angular momentum along a fixed central field's direction.
-TORQUED_INTEGRALS = ("energy", "casimir", "self_excited")
-
-
 def applicable_integrals(case: Case) -> tuple[str, ...]:
-    """The integral names whose structural conditions this case meets (from its initial state)."""
-    body = case.body
-    names = tuple(name for name, integral in INTEGRALS.items() if integral.applies(body, case.quat0, case.omega0))
-    if body.has_external_torque:
-        keep = TORQUED_INTEGRALS
-        if (body.central_field is not None and body.central_field.orbit_rate == 0.0 and not body.has_gravity
-                and not torques.has_nonpotential_torque(body)):
-            keep = keep + ("momentum",)
-        names = tuple(name for name in names if name in keep)
-    return names
+    """The integral names whose structural conditions this case meets (from its initial state;
+    reference.integrals.applicable)."""
+    return applicable(case.body, case.quat0, case.omega0)
 
 
 def energy_balance_drift(case: Case, traj: Trajectory) -> float:
@@ -49,12 +35,11 @@ def drifts(case: Case, traj: Trajectory, applicable: tuple[str, ...]) -> dict[st
     """{column: drift} over the run's finite samples; NaN for integrals the case does not have."""
     body = case.body
     out = {}
-    for column in DRIFT_COLUMNS:
-        stem = column.removesuffix("_drift")
+    for stem, integral in INTEGRALS.items():
         if stem == "energy" and stem in applicable and body.has_external_torque:
-            out[column] = energy_balance_drift(case, traj)
+            out[integral.column] = energy_balance_drift(case, traj)
             continue
-        out[column] = drift(INTEGRALS[stem], body, traj.quat, traj.omega) if stem in applicable else math.nan
+        out[integral.column] = drift(integral, body, traj.quat, traj.omega) if stem in applicable else math.nan
     return out
 
 

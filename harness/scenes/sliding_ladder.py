@@ -18,9 +18,11 @@ import math
 import numpy as np
 
 from . import checks
+from .. import budget
 from ..engines import get_engine
 from ..trajectory import SlidingLadderTrajectory, Status
 from ..grid import time_grid
+from ..run.processes import raise_if_interrupted
 from ...reference import sliding_ladder as ref_ladder
 
 # The models whose rows get a detachment_angle check: the equation's event (the reference engine's "theta") and the
@@ -49,24 +51,30 @@ def timed_run(spec, grid):
     return lambda: sim.run(grid)
 
 
-def execute(spec, base_row: dict, timed: bool = True) -> dict:
-    """One ladder run's row (metrics, checks, and timing when timed); never raises."""
+def execute(spec, base_row: dict, timed: bool = True, budgets: budget.Budgets | None = None) -> dict:
+    """One ladder run's row (metrics, checks, and timing when timed); never raises. Within the budgets (harness.budget:
+    prepare, then the run with the equation its errors need); past one, a failed row naming it."""
     from ..run import timing
+    budgets = budgets or budget.configured()
     row = dict(base_row)
     try:
         ladder, grid = spec.case.ladder, _grid(spec)
-        sim = prepare(spec)
-        traj: SlidingLadderTrajectory = sim.run(grid)
-        row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
-                   torque_mode="none")
-        equation = ref_ladder.solve(ladder, grid.times)
-        row.update(metrics(spec, traj, equation))
-        row[checks.ROW_KEY] = check_rows(spec, traj, row)
+        sim = budget.prepared(lambda: prepare(spec), budgets.prepare_s)
+        with budget.within("run", budgets.run_s):
+            traj: SlidingLadderTrajectory = sim.run(grid)
+            row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at,
+                       torque_mode="none")
+            equation = ref_ladder.solve(ladder, grid.times, deadline=budget.deadline())
+            row.update(metrics(spec, traj, equation))
+            row[checks.ROW_KEY] = check_rows(spec, traj, row)
         if timed and traj.status is Status.OK:
             measured = timing.measure(lambda: sim.run(grid))
             row.update(wall_s=measured.best, us_per_step=measured.best / max(1, grid.steps) * 1e6,
                        us_per_step_spread=measured.spread / max(1, grid.steps) * 1e6)
+    except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
+        row = {**base_row, **budget.failed_row(exc)}
     except Exception as exc:  # a run that breaks is data
+        raise_if_interrupted(exc)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
 

@@ -23,7 +23,8 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2, help="workers of the tolerance ladders' accuracy runs")
     args = parser.parse_args()
 
-    from stereodyn.harness import runner, tolerance_ladders, workprecision
+    from stereodyn.harness import runner, tolerance_ladders
+    from stereodyn.harness.analysis import workprecision
     from stereodyn.harness.cases import load_suite
     from stereodyn.harness.engines import engine_names
     from stereodyn.harness.integrators import scipy_ivp

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import cases as case_files, runner, workprecision
+from stereodyn.harness import cases as case_files, runner
+from stereodyn.harness.analysis import workprecision
 from stereodyn.harness.results import read_results
 
 ENGINES = ["mujoco", "pinocchio", "reference"]

@@ -7,7 +7,7 @@ with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: r
 grid of the sweep's adaptive rows (harness.run.sweep.truth_grid). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
-(harness.run.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
+(harness.analysis.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
 evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the quaternion at its default,
 truth-grade tolerance) is not a ladder point: every point names its tolerance, and heyoka's taylor joins at the
 loose ones like any other adaptive method.
@@ -25,12 +25,14 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable
 
+from .. import budget
 from ..scenes import metrics
-from . import timing
+from ..run import timing
 from ..scenes.cases import Case
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
 from ..engines import get_engine
 from ..trajectory import Status
+from ..run.processes import raise_if_interrupted
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
@@ -75,7 +77,7 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
 # ------------------------------------------------------------------------------------------------ one point
 
 def _grid(case: Case):
-    from .sweep import truth_grid  # the sweep's grid of adaptive rows
+    from ..run.sweep import truth_grid  # the sweep's grid of adaptive rows
 
     return truth_grid(case)
 
@@ -95,8 +97,9 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
            "integrator": family.integrator, "tolerance": float(tolerance), "t_end": grid.t_end}
     start = time.perf_counter()
     try:
-        sim = _prepare(family, tolerance)
-        traj = sim.run(grid)
+        sim = budget.prepared(lambda: _prepare(family, tolerance))
+        with budget.within("run", budget.configured().run_s):
+            traj = sim.run(grid)
         row["_accuracy_s"] = time.perf_counter() - start
         row.update(status=traj.status.value, message=traj.message, steps=traj.steps, rhs_evals=traj.rhs_evals,
                    rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan,
@@ -106,13 +109,19 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
         if truth is None:
             from ...reference import truth as reference_truth
 
-            truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
+            with budget.within("truth", budget.configured().truth_s):
+                truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times,
+                                              deadline=budget.deadline())
         row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
         parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
         row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
             if math.isfinite(row["attitude_err"]) else math.nan
         row["err_over_tol"] = row["state_err"] / float(tolerance)
+    except budget.BudgetExceeded as exc:  # the ladder stops here (run_ladder: the point took longer than its budget)
+        row.setdefault("_accuracy_s", time.perf_counter() - start)
+        row.update(status=Status.FAILED.value, message=str(exc))
     except Exception as exc:  # a point that breaks is data, as in the sweep
+        raise_if_interrupted(exc)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
@@ -125,8 +134,13 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
         from ...reference import truth as reference_truth
 
         case = family.case
-        truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times)
+        with budget.within("truth", budget.configured().truth_s):
+            truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times,
+                                          deadline=budget.deadline())
+    except budget.BudgetExceeded as exc:
+        return [_failed_point(family, tolerances[0], f"truth failed: {exc}")]
     except Exception as exc:
+        raise_if_interrupted(exc)
         return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
     points = []
     for tolerance in sorted(tolerances, reverse=True):

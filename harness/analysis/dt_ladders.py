@@ -32,14 +32,16 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from .. import budget
 from ..scenes import metrics
-from .. import fitting
+from . import fitting
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..engines import get_engine
-from ..fitting import declared_order, fit
+from .fitting import declared_order, fit
 from ..grid import time_grid
-from . import timing
+from ..run import timing
 from ..trajectory import Status
+from ..run.processes import raise_if_interrupted
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
@@ -60,7 +62,7 @@ SHORT_POINTS, SHORT_TARGET = 6, 3
 @dataclass(frozen=True)
 class Family:
     """Runs of one case x engine x formulation x integrator, which differ only in dt (a dt ladder) or in the
-    requested tolerance (a tolerance ladder, harness.run.tolerance_ladders)."""
+    requested tolerance (a tolerance ladder, harness.analysis.tolerance_ladders)."""
 
     case: Case
     engine: str
@@ -91,23 +93,28 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
            "integrator": family.integrator, "dt": float(dt), "t_end": grid.t_end, "steps": grid.steps,
            "source": LADDER}
     try:
-        sim = _prepare(family, dt)
-        traj = sim.run(grid)
-        row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals,
-                   rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan)
-        drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
-        row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
-        if with_truth:
-            from ...reference import truth as reference_truth
+        sim = budget.prepared(lambda: _prepare(family, dt))
+        with budget.within("run", budget.configured().run_s):  # the point's run and its truth, as a sweep's row
+            traj = sim.run(grid)
+            row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals,
+                       rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan)
+            drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
+            row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
+            if with_truth:
+                from ...reference import truth as reference_truth
 
-            truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
-            row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
-            parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
-            row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
-                if math.isfinite(row["attitude_err"]) else math.nan
+                truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times,
+                                              deadline=budget.deadline())
+                row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
+                parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
+                row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
+                    if math.isfinite(row["attitude_err"]) else math.nan
         if timed and traj.status is Status.OK:
             row.update(_timed(sim, grid))
+    except budget.BudgetExceeded as exc:
+        row.update(status=Status.FAILED.value, message=str(exc))
     except Exception as exc:  # a point that breaks is data, as in the sweep
+        raise_if_interrupted(exc)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row
 
@@ -282,7 +289,7 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
              formulations: tuple[str, ...] | None = None) -> list[Family]:
     """The fixed-step run families a sweep of these cases would have (harness.run.plan.plan's selection)."""
-    from .plan import plan
+    from ..run.plan import plan
 
     specs, _ = plan(cases, engines, integrators)
     out = {}

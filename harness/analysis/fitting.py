@@ -1,6 +1,6 @@
 """Work–precision fitting: the one order fitter (order_slope), the round-off floor and the order of a ladder's points
 (fit), the orders of a sweep's own dt lists and the tolerance proportionality of a tolerance ladder (tolerance_fit).
-The Pareto table is harness.pareto.
+The Pareto table is harness.analysis.pareto.
 
 - the round-off floor: walking from large to small dt among the points below ASYMPTOTIC_MAX, the first point after
   which the error falls with a local slope below FLOOR_SLOPE while it is below FLOOR_MAX (a stall higher up is not
@@ -21,13 +21,13 @@ import re
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.scenes import checks
-from stereodyn.harness.engines import EngineError, get_engine
-from stereodyn.harness.trajectory import Status
+from ..scenes import checks
+from ..engines import EngineError, get_engine
+from ..trajectory import Status
 # The Pareto table has its own module; its names stay importable from here.
-from stereodyn.harness.pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWEEP,  # noqa: F401
-                                      SOURCE_TOLERANCE, TIE_RTOL, is_failed, pareto, pareto_candidates, pareto_table,
-                                      run_name as _name, setting)
+from .pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWEEP,  # noqa: F401
+                     SOURCE_TOLERANCE, TIE_RTOL, is_failed, pareto, pareto_candidates, pareto_table,
+                     run_name as _name, setting)
 
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")
@@ -142,7 +142,7 @@ def reason(marked: pd.DataFrame) -> str:
 
 
 # The kinds of reason a convergence row's note gives, by the words that start them (the report counts families by
-# these): fit() and harness.run.dt_ladders write them.
+# these): fit() and harness.analysis.dt_ladders write them.
 NOTE_GROUPS = (
     (SUPERCONVERGENT, SUPERCONVERGENT),
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),

@@ -1,9 +1,8 @@
-"""Work–precision: the phase of `stereodyn run` after the sweep, and its report sections.
+"""Work–precision: the phase of `stereodyn run` after the sweep (its report sections: harness.report.workprecision).
 
-Measuring is harness.run.dt_ladders (dt ladders, stability bisection) and harness.run.tolerance_ladders (adaptive
-methods against the requested tolerance), fitting harness.fitting (orders, round-off floors, tolerance proportionality,
-the Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results and the report's
-markdown.
+Measuring is harness.analysis.dt_ladders (dt ladders, stability bisection) and harness.analysis.tolerance_ladders (adaptive
+methods against the requested tolerance), fitting harness.analysis.fitting (orders, round-off floors, tolerance proportionality, the
+Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results (tables only).
 
 Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, per short ladder, and per
 other run family of the sweep with two dt or more), tolerance.csv (every tolerance-ladder point), tolerance_fit.csv
@@ -17,26 +16,30 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 import pandas as pd
 
-from stereodyn.harness.scenes import checks
-from stereodyn.harness.run import dt_ladders
-from stereodyn.harness.scenes.cases import CHAOTIC_TAGS, Case
-from stereodyn.harness.run import tolerance_ladders
-from stereodyn.harness.run.dt_ladders import (LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, STABLE_ENERGY_DRIFT,
-                                          Family, families, run_ladders)
-from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import (ASYMPTOTIC_MAX, ORDER_QUANTITY, ROUNDOFF_MARGIN, SUPERCONVERGENT, TIE_RTOL,
-                                       _name, convergence_table, declared_order, note_group, order_checks, pareto,
-                                       pareto_table, setting, sweep_orders, tolerance_fits, with_state_err)
-from stereodyn.harness.report.markdown import markdown_table as _md, number as _num
-from stereodyn.harness.run.results import write_atomic
+from . import step_advice
+from ..scenes import checks
+from . import advice as advising
+from ..scenes.cases import CHAOTIC_TAGS, Case
+from . import tolerance_ladders
+from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
+from ..engines import get_engine
+from .pareto import ACCURACY_TARGETS
+from .fitting import (ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto, pareto_table,
+                      sweep_orders, tolerance_fits, with_state_err)
+from ..run.results import write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
-           "analyse", "read_optional", "report_lines", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
+           "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
 
 LADDER_FILE, CONVERGENCE_FILE, PARETO_FILE = "ladder.csv", "convergence.csv", "pareto.csv"
+ADVICE_FILE = "advice.csv"
+# The default run's checked advice: the laddered families (DEFAULT_LADDER's 28 with an order or slope) at 1e-3 and
+# 1e-6 rad; every laddered family at every Pareto target with --dt-ladder. Measured on the committed default run's
+# tables (tests/benchmarks/bench_advice.py, 2 workers, load average 11 from the other helpers): 1e-3 and 1e-6: 26 s,
+# 117 check runs; 1e-6 alone 20 s; with 1e-9 as well 91 s (Drake's and scipy's BDF/Radau tight runs: seconds each).
+DEFAULT_ADVICE_TARGETS = (1e-3, 1e-6)
 TOLERANCE_FILE, TOLERANCE_FIT_FILE = "tolerance.csv", "tolerance_fit.csv"
 TEXT_COLUMNS = ("formulation", "engine", "integrator", "message")
 FULL_MAX_STEPS = 200_000     # --dt-ladder: rk4 reaches its round-off floor on the suite's cases well before this
@@ -79,7 +82,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
-    """The families that get a short ladder (harness.run.dt_ladders.run_short_ladder), each with its sweep runs and its
+    """The families that get a short ladder (harness.analysis.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
@@ -180,6 +183,10 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     _write(tolerance_df, paths["tolerance"])
     _write(tolerance_fits(tolerance_df), paths["tolerance_fit"])
     _write(pareto(results, ladder_df, tolerance=tolerance_df), paths["pareto"])
+    if ladder != "off":
+        paths["advice"] = out_dir / ADVICE_FILE
+        _write(_advice(results, chosen, adaptive, ladder, ladder_df, tolerance_df, convergence,
+                       max_steps or DEFAULT_MAX_STEPS, pool, progress), paths["advice"])
     checks_path = out_dir / checks.CHECKS_FILE
     existing = checks.read_checks(checks_path) if checks_path.is_file() else pd.DataFrame(columns=list(checks.COLUMNS))
     existing = existing[existing["quantity"] != ORDER_QUANTITY]
@@ -189,6 +196,19 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     return paths
 
 
+def _advice(results: pd.DataFrame, chosen: list[Family], adaptive: list[Family], ladder: str,
+            ladder_df: pd.DataFrame, tolerance_df: pd.DataFrame, convergence: pd.DataFrame, max_steps: int,
+            pool, progress) -> pd.DataFrame:
+    """advice.csv (harness.analysis.advice): the laddered families with a fitted order or slope (the dt and tolerance
+    ladders: DEFAULT_LADDER's in the default run, every family with --dt-ladder), at DEFAULT_ADVICE_TARGETS, or every
+    Pareto target with --dt-ladder."""
+    targets = ACCURACY_TARGETS if ladder == "full" else DEFAULT_ADVICE_TARGETS
+    tasks = advising.advice_tasks(chosen, adaptive, results, ladder_df, tolerance_df, convergence,
+                                  tolerance_fits(tolerance_df))
+    return advising.run_advice(tasks, targets, max_steps, pool, progress) if tasks else \
+        pd.DataFrame(columns=list(step_advice.ADVICE_COLUMNS))
+
+
 # ------------------------------------------------------------------------------------------------ the report
 
 def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) -> pd.DataFrame | None:
@@ -196,82 +216,3 @@ def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) 
         return None
     df = pd.read_csv(path, dtype={c: str for c in text_columns}, keep_default_na=True)
     return df.fillna({c: "" for c in text_columns if c in df})
-
-
-def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None) -> list[str]:
-    """The report's "What to use", "Convergence" and "Tolerance ladders" sections, from pareto.csv, convergence.csv
-    and tolerance_fit.csv (each left out without its file). tolerance_figures: case -> the path of its
-    tolerance-against-error figure (harness.report.build draws them)."""
-    lines: list[str] = []
-    pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source", "ties",
-                                                             "not_recommended", "scope"))
-    if pareto_df is not None and len(pareto_df):
-        from stereodyn.harness.report.what_to_use import what_to_use_lines
-
-        lines += what_to_use_lines(pareto_df)
-    convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
-    if convergence is not None and len(convergence):
-        ladders = convergence[convergence["source"] == "ladder"]
-        fitted = convergence[np.isfinite(convergence["order"])]
-        short = convergence[convergence["source"] == SHORT_LADDER]
-        lines += ["## Convergence, round-off floors and stability", "",
-                  f"convergence.csv: {len(fitted)} of {len(convergence)} run families have a fitted order (slope of "
-                  "log state error, max(attitude_err, omega_err, casimir_drift), against log dt over the asymptotic "
-                  f"range: {ROUNDOFF_MARGIN:g} x the rounding level (eps steps, or the round-off floor where the "
-                  f"points show one) <= error <= {ASYMPTOTIC_MAX:g}); the others say why in `note`. Families with a "
-                  "dt ladder (ladder.csv: about ten dt from the stability limit down to the round-off regime) also "
-                  "have the round-off floor and the largest stable dt over t_end (bisection; stable: finished ok with "
-                  f"energy drift <= {STABLE_ENERGY_DRIFT:g}); the others are fitted on the sweep's own dt list, and "
-                  f"the {len(short)} whose list gave no order on a short ladder (`source` {SHORT_LADDER}: dt doubled "
-                  "or halved from the list until three points are asymptotic, at most "
-                  f"{dt_ladders.SHORT_POINTS} untimed points of at most {SHORT_MAX_STEPS} steps, or "
-                  f"{SHORT_MAX_EVALS} right-hand-side evaluations where that is more; "
-                  f"{int(np.isfinite(short['order']).sum())} of them fitted).", ""]
-        if len(ladders):
-            rows = [[r["case"], _name(r), _num(r["declared_order"], ".0f"), _num(r["order"], ".2f"),
-                     _num(r["floor_dt"], ".3g"), _num(r["floor_err"]), _num(r["stable_dt_max"], ".4g"),
-                     r["note"]] for _, r in ladders.iterrows()]
-            lines += _md(["case", "run", "declared", "fitted order", "floor dt", "floor err", "stable dt max",
-                          "note"], rows) + [""]
-        others = fitted[fitted["source"] != "ladder"]
-        if len(others):
-            summary = []
-            for (engine, formulation, integrator), group in others.groupby(["engine", "formulation", "integrator"],
-                                                                           sort=False):
-                summary.append([_name({"engine": engine, "formulation": formulation, "integrator": integrator}),
-                                _num(group["declared_order"].iloc[0], ".0f"), str(len(group)),
-                                _num(group["order"].min(), ".2f"), _num(group["order"].max(), ".2f")])
-            lines += ["Fitted on the sweep's dt lists and the short ladders:", "",
-                      *_md(["run", "declared", "cases", "smallest order", "largest order"], summary), ""]
-        reasons = convergence[~np.isfinite(convergence["order"]) | convergence["note"].str.contains(
-            SUPERCONVERGENT, regex=False)]
-        if len(reasons):
-            counts = reasons["note"].map(note_group).value_counts()
-            lines += ["Families without a fitted order, or fitted steeper than declared, by reason (convergence.csv "
-                      "`note`):", "", *_md(["reason", "families"], [[k, str(v)] for k, v in counts.items()]), ""]
-    return lines + tolerance_report_lines(out_dir, tolerance_figures or {})
-
-
-def tolerance_report_lines(out_dir: Path, figures: dict[str, str]) -> list[str]:
-    """The report's "Tolerance ladders" section from tolerance_fit.csv (nothing without it or with no ladder)."""
-    fits = read_optional(Path(out_dir) / TOLERANCE_FIT_FILE, ("formulation", "engine", "integrator", "note"))
-    if fits is None or fits.empty:
-        return []
-    lines = ["## Tolerance ladders", "",
-             "Every adaptive method run at requested tolerances from 1e-3 to 1e-13 (tolerance.csv: relative and "
-             "absolute tolerance alike; per point the error achieved and the cost). 'slope': the fitted tolerance "
-             "proportionality, the slope of log state error (max of attitude_err, omega_err, casimir_drift) against "
-             f"log tolerance over the points above round-off ({ROUNDOFF_MARGIN:g} eps steps <= error <= "
-             f"{ASYMPTOTIC_MAX:g}); 1 is an error proportional to the tolerance. 'error <= tol': at how many of "
-             "those points the error stayed below the tolerance requested; 'max error/tol': the worst ratio (the "
-             "tolerance bounds each step's local error, the error here is global over the whole run). "
-             "tolerance_fit.csv holds the same rows.", ""]
-    rows = [[r["case"], _name(r), _num(r["slope"], ".2f"), str(int(r["points"])),
-             "-" if not r["points"] else f"{r['tol_max']:.0e} … {r['tol_min']:.0e}",
-             f"{int(r['below_tol'])} of {int(r['points'])}", _num(r["max_err_over_tol"], ".3g"), r["note"]]
-            for _, r in fits.iterrows()]
-    lines += _md(["case", "method", "slope", "points", "tolerances fitted", "error <= tol", "max error/tol", "note"],
-                 rows) + [""]
-    for case, path in figures.items():
-        lines += [f"![{case}: tolerance against error]({path})", ""]
-    return lines

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.report.markdown import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
+from .text import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
 
 # Accuracy targets (max attitude error, rad) of the terminal's "cheapest run" lines: three decades of pareto.csv's.
 TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)
@@ -24,8 +24,8 @@ def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
     """Per engine scope of pareto.csv, then `any` (every run): per accuracy target, on how many cases some run of the
     scope reaches it, the run named most often, and the case whose cheapest run is dearest (the target's worst case);
     where no case is reached, why (pareto.csv's `source`)."""
-    from stereodyn.harness import workprecision
-    from stereodyn.harness.pareto import ANY, scope_rows, scopes, setting
+    from . import workprecision
+    from .pareto import ANY, scope_rows, scopes, setting
 
     table = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
                                         ("formulation", "engine", "integrator", "scope", "source"))
@@ -66,7 +66,7 @@ def _own_method(row) -> str:
 
 def terminal_lines(df: pd.DataFrame, found: list, out_dir: Path, report: Path | None = None) -> list[str]:
     """The default output of `stereodyn run`."""
-    from stereodyn.harness import verdicts
+    from . import verdicts
 
     counts = df["status"].value_counts()
     lines = [f"{len(df)} runs over {df['case'].nunique()} cases: "

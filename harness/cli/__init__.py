@@ -1,4 +1,7 @@
 """The command line (DESIGN §5). Exit codes: 0 done (failed runs are data), 1 check failed, 2 bad input, 130 stopped.
+
+This module holds the parser, the checks commands share and the dispatch; each command is a module of this package
+(run.py, check.py, ...) with a `main(args) -> int`.
 """
 from __future__ import annotations
 
@@ -12,14 +15,17 @@ def _interrupted_while_loading(signum, frame) -> None:
     os._exit(130)
 
 
-# Started as the command (the `stereodyn` script, python -m stereodyn or this file), Ctrl-C while the modules below
-# load ends in one line; main() puts Python's handler back once they are in. Imported as a library: untouched.
-if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or __name__ == "__main__"
-                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))):
+# Started as the command (the `stereodyn` script, python -m stereodyn, or python -m stereodyn.harness.cli: while
+# locating that, Python loads this package with argv[0] "-m"), Ctrl-C while the modules below load ends in one line;
+# main() then puts the command's handler (harness/run/processes.py: on_interrupt). Imported as a library: untouched.
+# A pool worker (which imports this module as its __main__'s) ignores Ctrl-C: harness/run/processes.py.
+if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or sys.argv[0] == "-m"
+                 or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))) \
+        and not __import__("stereodyn.harness.run.processes").harness.run.processes.is_worker():
     signal.signal(signal.SIGINT, _interrupted_while_loading)
 
 import argparse  # noqa: E402  (after the handler, on purpose)
-import dataclasses  # noqa: E402
+import importlib  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import warnings  # noqa: E402
@@ -27,7 +33,10 @@ from pathlib import Path  # noqa: E402
 
 # The command's modules (numpy, the SDKs behind them) are imported by main() inside its Ctrl-C handling (_load), so an
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
-case_files = CaseError = engine_names = EngineError = None
+case_files = CaseError = engine_names = EngineError = budget = None
+# Each command is the module of its name in this package, with main(args) -> int.
+COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators")
+_commands: dict = {}
 
 DEFAULT_OUT = "out"
 
@@ -92,6 +101,32 @@ def _scale(text: str) -> float:
     return value
 
 
+def _seconds(text: str) -> float:
+    """A wall-time budget: finite, in [MIN_BUDGET_S, MAX_BUDGET_S] s (docs/limits.md)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text[:40]!r}") from None
+    if not (math.isfinite(value) and budget.MIN_BUDGET_S <= value <= budget.MAX_BUDGET_S):
+        raise argparse.ArgumentTypeError(f"must be finite and in [{budget.MIN_BUDGET_S:g}, {budget.MAX_BUDGET_S:g}] "
+                                         f"s (docs/limits.md), got {value:g}")
+    return value
+
+
+def _targets(text: str) -> list[float]:
+    """Accuracy targets: rad, each finite and in (0, 1)."""
+    values = []
+    for item in (item.strip() for item in text.split(",")):
+        try:
+            value = float(item)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {item[:40]!r}") from None
+        if not (math.isfinite(value) and 0.0 < value < 1.0):
+            raise argparse.ArgumentTypeError(f"must be in (0, 1) rad, got {value:g}")
+        values.append(value)
+    return values
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="stereodyn", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -135,6 +170,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--strict", action="store_true",
                      help="exit 1 when a verdict fails (declared against fitted order, bounded energy, the truth's "
                           "invariants, oracle and theory checks), one line per failed verdict")
+    for what, default, meaning in (
+            ("run", budget.RUN_BUDGET_S, "one row's accuracy run with its metrics and checks (a ladder point's too)"),
+            ("prepare", budget.PREPARE_BUDGET_S, "one Engine.prepare: model building and compilation"),
+            ("truth", budget.TRUTH_BUDGET_S, "one case's truth and its real128 certification")):
+        run.add_argument(budget.FLAGS[what], type=_seconds, default=default, metavar="S",
+                         help=f"wall-time budget of {meaning}, s (default {default:g}); past it the row is failed, "
+                              "its message naming the budget, and --resume redoes it only once the budget is raised")
     run.add_argument("--extremes", action="store_true",
                      help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
@@ -161,6 +203,19 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
+    advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
+                                                 "reaches an accuracy on a case, checked by runs")
+    advise.add_argument("case", metavar="CASE_OR_FILE", help="a suite case name or a .toml path")
+    advise.add_argument("--engine", required=True, help="the engine whose integrators to advise on")
+    advise.add_argument("--integrator", type=_list, default=None,
+                        help="comma-separated (default: the engine's default sweep with a declared order or error "
+                             "control)")
+    advise.add_argument("--formulation", default=None, help="the engine's model (default quaternion, or its first)")
+    advise.add_argument("--target", type=_targets, default=None,
+                        help="max attitude error over the case's horizon, rad, comma-separated (default 1e-3,1e-6,1e-9)")
+    advise.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing the case's t_end")
+    advise.add_argument("--max-steps", type=_count, default=None, metavar="N",
+                        help="smallest dt tried = t_end / N (default 200000)")
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
     export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
@@ -170,7 +225,7 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _select_cases(args) -> list:
+def select_cases(args) -> list:
     suite = case_files.load_suite()
     if getattr(args, "extremes", False):
         suite = case_files.load_suite(case_files.suite_dir() / "extreme")
@@ -183,11 +238,11 @@ def _select_cases(args) -> list:
     if len(set(names)) != len(names):
         raise BadInput(f"case names must be unique in a run: {', '.join(sorted(names))}")
     if args.dt is not None or args.t_end is not None:
-        chosen = [_override(c, args) for c in chosen]
+        chosen = [override(c, args) for c in chosen]
     return chosen
 
 
-def _override(case, args):
+def override(case, args):
     """The case with --t-end / --dt; a value they make invalid is the option's fault, not the case file's."""
     try:
         return case_files.with_overrides(case, t_end=args.t_end, dt=args.dt)
@@ -197,7 +252,7 @@ def _override(case, args):
                                                                 "") + f": {exc.rule}") from None
 
 
-def _output_folder(path: Path, option: str) -> Path:
+def output_folder(path: Path, option: str) -> Path:
     """Create the output folder (and its store/) and prove it writable, or one line naming the option."""
     try:
         for folder in (path, path / "store"):
@@ -209,7 +264,7 @@ def _output_folder(path: Path, option: str) -> Path:
     return path
 
 
-def _output_file(path: Path, option: str) -> Path:
+def output_file(path: Path, option: str) -> Path:
     """A file to write: its folder must exist and be writable, and the path not be a folder."""
     folder = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
@@ -224,8 +279,8 @@ def _output_file(path: Path, option: str) -> Path:
     return path
 
 
-def _check_names(args) -> None:
-    from stereodyn.harness.engines import UnavailableEngine, get_engine
+def check_names(args) -> None:
+    from ..engines import UnavailableEngine, get_engine
 
     unknown = [e for e in args.engines if e not in engine_names()]
     if unknown:
@@ -243,7 +298,7 @@ def _check_names(args) -> None:
     if getattr(args, "dt_ladder", False) and args.no_ladder:
         raise BadInput("--dt-ladder and --no-ladder: give at most one")
     if getattr(args, "ladder_max_steps", None) is not None:
-        from stereodyn.harness import workprecision
+        from ..analysis import workprecision
 
         if args.ladder_max_steps < 2 * workprecision.MIN_STEPS:  # checked before the sweep, not after it
             raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}, got {args.ladder_max_steps}")
@@ -251,209 +306,15 @@ def _check_names(args) -> None:
             raise BadInput(f"--ladder-max-steps: must be <= {case_files.MAX_STEPS}, got {args.ladder_max_steps}")
 
 
-def cmd_cases(args) -> int:
-    for case in case_files.load_suite():
-        print(f"{case.name:20s} [{', '.join(case.tags)}]  {case.description}")
-    return 0
-
-
-def cmd_run(args) -> int:
-    from stereodyn.harness.run.progress import ProgressBar
-    from stereodyn.harness.report.build import write_reports
-    from stereodyn.harness.report.markdown import drift_table_text
-    from stereodyn.harness import summary, verdicts, workprecision
-    from stereodyn.harness.run.sweep import run_sweep, worker_pool
-
-    from stereodyn.harness.run.store import folder_lock
-
-    _check_names(args)
-    if args.certify and args.no_certify:
-        raise BadInput("--certify and --no-certify: give one (certifying is the default)")
-    chosen = _select_cases(args)
-    progress = ProgressBar(enabled=not args.quiet)
-    _output_folder(args.out, "--out")
-    _quiet_engines(args.out)
-    with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
-        # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
-        with worker_pool(args.jobs, tuple(args.engines)) as pool:
-            df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs,
-                           certify=not args.no_certify, progress=progress, resume=args.resume,
-                           scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool)
-            _work_precision(args, chosen, df, pool, progress)
-        found = verdicts.evaluate(args.out, df, chosen)
-        # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
-        workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
-        if args.verbose:
-            print(drift_table_text(df))
-        progress.stage("report: report.md, figures, report.html")
-        markdown, html = write_reports(args.out, df, self_contained=args.self_contained)
-        print("\n".join(summary.terminal_lines(df, found, args.out, html)))
-    print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
-    if args.strict and verdicts.strict_failures(found):
-        print("\n".join(verdicts.summary_lines(found)[1:]), file=sys.stderr)
-        return 1
-    return 0
-
-
-def _quiet_engines(out: Path) -> None:
-    """MuJoCo appends its warnings to MUJOCO_LOG.TXT in the working directory: put it under --out (the adapter
-    collects the warnings of a run into its row); worker processes inherit the setting through the environment."""
-    os.environ["STEREODYN_MUJOCO_LOG"] = str(Path(out).resolve() / "MUJOCO_LOG.TXT")  # engines.mujoco.LOG_ENV
-
-
-def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
-    """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and the orders in checks.csv
-    (harness.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
-    named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
-    (without --strict none); --dt-ladder every family's; --no-ladder none."""
-    from stereodyn.harness import workprecision
-
-    if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
-        raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}")
-    if args.dt_ladder:
-        mode = "full"
-    elif args.no_ladder:
-        mode = "off"
-    elif args.cases or args.case_file or args.dt is not None:
-        # --strict judges: a declared order no case's dt list measured is measured (short ladders) before it is
-        # judged; without it such a claim is reported "not measured, no reason"
-        mode = "short" if args.strict else "off"
-    else:
-        mode = "default"
-    if mode != "off" and progress is not None:
-        progress.stage("work–precision: short ladders" if mode == "short" else
-                       f"work–precision: {mode} dt and tolerance ladders"
-                       + (" and short ladders" if mode == "default" else ""))
-    workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
-                          max_steps=args.ladder_max_steps, pool=pool)
-
-
-def cmd_report(args) -> int:
-    from stereodyn.harness.report.build import write_reports
-
-    from stereodyn.harness.run.results import TableError
-    from stereodyn.harness.run.store import folder_lock
-
-    results = args.dir / "results.csv"
-    if not results.is_file():
-        raise BadInput(f"{results}: file not found")
-    _output_folder(args.dir, "report DIR")
-    with folder_lock(args.dir):
-        try:
-            markdown, html = write_reports(args.dir, self_contained=args.self_contained)
-        except (KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
-            if isinstance(exc, TableError):
-                raise
-            # a table that read but does not hold what stereodyn writes (a column of text where numbers belong, ...)
-            raise BadInput(f"{args.dir}: malformed tables, cannot render the report "
-                           f"({type(exc).__name__}: {' '.join(str(exc).split())[:160]})") from None
-    print(f"wrote {markdown} and {html}")
-    return 0
-
-
-def cmd_baseline(args) -> int:
-    from stereodyn.harness import gate
-    from stereodyn.harness.run.store import read_manifest
-
-    _output_file(args.out, "--out")
-    manifest = read_manifest(args.dir) or {}
-    table, orders = gate.read_table(args.dir), gate.read_orders(args.dir)
-    rows = gate.write_baseline(table, args.out, manifest.get("environment"), orders)
-    print(f"wrote {args.out} ({rows} rows, {0 if orders is None else len(orders)} fitted orders)")
-    return 0
-
-
-def cmd_check(args) -> int:
-    from stereodyn.harness import gate
-
-    tolerances = gate.Tolerances()
-    if args.tolerances is not None:
-        tolerances = gate.read_tolerances(args.tolerances)
-    # An infinite factor or floor would pass any drift (--factor inf passed a 1e6x regression): finite only.
-    for option, value in (("--factor", args.factor), ("--time-factor", args.time_factor)):
-        if value is not None and not (math.isfinite(value) and value >= 1.0):
-            raise BadInput(f"{option}: must be a finite number >= 1, got {value:g}")
-    if args.floor is not None and not (math.isfinite(args.floor) and args.floor >= 0.0):
-        raise BadInput(f"--floor: must be a finite number >= 0, got {args.floor:g}")
-    if args.factor is not None or args.floor is not None:  # the command line overrides the file, for every metric
-        override = {k: v for k, v in (("factor", args.factor), ("floor", args.floor)) if v is not None}
-        tolerances = dataclasses.replace(
-            tolerances, default=dataclasses.replace(tolerances.default, **override),
-            per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
-    if args.time_factor is not None:
-        tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
-    from stereodyn.harness.run.store import read_manifest
-
-    base = gate.read_baseline_file(args.baseline)
-    baseline = base.rows
-    current = gate.read_table(args.dir)
-    used = sorted({m for row in baseline for m in gate.metric_columns(row) if row.get(m) is not None})
-    missing = [m for m in used if m not in current.columns]
-    if missing:  # else every row would read as NaN, i.e. worse
-        raise BadInput(f"{args.dir / 'results.csv'}: missing columns {', '.join(missing)} (the baseline has them)")
-    orders = gate.read_orders(args.dir) if base.orders else None
-    changes = gate.environment_changes(base.environment, (read_manifest(args.dir) or {}).get("environment"))
-    print(f"environment: {', '.join(changes)}" if changes else "environment: as in the baseline")
-    findings = gate.compare(current, baseline, tolerances)
-    order_findings = gate.compare_orders(orders, base.orders)
-    extra = gate.new_rows(current, baseline)
-    note = f"; {extra} rows not in the baseline (not checked)" if extra else ""
-    if findings or order_findings:
-        for line in gate.summary(findings + order_findings):
-            print(line)
-        print(gate.findings_table(findings + order_findings))
-        worse = len({f.key for f in findings if f.what != "missing"})
-        gone = sum(f.what == "missing" for f in findings)
-        parts = []
-        if worse:
-            parts.append(f"{worse} of {len(baseline)} baseline rows got worse than {args.baseline} allows")
-        if gone:
-            parts.append(f"{gone} of {len(baseline)} baseline rows missing")
-        if order_findings:
-            parts.append(f"{len(order_findings)} of {len(base.orders)} fitted orders fell")
-        print(f"check failed: {'; '.join(parts)}{note}")
-        return 1
-    orders_note = f", {len(base.orders)} fitted orders" if base.orders else ""
-    print(f"check passed: {len(baseline)} baseline rows{orders_note}, none worse{note}")
-    return 0
-
-
-def cmd_compare(args) -> int:
-    from stereodyn.harness.compare import compare
-
-    markdown, html, head = compare(args.a, args.b, args.out)
-    print("\n".join(head))
-    print(f"wrote {markdown} and {html}")
-    return 0
-
-
-def cmd_integrators(args) -> int:
-    from stereodyn.harness.report.method import integrator_rows, listing
-
-    print(listing(integrator_rows()))
-    return 0
-
-
-def cmd_export(args) -> int:
-    from stereodyn.harness.export import export
-    from stereodyn.harness.run.results import write_atomic
-
-    if args.out is not None:
-        _output_file(args.out, "--out")
-    text = export(case_files.find_case(args.case), args.format, args.integrator, args.dt)
-    if args.out is None:
-        sys.stdout.write(text)
-    else:
-        write_atomic(args.out, text)
-        print(f"wrote {args.out}", file=sys.stderr)
-    return 0
-
-
 def _load() -> None:
-    global case_files, CaseError, engine_names, EngineError
-    from stereodyn.harness.scenes import cases as case_files
-    from stereodyn.harness.scenes.cases import CaseError
-    from stereodyn.harness.engines import EngineError, engine_names
+    global case_files, CaseError, engine_names, EngineError, budget
+    from stereodyn.harness import budget
+    from ..scenes import cases as case_files
+    from ..scenes.cases import CaseError
+    from ..engines import EngineError, engine_names
+    # Loaded by name (as asv loads its commands): this package never imports a command module itself, so each may
+    # import the helpers above from it.
+    _commands.update({name: importlib.import_module(f"{__name__}.{name}").main for name in COMMANDS})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -465,38 +326,43 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("PYTHONWARNINGS", "ignore::RuntimeWarning,ignore:Glyph:UserWarning")
     try:
         _load()
-        from stereodyn.harness.gate import GateError
-        from stereodyn.harness.run.distributed import ClusterError
-        from stereodyn.harness.export import ExportError
-        from stereodyn.harness.run.store import StoreBusy
-        from stereodyn.harness.run.results import TableError
-        from stereodyn.harness.compare import CompareError
+        from ..analysis.gate import GateError
+        from ..run.distributed import ClusterError
+        from ..export import ExportError
+        from ..run.store import StoreBusy
+        from ..run.results import TableError
+        from ..analysis.compare import CompareError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
-    if signal.getsignal(signal.SIGINT) is _interrupted_while_loading:
-        signal.signal(signal.SIGINT, signal.default_int_handler)  # loaded: KeyboardInterrupt, handled below
+    from ..run import processes
+
+    processes.forget_interrupts()
+    if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
+        signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
     try:
         args = _parser().parse_args(argv)
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
-    commands = {"cases": cmd_cases, "run": cmd_run, "report": cmd_report, "baseline": cmd_baseline,
-                "check": cmd_check, "export": cmd_export, "compare": cmd_compare, "integrators": cmd_integrators}
     try:
-        return commands[args.command](args)
+        code = _commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
             CompareError) as exc:
-        print(f"stereodyn: error: {exc}", file=sys.stderr)
-        return 2
+        code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"stereodyn: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
+        code = _error(f"{where}{exc.strerror or exc}")
     except KeyboardInterrupt:
+        code = 130
+    if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
+    return code
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def _error(message: str) -> int:
+    """Bad input: one line on stderr (a newline or other control character in a name or path is escaped), exit 2."""
+    line = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in message)
+    print(f"stereodyn: error: {line}", file=sys.stderr)
+    return 2

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from stereodyn.harness.run.results import TableError, read_results, write_atomic
+from ..run.results import TableError, read_results, write_atomic
 
 KEY = ("case", "engine", "formulation", "integrator", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}

@@ -25,12 +25,12 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
-from stereodyn.harness.fitting import SUPERCONVERGENT
-from stereodyn.harness.scenes.metrics import DRIFT_COLUMNS
-from stereodyn.harness.run.results import write_atomic
-from stereodyn.harness.fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
-from stereodyn.harness.engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
+from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
+from .fitting import SUPERCONVERGENT
+from ..scenes.metrics import DRIFT_COLUMNS
+from ..run.results import write_atomic
+from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
+from ..engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
                                       engine_for_state_space)
 
 VERDICTS_FILE = "verdicts.csv"
@@ -177,8 +177,8 @@ def _unmeasured(group: pd.DataFrame, declared: float, excluded: set[str], base: 
 def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
     """For each integrator of the run that declares energy_bounded: the long-run energy check (harness.testing), on
     the engine of its state space (Pinocchio for "lie", the reference's quaternion formulation for "vector")."""
-    from stereodyn.harness import integrators as registry
-    from stereodyn.harness import testing
+    from .. import integrators as registry
+    from .. import testing
 
     ran = set(results.loc[results["status"] == "ok", "integrator"].astype(str))
     long_steps = ENERGY_STEPS * ENERGY_RATIO
@@ -274,8 +274,8 @@ def truth_verdicts(results: pd.DataFrame, checks_table: pd.DataFrame | None) -> 
 def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy: bool = True) -> list[Verdict]:
     """Every verdict of a run folder (convergence.csv and checks.csv when present) and its results table; cases: the
     run's Case objects, whose tags say which are chaotic. Writes DIR/verdicts.csv."""
-    from stereodyn.harness.scenes import checks
-    from stereodyn.harness import workprecision
+    from ..scenes import checks
+    from . import workprecision
 
     out_dir = Path(out_dir)
     excluded = [c.name for c in cases if set(getattr(c, "tags", ())) & set(CHAOTIC_TAGS)]
@@ -332,21 +332,4 @@ def summary_lines(verdicts: list[Verdict]) -> list[str]:
     lines = [f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED] + counts[NO_REASON]} not "
              f"measured" + (f" ({counts[NO_REASON]} with no reason: --strict fails them)" if counts[NO_REASON] else "")]
     lines += [f"verdict {'failed' if v.status == FAIL else 'not measured'}: {v.line}" for v in strict_failures(verdicts)]
-    return lines
-
-
-def report_lines(out_dir: Path) -> list[str]:
-    """The report's "Verdicts" section from DIR/verdicts.csv (empty without)."""
-    from stereodyn.harness.report.markdown import markdown_table
-
-    verdicts = read(out_dir)
-    if verdicts is None:
-        return []
-    lines = ["## Verdicts", "", summary_lines(verdicts)[0] + ". Failed verdicts come first, then claims nothing "
-             "measured and no reason excuses; each row states its rule.", ""]
-    ordered = sorted(verdicts, key=lambda v: (v.status != FAIL, v.status != NO_REASON, v.status != UNMEASURED))
-    shown = {FAIL: "**FAIL**", NO_REASON: "**not measured, no reason**"}
-    if ordered:
-        rows = [[shown.get(v.status, v.status), v.verdict, v.subject, v.detail, v.rule] for v in ordered]
-        lines += markdown_table(["status", "verdict", "subject", "finding", "rule"], rows) + [""]
     return lines

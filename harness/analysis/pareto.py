@@ -19,9 +19,9 @@ import math
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.report.markdown import number as _num
-from stereodyn.harness.run.timing import disturbed
-from stereodyn.harness.trajectory import Status
+from ..run.timing import disturbed
+from ..trajectory import Status
+from .text import number as _num
 
 PARETO_COLUMNS = ("case", "scope", "target", "engine", "formulation", "integrator", "dt", "tolerance",
                   "attitude_err", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "ties",

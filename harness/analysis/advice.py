@@ -1,0 +1,237 @@
+"""Step-size advice, the runs (advice.csv; issue 21 item 2): per run family and accuracy target, the model's setting
+checked by runs (harness.analysis.step_advice.search), each run one ladder point (harness.dt_ladders.measure, or
+harness.tolerance_ladders.measure for an adaptive method: the one measure path of the ladders), the advised runs then
+timed alone in the parent (the ladders' timing phase). Used by `stereodyn run` (workprecision.analyse) and
+`stereodyn advise`.
+"""
+from __future__ import annotations
+
+import math
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Callable
+
+import pandas as pd
+
+from . import dt_ladders, tolerance_ladders
+from .dt_ladders import MIN_STEPS, Family
+from .step_advice import ADVICE_COLUMNS, error_model, rounded, search
+from ..trajectory import Status
+
+# The tolerances an advice may name: the tolerance ladders' range (harness.tolerance_ladders.TOLERANCES).
+TOLERANCE_LO, TOLERANCE_HI = min(tolerance_ladders.TOLERANCES), max(tolerance_ladders.TOLERANCES)
+
+
+def _error(row: dict) -> float:
+    err = row.get("attitude_err", math.nan)
+    return float(err) if row.get("status") == Status.OK.value and err is not None and math.isfinite(err) \
+        else math.nan
+
+
+def advise_family(family: Family, adaptive: bool, known: list[dict], order: float, targets: tuple[float, ...],
+                  max_steps: int) -> tuple[list[dict], list[dict]]:
+    """The advice rows of one family for the targets (loose to tight), and the advised runs still to time (ladder
+    rows: dt_ladders.LADDER_COLUMNS or tolerance_ladders.TOLERANCE_COLUMNS). known: the family's points already
+    measured (sweep rows and ladder points: the setting column, steps, status, state_err, attitude_err and, where
+    timed, us_per_sim_s). order: convergence.csv's fitted order, or the tolerance ladder's slope. Never raises: a
+    point that breaks is data."""
+    case = family.case
+    what = "tolerance" if adaptive else "dt"
+    frame = pd.DataFrame(known, columns=sorted({k for row in known for k in row} | {what, "steps", "status",
+                                                                                     "state_err", "attitude_err"}))
+    model = error_model(frame, order, what)
+    if adaptive:
+        lo, hi, cap = TOLERANCE_LO, TOLERANCE_HI, "the tolerance ladders' tightest"
+        from stereodyn.reference import truth as reference_truth
+
+        try:
+            truth = reference_truth.truth(case.body, case.quat0, case.omega0,
+                                          tolerance_ladders._grid(case).times)
+        except Exception as exc:  # the family's rows say why
+            return [_row(family, target, what, note=f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0])
+                    for target in targets], []
+        measure = lambda s: tolerance_ladders.measure(family, s, truth)  # noqa: E731
+    else:
+        lo, hi, cap = case.t_end / max_steps, case.t_end / MIN_STEPS, f"t_end / {max_steps}"
+        measure = lambda s: dt_ladders.measure(family, s, timed=False)  # noqa: E731
+    points: dict[float, dict] = {float(row[what]): row for row in known if math.isfinite(row.get(what, math.nan))}
+    errors = {s: _error(row) for s, row in points.items()}
+
+    def error_at(setting: float) -> float:
+        points[setting] = {k: v for k, v in measure(setting).items() if not k.startswith("_")}
+        return _error(points[setting])
+
+    rows, untimed = [], {}
+    for target in sorted(targets, reverse=True):
+        estimate = model.setting_for(target) if model is not None else math.nan
+        advice = search(error_at, target, estimate, lo, hi, errors, what, cap)
+        row = _row(family, target, what, setting=advice.setting, error=advice.error, fails_at=advice.fails_at,
+                   error_fails=advice.error_fails, estimate=estimate, order=order, runs=advice.runs, note=advice.note)
+        ran = points.get(advice.setting)
+        row["us_per_sim_s"] = ran.get("us_per_sim_s", math.nan) if ran is not None else math.nan
+        if ran is not None and not math.isfinite(row["us_per_sim_s"]):  # timed later, in the parent (run_advice)
+            untimed[advice.setting] = {k: v for k, v in ran.items() if not k.startswith("_")} | {
+                "case": case.name, "engine": family.engine, "formulation": family.formulation,
+                "integrator": family.integrator, what: advice.setting}
+        rows.append(row)
+    return rows, list(untimed.values())
+
+
+def _row(family: Family, target: float, what: str, setting: float = math.nan, **columns) -> dict:
+    row = {c: math.nan for c in ADVICE_COLUMNS} | {
+        "case": family.case.name, "engine": family.engine, "formulation": family.formulation,
+        "integrator": family.integrator, "target": target, "note": ""}
+    row[what] = setting
+    row["error_checked"] = columns.pop("error", math.nan)
+    row.update(columns)
+    return row
+
+
+def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tuple[float, ...], max_steps: int,
+               pool: ProcessPoolExecutor | None = None,
+               progress: Callable[[str], None] | None = None) -> pd.DataFrame:
+    """advice.csv's table for tasks (family, adaptive, known points, order): the searches in this process (pool
+    None) or on the sweep's pool, one task per family, then the advised runs not yet timed timed here, alone, in
+    rounds (the ladders' timing phase)."""
+    results: dict[int, tuple[list[dict], list[dict]]] = {}
+    if pool is None or len(tasks) <= 1:
+        for index, (family, adaptive, known, order) in enumerate(tasks):
+            results[index] = advise_family(family, adaptive, known, order, targets, max_steps)
+            if progress:
+                progress(family.label)
+    else:
+        futures = {pool.submit(advise_family, family, adaptive, known, order, targets, max_steps): index
+                   for index, (family, adaptive, known, order) in enumerate(tasks)}
+        for future in as_completed(futures):
+            index = futures[future]
+            family = tasks[index][0]
+            try:
+                results[index] = future.result()
+            except Exception as exc:  # a worker that died: the family's rows say why
+                what = "tolerance" if tasks[index][1] else "dt"
+                results[index] = ([_row(family, t, what, note=f"worker failed: {type(exc).__name__}: {exc}"
+                                        .splitlines()[0]) for t in sorted(targets, reverse=True)], [])
+            if progress:
+                progress(family.label)
+    rows = [row for index in range(len(tasks)) for row in results[index][0]]
+    _time_advised(rows, {index: results[index][1] for index in results}, tasks)
+    return pd.DataFrame(rows, columns=list(ADVICE_COLUMNS)).fillna({"formulation": "", "note": ""})
+
+
+def _time_advised(rows: list[dict], untimed: dict[int, list[dict]], tasks) -> None:
+    """Time the advised runs that have no timing yet (each once, whatever the targets sharing it), here and alone,
+    and fill their rows' us_per_sim_s, in place."""
+    fixed = {family.key: family for family, adaptive, _, _ in tasks if not adaptive}
+    adaptive = {family.key: family for family, is_adaptive, _, _ in tasks if is_adaptive}
+    points = [point for index in sorted(untimed) for point in untimed[index]]
+    dt_points = [p for p in points if (p["case"], p["engine"], p["formulation"], p["integrator"]) in fixed]
+    tol_points = [p for p in points if (p["case"], p["engine"], p["formulation"], p["integrator"]) in adaptive]
+    if dt_points:
+        dt_ladders.time_points(dt_points, fixed)
+    if tol_points:
+        tolerance_ladders.time_points(tol_points, adaptive)
+    cost = {}
+    for p in dt_points:
+        cost[(p["case"], p["engine"], p["formulation"], p["integrator"], "dt", p["dt"])] = p.get("us_per_sim_s")
+    for p in tol_points:
+        cost[(p["case"], p["engine"], p["formulation"], p["integrator"], "tolerance", p["tolerance"])] = \
+            p.get("us_per_sim_s")
+    for row in rows:
+        what = "tolerance" if math.isfinite(row["tolerance"]) else "dt"
+        found = cost.get((row["case"], row["engine"], row["formulation"], row["integrator"], what, row[what]))
+        if found is not None and math.isfinite(found):
+            row["us_per_sim_s"] = found
+
+
+__all__ = ["advise_family", "run_advice", "rounded"]
+
+
+def advice_tasks(fixed: list[Family], adaptive: list[Family], results: pd.DataFrame, ladder: pd.DataFrame,
+                 tolerance: pd.DataFrame, convergence: pd.DataFrame,
+                 tolerance_fit: pd.DataFrame) -> list[tuple[Family, bool, list[dict], float]]:
+    """run_advice's tasks after a sweep: each fixed-step family with a fitted order (convergence.csv), its points
+    the sweep's runs and its ladder points (ladder.csv); each adaptive family with a fitted slope (tolerance_fit.csv),
+    its points the tolerance ladder's (tolerance.csv)."""
+    from .fitting import with_state_err
+
+    keys = ["case", "engine", "formulation", "integrator"]
+    sweep = results[results["dt"].notna()].fillna({"formulation": ""})
+    if len(sweep):
+        sweep = with_state_err(sweep)
+        sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
+    columns = ["dt", "steps", "status", "state_err", "attitude_err", "us_per_sim_s"]
+    by_family: dict[tuple, list[dict]] = {}
+    for frame_ in (sweep, ladder):
+        if len(frame_):
+            for key, group in frame_.fillna({"formulation": ""}).groupby(keys, sort=False):
+                by_family.setdefault(key, []).extend(group[columns].to_dict("records"))
+    orders = {tuple(r[k] for k in keys): r["order"] for _, r in convergence.fillna({"formulation": ""}).iterrows()}
+    tasks = [(f, False, by_family.get(f.key, []), orders[f.key]) for f in fixed
+             if math.isfinite(orders.get(f.key, math.nan))]
+    slopes = {tuple(r[k] for k in keys): r["slope"] for _, r in tolerance_fit.fillna({"formulation": ""}).iterrows()}
+    points = {key: group[["tolerance", "steps", "status", "state_err", "attitude_err", "us_per_sim_s"]]
+              .to_dict("records") for key, group in tolerance.fillna({"formulation": ""}).groupby(keys, sort=False)} \
+        if len(tolerance) else {}
+    tasks += [(f, True, points.get(f.key, []), slopes[f.key]) for f in adaptive
+              if math.isfinite(slopes.get(f.key, math.nan))]
+    return tasks
+
+
+def families_to_advise(case, engine_name: str, integrators: list[str] | None,
+                       formulation: str | None = None) -> list[tuple[Family, bool]]:
+    """The families `stereodyn advise` checks: the integrators named, or the engine's default-sweep integrators
+    with a declared order or error control, on one formulation (the one named, else quaternion or the engine's
+    first). Bad names raise ValueError with the valid ones."""
+    from ..engines import get_engine
+
+    engine = get_engine(engine_name)
+    own = tuple(engine.formulations())
+    if formulation is None:
+        formulation = "quaternion" if "quaternion" in own else (own[0] if own else "")
+    elif formulation not in own:
+        raise ValueError(f"--formulation: {engine_name} has {', '.join(own) or 'no formulations'}, not {formulation!r}")
+    known = engine.integrators()
+    if integrators:
+        unknown = [i for i in integrators if i not in known]
+        if unknown:
+            raise ValueError(f"--integrator: unknown for {engine_name}: {', '.join(unknown)}; valid: {', '.join(known)}")
+        chosen = list(integrators)
+    else:
+        chosen = [i for i in known if engine.in_default_sweep(i) and engine.default_run(case, formulation, i)
+                  and (engine.adaptive(i) or math.isfinite(engine.declared_order(i)))]
+    out = []
+    for integrator in chosen:
+        if engine.unsupported(case) or engine.unsupported_run(case, formulation, integrator):
+            continue
+        out.append((Family(case, engine_name, formulation, integrator), engine.adaptive(integrator)))
+    return out
+
+
+def advise(case, families: list[tuple[Family, bool]], targets: tuple[float, ...], max_steps: int,
+           progress: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict[tuple, str]]:
+    """What `stereodyn advise` runs: per family, the case's own dt list and a short ladder (dt doubled or halved until
+    three points are asymptotic, harness.dt_ladders.run_short_ladder) for the order, or for an adaptive method the
+    default tolerance ladder (1e-3, 1e-5 … 1e-13) for its slope; then the checked search per target and the advised
+    runs timed. Returns advice.csv's rows and, per family key without an order, why."""
+    from . import fitting
+
+    tasks, why = [], {}
+    for family, adaptive in families:
+        if progress:
+            progress(f"{family.label}: {'tolerance ladder' if adaptive else 'dt list and short ladder'}")
+        if adaptive:
+            known = [{k: v for k, v in p.items() if not k.startswith("_")}
+                     for p in tolerance_ladders.run_ladder(family, tolerance_ladders.DEFAULT_TOLERANCES)]
+            fit = fitting.tolerance_fit(pd.DataFrame(known, columns=list(tolerance_ladders.TOLERANCE_COLUMNS)))
+            order, note = fit["slope"], fit["note"]
+        else:
+            known = [dt_ladders.measure(family, dt, timed=False) for dt in sorted(family.case.dt, reverse=True)]
+            new, row = dt_ladders.run_short_ladder(family, known, max_steps)
+            known += new
+            order, note = row["order"], row["note"]
+        if not math.isfinite(order):
+            why[family.key] = note or "no fitted order"
+            continue
+        tasks.append((family, adaptive, known, order))
+    if progress and tasks:
+        progress("checking the advice")
+    return run_advice(tasks, targets, max_steps), why

@@ -1,0 +1,76 @@
+"""`stereodyn advise CASE --engine E`: the largest step (or tolerance) that reaches each accuracy target, checked by
+runs (harness.analysis.advice)."""
+from __future__ import annotations
+
+import math
+import sys
+
+from . import BadInput, override
+from ..engines import engine_names
+from ..scenes import cases as case_files
+
+
+def main(args) -> int:
+    from ..analysis import advice as advising
+    from ..scenes.cases import SLIDING_LADDER
+    from ..analysis.summary import TERMINAL_TARGETS
+
+    if args.engine not in engine_names():
+        raise BadInput(f"--engine: unknown engine {args.engine}; valid: {', '.join(engine_names())}")
+    case = case_files.find_case(args.case)
+    if case.kind == SLIDING_LADDER:
+        raise BadInput(f"{args.case}: a sliding ladder has no attitude error to advise on")
+    if args.t_end is not None:
+        args.dt = None
+        case = override(case, args)
+    max_steps = args.max_steps or ADVISE_MAX_STEPS
+    if max_steps < 2 * advising.MIN_STEPS or case.t_end / max_steps < case_files.MIN_SCALE:
+        raise BadInput(f"--max-steps: must be >= {2 * advising.MIN_STEPS} and keep t_end / N >= "
+                       f"{case_files.MIN_SCALE:g}, got {max_steps}")
+    try:
+        families = advising.families_to_advise(case, args.engine, args.integrator, args.formulation)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    if not families:
+        from ..engines import get_engine
+
+        engine = get_engine(args.engine)
+        raise BadInput(f"--engine {args.engine}: nothing to advise on case {case.name}"
+                       + (f" ({engine.unsupported(case)})" if engine.unsupported(case) else ""))
+    targets = tuple(sorted(args.target or TERMINAL_TARGETS, reverse=True))
+    say = lambda text: print(f"stereodyn: {text}", file=sys.stderr)  # noqa: E731
+    table, why = advising.advise(case, families, targets, max_steps, say)
+    print("\n".join(advice_lines(case, table, why, families)))
+    return 0
+
+
+ADVISE_MAX_STEPS = 200_000   # advise's smallest dt: t_end / 200000, the full ladders' (RK4's floor is above it)
+
+
+def advice_lines(case, table, why: dict, families) -> list[str]:
+    """`stereodyn advise`'s answer: per family and target, the step (`dt = VALUE`) or tolerance, checked."""
+    horizon = case.horizon if case.horizon is not None else case.t_end
+    lines = [f"{case.name}: the largest step that keeps the max attitude error over 0 … {horizon:g} s within the "
+             "target (checked by runs)"]
+    for family, adaptive in families:
+        name = " ".join(x for x in (family.engine, family.formulation, family.integrator) if x)
+        if family.key in why:
+            lines.append(f"{name}: no advice, no fitted order ({why[family.key]})")
+            continue
+        rows = table[(table["engine"] == family.engine) & (table["formulation"] == family.formulation)
+                     & (table["integrator"] == family.integrator)]
+        what = "tolerance" if adaptive else "dt"
+        for _, row in rows.iterrows():
+            head = f"{name}, error <= {row['target']:.0e} rad: "
+            if not math.isfinite(row[what]):
+                lines.append(head + row["note"])
+                continue
+            cost = f", {row['us_per_sim_s']:.3g} µs per simulated s" if math.isfinite(row["us_per_sim_s"]) else ""
+            fails = (f"; {what} = {row['fails_at']:.4g} gives {row['error_fails']:.3g}"
+                     if math.isfinite(row["fails_at"]) else "")
+            unit = " s" if what == "dt" else ""
+            lines.append(head + f"{what} = {row[what]:.4g}{unit} (error {row['error_checked']:.3g}{cost}{fails})"
+                         + (f" [{row['note']}]" if row["note"] else ""))
+            lines.append(f"    model: error ≈ C {what}^{row['order']:.2f}, estimate {what} = {row['estimate']:.3g}; "
+                         f"{int(row['runs'])} check run{'' if int(row['runs']) == 1 else 's'}")
+    return lines

@@ -1,0 +1,16 @@
+"""`stereodyn baseline DIR --out FILE`: the regression baseline of DIR/results.csv."""
+from __future__ import annotations
+
+from . import output_file
+
+
+def main(args) -> int:
+    from ..analysis import gate
+    from ..run.store import read_manifest
+
+    output_file(args.out, "--out")
+    manifest = read_manifest(args.dir) or {}
+    table, orders = gate.read_table(args.dir), gate.read_orders(args.dir)
+    rows = gate.write_baseline(table, args.out, manifest.get("environment"), orders)
+    print(f"wrote {args.out} ({rows} rows, {0 if orders is None else len(orders)} fitted orders)")
+    return 0

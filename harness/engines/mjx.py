@@ -1,0 +1,210 @@
+"""MJX adapter: MuJoCo's JAX back-end (`mujoco-mjx`, the optional extra `stereodyn[mjx]`), in float64 or float32.
+
+The model is MuJoCo's own scene of the case (harness.engines.mujoco.scene: one body on a ball joint at O), put on
+the device with mjx.put_model. qpos is the quaternion (w, x, y, z) body -> world, qvel the body angular velocity, as
+in MuJoCo C. A run is one jitted function of (model, data, steps per sample interval): a lax.scan over the sample
+intervals, each a lax.fori_loop of mjx.step, so the whole rollout is compiled once per integrator, precision and
+sample count in a process and every case reuses it (the model is an argument, not a constant). prepare() compiles
+(never timed); run() waits for the result (jax.block_until_ready) before it returns.
+
+Precision: JAX's `jax_enable_x64` is a process-wide flag whose value at trace time fixes every dtype, so each run
+traces, compiles and calls its function inside `jax.enable_x64(precision == "float64")`: float32 and float64 runs
+coexist in one worker, each compiled under its own setting (jit caches the two apart).
+
+Torques: a constant body torque enters through qfrc_applied, set once (MJX keeps it through every RK4 stage); a torque
+that depends on the state or the time needs a per-stage callback, which MJX lacks: such cases are absent from a
+default sweep and `skipped` with the reason when named.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+INSTALL = "pip install 'stereodyn[mjx]'"
+
+# One XLA thread per worker: `--jobs N` then means N busy cores for this engine as for every other (the timing
+# contract, docs/ENGINES.md). XLA reads the flags when its CPU backend starts, so they are set before jax is imported;
+# flags a user set already are kept.
+_XLA_THREADS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_XLA_THREADS}".strip()
+try:
+    import jax
+    import mujoco
+    from jax import numpy as jnp
+    from mujoco import mjx
+except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
+    raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
+
+# Compiled rollouts persist on disk (JAX's compilation cache), so a worker loads what another one, or an earlier
+# run, compiled (5-30 s each, one per integrator, precision and model structure) instead of compiling it again. A
+# cache the user chose (JAX_COMPILATION_CACHE_DIR) is kept.
+if not jax.config.jax_compilation_cache_dir:
+    jax.config.update("jax_compilation_cache_dir",
+                      os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "stereodyn",
+                                   "jax"))
+
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
+from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular
+from stereodyn.harness.engines.mujoco import scene, torque_mode
+from stereodyn.harness.grid import TimeGrid, time_grid
+from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
+
+# harness name (MuJoCo's, lower case) -> dynamics evaluations per step. MJX's `implicit` raises NotImplementedError.
+INTEGRATORS: dict[str, int] = {"euler": 1, "rk4": 4, "implicitfast": 1}
+# The orders MuJoCo documents (the same as MuJoCo C's, harness.engines.mujoco.ORDERS): what the fit compares against.
+ORDERS = {"euler": 1.0, "rk4": 4.0, "implicitfast": 1.0}
+# What each integrator is (harness.engines.methods): MuJoCo's Euler updates the velocity first; implicitfast on a ball
+# joint is the same update (its gyroscopic treatment is for free bodies).
+METHODS = {"euler": "semi_implicit_euler", "rk4": "rk4", "implicitfast": "semi_implicit_euler"}
+# implicitfast equals euler on a ball joint (measured: bit for bit against MuJoCo C euler): a second row of the same
+# numbers, left to --integrators.
+DEFAULT_SWEEP = ("euler", "rk4")
+# MJX 3.17's RK4 integrates the ball joint's quaternion as MuJoCo 3.x's did (stages combined by quaternion
+# integration, not Runge-Kutta-Munthe-Kaas): 2nd order on the attitude. MuJoCo C 4.0 made it 4th order (RKMK,
+# FORMULARY H2). Measured here: MJX rk4 reproduces MuJoCo C 3.17 bit for bit and differs from C 4.0 by 1e-4 .. 2e-3
+# in state (docs/ENGINES.md).
+RK4_DEVIATION = KnownDeviation(
+    integrator="rk4", quantity="order", expected=2.0, tolerance=0.3,
+    reference="MJX 3.17 RK4 on ball/free joints is MuJoCo 3.x's (quaternion stages, 2nd order); MuJoCo 4.0.0 "
+              "changelog: RK4 on quaternions is Runge-Kutta-Munthe-Kaas (4th order); no mujoco-mjx 4.x release yet")
+
+
+# Every case's model has this name: names are static fields of an MJX model, so a name per case would compile the
+# rollout again for each case. MuJoCo compiles a body whose inertia is diagonal about its origin as a "simple" one
+# (another static structure): two compilations per integrator and precision cover the suite.
+MODEL_NAME = "stereodyn"
+# The default sweep's cases: the four general ones. Each run costs 15-60 µs a step, and a compilation 5-30 s per
+# integrator, precision and model structure in each worker; the rest run with --engines mjx.
+DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
+
+
+def _constant_torque_only(case: Case) -> str | None:
+    """Why MJX cannot apply the case's torque exactly (None where it can)."""
+    mode = torque_mode(case)
+    if mode in ("none", "qfrc_applied"):
+        return None
+    return ("mjx: the case's torque depends on the state or the time and must be evaluated at every Runge-Kutta "
+            "stage; MJX has no per-stage callback (mjcb_passive), and setting qfrc_applied once per step would make "
+            "rk4 first order")
+
+
+def compiled_model(case: Case, integrator: str, dt: float) -> "mujoco.MjModel":
+    """MuJoCo's scene of the case, with what MJX cannot run switched off (the energy flag)."""
+    if integrator not in INTEGRATORS:
+        raise KeyError(f"unknown MJX integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+    model = mujoco.MjModel.from_xml_string(scene(case, integrator, dt, model_name=MODEL_NAME))
+    # MJX raises on the energy flag; energies are computed from the states by the shared code anyway
+    model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+    return model
+
+
+@jax.jit
+def _rollout(model, data, counts):
+    """The states after each sample interval: counts (n,) int32 steps per interval -> (qpos (n, 4), qvel (n, 3))."""
+    def interval(state, steps):
+        state = jax.lax.fori_loop(0, steps, lambda _, d: mjx.step(model, d), state)
+        return state, (state.qpos, state.qvel)
+
+    return jax.lax.scan(interval, data, counts)[1]
+
+
+class MjxSimulation:
+    """A case's scene on MJX with one integrator, dt and precision, compiled in the constructor; run() starts from the
+    case's initial state every time (the jitted function is pure)."""
+
+    def __init__(self, case: Case, integrator: str, dt: float, precision: str):
+        self.case, self.integrator, self.dt, self.precision = case, integrator, float(dt), precision
+        self.x64 = precision == FLOAT64
+        self.stages = INTEGRATORS[integrator]
+        self.torque_mode = torque_mode(case)
+        model = compiled_model(case, integrator, dt)
+        data = mujoco.MjData(model)
+        data.qpos[:] = case.quat0
+        data.qvel[:] = case.omega0
+        if self.torque_mode == "qfrc_applied":
+            from stereodyn.reference.torques import torque_function
+            data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
+        with jax.enable_x64(self.x64):
+            self.model = mjx.put_model(model)
+            self.data = mjx.put_data(model, data)
+            # compile now (not timed) for the case's own grid; another grid compiles on its first run
+            grid = time_grid(case.t_end, self.dt, case.samples)
+            _rollout.lower(self.model, self.data, self._counts(grid)).compile()
+
+    def _counts(self, grid: TimeGrid):
+        return jnp.asarray(np.diff(grid.sample_steps), dtype=jnp.int32)
+
+    def run(self, grid: TimeGrid) -> Trajectory:
+        if grid.dt != self.dt:
+            raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
+        with jax.enable_x64(self.x64):  # the function is called under the setting it was compiled with
+            qpos, qvel = jax.block_until_ready(_rollout(self.model, self.data, self._counts(grid)))
+        quat = np.empty((grid.times.size, 4))
+        omega = np.empty((grid.times.size, 3))
+        # the initial state as the device holds it (float32 rounds it: part of that precision's error)
+        quat[0], omega[0] = np.asarray(self.data.qpos, dtype=float), np.asarray(self.data.qvel, dtype=float)
+        quat[1:], omega[1:] = np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float)
+        status, message, diverged_at = Status.OK, "", math.nan
+        bad = first_bad_sample(omega, quat, self.case.omega0)
+        if bad is not None:
+            diverged_at = float(grid.times[bad])
+            status, message = Status.DIVERGED, divergence_message(diverged_at)
+            quat[bad:], omega[bad:] = np.nan, np.nan
+        steps = grid.steps if bad is None else int(grid.sample_steps[bad])
+        return Trajectory(grid.times, quat, omega, status, message, diverged_at, steps, self.stages * steps,
+                          info={"torque_mode": self.torque_mode})
+
+
+class MjxEngine(Engine):
+    """MuJoCo's JAX back-end (MJX 3.17) on the CPU: euler, rk4, implicitfast, each in float64 and float32."""
+
+    name = "mjx"
+    # measured on the loaded 2-core machine: 12-30 µs per euler step, 40-60 µs per rk4 step (docs/ENGINES.md)
+    pass_us = 15.0
+    linestyle = (0, (3, 1, 1, 1))
+    packages = ("mujoco-mjx", "jax", "jaxlib", "mujoco")
+    known_deviations = (RK4_DEVIATION,)
+
+    def integrators(self) -> tuple[str, ...]:
+        return tuple(INTEGRATORS)
+
+    def precisions(self, integrator: str) -> tuple[str, ...]:
+        return (FLOAT64, FLOAT32)
+
+    def in_default_sweep(self, integrator: str) -> bool:
+        return integrator in DEFAULT_SWEEP
+
+    def declared_order(self, integrator: str) -> float:
+        return ORDERS.get(integrator, math.nan)
+
+    def method(self, integrator: str) -> str:
+        return METHODS.get(integrator, "")
+
+    def unsupported(self, case: Case) -> str | None:
+        return unphysical_inertia(case) or precession_singular(case)  # MuJoCo's compiler refuses the first
+
+    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
+        return _constant_torque_only(case)
+
+    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
+        """The general cases only (DEFAULT_CASES); a case whose torque MJX cannot apply is absent from a default
+        sweep (named, it is a skipped row)."""
+        return case.name in DEFAULT_CASES and _constant_torque_only(case) is None
+
+    def torque_mode(self, case: Case) -> str:
+        return torque_mode(case)
+
+    def prepare(self, case: Case, integrator: str, dt: float, precision: str = FLOAT64) -> MjxSimulation:
+        if integrator not in INTEGRATORS:
+            raise KeyError(f"unknown integrator {integrator!r} for the MJX engine; valid: {', '.join(INTEGRATORS)}")
+        if precision not in (FLOAT64, FLOAT32):
+            raise KeyError(f"unknown precision {precision!r} for the MJX engine; valid: {FLOAT64}, {FLOAT32}")
+        reason = self.unsupported(case) or _constant_torque_only(case)
+        if reason:
+            raise ValueError(f"{case.name}: {reason}")
+        if dt is None or not dt > 0:
+            raise ValueError(f"integrator {integrator!r} needs a step dt > 0, got {dt!r}")
+        return MjxSimulation(case, integrator, dt, precision)

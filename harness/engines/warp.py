@@ -1,0 +1,196 @@
+"""MuJoCo Warp adapter: MuJoCo's Warp back-end (`mujoco-warp`, the optional extra `stereodyn[warp]`) on the CPU,
+float32 (the only precision it has).
+
+The model is MuJoCo's own scene of the case (harness.engines.mujoco.scene: one body on a ball joint at O), one world,
+put on Warp's CPU device with mujoco_warp.put_model; states are read back at the sample times. qpos is the
+quaternion (w, x, y, z) body -> world, qvel the body angular velocity, as in MuJoCo C.
+
+Warp compiles its kernels on first use (~40 s on this machine kind, then cached on disk in Warp's kernel cache, ~1 s
+to load in a new process): prepare() steps a scratch copy of the data once, so that compiling and loading are never
+timed. Warp's CPU kernels run in the calling thread (one thread per worker, the timing contract of ENGINES.md), and
+every read-back synchronises, so a run's time is the finished computation.
+
+MuJoCo Warp has no autoreset (a diverged state stays NaN, as this harness wants): put_model refuses the flag that
+disables it, so the scene's flag is cleared. Torques as in the MJX adapter: a constant body torque through
+qfrc_applied; a torque that depends on the state or the time is not modelled (no per-stage callback).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+INSTALL = "pip install 'stereodyn[warp]'"
+try:
+    import mujoco
+    import warp as wp
+
+    # no banner, no line per kernel module on stdout (set before mujoco_warp loads its modules)
+    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
+    import mujoco_warp as mjw
+except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
+    raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
+
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
+from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
+from stereodyn.harness.engines.mujoco import scene, torque_mode
+from stereodyn.harness.grid import TimeGrid
+from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from stereodyn.reference.torques import torque_function
+
+DEVICE = "cpu"
+MODEL_NAME = "stereodyn"  # one name for every case's model (as the MJX adapter's)
+
+# harness name (MuJoCo's, lower case) -> dynamics evaluations per step
+INTEGRATORS: dict[str, int] = {"euler": 1, "rk4": 4, "implicitfast": 1, "implicit": 1}
+ORDERS = {"euler": 1.0, "rk4": 4.0, "implicitfast": 1.0, "implicit": 1.0}
+METHODS = {"euler": "semi_implicit_euler", "rk4": "rk4", "implicitfast": "semi_implicit_euler"}
+# The default sweep: euler and rk4 at one coarse step on the four general cases (0.03-0.1 ms a step with the
+# captured graph, ~5 ms a step without it); every other case and step runs with --engines warp (and --dt).
+DEFAULT_SWEEP = ("euler", "rk4")
+DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
+# The coarse step: the largest of the case's dts not above this (heavy-asymmetric's 0.3 is beyond Euler's stability).
+COARSE_DT = 1e-2
+
+
+def _constant_torque_only(case: Case) -> str | None:
+    if torque_mode(case) in ("none", "qfrc_applied"):
+        return None
+    return ("warp: the case's torque depends on the state or the time and must be evaluated at every Runge-Kutta "
+            "stage; MuJoCo Warp has no per-stage callback (mjcb_passive)")
+
+
+def compiled_model(case: Case, integrator: str, dt: float) -> "mujoco.MjModel":
+    """MuJoCo's scene of the case, with the autoreset flag cleared (MuJoCo Warp has no autoreset and refuses it)."""
+    if integrator not in INTEGRATORS:
+        raise KeyError(f"unknown MuJoCo Warp integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+    model = mujoco.MjModel.from_xml_string(scene(case, integrator, dt, model_name=MODEL_NAME))
+    model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+    return model
+
+
+def _arrays(data) -> list:
+    """Every Warp array of a MuJoCo Warp Data (nested dataclasses included), in field order."""
+    found = []
+    for field in dataclasses.fields(data):
+        value = getattr(data, field.name)
+        if isinstance(value, wp.array):
+            found.append(value)
+        elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+            found.extend(_arrays(value))
+    return found
+
+
+class WarpSimulation:
+    """A case's scene on MuJoCo Warp (one world, CPU, float32) with one integrator and dt; run() starts from the
+    case's initial state every time.
+
+    A step launches ~80 kernels from Python, which costs ~5 ms a step on the CPU; Warp's graph capture (CPU capture,
+    Warp >= 1.19) records them once and replays them natively at ~0.03 ms a step with bit-identical results
+    (tests/test_warp.py compares the two). prepare captures two graphs on one device Data: a step, and the reset of
+    every array of that Data from a pristine copy (the initial state)."""
+
+    def __init__(self, case: Case, integrator: str, dt: float):
+        self.case, self.dt, self.stages = case, float(dt), INTEGRATORS[integrator]
+        self.torque_mode = torque_mode(case)
+        mj_model = compiled_model(case, integrator, dt)
+        mj_data = mujoco.MjData(mj_model)
+        mj_data.qpos[:] = case.quat0
+        mj_data.qvel[:] = case.omega0
+        if self.torque_mode == "qfrc_applied":
+            mj_data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
+        self.limit2 = divergence_limit2(case.omega0)
+        with wp.ScopedDevice(DEVICE):
+            self.model = mjw.put_model(mj_model)
+            mjw.step(self.model, mjw.put_data(mj_model, mj_data))  # compile or load the kernels, on a scratch copy
+            self.initial = mjw.put_data(mj_model, mj_data)
+            self.data = mjw.put_data(mj_model, mj_data)
+            with wp.ScopedCapture() as capture:
+                mjw.step(self.model, self.data)
+            self.step_graph = capture.graph
+            with wp.ScopedCapture() as capture:
+                for target, source in zip(_arrays(self.data), _arrays(self.initial)):
+                    wp.copy(target, source)
+            self.reset_graph = capture.graph
+            wp.synchronize()
+
+    def run(self, grid: TimeGrid) -> Trajectory:
+        if grid.dt != self.dt:
+            raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
+        samples = grid.sample_steps
+        quat = np.full((samples.size, 4), np.nan)
+        omega = np.full((samples.size, 3), np.nan)
+        launch, step, qpos, qvel = wp.capture_launch, self.step_graph, self.data.qpos, self.data.qvel
+        with wp.ScopedDevice(DEVICE):
+            launch(self.reset_graph)
+            quat[0], omega[0] = qpos.numpy()[0], qvel.numpy()[0]  # as float32 holds them
+            done = 0
+            for index, target in enumerate(samples[1:].tolist(), start=1):
+                for _ in range(target - done):
+                    launch(step)
+                done = target
+                quat[index], omega[index] = qpos.numpy()[0], qvel.numpy()[0]  # a read-back synchronises
+                if not sample_good(quat[index].tolist(), omega[index].tolist(), self.limit2):
+                    diverged_at = float(grid.times[index])
+                    quat[index:], omega[index:] = np.nan, np.nan
+                    return Trajectory(grid.times, quat, omega, Status.DIVERGED, divergence_message(diverged_at),
+                                      diverged_at, done, self.stages * done, info={"torque_mode": self.torque_mode})
+        return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, self.stages * grid.steps,
+                          info={"torque_mode": self.torque_mode})
+
+
+class WarpEngine(Engine):
+    """MuJoCo Warp 4.0 on the CPU, one world, float32: euler, rk4, implicitfast, implicit."""
+
+    name = "warp"
+    # measured: ~4.7 ms per euler step on the loaded 2-core machine (docs/ENGINES.md)
+    pass_us = 4700.0
+    linestyle = (0, (1, 1))
+    packages = ("mujoco-warp", "warp-lang", "mujoco")
+
+    def integrators(self) -> tuple[str, ...]:
+        return tuple(INTEGRATORS)
+
+    def precisions(self, integrator: str) -> tuple[str, ...]:
+        return (FLOAT32,)
+
+    def in_default_sweep(self, integrator: str) -> bool:
+        return integrator in DEFAULT_SWEEP
+
+    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
+        return case.name in DEFAULT_CASES and _constant_torque_only(case) is None
+
+    def default_dts(self, case: Case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
+        """One coarse step (COARSE_DT or the largest below it) in a default sweep."""
+        coarse = [dt for dt in dts if dt <= COARSE_DT]
+        return (max(coarse),) if coarse else (min(dts),)
+
+    def declared_order(self, integrator: str) -> float:
+        return ORDERS.get(integrator, math.nan)
+
+    def method(self, integrator: str) -> str:
+        return METHODS.get(integrator, "")
+
+    def unsupported(self, case: Case) -> str | None:
+        return unphysical_inertia(case) or precession_singular(case)  # MuJoCo's compiler refuses the first
+
+    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
+        return _constant_torque_only(case)
+
+    def torque_mode(self, case: Case) -> str:
+        return torque_mode(case)
+
+    def prepare(self, case: Case, integrator: str, dt: float, precision: str = FLOAT32) -> WarpSimulation:
+        if integrator not in INTEGRATORS:
+            raise KeyError(f"unknown integrator {integrator!r} for the MuJoCo Warp engine; "
+                           f"valid: {', '.join(INTEGRATORS)}")
+        if precision != FLOAT32:
+            raise KeyError(f"MuJoCo Warp runs in {FLOAT32} only, not {precision!r}")
+        reason = self.unsupported(case) or _constant_torque_only(case)
+        if reason:
+            raise ValueError(f"{case.name}: {reason}")
+        if dt is None or not dt > 0:
+            raise ValueError(f"integrator {integrator!r} needs a step dt > 0, got {dt!r}")
+        return WarpSimulation(case, integrator, dt)

@@ -1,0 +1,39 @@
+"""The report's "Step-size advice" section, from advice.csv: per engine, the largest dt (or tolerance) of each
+integrator that reaches each target, checked by runs, with its measured error and cost, or why there is none."""
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from ..analysis.step_advice import CHECK_RATIO
+from .markdown import markdown_table, number
+
+
+def advice_lines(table: pd.DataFrame) -> list[str]:
+    """The section's markdown lines (table: advice.csv, text columns read as strings); none for an empty table."""
+    if table is None or table.empty:
+        return []
+    lines = ["## Step-size advice", "",
+             "Per engine, integrator and accuracy target (max attitude error over the case's horizon, rad, as in "
+             "What to use): the largest step dt, or for an adaptive method the largest requested tolerance, that "
+             "reaches it (advice.csv). Estimated from the fitted error model C·dt^p on the asymptotic range, then "
+             f"checked by runs: the setting shown reaches the target, {CHECK_RATIO:g} times it (or less: 'fails at') "
+             "does not. 'error checked' and 'µs/s' are the advised run's own, measured; a target beyond the step cap or "
+             "below the method's floor says so instead. The default run checks the families with a dt or tolerance "
+             "ladder at 1e-3 and 1e-6 rad; `--dt-ladder` every laddered family at every target; `stereodyn advise "
+             "CASE --engine E` any case and engine.", ""]
+    for engine, rows in table.groupby("engine", sort=False):
+        cells = []
+        for _, row in rows.iterrows():
+            setting = f"tol = {row['tolerance']:.3g}" if math.isfinite(row["tolerance"]) else \
+                f"dt = {row['dt']:.4g}" if math.isfinite(row["dt"]) else "-"
+            cells.append([row["case"], " ".join(x for x in (row["formulation"], row["integrator"]) if x),
+                          f"{row['target']:.0e}", setting, number(row["error_checked"], ".2g"),
+                          number(row["us_per_sim_s"], ".3g"), number(row["fails_at"], ".4g"), row["note"]])
+        # "### mujoco" is What to use's heading (and the page's anchor): this one names the section too. The error
+        # column is not "error": that header is graded red to green, and an error that meets its target is no alarm.
+        lines += [f"### {engine}: step sizes", "", *markdown_table(["case", "integrator", "target", "advised",
+                                                                    "error checked", "µs/s", "fails at", "note"],
+                                                                   cells), ""]
+    return lines

@@ -1,0 +1,117 @@
+"""`stereodyn compare A B`'s pages: OUT/compare.md and OUT/compare.html (OUT: B or --out) — the environments with
+the differences first, then the rows whose status or metrics changed, grouped by how much and sorted within a group,
+each metric as the ratio B / A, and a figure of the largest changes — and compare.csv (harness.analysis.compare's
+table)."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pandas as pd
+
+from ..analysis import gate
+from ..analysis.compare import (DIFFERS, FIGURE_ROWS, FLOOR, GROUPS, LISTED, TIMING, CompareError, environment_rows,
+                                group, label, load, row_changes)
+from .markdown import markdown_table
+
+
+def _ratio(value: float) -> str:
+    return "-" if not math.isfinite(value) else f"{value:.3g}"
+
+
+def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.DataFrame,
+                  figure: str | None) -> list[str]:
+    """The lines of the output folder's compare.md."""
+    lines = ["# stereodyn compare", "", f"A: `{path_a}`", "", f"B: `{path_b}`", "", "## Environment", ""]
+    env = environment_rows(env_a, env_b)
+    differing = [r[0] for r in env if r[3] == DIFFERS]
+    lines += [("Differs: " + ", ".join(differing) + ".") if differing else "Same environment (the date aside).", ""]
+    lines += markdown_table(["key", "A", "B", ""], env) + [""]
+    groups = changes.apply(group, axis=1) if len(changes) else pd.Series([], dtype=str)
+    order = ["status changed", *(name for _, name in GROUPS), "only in A", "only in B"]
+    counts = groups.value_counts()
+    lines += ["## Rows", "",
+              f"{len(changes)} rows matched by (case, engine, formulation, integrator, dt): "
+              + ", ".join(f"{counts.get(g, 0)} {g}" for g in [*order, "unchanged"]) + ". Each metric as the ratio "
+              f"B / A (of max(value, {FLOOR:g}): round-off has no ratio); the rows sorted by their largest accuracy "
+              "change; us_per_step is timing, comparable only on one machine. compare.csv has every row.", ""]
+    metrics = [c for c in changes.columns if c.endswith(gate.METRIC_SUFFIXES)] + [TIMING]
+    for name in order:
+        members = changes[groups == name].sort_values("change", ascending=False)
+        if members.empty:
+            continue
+        shown = [m for m in metrics if members[m].notna().any()]
+        rows = [[label(r), r["status_a"], r["status_b"], r["metric"] or "-",
+                 *[_ratio(r[m]) for m in shown]] for _, r in members.head(LISTED).iterrows()]
+        lines += [f"### {name} ({len(members)} rows)", "",
+                  # "B/A" in the header: a ratio, not a drift (the page colours drift columns on their scale)
+                  *markdown_table(["row", "status A", "status B", "largest change", *(f"{m} B/A" for m in shown)],
+                                  rows), ""]
+        if len(members) > LISTED:
+            lines += [f"... and {len(members) - LISTED} more in compare.csv.", ""]
+    if figure:
+        lines += ["## Largest changes", "", f"![largest changes]({figure})", ""]
+    return lines
+
+
+def figure(changes: pd.DataFrame) -> bytes | None:
+    """A bar per row of the largest accuracy changes (log10 of the ratio B / A of its most-changed metric)."""
+    top = changes[changes["change"] >= GROUPS[-1][0]].sort_values("change", ascending=False).head(FIGURE_ROWS)
+    if top.empty:
+        return None
+    from matplotlib.figure import Figure
+
+    from . import figures
+
+    values = [math.log10(r[r["metric"]]) for _, r in top.iterrows()]
+    labels = [f"{label(r)}: {r['metric']}" for _, r in top.iterrows()]
+    fig = Figure(figsize=(10, 0.3 * len(top) + 1.2))
+    fig.subplots_adjust(left=0.55, right=0.97, top=1 - 0.5 / (0.3 * len(top) + 1.2), bottom=0.6 / (0.3 * len(top)
+                                                                                                     + 1.2))
+    axes = fig.subplots()
+    axes.barh(range(len(values)), values, color=["#d62728" if v > 0 else "#2ca02c" for v in values])
+    axes.set_yticks(range(len(values)), labels, fontsize=figures.MIN_FONT_PT)
+    axes.tick_params(axis="x", labelsize=figures.MIN_FONT_PT)
+    axes.invert_yaxis()
+    axes.axvline(0, color="black", linewidth=0.8)
+    axes.set_xlabel("log10(B / A) of the row's most-changed metric (red: worse in B)", fontsize=figures.LABEL_FONT_PT)
+    axes.set_title("largest changes", fontsize=figures.TITLE_FONT_PT)
+    return figures.png(fig)  # the report's resolution and palette: readable at 100% (10 in = 960 px)
+
+
+def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, Path, list[str]]:
+    """Write compare.md, compare.html, compare.csv (and the figure) to `out` (default: B, which must then be a
+    directory); return the two pages and the headline lines for the terminal."""
+    from . import html
+    from ..run.results import write_atomic
+
+    if out is None:
+        if Path(path_b).is_file():
+            raise CompareError(f"{path_b}: a baseline file, not a directory: give --out DIR for compare.md")
+        out = Path(path_b)
+    table_a, env_a = load(path_a)
+    table_b, env_b = load(path_b)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    changes = row_changes(table_a, table_b)
+    png = figure(changes) if len(changes) else None
+    figure_path = "figures/compare-largest-changes.png" if png else None
+    lines = compare_lines(path_a, path_b, env_a, env_b, changes, figure_path)
+    markdown = "\n".join(lines) + "\n"
+    if png:
+        (out / "figures").mkdir(exist_ok=True)
+        write_atomic(out / figure_path, png)
+    write_atomic(out / "compare.md", markdown)
+    write_atomic(out / "compare.html", html.render(markdown, {figure_path: png} if png else {}, out))
+    write_atomic(out / "compare.csv", changes.to_csv(index=False, float_format="%.6g"))
+    differing = [f"{r[0]} {r[1]} -> {r[2]}" for r in environment_rows(env_a, env_b) if r[3] == DIFFERS]
+    head = ["environment differs: " + ", ".join(differing) if differing else "environment: the same (the date aside)"]
+    groups = changes.apply(group, axis=1) if len(changes) else pd.Series([], dtype=str)
+    for name in ["status changed", *(n for _, n in GROUPS), "only in A", "only in B"]:
+        members = changes[groups == name].sort_values("change", ascending=False)
+        if len(members):
+            r = members.iloc[0]
+            worst = (f"{r['metric']} x{_ratio(r[r['metric']])}" if r["metric"] and name in dict(map(reversed, GROUPS))
+                     else f"{r['status_a']} -> {r['status_b']}")
+            head.append(f"{len(members)} rows {name}; first: {label(r)} ({worst})")
+    return out / "compare.md", out / "compare.html", head

@@ -1,0 +1,61 @@
+"""The layers of the package (DESIGN §1): reference <- harness (scenes, run, engines, integrators) <- analysis <-
+report <- cli. A module imports only from its own layer or those below it, anywhere in its source (static, as
+test_import_cycles reads it): analysis never renders (imports nothing from report), reference never imports harness."""
+from test_import_cycles import graph
+
+LAYERS = ("reference", "harness", "analysis", "report", "cli")
+# stereodyn.harness.testing keeps its 0.2.0 path (plug-ins import it) but measures and fits: the analysis layer.
+ANALYSIS_ELSEWHERE = ("stereodyn.harness.testing",)
+
+
+def layer(module: str) -> str | None:
+    """The layer of a module of the package; None for the package's root (stereodyn, python -m stereodyn: above all)
+    and for the case files' package."""
+    if module.startswith("stereodyn.reference"):
+        return "reference"
+    for name in ("analysis", "report", "cli"):
+        if module == f"stereodyn.harness.{name}" or module.startswith(f"stereodyn.harness.{name}."):
+            return name
+    if module in ANALYSIS_ELSEWHERE:
+        return "analysis"
+    if module.startswith("stereodyn.harness"):
+        return "harness"
+    return None
+
+
+def upward(edges: dict[str, set[str]]) -> list[str]:
+    """Every import that runs up a layer, as 'importer -> imported'."""
+    found = []
+    for importer, imported in edges.items():
+        for target in sorted(imported):
+            below, above = layer(importer), layer(target)
+            if below is not None and above is not None and LAYERS.index(above) > LAYERS.index(below):
+                found.append(f"{importer} ({below}) -> {target} ({above})")
+    return found
+
+
+def test_the_layers_cover_the_package():
+    edges = graph()
+    assert {layer(m) for m in edges} >= set(LAYERS)
+    assert layer("stereodyn.harness.analysis.fitting") == "analysis" and layer("stereodyn.harness.cli") == "cli"
+    assert layer("stereodyn.harness.engines.mujoco") == "harness" and layer("stereodyn.harness.report") == "report"
+
+
+def test_no_import_runs_up_a_layer():
+    bad = upward(graph())
+    assert not bad, "imports up a layer:\n" + "\n".join(bad)
+
+
+def test_analysis_imports_nothing_from_report():
+    edges = graph()
+    bad = [f"{m} -> {t}" for m, targets in edges.items() if layer(m) == "analysis" for t in targets
+           if layer(t) == "report"]
+    assert not bad, bad
+
+
+def test_an_upward_import_is_found():
+    edges = {"stereodyn.harness.analysis.fitting": {"stereodyn.harness.report.markdown"},
+             "stereodyn.harness.report.build": {"stereodyn.harness.analysis.verdicts"},
+             "stereodyn.reference.truth": {"stereodyn.harness.engines"}}
+    assert upward(edges) == ["stereodyn.harness.analysis.fitting (analysis) -> stereodyn.harness.report.markdown "
+                             "(report)", "stereodyn.reference.truth (reference) -> stereodyn.harness.engines (harness)"]

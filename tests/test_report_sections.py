@@ -1,0 +1,64 @@
+"""report.md's sections are registered plug-ins (harness.report.sections), shown in their declared order: a section
+added by a test lands where its order puts it, and every other section renders as it did."""
+import re
+
+import pandas as pd
+import pytest
+
+from stereodyn.harness import cli
+from stereodyn.harness.report import build, sections
+
+BUILT_IN = ["title", "verdicts", "summary", "work-precision", "each-integrator", "runs-that-did-not-complete",
+            "formulations-side-by-side", "cases", "oracle-and-theory-checks", "definitions", "environment"]
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sections")
+    assert cli.main(["run", "lagrange-top", "--engines", "reference", "--integrators", "rk4", "--t-end", "0.5",
+                     "--dt", "0.05,0.025", "--no-certify", "--jobs", "1", "--quiet", "--out", str(out)]) == 0
+    return out
+
+
+def _page(out) -> str:
+    markdown, _ = build.write_reports(out)
+    return re.sub(r"- report rendered: .*", "", markdown.read_text())  # the one line that changes between renders
+
+
+def test_the_built_in_sections_in_their_order():
+    assert [s.name for s in sections.registered()] == BUILT_IN
+    orders = [s.order for s in sections.registered()]
+    assert orders == sorted(orders)
+
+
+def test_a_registered_section_lands_at_its_order_and_leaves_the_others_alone(folder):
+    before = _page(folder)
+
+    @sections.register("test-section", 65)  # between "Formulations side by side" (60) and "Cases" (70)
+    def _mine(context):
+        ok = int((context.results["status"] == "ok").sum())
+        return ["## Test section", "", f"{ok} ok runs in {context.out_dir.name}.", ""]
+
+    try:
+        names = [s.name for s in sections.registered()]
+        assert names.index("formulations-side-by-side") < names.index("test-section") < names.index("cases")
+        after = _page(folder)
+    finally:
+        sections.unregister("test-section")
+    ok = int((pd.read_csv(folder / "results.csv")["status"] == "ok").sum())
+    assert ok >= 5  # the truth, and rk4 at two steps at least
+    added = f"## Test section\n\n{ok} ok runs in {folder.name}.\n\n"
+    assert added in after
+    assert after.index(added) < after.index("## Cases\n") and after.index("## Summary\n") < after.index(added)
+    assert after.replace(added, "") == before  # every other section as it was
+    assert 'id="test-section"' in (folder / "report.html").read_text()
+    assert _page(folder) == before  # unregistered: gone again
+
+
+def test_a_section_with_nothing_to_say_is_left_out(folder):
+    before = _page(folder)
+    sections.register("empty", 1)(lambda context: [])
+    try:
+        assert _page(folder) == before
+    finally:
+        sections.unregister("empty")
