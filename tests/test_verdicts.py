@@ -157,7 +157,7 @@ def test_an_unmeasured_claim_is_excused_only_by_a_reason():
 def test_summary_names_no_run_that_failed_a_verdict():
     """The report's Summary follows pareto.csv: a failed integrator is never the cheapest, and where only such runs
     reach the accuracy it says so in pareto.csv's words."""
-    from stereodyn.harness.pareto import ONLY_FAILED
+    from stereodyn.harness.analysis.pareto import ONLY_FAILED
     from stereodyn.harness.report.build import summary_lines
 
     def row(integrator, err, wall):
