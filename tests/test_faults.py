@@ -138,3 +138,305 @@ def test_a_worker_ignores_ctrl_c_from_its_first_moment():
         handlers = {pool.submit(signal.getsignal, signal.SIGINT).result(timeout=120) for _ in range(4)}
         assert handlers == {signal.SIG_IGN}
         assert all(_alive(pid) for pid in workers)
+
+
+# --- a result folder: read only when no command writes it, and only complete
+
+BASE = """name = "base"
+[body]
+mass = 1.0
+com = [0.0, 0.0, 0.0]
+principal_moments = [2.0, 1.5, 1.0]
+[initial]
+attitude = { euler_zxz = [0.3, 0.8, -0.5] }
+omega = [0.4, 0.1, 2.0]
+[run]
+t_end = 0.1
+dt = [1e-2]
+samples = 11
+"""
+FAST = ["--engines", "mujoco", "--integrators", "rk4", "--jobs", "1", "--quiet"]
+REPORTS = Path(__file__).resolve().parents[1] / "reports"
+
+
+def _one_line(code: int, capsys, expected_code: int = 2, *expected: str) -> str:
+    err = capsys.readouterr().err
+    assert code == expected_code, err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for text in expected:
+        assert text in err, err
+    return err
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    """A complete result folder of one small sweep, and its baseline."""
+    folder = tmp_path_factory.mktemp("good")
+    case = folder.parent / "good.toml"
+    case.write_text(BASE)
+    assert cli.main(["run", "--case-file", str(case), "--out", str(folder / "out"), *FAST]) == 0
+    assert cli.main(["baseline", str(folder / "out"), "--out", str(folder / "base.json")]) == 0
+    return folder / "out", folder / "base.json", case
+
+
+def _copy(folder: Path, to: Path) -> Path:
+    import shutil
+
+    shutil.copytree(folder, to, ignore=shutil.ignore_patterns("report.html", "figures"))
+    return to
+
+
+def _reads(folder: Path, baseline: Path, good: Path, tmp_path: Path, *extra: str) -> list[list[str]]:
+    """The four commands that read a result folder, on `folder`."""
+    return [["baseline", str(folder), "--out", str(tmp_path / "new.json"), *extra],
+            ["check", str(folder), "--baseline", str(baseline), *extra],
+            ["compare", str(good), str(folder), "--out", str(tmp_path / "cmp"), *extra],
+            ["report", str(folder), *extra]]
+
+
+def test_the_gate_never_reads_a_folder_a_command_is_writing(good, tmp_path, capsys):
+    """A sweep holds DIR/store's lock from its start to its report: check, baseline, compare and report on the
+    folder meanwhile exit 2 with one line naming it (0.2.0's check passed a sweep still in its timing phase)."""
+    import fcntl
+
+    folder = _copy(good[0], tmp_path / "busy")
+    capsys.readouterr()
+    fd = os.open(folder / "store", os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # what a running sweep holds
+        for argv in _reads(folder, good[1], good[0], tmp_path):
+            _one_line(cli.main(argv), capsys, 2, str(folder), "writing")
+        assert not (tmp_path / "new.json").exists()
+    finally:
+        os.close(fd)
+    for argv in _reads(folder, good[1], good[0], tmp_path):  # released: the same commands read it
+        code = cli.main(argv)
+        assert code == 0, (argv, capsys.readouterr())
+
+
+def _mark(folder: Path, complete) -> None:
+    import json
+
+    manifest = json.loads((folder / "runs.json").read_text())
+    if complete is None:
+        manifest.pop("complete")
+    else:
+        manifest["complete"] = complete
+    (folder / "runs.json").write_text(json.dumps(manifest))
+
+
+def test_an_unfinished_folder_is_refused_or_read_as_partial(good, tmp_path, capsys):
+    folder = _copy(good[0], tmp_path / "unfinished")
+    _mark(folder, False)
+    capsys.readouterr()
+    for argv in _reads(folder, good[1], good[0], tmp_path):
+        _one_line(cli.main(argv), capsys, 2, str(folder), "unfinished", "--allow-partial")
+    for argv in _reads(folder, good[1], good[0], tmp_path, "--allow-partial"):
+        err = capsys.readouterr().err
+        assert cli.main(argv) == 0
+        err = capsys.readouterr().err
+        assert err.startswith("stereodyn: warning:") and err.count("\n") == 1 and "unfinished" in err, (argv, err)
+
+
+def test_a_folder_without_the_mark_is_read_with_one_warning(good, tmp_path, capsys):
+    """0.2.0 wrote no completion mark: its folders (the committed reports among them) are read, with one line."""
+    folder = _copy(good[0], tmp_path / "old")
+    _mark(folder, None)
+    capsys.readouterr()
+    for argv in _reads(folder, good[1], good[0], tmp_path):
+        assert cli.main(argv) == 0, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "no completion mark" in err, (argv, err)
+    assert cli.main(["baseline", str(REPORTS / "default"), "--out", str(tmp_path / "default.json")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no completion mark" in err, err
+
+
+def test_a_run_interrupted_before_its_end_leaves_the_folder_unfinished(good, tmp_path, monkeypatch, capsys):
+    """The mark is the command's last write: interrupted while it writes its report, the folder stays unfinished
+    (the gate refuses it) and --resume completes it."""
+    from stereodyn.harness.report import build
+
+    write_reports = build.write_reports
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "out"
+    monkeypatch.setattr(build, "write_reports", interrupted)
+    assert cli.main(["run", "--case-file", str(good[2]), "--out", str(out), *FAST]) == 130
+    monkeypatch.setattr(build, "write_reports", write_reports)
+    capsys.readouterr()
+    _one_line(cli.main(["check", str(out), "--baseline", str(good[1])]), capsys, 2, "unfinished")
+    assert cli.main(["run", "--case-file", str(good[2]), "--out", str(out), "--resume", *FAST]) == 0
+    assert cli.main(["check", str(out), "--baseline", str(good[1])]) == 0
+
+
+# --- one validation of a results table: what check refuses, baseline refuses first
+
+def _rewrite(path: Path, edit) -> None:
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(edit(lines)))
+
+
+def _cell(lines, row: int, column: str, value: str):
+    header = lines[0].rstrip("\n").split(",")
+    cells = lines[row].rstrip("\n").split(",")
+    cells[header.index(column)] = value
+    lines[row] = ",".join(cells) + "\n"
+    return lines
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda lines: _cell(lines, 1, "energy_drift", "abc"), ("row 1, column energy_drift", "'abc' is not a number")),
+    (lambda lines: _cell(lines, 1, "status", "bogus"), ("row 1, column status", "'bogus' is not a status")),
+    (lambda lines: _cell(lines, 1, "attitude_err", "inf"), ("row 1, column attitude_err", "finite")),
+    (lambda lines: _cell(lines, 1, "us_per_step", "-inf"), ("row 1, column us_per_step", "finite")),
+    (lambda lines: _cell(lines, 1, "case", ""), ("row 1, column case", "empty")),
+    (lambda lines: lines[:1] + [lines[1].rstrip("\n") + ",extra\n"] + lines[1:], ("row 1:", "the header has")),
+    (lambda lines: lines + [lines[1][: len(lines[1]) // 2] + "\n"], ("row 2:", "truncated")),
+    (lambda lines: lines[:1], ("no rows",)),
+])
+def test_a_malformed_results_table_is_refused_by_every_reader(good, tmp_path, capsys, edit, expected):
+    folder = _copy(good[0], tmp_path / "bad")
+    _rewrite(folder / "results.csv", edit)
+    capsys.readouterr()
+    for argv in _reads(folder, good[1], good[0], tmp_path):
+        _one_line(cli.main(argv), capsys, 2, str(folder / "results.csv"), *expected)
+    assert not (tmp_path / "new.json").exists()  # baseline wrote nothing check would refuse
+
+
+def test_what_baseline_writes_check_reads(good, tmp_path, capsys):
+    assert cli.main(["check", str(good[0]), "--baseline", str(good[1])]) == 0
+    assert "check passed" in capsys.readouterr().out
+
+
+# --- bounded readers: hostile files are one line (or read as absent), never a traceback
+
+NESTED = "[" * 100_000 + "]" * 100_000
+
+
+def test_a_nested_or_misshapen_runs_json_counts_as_absent(good, tmp_path, capsys):
+    for text in (NESTED, "[1, 2]", '{"format": 1, "runs": [], "complete": "yes"}', "1" * 5000):
+        folder = _copy(good[0], tmp_path / f"manifest{len(text)}")
+        (folder / "runs.json").write_text(text)
+        capsys.readouterr()
+        for argv in _reads(folder, good[1], good[0], tmp_path)[:3]:
+            assert cli.main(argv) == 0, argv
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and "no completion mark" in err, (argv, err)
+
+
+@pytest.mark.parametrize("text, expected", [
+    (NESTED, "nested too deep"),
+    ('{"format": "stereodyn-baseline/1", "rows": [' + "1" * 5000 + "]}", "more than 4300 digits"),
+    ("[1, 2]", "not a baseline file"),
+])
+def test_a_hostile_baseline_file_is_one_line(good, tmp_path, capsys, text, expected):
+    path = tmp_path / "hostile.json"
+    path.write_text(text)
+    capsys.readouterr()
+    _one_line(cli.main(["check", str(good[0]), "--baseline", str(path)]), capsys, 2, str(path), expected)
+    _one_line(cli.main(["compare", str(path), str(good[0]), "--out", str(tmp_path / "cmp")]), capsys, 2, str(path))
+
+
+def test_hostile_case_and_tolerance_files_are_one_line(good, tmp_path, capsys):
+    huge = "1" + "0" * 4999
+    case = tmp_path / "case.toml"
+    case.write_text(BASE.replace("samples = 11", f"samples = {huge}"))
+    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+              str(case), "more than 4300 digits")
+    nested = tmp_path / "nested.toml"
+    nested.write_text(BASE + "x = " + "[" * 100_000 + "]" * 100_000 + "\n")
+    _one_line(cli.main(["run", "--case-file", str(nested), "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+              str(nested), "nested too deep")
+    if Path("/dev/zero").exists():  # read without end in 0.2.0 (MemoryError)
+        _one_line(cli.main(["run", "--case-file", "/dev/zero", "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+                  "/dev/zero", "larger than")
+    tolerances = tmp_path / "tolerances.toml"
+    tolerances.write_text(f"[default]\nfactor = {huge}\n")
+    _one_line(cli.main(["check", str(good[0]), "--baseline", str(good[1]), "--tolerances", str(tolerances)]),
+              capsys, 2, str(tolerances), "more than 4300 digits")
+
+
+def test_a_nested_store_record_is_absent_and_recomputed_by_resume(good, tmp_path):
+    import json
+
+    from stereodyn.harness.run.store import Store
+
+    folder = _copy(good[0], tmp_path / "nested")
+    key = json.loads((folder / "runs.json").read_text())["runs"][-1]
+    (folder / "store" / f"{key}.json").write_text(NESTED)
+    assert Store(folder).get(key) is None
+    assert cli.main(["run", "--case-file", str(good[2]), "--out", str(folder), "--resume", *FAST]) == 0
+    record = Store(folder).get(key)
+    assert record is not None and record["row"]["status"] == "ok"
+
+
+# --- the smaller points (issue 22, 7)
+
+def test_a_newline_in_a_path_or_a_name_is_one_line(tmp_path, capsys):
+    _one_line(cli.main(["baseline", str(tmp_path / "a\nb"), "--out", str(tmp_path / "b.json")]), capsys, 2,
+              "a\\nb")
+    case = tmp_path / "case.toml"
+    case.write_text(BASE.replace('name = "base"', 'name = "two\\nlines"'))
+    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys, 2, "name")
+
+
+def test_an_unreachable_scheduler_is_refused_before_any_truth(tmp_path, capsys):
+    pytest.importorskip("distributed")
+    out = tmp_path / "out"
+    case = tmp_path / "case.toml"
+    case.write_text(BASE)
+    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(out), "--scheduler", "tcp://127.0.0.1:1",
+                        *FAST]), capsys, 2, "--scheduler", "127.0.0.1:1")
+    assert not (out / "results.csv").exists() and not list((out / "store").glob("*.json"))
+
+
+def test_a_step_given_twice_is_refused(tmp_path, capsys):
+    case = tmp_path / "case.toml"
+    case.write_text(BASE)
+    _one_line(cli.main(["run", "--case-file", str(case), "--dt", "1e-2,1e-2", "--out", str(tmp_path / "o"), *FAST]),
+              capsys, 2, "--dt", "given twice")
+    case.write_text(BASE.replace("dt = [1e-2]", "dt = [1e-2, 5e-3, 1e-2]"))
+    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+              "run.dt[2]", "given twice")
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "--out", ""], ["baseline", "x", "--out", ""], ["report", ""], ["check", "", "--baseline", "b"],
+    ["compare", "a", "b", "--out", ""], ["export", "free-asymmetric", "--format", "mjcf", "--out", ""],
+])
+def test_an_empty_path_is_refused(argv, capsys):
+    _one_line(cli.main(argv), capsys, 2, "empty path")
+
+
+def test_extremes_with_a_case_file_runs_both(tmp_path):
+    import argparse
+
+    case = tmp_path / "case.toml"
+    case.write_text(BASE)
+    args = argparse.Namespace(cases=[], case_file=[str(case)], extremes=True, dt=None, t_end=None)
+    names = [c.name for c in cli.select_cases(args)]
+    from stereodyn.harness.scenes import cases
+
+    extreme = [c.name for c in cases.load_suite(cases.suite_dir() / "extreme")]
+    assert names == extreme + ["base"]
+
+
+@pytest.mark.parametrize("option", [["--integrator", "rk4"], ["--dt", "0.01"]])
+def test_export_urdf_refuses_mjcf_options(option, capsys):
+    _one_line(cli.main(["export", "free-asymmetric", "--format", "urdf", *option]), capsys, 2, option[0], "mjcf")
+
+
+def test_a_full_disk_names_the_file(good, tmp_path, monkeypatch, capsys):
+    import errno
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "fsync", full)
+    target = tmp_path / "baseline.json"
+    capsys.readouterr()
+    _one_line(cli.main(["baseline", str(good[0]), "--out", str(target)]), capsys, 2, str(target),
+              os.strerror(errno.ENOSPC))

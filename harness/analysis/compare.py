@@ -6,13 +6,13 @@ compare.csv. Rows are matched by (case, engine, formulation, integrator, dt) as 
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import pandas as pd
 
 from . import gate
+from ..run.store import read_manifest
 
 # Values below this are round-off (the gate's floor): two of them have no meaningful ratio, so a ratio is taken of
 # max(value, FLOOR). The truth's drifts sit at 1e-16 .. 1e-14 and move by factors of ten between machines.
@@ -46,17 +46,11 @@ def load(path: Path) -> tuple[pd.DataFrame, dict]:
 
 def _load(path: Path) -> tuple[pd.DataFrame, dict]:
     try:
-        if path.is_dir():
-            table = gate.read_table(path)
-            manifest = path / "runs.json"
-            env = {}
-            if manifest.is_file():
-                env = json.loads(manifest.read_text(encoding="utf-8")).get("environment") or {}
-            return table, env
+        if path.is_dir():  # a runs.json of the wrong shape counts as absent (harness.run.store.read_manifest)
+            return gate.read_table(path), (read_manifest(path) or {}).get("environment") or {}
         if path.is_file():
-            rows = gate.read_baseline(path)
-            env = json.loads(path.read_text(encoding="utf-8")).get("environment") or {}
-            return pd.DataFrame(rows), env
+            baseline = gate.read_baseline_file(path)
+            return pd.DataFrame(baseline.rows), baseline.environment
     except gate.GateError as exc:
         raise CompareError(str(exc)) from None
     except ValueError as exc:

@@ -19,17 +19,16 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
 
-from ..run.results import TableError, read_results, write_atomic
+from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
+from ..run.results import METRIC_SUFFIXES, TableError, read_results, write_atomic
 
 KEY = ("case", "engine", "formulation", "integrator", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
-METRIC_SUFFIXES = ("_drift", "_err", "_err_end")
 BASELINE_FORMAT = "stereodyn-baseline/1"  # "orders" (the fitted convergence orders) is optional: older files lack it
 CONVERGENCE_FILE = "convergence.csv"  # written by harness.workprecision
 ORDER_KEY = ("case", "engine", "formulation", "integrator")
@@ -231,13 +230,13 @@ def _validate_rows(path: Path, name: str, rows, required: tuple, text: tuple, nu
 def read_baseline_file(path: Path) -> Baseline:
     """A baseline file, validated: GateError (one line naming the file, the entry and the rule) on anything else."""
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = read_json(path, MAX_BASELINE_BYTES)
     except FileNotFoundError:
         raise GateError(f"{path}: file not found") from None
-    except UnicodeDecodeError as exc:
-        raise GateError(f"{path}: not a baseline file (not UTF-8 text: {exc.reason} at byte {exc.start})") from None
-    except (OSError, ValueError) as exc:
-        raise GateError(f"{path}: not a baseline file ({' '.join(str(exc).split())})") from None
+    except OSError as exc:
+        raise GateError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    except ReadError as exc:  # too large, not UTF-8, not JSON, nested too deep, an integer of too many digits
+        raise GateError(f"{path}: not a baseline file ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != BASELINE_FORMAT or not isinstance(data.get("rows"), list):
         raise GateError(f"{path}: not a baseline file (format must be {BASELINE_FORMAT!r} with a list of rows)")
     rows, orders, environment = data["rows"], data.get("orders", []), data.get("environment", {})
@@ -263,11 +262,13 @@ def read_baseline(path: Path) -> list[dict]:
 def read_tolerances(path: Path, base: Tolerances = Tolerances()) -> Tolerances:
     """A TOML tolerance file: [default] factor/floor, [metric.NAME] factor/floor, [time] factor."""
     try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        data = read_toml(path)
     except FileNotFoundError:
         raise GateError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise GateError(f"{path}: -: invalid TOML ({' '.join(str(exc).split())})") from None
+    except OSError as exc:
+        raise GateError(f"{path}: -: cannot read ({exc.strerror or exc})") from None
+    except ReadError as exc:  # too large, not UTF-8 TOML, nested too deep, an integer of 5000 digits
+        raise GateError(f"{path}: -: {exc}") from None
 
     def tolerance(table, key: str, start: Tolerance) -> Tolerance:
         if not isinstance(table, dict) or set(table) - {"factor", "floor"}:

@@ -66,6 +66,13 @@ def _list(text: str) -> list[str]:
     return items
 
 
+def _path(text: str) -> Path:
+    """A path option: an empty one would be the current folder (--out '' wrote the tables there)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path")
+    return Path(text)
+
+
 def _count(text: str) -> int:
     try:
         value = int(text)
@@ -86,6 +93,9 @@ def _floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError("expected at least one number")
     if len(values) > case_files.MAX_DTS:
         raise argparse.ArgumentTypeError(f"at most {case_files.MAX_DTS} steps, got {len(values)}")
+    twice = sorted({v for v in values if values.count(v) > 1})
+    if twice:  # the same run twice: two rows with one key
+        raise argparse.ArgumentTypeError(f"{', '.join(f'{v:g}' for v in twice)} given twice")
     return values
 
 
@@ -139,7 +149,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--integrators", type=_list, default=None, help="comma-separated (default: each engine's all)")
     run.add_argument("--dt", type=_floats, default=None, help="comma-separated steps, replacing each case's list")
     run.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing each case's t_end")
-    run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
+    run.add_argument("--out", type=_path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
     run.add_argument("--jobs", type=_count, default=None, help="local worker processes (default: all cores)")
     run.add_argument("--no-certify", action="store_true",
                      help="skip the quadruple-precision rerun (~0.2 s a case) that bounds each truth's error "
@@ -180,16 +190,19 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--extremes", action="store_true",
                      help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
-    report.add_argument("dir", type=Path)
+    report.add_argument("dir", type=_path)
+    _allow_partial(report)
     report.add_argument("--self-contained", action="store_true",
                         help="embed the figures in report.html (one file to send; larger) instead of linking them")
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
-    baseline.add_argument("dir", type=Path)
-    baseline.add_argument("--out", type=Path, required=True, metavar="FILE", help="baseline file to write (JSON)")
+    baseline.add_argument("dir", type=_path)
+    baseline.add_argument("--out", type=_path, required=True, metavar="FILE", help="baseline file to write (JSON)")
+    _allow_partial(baseline)
     gate = commands.add_parser("check", help="exit 1 and print the rows of DIR that got worse than the baseline")
-    gate.add_argument("dir", type=Path)
-    gate.add_argument("--baseline", type=Path, required=True, metavar="FILE")
-    gate.add_argument("--tolerances", type=Path, default=None, metavar="FILE.toml",
+    gate.add_argument("dir", type=_path)
+    gate.add_argument("--baseline", type=_path, required=True, metavar="FILE")
+    _allow_partial(gate)
+    gate.add_argument("--tolerances", type=_path, default=None, metavar="FILE.toml",
                        help="[default] factor/floor, [metric.NAME] factor/floor, [time] factor")
     gate.add_argument("--factor", type=float, default=None,
                        help="a drift or error may grow to factor * baseline + floor (default 2, every metric)")
@@ -198,9 +211,10 @@ def _parser() -> argparse.ArgumentParser:
                        help="also fail when us_per_step exceeds this factor times the baseline's")
     compare = commands.add_parser("compare", help="two runs side by side: environments, then every row's metrics as "
                                                    "ratios B/A, largest changes first (OUT/compare.md, OUT/compare.html)")
-    compare.add_argument("a", type=Path, metavar="A", help="result directory or baseline file (the reference)")
-    compare.add_argument("b", type=Path, metavar="B", help="result directory or baseline file (the new run)")
-    compare.add_argument("--out", type=Path, default=None, metavar="DIR", help="where to write (default: B)")
+    compare.add_argument("a", type=_path, metavar="A", help="result directory or baseline file (the reference)")
+    compare.add_argument("b", type=_path, metavar="B", help="result directory or baseline file (the new run)")
+    compare.add_argument("--out", type=_path, default=None, metavar="DIR", help="where to write (default: B)")
+    _allow_partial(compare)
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
     advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
@@ -219,10 +233,15 @@ def _parser() -> argparse.ArgumentParser:
     export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
     export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
     export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
-    export.add_argument("--out", type=Path, default=None, metavar="FILE", help="default: standard output")
+    export.add_argument("--out", type=_path, default=None, metavar="FILE", help="default: standard output")
     export.add_argument("--integrator", default=None, help="MJCF only: MuJoCo integrator (default rk4)")
     export.add_argument("--dt", type=_scale, default=None, help="MJCF only: timestep (default: the case's first dt)")
     return parser
+
+
+def _allow_partial(parser) -> None:
+    parser.add_argument("--allow-partial", action="store_true",
+                        help="read a folder an unfinished (interrupted or killed) sweep left, as it is")
 
 
 def select_cases(args) -> list:
@@ -231,8 +250,8 @@ def select_cases(args) -> list:
         suite = case_files.load_suite(case_files.suite_dir() / "extreme")
     if args.cases:
         chosen = [case_files.find_case(name, suite) for name in args.cases]
-    else:  # --case-file alone runs just those files; nothing at all runs the suite
-        chosen = [] if args.case_file else list(suite)
+    else:  # --case-file alone runs just those files; nothing at all (or --extremes) runs the suite
+        chosen = [] if args.case_file and not getattr(args, "extremes", False) else list(suite)
     chosen += [case_files.load_case(path) for path in args.case_file]
     names = [c.name for c in chosen]
     if len(set(names)) != len(names):
@@ -329,7 +348,7 @@ def main(argv: list[str] | None = None) -> int:
         from ..analysis.gate import GateError
         from ..run.distributed import ClusterError
         from ..export import ExportError
-        from ..run.store import StoreBusy
+        from ..run.store import FolderNotReady, StoreBusy
         from ..run.results import TableError
         from ..analysis.compare import CompareError
     except KeyboardInterrupt:
@@ -348,7 +367,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = _commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
-            CompareError) as exc:
+            CompareError, FolderNotReady) as exc:
         code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""
@@ -362,7 +381,18 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _error(message: str) -> int:
-    """Bad input: one line on stderr (a newline or other control character in a name or path is escaped), exit 2."""
-    line = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in message)
-    print(f"stereodyn: error: {line}", file=sys.stderr)
+    """Bad input: one line on stderr, exit 2."""
+    print(f"stereodyn: error: {one_line(message)}", file=sys.stderr)
     return 2
+
+
+def warn(lines: list[str]) -> None:
+    """Warnings, one line each on stderr (a command prints them once what it reads has read: a folder that cannot be
+    read is one line, the error)."""
+    for line in lines:
+        print(f"stereodyn: warning: {one_line(line)}", file=sys.stderr)
+
+
+def one_line(text: str) -> str:
+    """A newline or other control character in a name or a path, escaped: a message stays one line."""
+    return "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)

@@ -1,16 +1,18 @@
 """`stereodyn baseline DIR --out FILE`: the regression baseline of DIR/results.csv."""
 from __future__ import annotations
 
-from . import output_file
+from . import output_file, warn
 
 
 def main(args) -> int:
     from ..analysis import gate
-    from ..run.store import read_manifest
+    from ..run.store import read_manifest, reading
 
     output_file(args.out, "--out")
-    manifest = read_manifest(args.dir) or {}
-    table, orders = gate.read_table(args.dir), gate.read_orders(args.dir)
+    with reading(args.dir, args.allow_partial) as warnings:  # never a folder a command is writing, nor unfinished
+        manifest = read_manifest(args.dir) or {}
+        table, orders = gate.read_table(args.dir), gate.read_orders(args.dir)
+    warn(warnings)  # once the tables read: a folder that cannot be read is one line, the error
     rows = gate.write_baseline(table, args.out, manifest.get("environment"), orders)
     print(f"wrote {args.out} ({rows} rows, {0 if orders is None else len(orders)} fitted orders)")
     return 0

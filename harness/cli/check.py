@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from . import BadInput
+from . import BadInput, warn
 
 
 def main(args) -> int:
@@ -26,17 +26,20 @@ def main(args) -> int:
             per_metric=tuple((m, dataclasses.replace(t, **override)) for m, t in tolerances.per_metric))
     if args.time_factor is not None:
         tolerances = dataclasses.replace(tolerances, time_factor=args.time_factor)
-    from ..run.store import read_manifest
+    from ..run.store import read_manifest, reading
 
     base = gate.read_baseline_file(args.baseline)
     baseline = base.rows
-    current = gate.read_table(args.dir)
+    with reading(args.dir, args.allow_partial) as warnings:  # never a folder a command is writing, nor unfinished
+        current = gate.read_table(args.dir)
+        orders = gate.read_orders(args.dir) if base.orders else None
+        environment = (read_manifest(args.dir) or {}).get("environment")
     used = sorted({m for row in baseline for m in gate.metric_columns(row) if row.get(m) is not None})
     missing = [m for m in used if m not in current.columns]
     if missing:  # else every row would read as NaN, i.e. worse
         raise BadInput(f"{args.dir / 'results.csv'}: missing columns {', '.join(missing)} (the baseline has them)")
-    orders = gate.read_orders(args.dir) if base.orders else None
-    changes = gate.environment_changes(base.environment, (read_manifest(args.dir) or {}).get("environment"))
+    warn(warnings)  # once the tables read: a folder that cannot be read is one line, the error
+    changes = gate.environment_changes(base.environment, environment)
     print(f"environment: {', '.join(changes)}" if changes else "environment: as in the baseline")
     findings = gate.compare(current, baseline, tolerances)
     order_findings = gate.compare_orders(orders, base.orders)

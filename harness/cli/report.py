@@ -1,20 +1,21 @@
 """`stereodyn report DIR`: re-render report.md, report.html and figures/ from DIR."""
 from __future__ import annotations
 
-from . import BadInput, output_folder
+from . import BadInput, output_folder, warn
 
 
 def main(args) -> int:
     from ..report.build import write_reports
 
     from ..run.results import TableError
-    from ..run.store import folder_lock
+    from ..run.store import completeness, folder_lock
 
     results = args.dir / "results.csv"
     if not results.is_file():
         raise BadInput(f"{results}: file not found")
     output_folder(args.dir, "report DIR")
     with folder_lock(args.dir):
+        warnings = completeness(args.dir, args.allow_partial)  # an unfinished folder: refused
         try:
             markdown, html = write_reports(args.dir, self_contained=args.self_contained)
         except (KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
@@ -23,5 +24,6 @@ def main(args) -> int:
             # a table that read but does not hold what stereodyn writes (a column of text where numbers belong, ...)
             raise BadInput(f"{args.dir}: malformed tables, cannot render the report "
                            f"({type(exc).__name__}: {' '.join(str(exc).split())[:160]})") from None
+    warn(warnings)  # once the tables read: a folder that cannot be read is one line, the error
     print(f"wrote {markdown} and {html}")
     return 0

@@ -16,7 +16,7 @@ def main(args) -> int:
     from ..run.sweep import run_sweep, worker_pool
     from .. import budget
 
-    from ..run.store import folder_lock
+    from ..run.store import folder_lock, mark_complete
 
     check_names(args)
     if args.certify and args.no_certify:
@@ -26,12 +26,17 @@ def main(args) -> int:
     output_folder(args.out, "--out")
     _quiet_engines(args.out)
     budget.configure(budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget))  # workers inherit it
+    if args.scheduler:  # before any truth is computed
+        from ..run.distributed import check_cluster
+
+        check_cluster(args.scheduler)
     with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
         # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
         with worker_pool(args.jobs, tuple(args.engines)) as pool:
             df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs,
                            certify=not args.no_certify, progress=progress, resume=args.resume,
-                           scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool)
+                           scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool,
+                           final=False)
             _work_precision(args, chosen, df, pool, progress)
         found = verdicts.evaluate(args.out, df, chosen)
         # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
@@ -40,6 +45,7 @@ def main(args) -> int:
             print(drift_table_text(df))
         progress.stage("report: report.md, figures, report.html")
         markdown, html = write_reports(args.out, df, self_contained=args.self_contained)
+        mark_complete(args.out)  # the last write: check, baseline, compare and report read the folder from now on
         print("\n".join(summary.terminal_lines(df, found, args.out, html)))
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     if args.strict and verdicts.strict_failures(found):

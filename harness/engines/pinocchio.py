@@ -231,7 +231,11 @@ class PinocchioEngine(Engine):
     export_formats = ("urdf",)
 
     def export(self, case: Case, fmt: str, integrator: str | None, dt: float | None) -> str:
-        """URDF: the body, its ball joint as a three-joint gimbal (integrator and dt do not apply)."""
+        """URDF: the body, its ball joint as a three-joint gimbal. A URDF holds no stepper: an integrator or a dt is
+        refused rather than silently dropped."""
+        if integrator is not None or dt is not None:
+            raise ValueError(f"--{'integrator' if integrator is not None else 'dt'}: applies to a format that holds a "
+                             f"stepper (mjcf), not to {fmt}")
         return urdf(case)
 
     def integrators(self) -> tuple[str, ...]:

@@ -16,13 +16,17 @@ class ClusterError(RuntimeError):
     """The cluster cannot be used (dask missing, scheduler unreachable, mismatched workers): bad input, exit 2."""
 
 
-def run_on_cluster(address: str, specs: Sequence, truths: dict, execute: Callable, finished: Callable,
-                   worker_failed: Callable) -> None:
-    """Run execute(spec, truths[spec.case.name]) for every spec on the cluster at `address`, longest first (the
-    order given); call finished(spec, row) in the parent as each completes, or finished(spec, worker_failed(spec,
-    exc)) when its task was lost (a worker died)."""
+def check_cluster(address: str) -> None:
+    """That the cluster at `address` can run this sweep (ClusterError otherwise), before the command computes any
+    truth: an unreachable scheduler was found only after the truths (seconds to minutes)."""
+    _connect(address).close()
+
+
+def _connect(address: str):
+    """A client of the cluster at `address` with at least one worker, whose workers have this process's library
+    versions; ClusterError otherwise."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError as exc:
         raise ClusterError(f"--scheduler needs dask.distributed ({exc}); install it with "
                            "pip install 'stereodyn[dask]'") from None
@@ -32,7 +36,7 @@ def run_on_cluster(address: str, specs: Sequence, truths: dict, execute: Callabl
         client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
         raise ClusterError(f"--scheduler: cannot connect to {address}: {exc}") from None
-    with client:
+    try:
         try:
             client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
         except TimeoutError:
@@ -46,6 +50,20 @@ def run_on_cluster(address: str, specs: Sequence, truths: dict, execute: Callabl
             if versions != mine:
                 differ = ", ".join(f"{k} {versions.get(k)} (here {v})" for k, v in mine.items() if versions.get(k) != v)
                 raise ClusterError(f"--scheduler: worker {worker} has other library versions: {differ}")
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
+def run_on_cluster(address: str, specs: Sequence, truths: dict, execute: Callable, finished: Callable,
+                   worker_failed: Callable) -> None:
+    """Run execute(spec, truths[spec.case.name]) for every spec on the cluster at `address`, longest first (the
+    order given); call finished(spec, row) in the parent as each completes, or finished(spec, worker_failed(spec,
+    exc)) when its task was lost (a worker died)."""
+    from distributed import as_completed
+
+    with _connect(address) as client:
         scattered = {name: client.scatter(truth, broadcast=True, hash=False) for name, truth in truths.items()}
         futures = {client.submit(execute, spec, scattered[spec.case.name], pure=False, priority=len(specs) - rank):
                    spec for rank, spec in enumerate(specs)}

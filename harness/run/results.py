@@ -1,12 +1,15 @@
 """The results table (DESIGN §4): its columns, and atomic writes so an interrupted run loses nothing written."""
 from __future__ import annotations
 
+import csv
+import math
 import os
 import tempfile
 from pathlib import Path
 
 import pandas as pd
 
+from ..readers import MAX_TABLE_BYTES
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
@@ -43,8 +46,10 @@ def write_atomic(path: Path, text: str | bytes) -> None:
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.filename is None:  # a full disk: write() and fsync() name no file
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
         raise
 
 
@@ -76,10 +81,72 @@ def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.
     return df
 
 
+TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "status", "message", "torque_mode")
+NAMED = ("case", "engine")  # never empty (the integrator is, on a skipped row of an engine that cannot run a case)
+# The accuracy metrics the gate, baselines and compare read (every column with one of these suffixes), the timing,
+# and the step of a row's key: finite or empty. Elsewhere a number may be inf (as the store writes it).
+METRIC_SUFFIXES = ("_drift", "_err", "_err_end")
+FINITE = ("dt", "us_per_step")
+STATUSES = ("ok", "diverged", "failed", "skipped")  # trajectory.Status
+
+
 def read_results(path: Path) -> pd.DataFrame:
-    text = ("integrator", "formulation", "message")  # empty means "none" here, not a missing number
-    df = read_csv_table(path, REQUIRED_COLUMNS, keep_default_na=True, dtype=dict.fromkeys(text, str))
+    """A results.csv, validated: the one reading of the table that `check`, `baseline`, `compare` and `report` share,
+    so what one of them refuses the others refuse too. TableError (one line naming the file, and the row and column
+    where there is one: row N counts data rows from 1, the header not counted) when the file is too large, empty, not
+    CSV, has a row of another length than the header (ragged or truncated), lacks case, engine, integrator or status,
+    has no rows, an empty case or engine, a status that is not one of STATUSES, text in a number column, or a
+    non-finite metric, timing or dt. Text columns read as text ("" where empty), the others as numbers (NaN where
+    empty)."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise TableError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if size > MAX_TABLE_BYTES:
+        raise TableError(f"{path}: larger than {MAX_TABLE_BYTES} bytes (docs/limits.md)")
+    _same_length_rows(path)
+    df = read_csv_table(path, REQUIRED_COLUMNS, dtype=str, keep_default_na=False, skip_blank_lines=True)
+    if df.empty:
+        raise TableError(f"{path}: no rows (a header only)")
     for column in ("formulation", "message"):  # optional text columns a results.csv of an older version may lack
         if column not in df:
             df[column] = ""
-    return df.fillna(dict.fromkeys(text, ""))
+    for column in NAMED:
+        empty = df.index[df[column].str.strip() == ""]
+        if len(empty):
+            raise TableError(f"{path}: row {empty[0] + 1}, column {column}: empty")
+    bad = df.index[~df["status"].isin(STATUSES)]
+    if len(bad):
+        raise TableError(f"{path}: row {bad[0] + 1}, column status: {df['status'][bad[0]][:40]!r} is not a status "
+                         f"({', '.join(STATUSES)})")
+    for column in [c for c in df.columns if c not in TEXT_COLUMNS]:
+        text = df[column].str.strip()
+        values = pd.to_numeric(text.replace("", "nan"), errors="coerce")
+        bad = df.index[values.isna() & (text != "") & (text.str.lower() != "nan")]
+        if len(bad):
+            raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]][:40]!r} is not a number")
+        if column in FINITE or column.endswith(METRIC_SUFFIXES):
+            bad = df.index[values.isin((math.inf, -math.inf))]
+            if len(bad):
+                raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]]!r}: must be finite "
+                                 "or empty")
+        df[column] = values
+    return df
+
+
+def _same_length_rows(path: Path) -> None:
+    """Every record has the header's number of fields: pandas fills a short (truncated) row with NaN silently, and
+    names a long one by its line, not its row."""
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            records = (record for record in csv.reader(handle) if record)
+            header = next(records, None)
+            for number, record in enumerate(records, 1):
+                if len(record) != len(header):
+                    raise TableError(f"{path}: row {number}: {len(record)} fields, the header has {len(header)} (a "
+                                     "ragged or truncated row)")
+    except UnicodeDecodeError as exc:
+        raise TableError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except csv.Error as exc:  # a NUL byte, a field larger than csv's limit
+        raise TableError(f"{path}: malformed table: {' '.join(str(exc).split())[:200]}") from None

@@ -33,6 +33,7 @@ import pandas as pd
 from ..scenes.cases import Case
 from ..environment import code_origin, library_versions, source_fingerprint
 from ..scenes.checks import ROW_KEY
+from ..readers import ReadError, read_json
 from .results import COLUMNS, write_atomic
 from ..trajectory import Status
 
@@ -43,6 +44,7 @@ TRAJECTORY_INDEX_COLUMNS = ("case", "engine", "formulation", "integrator", "dt",
 STATE_ARRAYS = ("times", "quat", "omega", "truth_quat", "truth_omega")
 MANIFEST = "runs.json"
 FORMAT = 1
+COMPLETE = "complete"  # runs.json: false while a sweep writes the folder, true once its command ended (mark_complete)
 
 try:
     import fcntl
@@ -290,8 +292,8 @@ class Store:
         """The record {"identity", "row", "series"} of a finished run, or None. An unreadable record, or one of the
         wrong shape (well_formed), counts as absent (it is rewritten when the run is redone)."""
         try:
-            record = json.loads(self.path(key).read_text(encoding="utf-8"))
-        except (OSError, ValueError, UnicodeDecodeError):
+            record = read_json(self.path(key))
+        except (OSError, ReadError):  # absent, too large, not JSON, nested too deep: recompute the run
             return None
         if not well_formed(record, key):
             return None  # not a record this version wrote: recompute the run
@@ -336,27 +338,84 @@ class Store:
         path.parent.mkdir(exist_ok=True)
         write_atomic(path, pd.DataFrame(lines, columns=list(TRAJECTORY_INDEX_COLUMNS)).to_csv(index=False))
 
-    def write_manifest(self, keys: list[str], environment: dict) -> None:
-        """DIR/runs.json: the store keys behind results.csv, the environment of the sweep, and the code fingerprints
-        in its keys ("code": code_manifest())."""
+    def write_manifest(self, keys: list[str], environment: dict, complete: bool = False) -> None:
+        """DIR/runs.json: the store keys behind results.csv, the environment of the sweep, the code fingerprints in
+        its keys ("code": code_manifest()), and whether the folder is complete (COMPLETE; mark_complete)."""
         write_atomic(self.out_dir / MANIFEST, json.dumps({"format": FORMAT, "environment": environment,
-                                                          "code": self.code_manifest(), "runs": keys},
-                                                         indent=1) + "\n")
+                                                          "code": self.code_manifest(), "runs": keys,
+                                                          COMPLETE: complete}, indent=1) + "\n")
 
 
 def read_manifest(out_dir: Path) -> dict | None:
     """DIR/runs.json, or None when the folder has none (results.csv from elsewhere)."""
     try:
-        manifest = json.loads((Path(out_dir) / MANIFEST).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        manifest = read_json(Path(out_dir) / MANIFEST)
+    except (OSError, ReadError):
         return None
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
         return None
     runs, environment = manifest.get("runs", []), manifest.get("environment")
     if not (isinstance(runs, list) and all(isinstance(key, str) for key in runs)
-            and isinstance(environment, (dict, type(None)))):
+            and isinstance(environment, (dict, type(None))) and isinstance(manifest.get(COMPLETE, False), bool)):
         return None  # not a manifest this version wrote: as if the folder had none
     return manifest
+
+
+def mark_complete(out_dir: Path) -> None:
+    """Mark DIR complete: the command that wrote it (a whole sweep; `stereodyn run`: its sweep, work–precision
+    tables and report) ended. Called with the folder's lock held, as the command's last write."""
+    manifest = read_manifest(out_dir)
+    if manifest is not None:
+        write_atomic(Path(out_dir) / MANIFEST, json.dumps({**manifest, COMPLETE: True}, indent=1) + "\n")
+
+
+class FolderNotReady(ValueError):
+    """A result folder a command may not read (yet): a sweep left it unfinished. Bad input, exit 2, one line."""
+
+
+def completeness(out_dir: Path, allow_partial: bool = False) -> list[str]:
+    """Whether a command may read DIR, by its completion mark (runs.json "complete"): FolderNotReady for an unfinished
+    one (unless allow_partial); the warnings to print (one line each) for a partial or an unmarked one (a folder of
+    stereodyn 0.2.0, which wrote no mark, or tables from elsewhere)."""
+    manifest = read_manifest(out_dir)
+    mark = None if manifest is None else manifest.get(COMPLETE)
+    if mark is True:
+        return []
+    if mark is False:
+        if not allow_partial:
+            raise FolderNotReady(f"{out_dir}: an unfinished sweep (interrupted, killed or still running): finish it "
+                                 f"with stereodyn run ... --resume --out {out_dir}, or read it as it is with "
+                                 "--allow-partial")
+        return [f"{out_dir}: an unfinished sweep, read as it is (--allow-partial)"]
+    if not (Path(out_dir) / "results.csv").is_file():
+        return []  # nothing to read: the reader says so
+    return [f"{out_dir}: no completion mark (written by stereodyn 0.2.0 or elsewhere): read as it is"]
+
+
+@contextmanager
+def reading(out_dir: Path, allow_partial: bool = False) -> Iterator[list[str]]:
+    """Hold DIR's lock shared while a command reads the folder (check, baseline, compare): StoreBusy when a command
+    is writing it (a sweep holds the lock exclusively from its start to its report), FolderNotReady when a sweep left
+    it unfinished (completeness). Yields completeness's warnings. A folder without DIR/store has no writer to wait
+    for (tables copied from elsewhere)."""
+    out_dir = Path(out_dir)
+    root = out_dir / STORE_DIR
+    busy = StoreBusy(f"{out_dir}: a stereodyn command is writing this folder (try again when it has finished)")
+    if os.path.realpath(root) in _HELD:
+        raise busy
+    fd = None
+    if fcntl is not None and root.is_dir():
+        fd = os.open(root, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise busy from None
+    try:
+        yield completeness(out_dir, allow_partial)
+    finally:
+        if fd is not None:
+            os.close(fd)
 
 
 def read_records(out_dir: Path) -> list[dict]:

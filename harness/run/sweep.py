@@ -37,7 +37,7 @@ from ..environment import environment as current_environment
 from .processes import exit_with_parent, raise_if_interrupted, starting_workers
 from .progress import ProgressBar
 from .results import frame, write_results
-from .store import Store, run_key
+from .store import Store, mark_complete, run_key
 from ...reference import truth as reference_truth
 
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
@@ -321,7 +321,7 @@ def _run_local(specs: list[RunSpec], truths: dict[str, CaseTruth], pool: Process
 def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | None, out_dir: Path,
               jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
               resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
-              pool: ProcessPoolExecutor | None = None) -> pd.DataFrame:
+              pool: ProcessPoolExecutor | None = None, final: bool = True) -> pd.DataFrame:
     """Run everything and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -332,6 +332,8 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     save_trajectories: also write each run's recorded states, and the truth on its times, to
     out_dir/trajectories/<key>.npz (Store.put_states) and their index, trajectories/index.csv; with resume, a stored
     run without its file is redone.
+    final: the sweep is all that writes the folder: mark it complete at the end (runs.json; harness.run.store
+    mark_complete). `stereodyn run` marks it itself, after the work–precision tables and the report.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = progress or ProgressBar(enabled=False)
@@ -435,6 +437,8 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
             store.put(key, identities[id(spec)], row, record.get("series") if record else None)
         if untimed:
             publish()
+        if final:
+            mark_complete(out_dir)
         return table()
 
 

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -15,6 +14,7 @@ from ...reference.body import RigidBody
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
 from ...reference.sliding_ladder import Ladder, detachment_cosine
 from ...reference.torques import BodyTorque, CentralField, PrecessionTorque
+from ..readers import ReadError, read_toml
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
@@ -152,20 +152,13 @@ def load_case(path: str | Path) -> Case | LadderCase:
     """Read and validate one case file. Bad input raises CaseError naming the file, the key and the rule."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
+        data = read_toml(path)
     except FileNotFoundError:
         raise CaseError(path, "-", "file not found") from None
     except OSError as exc:
         raise CaseError(path, "-", f"cannot read file ({exc.strerror or exc})") from None
-    try:
-        # utf-8-sig: a byte-order mark (as some editors write) is accepted and dropped
-        data = tomllib.loads(raw.decode("utf-8-sig"))
-    except UnicodeDecodeError:
-        raise CaseError(path, "-", "invalid TOML: not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(path, "-", "invalid TOML: " + " ".join(str(exc).split())[:300]) from None
-    except RecursionError:  # tomllib recurses once per nesting level: thousands of [[[...]]] exhaust the stack
-        raise CaseError(path, "-", "invalid TOML: arrays or tables nested too deep") from None
+    except ReadError as exc:  # too large (/dev/zero), not UTF-8, not TOML, nested too deep, a 5000-digit integer
+        raise CaseError(path, "-", str(exc)) from None
     return _Parser(path).case(data)
 
 
@@ -327,6 +320,8 @@ class _Parser:
             if t_end / step > MAX_STEPS:
                 raise self.fail(item_key, f"t_end / dt must be <= {MAX_STEPS:.0e} steps (docs/limits.md), "
                                           f"got {t_end / step:.3g}")
+            if step in result:  # the same runs twice: rows with one key
+                raise self.fail(item_key, f"{step:g} given twice")
             result.append(step)
         return tuple(result)
 

@@ -1,0 +1,74 @@
+"""Bounded readers of the files stereodyn reads back: case and tolerance files (TOML), store records, runs.json and
+baselines (JSON). Whatever a file holds, reading it ends in its value or in a ReadError (one line, the rule): a file
+larger than its limit (/dev/zero as a case file read without end), nesting deeper than the parser's stack (a
+runs.json of 100,000 brackets: RecursionError), an integer longer than Python converts (5,000 digits: ValueError)
+are all ReadErrors, never a traceback. Callers name the file (docs/limits.md, "Files stereodyn reads back").
+"""
+from __future__ import annotations
+
+import json
+import sys
+import tomllib
+from pathlib import Path
+from typing import Any
+
+MAX_TOML_BYTES = 1 << 20   # case and tolerance files; the suite's largest case file is ~2 kB
+# Store records hold a run's invariant series (<= MAX_SAMPLES = 100,000 samples, a few series, ~20 bytes a number:
+# ~30 MB at most); runs.json a key per run; a baseline ~400 bytes a row (64 MB: 160,000 rows).
+MAX_JSON_BYTES = 1 << 28
+MAX_BASELINE_BYTES = 1 << 26
+MAX_TABLE_BYTES = 1 << 30  # results.csv: ~500 bytes a row (the default suite's 1361 rows: 0.6 MB)
+
+
+class ReadError(ValueError):
+    """A file that cannot be read as what it should be; str() is the rule, without the file's name."""
+
+
+def read_bytes(path: str | Path, limit: int) -> bytes:
+    """The file's bytes, reading at most limit + 1 of them (a device or a growing file never reads without end)."""
+    with open(path, "rb") as handle:
+        raw = handle.read(limit + 1)
+    if len(raw) > limit:
+        raise ReadError(f"larger than {limit} bytes (docs/limits.md)")
+    return raw
+
+
+def parse_toml(raw: bytes) -> dict[str, Any]:
+    """TOML from bytes (a UTF-8 byte-order mark is dropped)."""
+    try:
+        return tomllib.loads(raw.decode("utf-8-sig"))
+    except UnicodeDecodeError:
+        raise ReadError("invalid TOML: not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ReadError("invalid TOML: " + " ".join(str(exc).split())[:300]) from None
+    except RecursionError:  # tomllib recurses once per nesting level: thousands of [[[...]]] exhaust the stack
+        raise ReadError("invalid TOML: arrays or tables nested too deep") from None
+    except ValueError as exc:  # an integer of more than sys.get_int_max_str_digits() digits
+        raise ReadError(f"invalid TOML: {_rule(exc)}") from None
+
+
+def parse_json(raw: bytes | str) -> Any:
+    try:
+        return json.loads(raw)
+    except UnicodeDecodeError:
+        raise ReadError("invalid JSON: not UTF-8 text") from None
+    except RecursionError:
+        raise ReadError("invalid JSON: nested too deep") from None
+    except ValueError as exc:  # json.JSONDecodeError, or an integer of too many digits
+        raise ReadError(f"invalid JSON: {_rule(exc)}") from None
+
+
+def _rule(exc: ValueError) -> str:
+    if "integer string conversion" in str(exc):
+        return f"an integer of more than {sys.get_int_max_str_digits()} digits"
+    return " ".join(str(exc).split())[:200]
+
+
+def read_toml(path: str | Path, limit: int = MAX_TOML_BYTES) -> dict[str, Any]:
+    """A TOML file; OSError when it cannot be opened, ReadError otherwise."""
+    return parse_toml(read_bytes(path, limit))
+
+
+def read_json(path: str | Path, limit: int = MAX_JSON_BYTES) -> Any:
+    """A JSON file; OSError when it cannot be opened, ReadError otherwise."""
+    return parse_json(read_bytes(path, limit))
