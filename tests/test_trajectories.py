@@ -1,4 +1,4 @@
-"""--save-trajectories (issue 21 item 6): trajectories/index.csv maps every row to its file, and each file carries the
+"""--save-trajectories (issue 21 item 6): DIR/trajectories/index.csv maps every row to its file, and each file carries the
 truth on the run's own sample times, so any saved row can be compared with the truth sample by sample."""
 import math
 

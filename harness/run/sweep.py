@@ -330,7 +330,7 @@ def run_sweep(cases: list[Case], engines: list[str], integrators: list[str] | No
     pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
     certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
     save_trajectories: also write each run's recorded states, and the truth on its times, to
-    out_dir/trajectories/<key>.npz (Store.put_states) and their index, trajectories/index.csv; with resume, a stored
+    out_dir/trajectories/<key>.npz (Store.put_states) and their index, out_dir/trajectories/index.csv; with resume, a stored
     run without its file is redone.
     final: the sweep is all that writes the folder: mark it complete at the end (runs.json; harness.run.store
     mark_complete). `stereodyn run` marks it itself, after the work–precision tables and the report.
