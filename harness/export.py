@@ -6,6 +6,7 @@ body, its ball joint as a three-joint gimbal).
 """
 from __future__ import annotations
 
+from stereodyn.harness.scenes import scene_of
 from stereodyn.harness.scenes.cases import Case
 
 
@@ -38,7 +39,11 @@ def export(case: Case, fmt: str, integrator: str | None = None, dt: float | None
         unavailable = [n for n in engine_names() if isinstance(get_engine(n), UnavailableEngine)]
         hint = f" (unavailable engines: {', '.join(get_engine(n).reason for n in unavailable)})" if unavailable else ""
         raise ExportError(f"--format: unknown format {fmt!r}; valid: {', '.join(writers)}{hint}")
+    engine = get_engine(writers[fmt])
+    model = engine.models().get(scene_of(case).kind)  # the engine's model of the case's scene writes it
+    if model is None:
+        raise ExportError(f"{case.name}: {engine.unmodelled(scene_of(case))}")
     try:
-        return get_engine(writers[fmt]).export(case, fmt, integrator, dt)
+        return model.export(case, fmt, integrator, dt)
     except (KeyError, ValueError) as exc:
         raise ExportError(str(exc).strip("'\"")) from None

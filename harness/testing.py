@@ -15,6 +15,8 @@ AssertionError with the measured numbers, so pytest shows why.
 from __future__ import annotations
 
 import math
+from collections import abc
+from pathlib import Path
 from typing import Iterable
 
 import numpy as np
@@ -73,12 +75,17 @@ def _resolve(integrator: str | type[Integrator], state_space: str) -> type[Integ
 
 
 def _case(case: str | Case) -> Case:
-    return case if isinstance(case, Case) else find_case(case)
+    return find_case(case) if isinstance(case, (str, Path)) else case
+
+
+def _one(case) -> bool:
+    """Whether an argument is one case (a name, a path or a case) rather than several."""
+    return isinstance(case, (str, Path)) or not isinstance(case, abc.Iterable)
 
 
 def _cases(cases: str | Case | Iterable[str | Case]) -> list[Case]:
     """One case (a name or a Case) or several, as a list: "lagrange-top" is one case, not twelve letters."""
-    if isinstance(cases, (str, Case)):
+    if _one(cases):
         return [_case(cases)]
     return [_case(case) for case in cases]
 
@@ -98,7 +105,7 @@ def measured_order(integrator: str | type[Integrator], case: str | Case | Iterab
     """The fitted order (slope of log max state error against log dt, the measure of convergence.csv) of an integrator
     on a case over t_end, from the dt values whose error lies in ORDER_ERR_RANGE. dts default: 0.1 down to 0.00625 by
     halves. `case` is a name or Case (returns the order) or a list of them (returns {case name: order})."""
-    if not isinstance(case, (str, Case)):
+    if not _one(case):
         return {c.name: measured_order(integrator, c, dts, state_space, formulation, t_end) for c in _cases(case)}
     cls = _resolve(integrator, state_space)
     case = with_overrides(_case(case), t_end=t_end)

@@ -171,3 +171,9 @@ def test_the_default_run_writes_checked_advice_and_the_report_shows_it_per_engin
     text = "\n".join(report_lines(tmp_path))
     section = text.split("## Step-size advice")[1].split("\n## ")[0]
     assert "### mujoco: step sizes" in section and f"| dt = {advice['dt'].iloc[1]:.4g} |" in section
+
+
+def test_a_missed_target_prints_with_the_digits_that_show_it_missed():
+    from stereodyn.harness.cli.advise import _above
+
+    assert _above(1.00386e-06, 1e-6) == "1.00386e-06" and _above(2.34e-06, 1e-6) == "2.34e-06"

@@ -12,6 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli
 from stereodyn.harness.report.build import figure_stem
 from stereodyn.harness.store import Store, StoreBusy, folder_lock
@@ -152,13 +153,13 @@ def test_jobs_are_capped_at_the_number_of_runs(tmp_path, monkeypatch):
     from stereodyn.harness import runner
 
     seen = []
-    original = runner.ProcessPoolExecutor
+    original = run_pool.ProcessPoolExecutor
 
     def pool(*args, **kwargs):
         seen.append(kwargs["max_workers"])
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(runner, "ProcessPoolExecutor", pool)
+    monkeypatch.setattr(run_pool, "ProcessPoolExecutor", pool)
     path = case_file(tmp_path, BASE.replace("dt = [1e-2]", "dt = [1e-2, 5e-3]"))
     assert cli.main(["run", "--case-file", str(path), "--engines", "mujoco", "--integrators", "rk4", "--jobs", "16",
                      "--quiet", "--out", str(tmp_path / "out")]) == 0

@@ -53,14 +53,18 @@ def _engine(name):
 
 # Every built-in loop: the harness's integrators (Pinocchio, the reference formulations), MuJoCo's rollout chunks and
 # its Python step loop (a torque), scipy's methods, heyoka's Taylor runs, Drake's fixed-step and error-controlled
-# integrators (its simulator's monitor), and the sliding ladder's models and equation.
+# integrators (its simulator's monitor), Bullet's and MuJoCo Warp's step loops, and the sliding ladder's models and
+# equation. Not MJX: its rollout is one compiled XLA call (docs/limits.md, "Time").
 RIGID = [("free-asymmetric", "pinocchio", "", "rk4", 1e-4), ("free-asymmetric", "mujoco", "", "rk4", 1e-4),
          ("self-excited-conic", "mujoco", "", "rk4", 1e-4),
          ("free-asymmetric", "reference", "quaternion", "rk4", 1e-4),
          ("free-asymmetric", "reference", "quaternion", "scipy_rk45", None),
          ("free-asymmetric", "reference", "gibbs", "taylor", None),
          ("free-asymmetric", "drake", "rpy_ball", "runge_kutta2", 1e-4),
-         ("free-asymmetric", "drake", "rpy_ball", "runge_kutta3_adaptive", None)]
+         ("free-asymmetric", "drake", "rpy_ball", "runge_kutta3_adaptive", None),
+         ("free-asymmetric", "bullet", "", "semi_implicit_euler", 1e-4),
+         ("self-excited-conic", "bullet", "", "semi_implicit_euler", 1e-4),
+         ("free-asymmetric", "warp", "", "euler", 1e-4)]
 
 
 @pytest.mark.parametrize("name, engine, formulation, integrator, dt", RIGID)
@@ -82,7 +86,7 @@ def test_the_sliding_ladder_stops_at_the_run_budget(engine, model, integrator, d
     # the extreme rod of issue 22: l = 1e-9 m, g = 1e6 m/s^2 (sqrt(g/l) ~ 3e7 rad/s) for the equation
     ladder = dataclasses.replace(case.ladder, mass=1e6, half_length=1e-9, g=1e6) if dt is None else case.ladder
     case = dataclasses.replace(case, ladder=ladder, t_end=LONG if dt else 1.5, dt=(dt or 1e-3,))
-    sim = _engine(engine).prepare_sliding_ladder(case, model, integrator, dt)
+    sim = _engine(engine).models()["sliding_ladder"].prepare(case, model, integrator, dt)
     grid = time_grid(case.t_end, dt or case.t_end / 99, 100)
     with pytest.raises(budget.BudgetExceeded):
         with budget.within("run", 0.05):

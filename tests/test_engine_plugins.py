@@ -150,7 +150,10 @@ def test_the_base_class_defaults():
     assert engine.in_default_sweep("rk4") and not engine.in_default_sweep("implicit_midpoint")
     assert engine.in_default_sweep("no_such_integrator")
     assert engine.unsupported_run(None, "", "rk4") is None and engine.torque_mode(None) == "none"
-    assert engine.sliding_ladder_models() == () and "minimal" in engine.sliding_ladder_unsupported()
+    # the scenes it models: the rigid body through the hooks above, nothing else (its rows of another scene are skipped)
+    from stereodyn.harness.scenes import scene
+    assert set(engine.models()) == {"rigid_body"}
+    assert engine.unmodelled(scene("sliding_ladder")) == "minimal adapter does not model the sliding ladder"
     assert engine.declared_order("no_such_integrator") != engine.declared_order("no_such_integrator")  # NaN
     assert engine.declared_order("rk4") == 4.0  # the registry's Lie-group rk4
     with pytest.raises(NotImplementedError, match="minimal"):

@@ -91,14 +91,14 @@ def test_an_interrupt_an_sdk_swallows_still_ends_the_command_with_130(monkeypatc
 
 def test_a_run_broken_by_an_interrupt_is_no_row(monkeypatch):
     """A run whose failure the interrupt caused is not recorded as `failed` (it would be stored and reused)."""
-    from stereodyn.harness.run import sweep
+    from stereodyn.harness.run import measure  # the one run -> row path (the sweep's and the ladders')
 
     monkeypatch.setattr(processes, "_interrupts", [0.0])
     with pytest.raises(KeyboardInterrupt):
         processes.raise_if_interrupted(RuntimeError("an SDK's wrapping of the interrupt"))
     monkeypatch.setattr(processes, "_interrupts", [])
     processes.raise_if_interrupted(RuntimeError("a real failure"))  # no interrupt: data, nothing raised
-    assert sweep.raise_if_interrupted is processes.raise_if_interrupted
+    assert measure.raise_if_interrupted is processes.raise_if_interrupted
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")

@@ -5,6 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from stereodyn.harness.run import measure as run_measure
 from stereodyn.harness import cli, runner
 from stereodyn.harness.engines import Engine, UnavailableEngine, get_engine
 from stereodyn.harness.results import COLUMNS
@@ -106,7 +107,7 @@ def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path, monkeypatch):
                 raise RuntimeError("model build failed\nsecond line")
             return real.prepare(case, integrator, dt)
 
-    monkeypatch.setattr(runner, "get_engine", lambda name: Broken() if name == "pinocchio" else get_engine(name))
+    monkeypatch.setattr(run_measure, "get_engine", lambda name: Broken() if name == "pinocchio" else get_engine(name))
     assert run_cli("lagrange-top", "--engines", "pinocchio", "--t-end", "0.5", "--dt", "1e-2", "--jobs", "1",
                    "--out", str(tmp_path)) == 0
     df = pd.read_csv(tmp_path / "results.csv").set_index("integrator")

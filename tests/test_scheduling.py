@@ -4,6 +4,7 @@ import multiprocessing
 import pytest
 from child_processes import ended, started_since
 
+from stereodyn.harness.run import truth as run_truth
 from stereodyn.harness import runner
 from stereodyn.harness.cases import find_case, with_overrides
 from stereodyn.harness.plan import RunSpec
@@ -58,7 +59,7 @@ def test_an_interrupt_while_computing_the_truth_ends_the_started_workers(tmp_pat
         workers.update(started_since(before))  # the workers start while the truth is computed
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "compute_truth", interrupted)
+    monkeypatch.setattr(run_truth, "case_truth", interrupted)
     case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
     with pytest.raises(KeyboardInterrupt):
         runner.run_sweep([case], ["mujoco"], ["euler"], tmp_path, jobs=2)

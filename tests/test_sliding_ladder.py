@@ -8,10 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from stereodyn.harness import sliding_ladder
 from stereodyn.harness.cases import CaseError, LadderCase, find_case, load_case
-from stereodyn.harness.plan import RunSpec, base_row as _base_row, plan
-from stereodyn.harness.grid import time_grid
+from stereodyn.harness.plan import plan
+from stereodyn.harness.run.measure import measure
 from stereodyn.reference import sliding_ladder as ref_ladder
 
 LADDER = """kind = "sliding_ladder"
@@ -81,8 +80,8 @@ def test_ladder_rows_and_checks(monkeypatch, tmp_path):
     assert not skipped
     rows = {}
     for spec in specs:
-        grid = None if spec.dt is None else time_grid(case.t_end, spec.dt, case.samples)
-        rows[(spec.engine, spec.formulation)] = sliding_ladder.execute(spec, _base_row(spec, grid))
+        # the one run -> row path of every scene (the sweep's, with its checks)
+        rows[(spec.engine, spec.formulation)] = measure(spec, None, full=True)
     assert set(rows) == {("reference", "theta"), ("mujoco", "bilateral"), ("mujoco", "unilateral"),
                          ("pinocchio", "bilateral")}
     for key, row in rows.items():

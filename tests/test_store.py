@@ -163,22 +163,22 @@ def test_ctrl_c_stops_a_parallel_sweep_keeping_every_finished_run(uninterrupted,
 
 
 def test_a_run_whose_worker_died_is_not_stored_and_is_retried(tmp_path, monkeypatch):
-    from stereodyn.harness import runner
+    from stereodyn.harness.run import pool as run_pool
 
     argv = ["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler,rk4", "--t-end", "0.2",
             "--dt", "1e-2", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
-    real = runner.execute
+    real = run_pool.sweep_run
 
-    def crash_rk4(spec, truth):
+    def crash_rk4(spec, truth, budgets=None):
         if spec.integrator == "rk4":
-            return runner._worker_failed_row(spec, BrokenPipeError("worker gone"))
-        return real(spec, truth)
+            return run_pool.worker_failed_row(spec, BrokenPipeError("worker gone"))
+        return real(spec, truth, budgets)
 
-    monkeypatch.setattr(runner, "execute", crash_rk4)
+    monkeypatch.setattr(run_pool, "sweep_run", crash_rk4)
     assert cli.main(argv) == 0
     first = pd.read_csv(tmp_path / "results.csv").set_index("integrator")
     assert first.loc["rk4", "status"] == "failed" and first.loc["rk4", "message"].startswith("worker process failed")
     assert len(records(tmp_path)) == 1  # only the euler run is stored
-    monkeypatch.setattr(runner, "execute", real)
+    monkeypatch.setattr(run_pool, "sweep_run", real)
     assert cli.main([*argv, "--resume"]) == 0
     assert set(pd.read_csv(tmp_path / "results.csv").status) == {"ok"} and len(records(tmp_path)) == 2

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli, dt_ladders, runner, timing
 from stereodyn.harness.analysis import verdicts, workprecision
 from stereodyn.harness import integrators as registry
@@ -377,15 +378,16 @@ def test_measure_interleaved_times_in_rounds_and_drops_what_fails(monkeypatch):
 
 
 def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypatch):
-    """execute runs untimed in the sweep; the timing phase then times each ok run in the parent, one at a time."""
+    """A run's row is measured untimed in the sweep (measure.measure, timed None); the timing phase then times each ok
+    run in the parent, one at a time."""
     timed_in_execute = []
-    real_execute = runner.execute
+    real_measure = run_pool.measure
 
-    def spy(spec, truth, timed=False):
-        timed_in_execute.append(timed)
-        return real_execute(spec, truth, timed)
+    def spy(spec, truth=None, full=True, keep_states=False, timed=None, budgets=None):
+        timed_in_execute.append(timed is not None)
+        return real_measure(spec, truth, full, keep_states, timed, budgets)
 
-    monkeypatch.setattr(runner, "execute", spy)
+    monkeypatch.setattr(run_pool, "measure", spy)
     case = find_case("free-asymmetric")
     df = runner.run_sweep([case], ["pinocchio"], ["rk4", "euler"], tmp_path, jobs=1)
     assert timed_in_execute and not any(timed_in_execute)

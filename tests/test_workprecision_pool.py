@@ -58,7 +58,7 @@ def test_only_the_runner_starts_a_process_pool_for_runs():
     `stereodyn report`) draw on a pool of their own."""
     starts = sorted(path.relative_to(ROOT) for path in (ROOT / "harness").rglob("*.py")
                     if "ProcessPoolExecutor(" in path.read_text())
-    assert starts == [Path("harness/report/build.py"), Path("harness/run/sweep.py")]
+    assert starts == [Path("harness/report/build.py"), Path("harness/run/pool.py")]
 
 
 def test_without_a_pool_the_ladders_run_here(tmp_path):

@@ -26,22 +26,22 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 import pandas as pd
 
 from .. import budget
-from ..scenes import metrics
 from . import fitting
-from ..scenes.cases import CHAOTIC_TAGS, Case
-from ..engines import get_engine
 from .fitting import declared_order, fit
-from ..grid import time_grid
-from ..run import timing
+from ..scenes import scene_of
+from ..scenes.cases import CHAOTIC_TAGS, Case
+from ..scenes.rigid_body import state_err
 from ..trajectory import Status
+from ..run import timing
 from ..run.processes import raise_if_interrupted
+from ..run.measure import measure as run_measure, prepare as prepare_run, rate
+from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
                   "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
@@ -59,64 +59,33 @@ MIN_STEPS = 20               # the largest dt tried is t_end / MIN_STEPS: fewer 
 SHORT_POINTS, SHORT_TARGET = 6, 3
 
 
-@dataclass(frozen=True)
-class Family:
-    """Runs of one case x engine x formulation x integrator, which differ only in dt (a dt ladder) or in the
-    requested tolerance (a tolerance ladder, harness.analysis.tolerance_ladders)."""
-
-    case: Case
-    engine: str
-    formulation: str
-    integrator: str
-
-    @property
-    def label(self) -> str:
-        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator) if x)
-
-    @property
-    def key(self) -> tuple[str, str, str, str]:
-        return self.case.name, self.engine, self.formulation, self.integrator
-
-
 # ------------------------------------------------------------------------------------------------ one point
 
-def _prepare(family: Family, dt: float):
-    extra = {"formulation": family.formulation} if family.formulation else {}
-    return get_engine(family.engine).prepare(family.case, family.integrator, dt, **extra)
-
-
 def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = True) -> dict:
-    """One ladder point: accuracy run (errors against the truth when with_truth), then timed runs. Never raises."""
-    case = family.case
-    grid = time_grid(case.t_end, dt, case.samples)
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "dt": float(dt), "t_end": grid.t_end, "steps": grid.steps,
-           "source": LADDER}
+    """One ladder point (measure.measure): accuracy run, errors against the truth when with_truth (computed on the
+    point's grid), then timed runs when timed. Never raises."""
+    run = family.run(dt=float(dt))
     try:
-        sim = budget.prepared(lambda: _prepare(family, dt))
-        with budget.within("run", budget.configured().run_s):  # the point's run and its truth, as a sweep's row
-            traj = sim.run(grid)
-            row.update(status=traj.status.value, message=traj.message, rhs_evals=traj.rhs_evals,
-                       rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan)
-            drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
-            row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
-            if with_truth:
-                from ...reference import truth as reference_truth
-
-                truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times,
-                                              deadline=budget.deadline())
-                row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
-                parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
-                row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
-                    if math.isfinite(row["attitude_err"]) else math.nan
-        if timed and traj.status is Status.OK:
-            row.update(_timed(sim, grid))
+        with budget.within("run", budget.configured().run_s):  # the point's truth under a run's budget, as before
+            truth = case_truth_on(run) if with_truth else None
     except budget.BudgetExceeded as exc:
-        row.update(status=Status.FAILED.value, message=str(exc))
+        return {**base_row(run, run.grid), "source": LADDER, "status": Status.FAILED.value, "message": str(exc)}
     except Exception as exc:  # a point that breaks is data, as in the sweep
         raise_if_interrupted(exc)
-        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
-    return row
+        return {**base_row(run, run.grid), "source": LADDER, "status": Status.FAILED.value,
+                "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]}
+    row = run_measure(run, truth, full=False, timed=_timed if timed else None)
+    row.update(source=LADDER, rhs_evals=row.get("_rhs_evals", math.nan), rhs_per_sim_s=math.nan)
+    if "_rhs_evals" in row:  # as the engine counts them: a fixed-step run without counts has none here
+        row["rhs_per_sim_s"] = rate(row["_rhs_evals"], row["t_end"])
+    if with_truth and "attitude_err" in row:
+        row["state_err"] = state_err(row)
+    return {k: v for k, v in row.items() if k in LADDER_COLUMNS}
+
+
+def case_truth_on(run) -> object:
+    """The truth of a run's case on the run's own grid (its scene's Scene.truth), uncertified."""
+    return scene_of(run.case).truth(run.case, [run.grid], False)
 
 
 def _timed(sim, grid) -> dict:
@@ -127,7 +96,7 @@ def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) ->
     """The ladders' timing phase (harness.run.timing.time_points: a timed run shares the cores with no other run)."""
     def prepare(row: dict):
         family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
-        return _prepare(family, row["dt"]), time_grid(family.case.t_end, row["dt"], family.case.samples)
+        return prepare_run(family.run(dt=row["dt"]))
 
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
 

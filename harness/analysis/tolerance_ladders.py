@@ -4,7 +4,7 @@ tolerances, per point the error achieved and the cost.
 For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of
 TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared
 with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: rtol = atol = tol) and run on the
-grid of the sweep's adaptive rows (harness.run.sweep.truth_grid). Each point is one untimed accuracy run (errors
+grid of the sweep's adaptive rows (RunKey.grid, harness.run.spec). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
 (harness.analysis.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
@@ -21,18 +21,18 @@ The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one
 from __future__ import annotations
 
 import math
-import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable
 
 from .. import budget
-from ..scenes import metrics
-from ..run import timing
-from ..scenes.cases import Case
-from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family
 from ..engines import get_engine
+from ..scenes.cases import Case
+from ..scenes.rigid_body import state_err
 from ..trajectory import Status
+from ..run import timing
+from ..run.measure import measure as run_measure, prepare as prepare_run, rate
 from ..run.processes import raise_if_interrupted
+from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family, case_truth_on
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
@@ -76,54 +76,30 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
 
 # ------------------------------------------------------------------------------------------------ one point
 
-def _grid(case: Case):
-    from ..run.sweep import truth_grid  # the sweep's grid of adaptive rows
-
-    return truth_grid(case)
-
-
-def _prepare(family: AdaptiveFamily, tolerance: float):
-    extra = {"formulation": family.formulation} if family.formulation else {}
-    return get_engine(family.engine).prepare(family.case, family.integrator, None, tolerance=tolerance, **extra)
-
-
 def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
-    """One ladder point's accuracy run (untimed): errors against the truth (a reference.truth.TruthResult on the
-    family's grid; computed here when None), drifts, steps and evaluations. Never raises; the run's wall time goes to
-    `_accuracy_s` (for the ladder's budget, not a timing)."""
-    case = family.case
-    grid = _grid(case)
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "tolerance": float(tolerance), "t_end": grid.t_end}
-    start = time.perf_counter()
+    """One ladder point's accuracy run (measure.measure, untimed): errors against the truth (the case's truth on the
+    family's grid, dt_ladders.case_truth_on; computed here when None), drifts, steps and evaluations. Never raises;
+    the run's wall time goes to `_accuracy_s` (for the ladder's budget, not a timing)."""
+    run = family.run(tolerance=float(tolerance))
+    row = {"tolerance": float(tolerance)}
     try:
-        sim = budget.prepared(lambda: _prepare(family, tolerance))
-        with budget.within("run", budget.configured().run_s):
-            traj = sim.run(grid)
-        row["_accuracy_s"] = time.perf_counter() - start
-        row.update(status=traj.status.value, message=traj.message, steps=traj.steps, rhs_evals=traj.rhs_evals,
-                   rhs_per_sim_s=traj.rhs_evals / grid.t_end if traj.rhs_evals else math.nan,
-                   steps_per_sim_s=traj.steps / grid.t_end if traj.steps else math.nan)
-        drifts = metrics.drifts(case, traj, metrics.applicable_integrals(case))
-        row.update(energy_drift=drifts["energy_drift"], casimir_drift=drifts["casimir_drift"])
         if truth is None:
-            from ...reference import truth as reference_truth
-
             with budget.within("truth", budget.configured().truth_s):
-                truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times,
-                                              deadline=budget.deadline())
-        row.update(metrics.errors(traj, truth.quat, truth.omega, case.horizon))
-        parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
-        row["state_err"] = max((p for p in parts if math.isfinite(p)), default=math.nan) \
-            if math.isfinite(row["attitude_err"]) else math.nan
-        row["err_over_tol"] = row["state_err"] / float(tolerance)
+                truth = case_truth_on(run)
     except budget.BudgetExceeded as exc:  # the ladder stops here (run_ladder: the point took longer than its budget)
-        row.setdefault("_accuracy_s", time.perf_counter() - start)
-        row.update(status=Status.FAILED.value, message=str(exc))
-    except Exception as exc:  # a point that breaks is data, as in the sweep
+        return {**_failed_point(family, tolerance, str(exc)), "_accuracy_s": math.inf}
+    except Exception as exc:
         raise_if_interrupted(exc)
-        row.setdefault("_accuracy_s", time.perf_counter() - start)
-        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
+        return {**_failed_point(family, tolerance, f"truth failed: {type(exc).__name__}: {exc}"), "_accuracy_s": 0.0}
+    measured = run_measure(run, truth, full=False)
+    row.update({k: v for k, v in measured.items() if k in TOLERANCE_COLUMNS or k == "_accuracy_s"})
+    row.pop("dt", None)
+    if measured.get("status") != Status.FAILED.value:
+        row.update(rhs_evals=measured["_rhs_evals"], rhs_per_sim_s=rate(measured["_rhs_evals"], row["t_end"]),
+                   steps_per_sim_s=rate(row["steps"], row["t_end"]), state_err=state_err(measured))
+        row["err_over_tol"] = row["state_err"] / float(tolerance)
+    else:
+        row.pop("steps", None)
     return row
 
 
@@ -131,12 +107,8 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
                budget_s: float = POINT_BUDGET_S) -> list[dict]:
     """The accuracy runs of one family's ladder, loose to tight, stopping early (module docstring). Never raises."""
     try:
-        from ...reference import truth as reference_truth
-
-        case = family.case
         with budget.within("truth", budget.configured().truth_s):
-            truth = reference_truth.truth(case.body, case.quat0, case.omega0, _grid(case).times,
-                                          deadline=budget.deadline())
+            truth = case_truth_on(family.run(tolerance=tolerances[0]))
     except budget.BudgetExceeded as exc:
         return [_failed_point(family, tolerances[0], f"truth failed: {exc}")]
     except Exception as exc:
@@ -163,7 +135,7 @@ def time_points(points: list[dict], families_by_key: dict[tuple, AdaptiveFamily]
     """The timing phase, as the dt ladders' (harness.run.timing.time_points)."""
     def prepare(row: dict):
         family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"])]
-        return _prepare(family, row["tolerance"]), _grid(family.case)
+        return prepare_run(family.run(tolerance=row["tolerance"]))
 
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
 

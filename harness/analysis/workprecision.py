@@ -21,6 +21,7 @@ import pandas as pd
 from . import step_advice
 from ..scenes import checks
 from . import advice as advising
+from ..scenes import scene_of
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from . import tolerance_ladders
 from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
@@ -133,7 +134,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained
     # sliding ladder, whose MuJoCo model has soft constraints) keep their Pareto rows only.
-    rigid = [c for c in cases if isinstance(c, Case)]
+    rigid = [c for c in cases if scene_of(c).work_precision]
     other_kinds = {c.name for c in cases} - {c.name for c in rigid}
     if ladder == "full":
         chosen = families(rigid, engines, integrators)

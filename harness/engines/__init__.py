@@ -53,7 +53,7 @@ class UnavailableEngine(Engine):
     def unsupported(self, case) -> str | None:
         return self.reason
 
-    def sliding_ladder_unsupported(self) -> str:
+    def unmodelled(self, scene) -> str:
         return self.reason
 
     def prepare(self, case, integrator, dt, **formulation):

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+import warnings
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -71,6 +72,16 @@ class Engine:
     export_formats: tuple[str, ...] = ()
     # Documented departures of this engine's integrators from their declared behaviour (KnownDeviation).
     known_deviations: tuple[KnownDeviation, ...] = ()
+    _legacy_ladder = False  # set for a 0.2.0 plug-in that still implements the sliding ladder's four hooks
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        legacy = [hook for hook in _LEGACY_LADDER_HOOKS if hook in vars(cls)]
+        if legacy:
+            warnings.warn(f"engine {cls.__name__}: {', '.join(legacy)} are replaced by Engine.models() "
+                          "(DESIGN §7); they still run the sliding ladder through an adapter", DeprecationWarning,
+                          stacklevel=2)
+            cls._legacy_ladder = "prepare_sliding_ladder" in legacy or cls._legacy_ladder
 
     # ---------------------------------------------------------------------------------------------- required
 
@@ -162,26 +173,111 @@ class Engine:
         """N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together. Default: not supported."""
         raise NotImplementedError(f"engine {self.name!r} does not run ensembles")
 
-    def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.scenes.sliding_ladder; rows name them in the formulation column).
-        Default: none, and the scene's row is skipped with sliding_ladder_unsupported()."""
-        return ()
+    def models(self) -> dict[str, "SceneModel"]:
+        """The scenes this engine models: scene kind (harness.scenes) -> its model of that scene. A case of a kind
+        not listed gives one skipped row (unmodelled). Default: the rigid body with a fixed point, through the hooks
+        above (prepare, formulations, unsupported, ...), as every engine of 0.2.0 does. An engine that models another
+        scene adds its model: {**super().models(), "sliding_ladder": MyLadderModel()}."""
+        models: dict[str, SceneModel] = {RIGID_BODY: RigidBodyModel(self)}
+        if type(self)._legacy_ladder:
+            models[SLIDING_LADDER] = _LegacyLadderModel(self)
+        return models
 
-    def sliding_ladder_unsupported(self) -> str:
-        """Why this engine has no sliding-ladder model (the skipped row's message)."""
-        return f"{self.name} adapter does not model the sliding ladder"
-
-    def sliding_ladder_integrators(self, chosen: list[str]) -> list[str]:
-        """The integrators of the sweep's selection that run the sliding ladder. Default: all of them."""
-        return list(chosen)
-
-    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float | None) -> Simulation:
-        """Build one sliding-ladder model; its run(grid) returns a SlidingLadderTrajectory."""
-        raise NotImplementedError(f"engine {self.name!r} does not model the sliding ladder")
+    def unmodelled(self, scene) -> str:
+        """Why this engine has no model of the scene (harness.scenes.base.Scene): the skipped row's message."""
+        return f"{self.name} adapter does not model {scene.title}"
 
     def export(self, case: "Case", fmt: str, integrator: str | None, dt: float | None) -> str:
         """The model text in one of export_formats."""
         raise NotImplementedError(f"engine {self.name!r} exports no format")
+
+
+RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"  # scene kinds (harness.scenes) the defaults name
+_LEGACY_LADDER_HOOKS = ("sliding_ladder_models", "sliding_ladder_integrators", "prepare_sliding_ladder",
+                        "sliding_ladder_unsupported")
+
+
+class SceneModel:
+    """An engine's model of one scene (Engine.models()): which runs it has and how to build one. Every hook but
+    prepare has a default here."""
+
+    def variants(self) -> tuple[str, ...]:
+        """The model's variants, one per run (results.csv's formulation column). Default: none ("")."""
+        return ()
+
+    def integrators(self, chosen: list[str]) -> list[str]:
+        """The integrators of the sweep's selection (the engine's, chosen) that run this model. Default: all."""
+        return list(chosen)
+
+    def unsupported(self, case) -> str | None:
+        """Why the model cannot run the case exactly (its rows are skipped), or None."""
+        return None
+
+    def unsupported_run(self, case, variant: str, integrator: str) -> str | None:
+        return None
+
+    def default_run(self, case, variant: str, integrator: str) -> bool:
+        """Whether a sweep that names no integrators runs the pair. Default: every pair."""
+        return True
+
+    def torque_mode(self, case) -> str:
+        """How external torques enter the model (results column torque_mode) when the trajectory does not say."""
+        return "none"
+
+    def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None):
+        """The simulation of one run (not timed): its run(grid) returns the scene's trajectory."""
+        raise NotImplementedError(f"{type(self).__name__} does not implement prepare")
+
+    def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
+        """The model as text in one of the engine's export_formats (`stereodyn export`). Default: none."""
+        raise ValueError(f"{case.name}: no {fmt} export of this scene's model")
+
+
+class RigidBodyModel(SceneModel):
+    """The rigid body with a fixed point as an engine models it through the Engine hooks (0.2.0's protocol)."""
+
+    def __init__(self, engine: Engine):
+        self.engine = engine
+
+    def variants(self) -> tuple[str, ...]:
+        return tuple(self.engine.formulations())
+
+    def unsupported(self, case) -> str | None:
+        return self.engine.unsupported(case)
+
+    def unsupported_run(self, case, variant: str, integrator: str) -> str | None:
+        return self.engine.unsupported_run(case, variant, integrator)
+
+    def default_run(self, case, variant: str, integrator: str) -> bool:
+        return self.engine.default_run(case, variant, integrator)
+
+    def torque_mode(self, case) -> str:
+        return self.engine.torque_mode(case)
+
+    def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
+        return self.engine.export(case, fmt, integrator, dt)
+
+    def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None):
+        # formulation= only for an engine with formulations, tolerance= only when requested: the 0.2.0 signatures
+        extra = ({"formulation": variant} if variant else {}) | ({} if tolerance is None else {"tolerance": tolerance})
+        return self.engine.prepare(case, integrator, dt, **extra)
+
+
+class _LegacyLadderModel(SceneModel):
+    """The sliding ladder of a 0.2.0 plug-in that implements Engine.prepare_sliding_ladder and its three siblings."""
+
+    def __init__(self, engine: Engine):
+        self.engine = engine
+
+    def variants(self) -> tuple[str, ...]:
+        return tuple(self.engine.sliding_ladder_models())
+
+    def integrators(self, chosen: list[str]) -> list[str]:
+        hook = getattr(self.engine, "sliding_ladder_integrators", None)  # optional in 0.2.0 (default: all)
+        return list(chosen) if hook is None else list(hook(chosen))
+
+    def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None):
+        return self.engine.prepare_sliding_ladder(case, variant, integrator, dt)
 
 
 class EnsembleSimulation(Protocol):

@@ -37,6 +37,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
+from stereodyn.harness import budget
 from stereodyn.harness.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
@@ -137,11 +138,12 @@ class BulletSimulation:
         bad = None
         for i in range(1, len(samples)):
             if torque is None:  # the hot loop: Bullet's steps, one state read a sample
-                for _ in range(samples[i] - samples[i - 1]):
-                    step(physicsClientId=client)
+                for piece in budget.pieces(samples[i - 1], samples[i]):  # the run's wall-time budget
+                    for _ in piece:
+                        step(physicsClientId=client)
             else:  # every step: the torque from the step's time and state, in world components, then the step
                 try:
-                    for k in range(samples[i - 1], samples[i]):
+                    for k in (k for piece in budget.pieces(samples[i - 1], samples[i]) for k in piece):
                         position, velocity = state(body, 0, physicsClientId=client)[:2]
                         quat, omega, rotation = _body_state(qi, axes, position, velocity)
                         moment = torque(k * dt, quat, omega)
@@ -225,9 +227,6 @@ class BulletEngine(Engine):
 
     def torque_mode(self, case: Case) -> str:
         return "step" if case.body.has_external_torque else "none"
-
-    def sliding_ladder_unsupported(self) -> str:
-        return "bullet adapter does not model the sliding ladder"
 
     def prepare(self, case: Case, integrator: str, dt: float | None, **options) -> BulletSimulation:
         if integrator != STEP:

@@ -57,7 +57,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
 
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
 from stereodyn.reference.rotations import quat_to_matrix
@@ -312,6 +312,11 @@ class DrakeSimulation:
         return quat, omega
 
 
+# Why a scene has no Drake model (the skipped row's message).
+UNMODELLED = {SLIDING_LADDER: "drake: the sliding ladder needs bilateral constraints, which Drake's continuous "
+                              "MultibodyPlant lacks (the discrete plant's are compliant): not modelled exactly"}
+
+
 class DrakeEngine(Engine):
     """Drake's MultibodyPlant (models rpy_ball and quaternion_free) with Drake's integrators."""
 
@@ -362,9 +367,8 @@ class DrakeEngine(Engine):
     def torque_mode(self, case: Case) -> str:
         return "input_port" if case.body.has_external_torque else "none"
 
-    def sliding_ladder_unsupported(self) -> str:
-        return ("drake: the sliding ladder needs bilateral constraints, which Drake's continuous MultibodyPlant "
-                "lacks (the discrete plant's are compliant): not modelled exactly")
+    def unmodelled(self, scene) -> str:
+        return UNMODELLED.get(scene.kind) or super().unmodelled(scene)
 
     def prepare(self, case: Case, integrator: str, dt: float | None, formulation: str = RPY_BALL,
                 tolerance: float | None = None) -> DrakeSimulation:

@@ -31,7 +31,7 @@ from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                                           diverged_trajectory, sample_good, samples_good)
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.reference.torques import torque_function
 
@@ -104,9 +104,6 @@ def mjcf(case: Case, integrator: str, dt: float) -> str:
     "Ixx Iyy Izz Ixy Ixz Iyz"). gravity = g d (m/s^2, world frame). Everything the scene lacks is disabled.
     Raises KeyError for an unknown integrator and ValueError for a case MuJoCo cannot model exactly.
     """
-    if case.kind != "rigid_body":
-        raise ValueError(f"{case.name}: a {case.kind} scene has two MuJoCo models (bilateral, unilateral): "
-                         f"ladder_mjcf(case.ladder, model, integrator, dt) writes either")
     reason = _runtime_torques(case)
     if reason:
         raise ValueError(f"{case.name}: {reason}")
@@ -350,7 +347,7 @@ class LadderSimulation:
     the rod's centre, whose change over a step is the wall's push (the only horizontal force) times dt / m."""
 
     def __init__(self, ladder, model: str, integrator: str, dt: float):
-        self.ladder, self.kind, self.dt = ladder, model, float(dt)
+        self.ladder, self.variant, self.dt = ladder, model, float(dt)
         self.xml = ladder_mjcf(ladder, model, integrator, dt)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
@@ -360,7 +357,7 @@ class LadderSimulation:
         mujoco.mj_resetData(self.model, self.data)
         l, theta, rate = self.ladder.half_length, self.ladder.theta0, self.ladder.theta_dot0
         qpos, qvel = self.data.qpos, self.data.qvel
-        if self.kind == "bilateral":  # top_slide, hinge, foot_slide
+        if self.variant == "bilateral":  # top_slide, hinge, foot_slide
             qpos[:] = (2 * l * (math.cos(theta) - 1.0), theta, 2 * l * math.sin(theta))
             qvel[:] = (-2 * l * math.sin(theta) * rate, rate, 2 * l * math.cos(theta) * rate)
         else:  # x, z, hinge of the centre, on the axes shifted by the capsule radius
@@ -371,7 +368,7 @@ class LadderSimulation:
     def _planar(self) -> tuple[list[float], float]:
         """(x, y, θ, ẋ, ẏ, θ̇) in the ideal ladder's axes, and the constraint violation (m)."""
         l, qpos, qvel = self.ladder.half_length, self.data.qpos, self.data.qvel
-        if self.kind == "bilateral":
+        if self.variant == "bilateral":
             z_top, theta, x_foot = qpos
             z_top += 2 * l
             dz_top, rate, _ = qvel
@@ -418,7 +415,7 @@ class LadderSimulation:
         the line through the last two steps that pushed (the soft contact's push rings at first, so the first sign
         change is not the detachment; once the top is off the wall no horizontal force acts and Δẋ is exactly 0).
         NaN for the bilateral model (its wall also pulls) or when the top never leaves the wall."""
-        if self.kind != "unilateral":
+        if self.variant != "unilateral":
             return math.nan
         push = np.diff(speed)
         middle = 0.5 * (angle[1:] + angle[:-1])
@@ -477,9 +474,21 @@ class MujocoEngine(Engine):
             return TorqueSimulation(case, integrator, dt)
         return MujocoSimulation(case, integrator, dt)
 
-    def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.scenes.sliding_ladder): rows name them in the formulation column."""
+    def models(self) -> dict:
+        return {**super().models(), SLIDING_LADDER: LadderModel()}
+
+
+class LadderModel(SceneModel):
+    """The sliding ladder (harness.scenes.sliding_ladder) as planar rods: rows name the model (bilateral,
+    unilateral) in the formulation column."""
+
+    def variants(self) -> tuple[str, ...]:
         return LADDER_MODELS
 
-    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float) -> LadderSimulation:
-        return LadderSimulation(case.ladder, model, integrator, dt)
+    def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
+        raise ValueError(f"{case.name}: the sliding ladder has two MuJoCo models (bilateral, unilateral): "
+                         "ladder_mjcf(case.ladder, model, integrator, dt) writes either")
+
+    def prepare(self, case, variant: str, integrator: str, dt: float | None,
+                tolerance: float | None = None) -> LadderSimulation:
+        return LadderSimulation(case.ladder, variant, integrator, dt)

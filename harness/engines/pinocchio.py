@@ -19,7 +19,7 @@ from stereodyn.harness import integrators
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.base import check_stepper
 from stereodyn.harness.integrators.ensemble import integrate_ensemble
@@ -123,8 +123,6 @@ def urdf(case: Case) -> str:
     the file gives g d to set in the tool (Pinocchio: model.gravity.linear).
     Raises ValueError for a case this adapter cannot model exactly.
     """
-    if case.kind != "rigid_body":
-        raise ValueError(f"{case.name}: the Pinocchio adapter does not model the {case.kind} scene")
     reason = PinocchioEngine().unsupported(case)
     present = [f"[{name}]" for name in ("body_torque", "central_field", "precession_torque")
                if getattr(case, name) is not None]
@@ -263,18 +261,25 @@ class PinocchioEngine(Engine):
         threads contending with other processes (a sweep's workers) made a 64-member RK4 ensemble 6x slower."""
         return PinocchioEnsemble(case, self.prepare(case, integrator, dt), quat0, omega0, threads)
 
-    def sliding_ladder_models(self) -> tuple[str, ...]:
-        """The sliding ladder's models (harness.scenes.sliding_ladder): rows name them in the formulation column."""
+    def models(self) -> dict:
+        return {**super().models(), SLIDING_LADDER: LadderModel()}
+
+
+class LadderModel(SceneModel):
+    """The sliding ladder (harness.scenes.sliding_ladder): rows name the model in the formulation column."""
+
+    def variants(self) -> tuple[str, ...]:
         return LADDER_MODELS
 
-    def sliding_ladder_integrators(self, chosen: list[str]) -> list[str]:
+    def integrators(self, chosen: list[str]) -> list[str]:
         """The chosen integrators that step the ladder: those that also work on a vector state (its configuration
         is R³, not the rotation group)."""
         vector = set(integrators.names(state_space="vector"))
         return [name for name in chosen if name in vector]
 
-    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float) -> "PinocchioLadderSimulation":
-        return PinocchioLadderSimulation(case.ladder, model, integrator, dt)
+    def prepare(self, case, variant: str, integrator: str, dt: float | None,
+                tolerance: float | None = None) -> "PinocchioLadderSimulation":
+        return PinocchioLadderSimulation(case.ladder, variant, integrator, dt)
 
 
 # --- the sliding ladder (harness.scenes.sliding_ladder, FORMULARY T5) -------------------------------------------
@@ -344,7 +349,7 @@ class PinocchioLadderSimulation:
         if model not in LADDER_MODELS:
             raise KeyError(f"unknown ladder model {model!r} for the Pinocchio adapter; "
                            f"valid: {', '.join(LADDER_MODELS)}")
-        self.ladder, self.kind, self.dt = ladder, model, float(dt)
+        self.ladder, self.variant, self.dt = ladder, model, float(dt)
         self.integrator = integrators.get(integrator, state_space="vector")()
         self.system = LadderSystem(ladder)
 

@@ -12,7 +12,7 @@ from stereodyn.harness import integrators
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators import scipy_ivp
 from stereodyn.reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
@@ -128,6 +128,23 @@ class SlidingLadderEquation:
                                        steps=grid.steps, detach_angle=motion.detach_angle)
 
 
+class LadderEquationModel(SceneModel):
+    """The sliding ladder's equation (harness.scenes.sliding_ladder), on heyoka whatever the sweep's integrators."""
+
+    def variants(self) -> tuple[str, ...]:
+        return (SLIDING_LADDER_EQUATION,)
+
+    def integrators(self, chosen: list[str]) -> list[str]:
+        return [TAYLOR]
+
+    def prepare(self, case, variant: str, integrator: str, dt: float | None,
+                tolerance: float | None = None) -> SlidingLadderEquation:
+        if (variant, integrator) != (SLIDING_LADDER_EQUATION, TAYLOR):
+            raise KeyError(f"the reference engine solves the sliding ladder's equation only "
+                           f"({SLIDING_LADDER_EQUATION!r} with {TAYLOR!r}), not {variant!r} with {integrator!r}")
+        return SlidingLadderEquation(case.ladder)
+
+
 class ReferenceEngine(Engine):
     """Formulations quaternion, gibbs, gibbs_hamiltonian, euler_zxz; integrators taylor, scipy's (scipy_ivp.METHODS)
     and the registry's "vector" ones (euler, rk4, then plug-ins)."""
@@ -140,18 +157,8 @@ class ReferenceEngine(Engine):
     linestyle = ":"
     packages = ("heyoka",)
 
-    def sliding_ladder_models(self) -> tuple[str, ...]:
-        return (SLIDING_LADDER_EQUATION,)
-
-    def sliding_ladder_integrators(self, chosen: list[str]) -> list[str]:
-        """The equation runs on heyoka whatever the sweep's integrators."""
-        return [TAYLOR]
-
-    def prepare_sliding_ladder(self, case, model: str, integrator: str, dt: float | None) -> SlidingLadderEquation:
-        if (model, integrator) != (SLIDING_LADDER_EQUATION, TAYLOR):
-            raise KeyError(f"the reference engine solves the sliding ladder's equation only "
-                           f"({SLIDING_LADDER_EQUATION!r} with {TAYLOR!r}), not {model!r} with {integrator!r}")
-        return SlidingLadderEquation(case.ladder)
+    def models(self) -> dict:
+        return {**super().models(), SLIDING_LADDER: LadderEquationModel()}
 
     def formulations(self) -> tuple[str, ...]:
         return tuple(ref_formulations.FORMULATIONS)

@@ -33,6 +33,7 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
 from stereodyn.harness.engines.mujoco import scene, torque_mode
@@ -128,8 +129,9 @@ class WarpSimulation:
             quat[0], omega[0] = qpos.numpy()[0], qvel.numpy()[0]  # as float32 holds them
             done = 0
             for index, target in enumerate(samples[1:].tolist(), start=1):
-                for _ in range(target - done):
-                    launch(step)
+                for piece in budget.pieces(done, target):  # the run's wall-time budget
+                    for _ in piece:
+                        launch(step)
                 done = target
                 quat[index], omega[index] = qpos.numpy()[0], qvel.numpy()[0]  # a read-back synchronises
                 if not sample_good(quat[index].tolist(), omega[index].tolist(), self.limit2):

@@ -105,3 +105,12 @@ def in_default_sweep(name: str) -> bool:
 
 for _cls in (Euler, SymplecticEuler, RK4, RK4Naive, VectorEuler, VectorRK4, *GEOMETRIC):
     register(_cls)
+
+
+def stages(name: str) -> int:
+    """Derivative evaluations per step of a registered integrator (in any state space); 1 for a name the registry
+    does not know (an engine's own, e.g. MuJoCo's implicit)."""
+    for space in state_spaces():
+        if name in names(space):
+            return get(name, space).stages
+    return 1

@@ -11,6 +11,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..trajectory import Status
+from .processes import raise_if_interrupted
 
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
@@ -150,3 +151,33 @@ def columns(measured: Timing, t_end: float) -> dict:
     """A timed run's columns: wall_s (s), us_per_sim_s and its spread (µs per simulated second)."""
     return {"wall_s": measured.best, "us_per_sim_s": measured.best / t_end * 1e6,
             "us_per_sim_s_spread": measured.spread / t_end * 1e6}
+
+
+def step_columns(measured: Timing, steps: float) -> dict:
+    """A sweep row's timing columns (results.csv): wall_s (s), us_per_step and us_per_step_spread (µs per step)."""
+    per_step = 1e6 / max(1, steps)
+    return {"wall_s": measured.best, "us_per_step": measured.best * per_step,
+            "us_per_step_spread": measured.spread * per_step}
+
+
+def time_runs(runs: list, steps: list[float], prepare: Callable) -> list[dict]:
+    """The sweep's timing phase: the step_columns of finished ok runs, in this process with no other run sharing the
+    cores: each prepared (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over all of them
+    (measure_interleaved). {} for a run that fails here (it ran ok untimed: the row is then left untimed); a timing
+    still disturbed when re-timed carries it as `_disturbed`."""
+    warm = []
+    for run in runs:
+        try:
+            sim, grid = prepare(run)
+            sim.run(grid)  # the warm-up: caches, lazily compiled code
+            warm.append(lambda sim=sim, grid=grid: sim.run(grid))
+        except Exception as exc:
+            raise_if_interrupted(exc)
+            warm.append(None)
+    kept = [i for i, call in enumerate(warm) if call is not None]
+    measured = measure_interleaved([warm[i] for i in kept])
+    rows: list[dict] = [{} for _ in runs]
+    for i, m in zip(kept, measured):
+        if m is not None:
+            rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
+    return rows

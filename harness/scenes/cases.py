@@ -11,8 +11,9 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ...reference.body import RigidBody
+from .base import kinds, scene
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
-from ...reference.sliding_ladder import Ladder, detachment_cosine
+from ...reference.sliding_ladder import Ladder
 from ...reference.torques import BodyTorque, CentralField, PrecessionTorque
 from ..readers import ReadError, read_toml
 
@@ -23,7 +24,6 @@ ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "
 TORQUE_ORACLES = ("self_excited_spinup", "self_excited_uniform")
 # Scene kinds (top-level `kind`): a rigid body with a fixed point (default), and the sliding ladder (FORMULARY T5).
 RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"
-KINDS = (RIGID_BODY, SLIDING_LADDER)
 
 DEFAULT_SAMPLES = 1000
 UNIT_TOL = 1e-9            # |v| within this of 1 is normalised, further off is an error (DESIGN §3)
@@ -49,10 +49,6 @@ _TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     # table: (allowed keys, required keys)
     "": (frozenset({"name", "description", "tags", "kind", "body", "gravity", "body_torque", "central_field",
                     "precession_torque", "initial", "run", "expect"}), frozenset({"body", "initial", "run"})),
-    "ladder_case": (frozenset({"name", "description", "tags", "kind", "ladder", "run"}),
-                    frozenset({"kind", "ladder", "run"})),
-    "ladder": (frozenset({"mass", "half_length", "theta0", "theta_dot0", "g"}),
-               frozenset({"mass", "half_length", "theta0", "g"})),
     "precession_torque": (frozenset({"theta", "l", "m3"}), frozenset({"theta", "l", "m3"})),
     "body": (frozenset({"mass", "com", "inertia", "principal_moments", "physical"}), frozenset({"mass", "com"})),
     "gravity": (frozenset({"g", "direction"}), frozenset({"g"})),
@@ -249,8 +245,10 @@ class _Parser:
 
     # --- shapes and types
 
-    def table(self, data: Any, key: str) -> dict:
-        allowed, required = _TABLES[key]
+    def table(self, data: Any, key: str, schema: tuple[frozenset[str], frozenset[str]] | None = None) -> dict:
+        """data, checked to be a table with only allowed keys and every required one: schema (allowed, required),
+        default the case format's own for the key."""
+        allowed, required = _TABLES[key] if schema is None else schema
         if not isinstance(data, dict):
             raise self.fail(key, "must be a table")
         prefix = f"{key}." if key else ""
@@ -327,14 +325,18 @@ class _Parser:
 
     # --- the file
 
-    def case(self, data: dict) -> Case | LadderCase:
+    def case(self, data: dict):
+        """The case of a file's TOML, parsed by the scene its `kind` names (harness.scenes.base; default the rigid
+        body)."""
         kind = RIGID_BODY
         if isinstance(data, dict) and "kind" in data:
             kind = self.string(data["kind"], "kind")
-            if kind not in KINDS:
-                raise self.fail("kind", f"unknown scene kind {kind!r} (known: {', '.join(KINDS)})")
-        if kind == SLIDING_LADDER:
-            return self.ladder_case(data)
+            if kind not in kinds():
+                raise self.fail("kind", f"unknown scene kind {kind!r} (known: {', '.join(kinds())})")
+        return scene(kind).parse(self, data)
+
+    def rigid_body(self, data: dict) -> Case:
+        """A rigid body with a fixed point (DESIGN §3)."""
         self.table(data, "")
         name, description, tags = self.words(data)
         mass, com, inertia, physical = self.body(data["body"])
@@ -387,26 +389,6 @@ class _Parser:
         if not isinstance(tags, list):
             raise self.fail("tags", f"must be a list of strings, got {_describe(tags)}")
         return name, description, tuple(self.string(tag, f"tags[{i}]") for i, tag in enumerate(tags))
-
-    def ladder_case(self, data: dict) -> LadderCase:
-        self.table(data, "ladder_case")
-        name, description, tags = self.words(data)
-        table = self.table(data["ladder"], "ladder")
-        theta0 = self.number(table["theta0"], "ladder.theta0")
-        if not 0.0 < theta0 < 0.5 * math.pi:
-            raise self.fail("ladder.theta0", f"must be in (0, pi/2) rad (from the wall), got {theta0:g}")
-        theta_dot0 = self.number(table.get("theta_dot0", 0.0), "ladder.theta_dot0")
-        if theta_dot0 < 0.0:
-            raise self.fail("ladder.theta_dot0", f"must be >= 0 (the ladder slides down), got {theta_dot0:g}")
-        ladder = Ladder(mass=self.positive(table["mass"], "ladder.mass"),
-                        half_length=self.positive(table["half_length"], "ladder.half_length"),
-                        theta0=theta0, theta_dot0=theta_dot0, g=self.positive(table["g"], "ladder.g"))
-        if not detachment_cosine(ladder) < math.cos(theta0):
-            raise self.fail("ladder.theta_dot0", "the wall would pull at t = 0 (cos theta_detach = "
-                                                 f"{detachment_cosine(ladder):.6g} >= cos theta0): too fast a start")
-        t_end, dt, samples = self.run(data["run"])
-        return LadderCase(name=name, description=description, tags=tags, ladder=ladder, t_end=t_end, dt=dt,
-                          samples=samples, path=Path(self.path))
 
     def precession_torque(self, data: Any) -> PrecessionTorque:
         self.table(data, "precession_torque")

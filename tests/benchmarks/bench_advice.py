@@ -16,11 +16,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import workprecision
-from stereodyn.harness.fitting import tolerance_fits
-from stereodyn.harness.analysis import advice as advising
+from stereodyn.harness.analysis import advice as advising, workprecision
+from stereodyn.harness.analysis.dt_ladders import families
+from stereodyn.harness.analysis.fitting import tolerance_fits
 from stereodyn.harness.run import sweep as runner
-from stereodyn.harness.run.dt_ladders import families
 from stereodyn.harness.run.results import read_results
 from stereodyn.harness.scenes import cases as case_files
 

@@ -1,0 +1,68 @@
+"""The one path from a run to its row: the sweep's runs, the dt ladders' and tolerance ladders' points and every
+scene's runs go through measure(). What differs between scenes is done by the scene object (harness.scenes.base):
+its grid's truth, its metrics and checks; here nothing branches on a kind."""
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable
+
+from .. import budget
+from ..engines import get_engine
+from ..scenes import scene_of
+from ..trajectory import Status
+from .processes import raise_if_interrupted
+from .spec import RunKey, base_row
+
+
+def model_of(run: RunKey):
+    """The engine's model of the run's scene (Engine.models()); KeyError when the engine has none."""
+    return get_engine(run.engine).models()[scene_of(run.case).kind]
+
+
+def prepare(run: RunKey):
+    """(simulation, grid) of a run: the model built (not timed) and the sample times it runs on."""
+    return model_of(run).prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance), run.grid
+
+
+def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = False,
+            timed: Callable[[object, object], dict] | None = None, budgets: budget.Budgets | None = None) -> dict:
+    """One run's row: base columns, the untimed accuracy run, the scene's metrics (against truth: the scene's truth
+    on a set of grids that holds the run's, or None for no errors), with full the sweep's extras (checks, series).
+    timed(simulation, grid) -> timing columns, when given, times the run after the accuracy run (its warm-up).
+    `_accuracy_s` is the prepare-and-run wall time (a budget's measure, not a timing). budgets (default this
+    process's, harness.budget): prepare under its prepare budget, the run with its metrics and checks under its run
+    budget; past one, a failed row naming it (and `_budget`, which the store keeps). Never raises: a run that breaks
+    is a failed row."""
+    budgets = budgets or budget.configured()
+    grid = run.grid
+    row = base_row(run, grid)
+    start = time.perf_counter()
+    try:
+        scene, model = scene_of(run.case), model_of(run)
+        sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance),
+                              budgets.prepare_s)
+        with budget.within("run", budgets.run_s):
+            traj = sim.run(grid)
+            row["_accuracy_s"] = time.perf_counter() - start
+            row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
+
+            def rerun(case):
+                return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance).run(grid)
+
+            row.update(scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states))
+            budget.check()  # a loop that could not be stopped inside (one compiled call, MJX's) is judged here
+        if timed is not None and traj.status is Status.OK:
+            row.update(timed(sim, grid))
+    except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
+        row = {**base_row(run, grid), **budget.failed_row(exc), "_accuracy_s": time.perf_counter() - start}
+    except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
+        raise_if_interrupted(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
+        row.setdefault("_accuracy_s", time.perf_counter() - start)
+        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    return row
+
+
+def rate(count: float, t_end: float) -> float:
+    """count per simulated second, NaN for no count (0 or NaN)."""
+    return count / t_end if count and not (isinstance(count, float) and math.isnan(count)) else math.nan

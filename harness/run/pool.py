@@ -1,0 +1,130 @@
+"""The one process pool of `stereodyn run` (the sweep's runs and the ladders' families), its workers, and the cost
+model that starts the longest runs first."""
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import signal
+from collections.abc import Iterator
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+from typing import Callable
+
+from .. import budget, integrators as integrator_registry
+from ..engines import get_engine
+from ..trajectory import Status
+from . import timing
+from .measure import measure
+from .processes import exit_with_parent, starting_workers
+from .spec import RunSpec, base_row
+
+# The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
+# Measured on the suite's four general cases (t_end 5 and 20, every engine, 2-core AMD EPYC): one simulation pass
+# costs about Engine.pass_us µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations
+# 5.6-7.5), and a run about 4.1-4.5 passes (the accuracy run, the timed runs, ~0.1-0.5 for metrics and check reruns)
+# plus ~6-25 ms. Only the ranking matters, so rough constants are enough: each engine declares its own (pass_us).
+RUN_OVERHEAD_S = 0.01   # prepare, metrics and the row, s
+CHECK_PASSES = 0.3      # mean extra passes of metrics and the checks' perturbed reruns
+
+
+def cost(spec: RunSpec) -> float:
+    """Estimated seconds of a run: by steps x stages x the engine's cost of a step, not by steps alone, since the cost
+    of a step differs ~4x between engines and ~4x between integrators. An adaptive run, whose steps are unknown before
+    it runs, counts as a one-stage run at the case's finest step: an upper bound for the reference's Taylor runs
+    (measured 0.02-1 times that), since underestimating a long run is what leaves it alone at the end."""
+    dt = min(spec.case.dt) if spec.dt is None else spec.dt
+    steps = math.ceil(spec.case.t_end / dt - 1e-9)
+    one_pass = steps * integrator_registry.stages(spec.integrator) * get_engine(spec.engine).pass_us * 1e-6
+    # the timing phase (timing.time_runs) repeats the run at most REPEATS times within BUDGET_S
+    timed = min(timing.REPEATS * one_pass, timing.BUDGET_S + one_pass)
+    return RUN_OVERHEAD_S + (1 + CHECK_PASSES) * one_pass + timed
+
+
+def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
+    """The row of a run whose worker process died (e.g. a crash inside an SDK) or whose task was lost. It is shown in
+    results.csv but not stored (_lost), so --resume tries the run again: the cause may have been passing (an
+    interrupt, the memory killer, a cluster going away)."""
+    return {**base_row(spec, None), "status": Status.FAILED.value, "_lost": True,
+            "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
+
+
+def _init_worker(engines: tuple[str, ...], budgets: budget.Budgets | None = None) -> None:
+    """A pool worker's start-up: ignore Ctrl-C, take the parent's budgets (for the ladders' points, which run here
+    too) and import the engines' SDKs now, while the parent computes the truths, rather than in the worker's first
+    run."""
+    if budgets is not None:
+        budget.configure(budgets)
+    # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
+    # must not die mid-run on it and send back a traceback instead of a row.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_with_parent()
+    for name in engines:
+        try:
+            get_engine(name)
+        except Exception:  # the runs that need the engine record why
+            pass
+
+
+def worker_pool(jobs: int | None, engines: tuple[str, ...]):
+    """The local process pool of `stereodyn run`, shared by the sweep (run_sweep(pool=...)) and the dt ladders
+    (harness.workprecision.analyse(pool=...)); None when jobs is 1. A context manager: Ctrl-C inside it ends the
+    workers at once."""
+    return local_pool(jobs or os.cpu_count() or 1, 2, engines)
+
+
+@contextmanager
+def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[ProcessPoolExecutor | None]:
+    """The process pool of a local sweep (None when it runs in this process), its workers started at once so that
+    they spawn and import (~1 s) while the parent computes the truths. On an exception (Ctrl-C) the queued runs are
+    dropped and the running ones ended now rather than waited for."""
+    if jobs == 1 or runs <= 1:
+        yield None
+        return
+    jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
+    # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
+    pool = None
+    try:
+        with starting_workers():  # tied to this process, deaf to Ctrl-C, from their first moment (harness.processes)
+            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_init_worker, initargs=(engines, budget.configured()))
+            for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all
+                pool.submit(int)
+        yield pool
+    except BaseException:
+        # Python < 3.14 has no public way to end a pool's workers, hence the private process table, read before
+        # shutdown() empties it.
+        if pool is None:
+            raise
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        raise
+    # Every run is done and stored: let the idle workers exit on their own rather than wait here for their interpreter
+    # teardown (0.2-0.5 s with the SDKs loaded, ~3% of a short sweep). Python joins them at exit at the latest.
+    pool.shutdown(wait=False)
+
+
+def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> dict:
+    """A sweep's run on a worker: measure() with the sweep's extras (checks, series, --save-trajectories' states),
+    within the budgets (default this process's)."""
+    return measure(spec, truth, full=True, keep_states=spec.keep_states, budgets=budgets)
+
+
+def run_local(specs: list[RunSpec], truths: dict, pool: ProcessPoolExecutor | None,
+              finished: Callable[[RunSpec, dict], None], budgets: budget.Budgets | None = None) -> None:
+    """Run the specs in this process (pool None) or on the pool, in the order given; finished(spec, row) as each
+    completes."""
+    if pool is None:
+        for spec in specs:
+            finished(spec, sweep_run(spec, truths.get(spec.case.name)))  # this process's budgets
+        return
+    futures: dict[Future, RunSpec] = {pool.submit(sweep_run, s, truths.get(s.case.name), budgets): s for s in specs}
+    for future in as_completed(futures):
+        spec = futures[future]
+        try:
+            row = future.result()
+        except Exception as exc:
+            row = worker_failed_row(spec, exc)
+        finished(spec, row)

@@ -1,0 +1,70 @@
+"""The Scene protocol and the registry of scenes (DESIGN §7): what a kind of case is, so that the plan, the one run ->
+row path (harness.run.measure) and the sweep never branch on a kind.
+
+A scene parses its TOML into a case (a frozen dataclass with name, description, tags, kind, t_end, dt, samples, path),
+computes its truth, turns a run's trajectory into the row's metrics and check rows, and says which row columns it
+fills. An engine models a scene through the model it declares for the scene's kind (Engine.models()).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Callable, Protocol
+
+if TYPE_CHECKING:
+    from ..grid import TimeGrid
+    from ..engines.base import SceneModel
+
+
+class Scene(Protocol):
+    """One kind of case (the TOML's top-level `kind`)."""
+
+    kind: str                 # the TOML's `kind` and the key of Engine.models()
+    title: str                # in words, for messages: "the sliding ladder"
+    needs_truth: bool         # whether truth() computes anything (the sweep's progress names the phase)
+    keeps_states: bool        # whether --save-trajectories can write its runs' states (quat, omega)
+    work_precision: bool      # whether dt and tolerance ladders, orders and floors apply to its runs
+    columns: tuple[str, ...]  # the results.csv columns its rows fill beyond the identity, status and timing ones
+
+    def parse(self, parser: Any, data: dict) -> Any:
+        """The case of a file's TOML (parser: harness.scenes.cases' validator, whose failures name FILE: KEY: RULE)."""
+
+    def truth(self, case: Any, grids: list["TimeGrid"], certify: bool) -> Any:
+        """The case's truth on the union of the grids' sample times, or None for a scene that checks each run
+        against its own equation."""
+
+    def metrics(self, run: Any, model: "SceneModel", traj: Any, grid: "TimeGrid", truth: Any, full: bool,
+                rerun: Callable[[Any], Any], keep_states: bool = False) -> dict:
+        """The row's columns measured from a run (run: a RunKey) of the engine's model: drifts, errors (against truth,
+        when not None), and, when full, the sweep's extras (check rows under checks.ROW_KEY, the invariant series
+        under "_series", with keep_states the recorded states under "_states"). rerun(case) runs the same model on
+        another case (a perturbed start) on the same grid, for checks that compare two runs."""
+
+
+_SCENES: dict[str, Scene] = {}
+
+
+def register(scene: Scene) -> Scene:
+    """Make a scene known by its kind (a case file names it with `kind = "..."`). Registering a kind again replaces
+    the scene (a test's toy scene, a plug-in's newer version)."""
+    _SCENES[scene.kind] = scene
+    return scene
+
+
+def unregister(kind: str) -> None:
+    _SCENES.pop(kind, None)
+
+
+def kinds() -> tuple[str, ...]:
+    return tuple(_SCENES)
+
+
+def scene(kind: str) -> Scene:
+    """The scene of a kind; KeyError naming the known kinds."""
+    try:
+        return _SCENES[kind]
+    except KeyError:
+        raise KeyError(f"unknown scene kind {kind!r} (known: {', '.join(_SCENES)})") from None
+
+
+def scene_of(case: Any) -> Scene:
+    """The scene a case belongs to."""
+    return scene(case.kind)

@@ -1,0 +1,56 @@
+"""What a run is, once (harness.run.spec): RunKey's label, grid and truth flag, and the one run -> row path
+(harness.run.measure) as the sweep and the ladders use it."""
+import math
+
+import numpy as np
+
+from stereodyn.harness.analysis import tolerance_ladders
+from stereodyn.harness.run.measure import measure
+from stereodyn.harness.run.spec import Family, RunKey, RunSpec, base_row
+from stereodyn.harness.scenes.cases import find_case, with_overrides
+
+
+def test_labels_and_grids():
+    case = with_overrides(find_case("free-asymmetric"), t_end=2.0)
+    key = RunKey(case, "reference", "rk4", 1e-2, "quaternion")
+    assert key.label == "free-asymmetric reference quaternion rk4 dt=0.01"
+    assert RunKey(case, "mujoco", "rk4", 1e-2).label == "free-asymmetric mujoco rk4 dt=0.01"
+    assert Family(case, "reference", "quaternion", "scipy_dop853").run(tolerance=1e-6).label == \
+        "free-asymmetric reference quaternion scipy_dop853 tol=1e-06"
+    assert key.grid.steps == 200 and key.grid.times[-1] == 2.0
+    adaptive = RunKey(case, "reference", "taylor", None, "quaternion").grid  # the case's samples over [0, t_end]
+    assert adaptive.times.size == case.samples and math.isclose(adaptive.times[-1], 2.0)
+    # a RunSpec is a RunKey with the ranks that order its row
+    spec = RunSpec(case, "mujoco", "rk4", 1e-2, engine_rank=1, integrator_rank=2)
+    assert spec.label == "free-asymmetric mujoco rk4 dt=0.01"
+    assert base_row(spec, spec.grid)["_engine_rank"] == 1 and "_engine_rank" not in base_row(key, key.grid)
+
+
+def test_the_truth_is_only_the_truths_own_row():
+    case = find_case("free-asymmetric")
+    assert RunKey(case, "reference", "taylor", None, "quaternion").is_truth
+    assert not RunKey(case, "reference", "taylor", None, "quaternion", tolerance=1e-6).is_truth
+    assert not RunKey(case, "reference", "taylor", None, "gibbs").is_truth
+
+
+def test_a_tolerance_point_of_the_truths_method_has_its_errors():
+    """A tolerance ladder of the reference quaternion formulation's taylor is measured against the truth like any other
+    run (a RunKey that took it for the truth's row left state_err NaN). Measured: 1.9e-5 at 1e-3, 5.7e-8 at 1e-6."""
+    case = with_overrides(find_case("free-asymmetric"), t_end=2.0)
+    points = tolerance_ladders.run_ladder(tolerance_ladders.AdaptiveFamily(case, "reference", "quaternion", "taylor"),
+                                          (1e-3, 1e-6))
+    errors = [p["state_err"] for p in points]
+    assert 1e-6 < errors[0] < 1e-4 and 1e-9 < errors[1] < 1e-6
+
+
+def test_the_same_path_gives_the_sweep_its_extras_and_the_ladders_their_columns():
+    case = with_overrides(find_case("lagrange-top"), t_end=1.0, dt=[1e-2])
+    key = RunKey(case, "mujoco", "rk4", 1e-2)
+    from stereodyn.harness.run.truth import case_truth
+    truth = case_truth(case, certify=False)
+    full, lean = measure(key, truth, full=True), measure(key, truth, full=False)
+    assert full["status"] == lean["status"] == "ok"
+    for column in ("energy_drift", "momentum_drift", "attitude_err", "omega_err"):
+        assert full[column] == lean[column]  # one computation, whatever the caller keeps
+    assert "checks" in full and "_series" in full and "checks" not in lean and "oracle_err" not in lean
+    assert math.isnan(full["truth_err"])  # the truth was not certified: no bound
