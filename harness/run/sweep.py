@@ -126,7 +126,7 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
             checks.write_checks([{**stored[keys[id(s)]], **_ranks(s)} for s in specs if keys[id(s)] in stored],
                                 out_dir / checks.CHECKS_FILE)
             store.write_manifest([keys[id(s)] for s in specs if keys[id(s)] in stored], environment)
-            if save_trajectories:
+            if options.save_trajectories:
                 store.write_trajectory_index([(stored[keys[id(s)]], keys[id(s)]) for s in specs
                                               if s.keep_states and keys[id(s)] in stored])
 
