@@ -199,8 +199,12 @@ def git_commit(start: Path | None = None) -> str:
 
 
 def environment() -> dict[str, str]:
-    """Everything a report's footer states about where the numbers came from."""
-    return {**library_versions(), "pandas": _version("pandas"), "cpu": cpu_name(), "machine": platform.machine(),
+    """Everything a report's footer states about where the numbers came from: the libraries, every installed plug-in
+    distribution (engines and integrators: harness.engines.catalog.plugin_distributions), the machine."""
+    from stereodyn.harness.engines.catalog import plugin_distributions
+
+    return {**library_versions(), "pandas": _version("pandas"), **plugin_distributions(), "cpu": cpu_name(),
+            "machine": platform.machine(),
             "platform": platform.platform(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
             "git commit": git_commit()}
 

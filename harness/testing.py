@@ -9,8 +9,13 @@
         assert_bounded_energy(MyIntegrator)          # only if MyIntegrator.energy_bounded is True
 
 The integrator is a registered name or an Integrator class (harness.integrators); it runs on the Pinocchio engine
-(state space "lie") or on the reference engine's formulation (state space "vector"). Both helpers raise
-AssertionError with the measured numbers, so pytest shows why.
+(state space "lie") or on the reference engine's formulation (state space "vector"). With engine="NAME" it is any
+integrator that engine runs (its own names included: an engine plug-in's CI), on the engine's default formulation or
+`formulation`, against the order the engine declares (Engine.declared_order):
+
+    assert_order("semi_implicit_euler", engine="bullet")
+
+Both helpers raise AssertionError with the measured numbers, so pytest shows why.
 """
 from __future__ import annotations
 
@@ -90,8 +95,14 @@ def _cases(cases: str | Case | Iterable[str | Case]) -> list[Case]:
     return [_case(case) for case in cases]
 
 
-def _run(cls: type[Integrator], case: Case, dt: float, formulation: str | None = None):
-    engine, extra = _engine_for(cls)
+def _run(cls: type[Integrator] | str, case: Case, dt: float, formulation: str | None = None,
+         engine: str | None = None):
+    """One run of the integrator (a class, or with `engine` any name that engine runs) on the case at dt."""
+    if engine is None:
+        engine, extra = _engine_for(cls)
+    else:
+        default = get_engine(engine).default_formulation
+        extra = {"formulation": default} if default else {}
     if formulation is not None:
         extra = {"formulation": formulation}
     grid = time_grid(case.t_end, dt, case.samples)
@@ -99,20 +110,30 @@ def _run(cls: type[Integrator], case: Case, dt: float, formulation: str | None =
     return grid, traj
 
 
+def _named(integrator: str | type[Integrator], state_space: str, engine: str | None):
+    """(what prepare gets, its name): the registry's class, or with `engine` the name (or class) as given."""
+    if engine is None:
+        cls = _resolve(integrator, state_space)
+        return cls, cls.name
+    return integrator, integrator if isinstance(integrator, str) else integrator.name
+
+
 def measured_order(integrator: str | type[Integrator], case: str | Case | Iterable[str | Case],
                    dts: Iterable[float] | None = None, state_space: str = "lie", formulation: str | None = None,
-                   t_end: float = 2.0) -> float | dict[str, float]:
+                   t_end: float = 2.0, engine: str | None = None) -> float | dict[str, float]:
     """The fitted order (slope of log max state error against log dt, the measure of convergence.csv) of an integrator
     on a case over t_end, from the dt values whose error lies in ORDER_ERR_RANGE. dts default: 0.1 down to 0.00625 by
-    halves. `case` is a name or Case (returns the order) or a list of them (returns {case name: order})."""
+    halves. `case` is a name or Case (returns the order) or a list of them (returns {case name: order}). engine: run
+    on that engine (module docstring)."""
     if not _one(case):
-        return {c.name: measured_order(integrator, c, dts, state_space, formulation, t_end) for c in _cases(case)}
-    cls = _resolve(integrator, state_space)
+        return {c.name: measured_order(integrator, c, dts, state_space, formulation, t_end, engine)
+                for c in _cases(case)}
+    cls, name = _named(integrator, state_space, engine)
     case = with_overrides(_case(case), t_end=t_end)
     dts = list(dts) if dts is not None else [0.1 / 2 ** k for k in range(5)]
     points = []
     for dt in dts:
-        grid, traj = _run(cls, case, dt, formulation)
+        grid, traj = _run(cls, case, dt, formulation, engine)
         if traj.status is not Status.OK:
             continue
         truth = reference_truth.truth(case.body, case.quat0, case.omega0, grid.times)
@@ -122,7 +143,7 @@ def measured_order(integrator: str | type[Integrator], case: str | Case | Iterab
         if ORDER_ERR_RANGE[0] <= state_err <= ORDER_ERR_RANGE[1]:
             points.append((dt, state_err))
     if len(points) < 2:
-        raise AssertionError(f"{cls.name} on {case.name}: fewer than 2 steps of {dts} give an error in "
+        raise AssertionError(f"{name} on {case.name}: fewer than 2 steps of {dts} give an error in "
                              f"{ORDER_ERR_RANGE} (points: {points})")
     dt, err = np.array(points).T
     return order_slope(dt, err)
@@ -130,16 +151,18 @@ def measured_order(integrator: str | type[Integrator], case: str | Case | Iterab
 
 def assert_order(integrator: str | type[Integrator], cases: str | Case | Iterable[str | Case] = ("lagrange-top",),
                  dts: Iterable[float] | None = None, state_space: str = "lie", formulation: str | None = None,
-                 tolerance: float = ORDER_TOLERANCE, t_end: float = 2.0) -> dict[str, float]:
-    """Assert that the fitted order on each case is within tolerance of the integrator's declared `order`.
-    `cases`: a name or Case, or a list of them. Returns {case name: fitted order}."""
-    cls = _resolve(integrator, state_space)
+                 tolerance: float = ORDER_TOLERANCE, t_end: float = 2.0, engine: str | None = None) -> dict[str, float]:
+    """Assert that the fitted order on each case is within tolerance of the integrator's declared `order` (with
+    `engine`: the order that engine declares for it). `cases`: a name or Case, or a list of them. Returns {case name:
+    fitted order}."""
+    cls, name = _named(integrator, state_space, engine)
+    declared = cls.order if engine is None else get_engine(engine).declared_order(name)
     orders = {}
     for case in _cases(cases):
-        order = measured_order(cls, case, dts, state_space, formulation, t_end)
+        order = measured_order(cls, case, dts, state_space, formulation, t_end, engine)
         orders[case.name] = order
-        assert abs(order - cls.order) <= tolerance, (
-            f"{cls.name} on {case.name}: fitted order {order:.3f}, declared {cls.order} (tolerance {tolerance})")
+        assert abs(order - declared) <= tolerance, (
+            f"{name} on {case.name}: fitted order {order:.3f}, declared {declared} (tolerance {tolerance})")
     return orders
 
 

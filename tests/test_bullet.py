@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from stereodyn.harness import metrics
-from stereodyn.harness.cases import find_case
+from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status
 from stereodyn.reference import truth as reference_truth

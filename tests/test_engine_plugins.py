@@ -125,7 +125,7 @@ def test_the_external_engine_is_listed_and_old_or_broken_plugins_are_refused(ins
     # the built-ins, then stereodyn's engines whose SDK is an optional extra (registered whether or not it is
     # installed), by name, then third parties' by name
     extras = ",".join(sorted(set(_OWN) - {"mujoco", "pinocchio", "reference"}))
-    assert {"bullet", "drake"} <= set(_OWN)
+    assert {"bullet", "drake", "genesis", "newton"} <= set(_OWN)
     assert lines[0] == f"names mujoco,pinocchio,reference,{extras},toy,toy_broken,toy_nosdk,toy_old"
     # a module that cannot be imported (a missing SDK) makes the engine's runs skipped, with the reason
     assert lines[1].startswith("nosdk toy_nosdk engine unavailable: No module named")

@@ -232,7 +232,7 @@ def test_a_fitted_order_that_dropped_fails(baseline, tmp_path, capsys):
         return run
 
     # by behaviour, not by the constant: an order that lost 1.0 (4.07 -> 3.07, MuJoCo 3.17's RK4 lost 2) fails; a
-    # drop of 0.3 passes (fits on one machine kind move by < 0.01: harness.gate, ORDER_DROP)
+    # drop of 0.3 passes (fits on one machine kind move by < 0.01: harness.analysis.gate, ORDER_DROP)
     assert check(run_with(4.07 - 0.3), ordered) == 0
     capsys.readouterr()
     assert check(run_with(4.07 - 1.0), ordered) == 1

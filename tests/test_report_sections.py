@@ -1,8 +1,13 @@
 """report.md's sections are registered plug-ins (harness.report.sections), shown in their declared order: a section
-added by a test lands where its order puts it, and every other section renders as it did."""
+added by a test lands where its order puts it, and every other section renders as it did; a distribution's sections are
+discovered through the entry-point group stereodyn.report_sections."""
 import re
+import shutil
+import subprocess
+import sys
 
 import pandas as pd
+import plugin_packages
 import pytest
 
 from stereodyn.harness import cli
@@ -62,3 +67,43 @@ def test_a_section_with_nothing_to_say_is_left_out(folder):
         assert _page(folder) == before
     finally:
         sections.unregister("empty")
+
+
+PLUGIN = "stereodyn_test_section"
+PLUGIN_MODULE = '''
+from stereodyn.harness.report import sections
+
+
+@sections.register("plug-in-section", 95)  # between Definitions (90) and Environment (100)
+def _section(context):
+    return ["## A plug-in's section", "", f"{len(context.results)} rows.", ""]
+'''
+
+
+def _installed(tmp_path, module: str):
+    site = plugin_packages.install(tmp_path / "plugin", {
+        "pyproject.toml": plugin_packages.pyproject(PLUGIN, {sections.ENTRY_POINT_GROUP: {"mine": PLUGIN}}),
+        f"{PLUGIN}/__init__.py": module})
+    return plugin_packages.env_with(site)
+
+
+def test_a_distributions_section_is_discovered_through_its_entry_point(folder, tmp_path):
+    copy = tmp_path / "run"
+    shutil.copytree(folder, copy)
+    result = subprocess.run([sys.executable, "-m", "stereodyn", "report", str(copy)], capture_output=True, text=True,
+                            env=_installed(tmp_path, PLUGIN_MODULE), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    text = (copy / "report.md").read_text()
+    rows = len(pd.read_csv(copy / "results.csv"))
+    assert f"## A plug-in's section\n\n{rows} rows.\n" in text
+    assert text.index("## Definitions") < text.index("## A plug-in's section") < text.index("## Environment")
+
+
+def test_a_broken_section_plugin_is_one_line_naming_it(folder, tmp_path):
+    copy = tmp_path / "run"
+    shutil.copytree(folder, copy)
+    result = subprocess.run([sys.executable, "-m", "stereodyn", "report", str(copy)], capture_output=True, text=True,
+                            env=_installed(tmp_path, "raise RuntimeError('broken on purpose')\n"), cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.strip() == (f"stereodyn: error: report section plug-in mine ({PLUGIN}) does not import: "
+                                     "RuntimeError: broken on purpose")

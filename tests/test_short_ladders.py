@@ -13,7 +13,7 @@ import pytest
 from stereodyn.harness import dt_ladders
 from stereodyn.harness.analysis import fitting, workprecision
 from stereodyn.harness.cases import find_case, with_overrides
-from stereodyn.harness.dt_ladders import Family, run_short_ladder
+from stereodyn.harness.analysis.dt_ladders import Family, run_short_ladder
 from stereodyn.harness.analysis.fitting import fit
 
 T_END = 10.0

@@ -1,4 +1,4 @@
-"""Tolerance ladders (harness.tolerance_ladders, harness.fitting.tolerance_fit) and adaptive runs in "What to use":
+"""Tolerance ladders (analysis.tolerance_ladders, analysis.fitting.tolerance_fit) and adaptive runs in "What to use":
 an engine's adaptive integrator joins through the contract's hooks alone (a stub engine here), tolerance.csv's
 columns, the proportionality fit on synthetic data, and the Pareto rule with adaptive candidates."""
 from __future__ import annotations

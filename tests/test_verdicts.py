@@ -1,5 +1,5 @@
-"""Verdicts (harness.verdicts, `stereodyn run --strict`), honest timings (harness.timing, the sweep's timing phase,
-rhs_per_sim_s) and the Pareto table's ties and exclusions (harness.workprecision.pareto_table)."""
+"""Verdicts (analysis.verdicts, `stereodyn run --strict`), honest timings (harness.timing, the sweep's timing phase,
+rhs_per_sim_s) and the Pareto table's ties and exclusions (harness.analysis.workprecision.pareto_table)."""
 import math
 import re
 

@@ -10,7 +10,7 @@ import pytest
 from stereodyn.harness import dt_ladders
 from stereodyn.harness.analysis import fitting
 from stereodyn.harness.cases import find_case, with_overrides
-from stereodyn.harness.dt_ladders import Family, stability_limit
+from stereodyn.harness.analysis.dt_ladders import Family, stability_limit
 from stereodyn.harness.analysis.fitting import fit, order_slope, pareto
 
 T_END = 10.0

@@ -1,6 +1,6 @@
 """Step-size advice, the runs (advice.csv; issue 21 item 2): per run family and accuracy target, the model's setting
-checked by runs (harness.analysis.step_advice.search), each run one ladder point (harness.dt_ladders.measure, or
-harness.tolerance_ladders.measure for an adaptive method: the one measure path of the ladders), the advised runs then
+checked by runs (analysis.step_advice.search), each run one ladder point (analysis.dt_ladders.measure, or
+analysis.tolerance_ladders.measure for an adaptive method: the one measure path of the ladders), the advised runs then
 timed alone in the parent (the ladders' timing phase). Used by `stereodyn run` (workprecision.analyse) and
 `stereodyn advise`.
 """
@@ -17,7 +17,7 @@ from .dt_ladders import MIN_STEPS, Family
 from .step_advice import ADVICE_COLUMNS, error_model, rounded, search
 from ..trajectory import Status
 
-# The tolerances an advice may name: the tolerance ladders' range (harness.tolerance_ladders.TOLERANCES).
+# The tolerances an advice may name: the tolerance ladders' range (harness.analysis.tolerance_ladders.TOLERANCES).
 TOLERANCE_LO, TOLERANCE_HI = min(tolerance_ladders.TOLERANCES), max(tolerance_ladders.TOLERANCES)
 
 
@@ -209,7 +209,7 @@ def families_to_advise(case, engine_name: str, integrators: list[str] | None,
 def advise(case, families: list[tuple[Family, bool]], targets: tuple[float, ...], max_steps: int,
            progress: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict[tuple, str]]:
     """What `stereodyn advise` runs: per family, the case's own dt list and a short ladder (dt doubled or halved until
-    three points are asymptotic, harness.dt_ladders.run_short_ladder) for the order, or for an adaptive method the
+    three points are asymptotic, analysis.dt_ladders.run_short_ladder) for the order, or for an adaptive method the
     default tolerance ladder (1e-3, 1e-5 … 1e-13) for its slope; then the checked search per target and the advised
     runs timed. Returns advice.csv's rows and, per family key without an order, why."""
     from . import fitting

@@ -18,7 +18,7 @@ from ..run.store import read_manifest
 # max(value, FLOOR). The truth's drifts sit at 1e-16 .. 1e-14 and move by factors of ten between machines.
 FLOOR = 1e-12
 # Groups of rows by the largest accuracy change, |log10 ratio|: a tenfold change, twofold, a tenth; below the last,
-# rows count as unchanged (round-off moves deterministic runs by far less than 10 %, harness.gate).
+# rows count as unchanged (round-off moves deterministic runs by far less than 10 %, harness.analysis.gate).
 GROUPS = ((1.0, "changed 10x or more"), (math.log10(2.0), "changed 2x to 10x"),
           (math.log10(1.1), "changed 1.1x to 2x"))
 # Environment keys that differ between any two runs (not a difference in what ran).

@@ -5,7 +5,7 @@ For a case × engine × formulation × integrator, a ladder is LADDER_POINTS log
 one untimed accuracy run (errors against the truth, energy drift) and separate timed runs (harness.run.timing: best of N
 after the accuracy run as warm-up, within a budget), costed as µs of stepping per simulated second.
 
-The error whose order is fitted (harness.fitting) is the global error of the state, state_err = max(attitude_err,
+The error whose order is fitted (analysis.fitting) is the global error of the state, state_err = max(attitude_err,
 omega_err, casimir_drift): a method's order is that of its whole state. (The attitude alone can converge faster than
 the method: MuJoCo's semi-implicit Euler on a plane pendulum has the positions of Störmer–Verlet, second order, while
 its velocities are first order; explicit Euler on a steady rotation has a second-order phase but a first-order |q|

@@ -70,7 +70,7 @@ IRREGULAR = "irregular"  # at or after the floor, yet well above it: the error d
 PRE_ASYMPTOTIC, PRE_ASYMPTOTIC_GAP = "pre-asymptotic", 0.5
 # A fit more than STEEP above the declared order is a special motion the method solves better than in general
 # (SUPERCONVERGENT, with three points or more) or a point contaminated by rounding (two points): the suite's fits of
-# general motions lie within 0.15 of their declared orders (harness.verdicts), the special ones measured so far at
+# general motions lie within 0.15 of their declared orders (analysis.verdicts), the special ones measured so far at
 # declared + 2 (rk4_naive, declared 2, fits 4 where the angular velocity keeps its direction: the stages commute).
 STEEP = 1.0
 SUPERCONVERGENT = "superconvergent on this motion"

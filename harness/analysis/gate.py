@@ -30,7 +30,7 @@ from ..run.results import METRIC_SUFFIXES, TableError, read_results, write_atomi
 KEY = ("case", "engine", "formulation", "integrator", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
 BASELINE_FORMAT = "stereodyn-baseline/1"  # "orders" (the fitted convergence orders) is optional: older files lack it
-CONVERGENCE_FILE = "convergence.csv"  # written by harness.workprecision
+CONVERGENCE_FILE = "convergence.csv"  # written by harness.analysis.workprecision
 ORDER_KEY = ("case", "engine", "formulation", "integrator")
 # A fitted order may fall this much below the baseline's. The fits are deterministic: on one machine kind round-off
 # moves them by < 0.01; a method that lost an order (MuJoCo 3.17's ball-joint RK4: 2.00 against 4.07) moves >= 1.

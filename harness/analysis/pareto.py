@@ -55,7 +55,7 @@ def pareto(results: pd.DataFrame, ladder: pd.DataFrame, failed: set | None = Non
     """pareto.csv from the sweep's results, the dt ladders' points and the tolerance ladders' points (tolerance.csv,
     pareto_candidates). Candidates: every timed run of the sweep, fixed-step and adaptive (at the engine's default
     tolerance; the truth has no error of its own and is none), and the ladders' points. failed: the integrators that
-    failed a verdict (harness.verdicts.failed_integrators)."""
+    failed a verdict (harness.analysis.verdicts.failed_integrators)."""
     # an adaptive row whose error is exactly 0 is the reference its errors are measured against (the sliding ladder's
     # equation); the rigid bodies' truth has no error at all. Neither is a contender.
     sweep = results[results["dt"].notna() | (results["attitude_err"] != 0.0)].copy()
@@ -113,7 +113,7 @@ def _candidate(row) -> str:
 
 
 def is_failed(failed_set: set[tuple[str, str, str]], engine: str, formulation: str, integrator: str) -> bool:
-    """Whether a run's integrator failed a verdict (harness.verdicts.failed_integrators; "*" matches any engine and
+    """Whether a run's integrator failed a verdict (analysis.verdicts.failed_integrators; "*" matches any engine and
     formulation)."""
     return (engine, formulation, integrator) in failed_set or ("*", "*", integrator) in failed_set
 

@@ -2,7 +2,7 @@
 asymptotic range (s the step dt, or the requested tolerance of an adaptive method), and the checked search for the
 largest setting whose max attitude error reaches a target.
 
-The search is given a function that runs the family at a setting and returns the error (harness.analysis.advice runs it):
+The search is given a function that runs the family at a setting and returns the error (analysis.advice runs it):
 it starts just inside the model's estimate, steps once by CHECK_RATIO to the other side, then doubles or halves until
 a setting that reaches the target and one that does not are known, and bisects (geometrically) until they are within
 CHECK_RATIO. The setting advised is the one that reaches it, with its measured error. A target the family cannot
@@ -47,7 +47,7 @@ class ErrorModel:
 
 def error_model(points: pd.DataFrame, order: float, setting: str = "dt") -> ErrorModel | None:
     """The model of a family's max attitude error with the fitted order (convergence.csv's, or a tolerance ladder's
-    slope): C from the points in the asymptotic range (harness.fitting.regimes on state_err; points: columns
+    slope): C from the points in the asymptotic range (harness.analysis.fitting.regimes on state_err; points: columns
     `setting`, steps, status, state_err, attitude_err), the geometric mean of attitude_err / setting^order. None
     without an order or such a point."""
     if not (math.isfinite(order) and order > 0) or points.empty:
@@ -172,7 +172,7 @@ def _beyond(what: str) -> str:
 
 def _stalled(known: dict[float, float], fail: float) -> bool:
     """Whether the error at `fail` and the next coarser setting tried shows a floor: both ok, in the asymptotic range
-    or below (<= harness.fitting.ASYMPTOTIC_MAX) and falling with a local slope below FLOOR_SLOPE. Not fitting's
+    or below (<= analysis.fitting.ASYMPTOTIC_MAX) and falling with a local slope below FLOOR_SLOPE. Not fitting's
     FLOOR_MAX (1e-6): a float32 engine's floor lies near 1e-5 rad; a saturated error (a chaotic separation, ~pi) lies
     above the range and is no floor."""
     coarser = sorted(s for s in known if s > fail and math.isfinite(known[s]))

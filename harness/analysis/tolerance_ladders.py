@@ -14,7 +14,7 @@ loose ones like any other adaptive method.
 
 A ladder walks from loose to tight and stops early, saying so in the last point's message, once a point's accuracy
 run took longer than POINT_BUDGET_S (the tighter points would each take longer still). The fits (tolerance
-proportionality, error below the tolerance) are harness.fitting.tolerance_fit.
+proportionality, error below the tolerance) are harness.analysis.fitting.tolerance_fit.
 
 The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one task per family.
 """

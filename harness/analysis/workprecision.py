@@ -1,7 +1,7 @@
 """Work–precision: the phase of `stereodyn run` after the sweep (its report sections: harness.report.workprecision).
 
-Measuring is harness.analysis.dt_ladders (dt ladders, stability bisection) and harness.analysis.tolerance_ladders (adaptive
-methods against the requested tolerance), fitting harness.analysis.fitting (orders, round-off floors, tolerance proportionality, the
+Measuring is analysis.dt_ladders (dt ladders, stability bisection) and analysis.tolerance_ladders (adaptive methods
+against the requested tolerance), fitting analysis.fitting (orders, round-off floors, tolerance proportionality, the
 Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results (tables only).
 
 Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, per short ladder, and per
@@ -69,7 +69,7 @@ def _ladder_cost(family: Family) -> float:
 
 
 def rewrite_pareto(out_dir: Path, results: pd.DataFrame, failed: set) -> None:
-    """pareto.csv again, leaving out the runs of the integrators that failed a verdict (harness.verdicts)."""
+    """pareto.csv again, leaving out the runs of the integrators that failed a verdict (harness.analysis.verdicts)."""
     ladder = read_optional(Path(out_dir) / LADDER_FILE, TEXT_COLUMNS)
     if ladder is None:
         ladder = pd.DataFrame(columns=list(LADDER_COLUMNS))
@@ -83,7 +83,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
-    """The families that get a short ladder (harness.analysis.dt_ladders.run_short_ladder), each with its sweep runs and its
+    """The families that get a short ladder (analysis.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""

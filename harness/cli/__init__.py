@@ -35,7 +35,7 @@ from pathlib import Path  # noqa: E402
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
 case_files = CaseError = engine_names = EngineError = budget = None
 # Each command is the module of its name in this package, with main(args) -> int.
-COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators")
+COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators", "engines")
 _commands: dict = {}
 
 DEFAULT_OUT = "out"
@@ -93,9 +93,6 @@ def _floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError("expected at least one number")
     if len(values) > case_files.MAX_DTS:
         raise argparse.ArgumentTypeError(f"at most {case_files.MAX_DTS} steps, got {len(values)}")
-    twice = sorted({v for v in values if values.count(v) > 1})
-    if twice:  # the same run twice: two rows with one key
-        raise argparse.ArgumentTypeError(f"{', '.join(f'{v:g}' for v in twice)} given twice")
     return values
 
 
@@ -217,6 +214,9 @@ def _parser() -> argparse.ArgumentParser:
     _allow_partial(compare)
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
+    commands.add_parser("engines", help="list every registered engine: origin (built in, or the plug-in's "
+                                        "distribution and version), installed or the install command, models, "
+                                        "integrators, precision")
     advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
                                                  "reaches an accuracy on a case, checked by runs")
     advise.add_argument("case", metavar="CASE_OR_FILE", help="a suite case name or a .toml path")
@@ -351,6 +351,7 @@ def main(argv: list[str] | None = None) -> int:
         from ..run.store import FolderNotReady, StoreBusy
         from ..run.results import TableError
         from ..analysis.compare import CompareError
+        from ..report.sections import SectionError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
@@ -367,7 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = _commands[args.command](args)
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
-            CompareError, FolderNotReady) as exc:
+            CompareError, FolderNotReady, SectionError) as exc:
         code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""

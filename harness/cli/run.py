@@ -62,7 +62,7 @@ def _quiet_engines(out: Path) -> None:
 
 def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and the orders in checks.csv
-    (harness.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
+    (analysis.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
     named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
     (without --strict none); --dt-ladder every family's; --no-ladder none."""
     from ..analysis import workprecision

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 # (stereodyn 0.2.0) holds float64 runs.
 FLOAT64, FLOAT32 = "float64", "float32"
 PRECISIONS = (FLOAT64, FLOAT32)
-# Unit round-off of each precision: the order fitter's round-off margin uses the row's own (harness.fitting).
+# Unit round-off of each precision: the order fitter's round-off margin uses the row's own (harness.analysis.fitting).
 EPS = {FLOAT64: float(np.finfo(np.float64).eps), FLOAT32: float(np.finfo(np.float32).eps)}
 
 
@@ -28,7 +28,7 @@ EPS = {FLOAT64: float(np.finfo(np.float64).eps), FLOAT32: float(np.finfo(np.floa
 class KnownDeviation:
     """A documented way an engine's integrator departs from what it declares, with its upstream reference.
 
-    quantity: what is measured ("order": the fitted convergence order, harness.verdicts); expected: the value the
+    quantity: what is measured ("order": the fitted convergence order, analysis.verdicts); expected: the value the
     deviation predicts, matched within tolerance; reference: where upstream documents (or fixes) it. While the
     measurement matches it the integrator's verdict reads `known` (not failed; --strict passes); when it stops
     matching and meets the declared value instead, the verdict reads `fixed upstream?`.
@@ -100,7 +100,7 @@ class Engine:
         or not passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine
         says otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
         absolute tolerance (scipy: rtol = atol = tol; heyoka: tol; Drake: set_target_accuracy(tol)). The tolerance
-        ladders (harness.analysis.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
+        ladders (analysis.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
         adaptive run's Trajectory fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0
         where the method has them.
         """

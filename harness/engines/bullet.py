@@ -38,7 +38,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
 from stereodyn.harness import budget
-from stereodyn.harness.cases import Case, unphysical_inertia
+from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.engines.base import Engine, precession_singular
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good

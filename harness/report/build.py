@@ -86,7 +86,7 @@ def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool
                     tolerance: pd.DataFrame | None = None) -> tuple[dict[str, list[str]], dict]:
     """Each case's figures as report lines {case: lines} (work–precision, then invariants against time), and the
     figures {relative path: PNG bytes}; the points of the dt ladders (ladder.csv) and of the tolerance ladders
-    (tolerance.csv, harness.workprecision) join their case's work–precision plot. The tolerance figures are
+    (tolerance.csv, harness.analysis.workprecision) join their case's work–precision plot. The tolerance figures are
     tolerance_figures'."""
     images: dict[str, bytes] = {}
     tasks = []

@@ -52,21 +52,25 @@ def integrator_rows() -> list[dict]:
                          "energy_bounded": getattr(cls, "energy_bounded", False),
                          "default_sweep": getattr(cls, "default_sweep", True), "origin": origin(cls),
                          "description": cls.description})
-    known = {row["name"] for row in rows}
+    from ..engines.catalog import origin as engine_origin
+    from ..analysis.fitting import declared_order
+
     for engine in engine_names():
         try:
             adapter = get_engine(engine)
             names = adapter.integrators()
         except Exception:  # an engine that is not installed lists nothing
             continue
+        # the engine's own integrators: all of them for an engine that steps its own model, those the registry does
+        # not hold for one that runs the registry's (adapter.state_space); labelled with the engine, since names
+        # repeat across engines (MuJoCo's euler is semi-implicit, the registry's explicit)
+        registered = set(registry.names(adapter.state_space)) if adapter.state_space else set()
         for name in names:
-            if name not in known:
-                from ..analysis.fitting import declared_order
-
+            if name not in registered:
                 rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
                              "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
-                             "default_sweep": get_engine(engine).in_default_sweep(name),
-                             "origin": f"built in ({engine})",
+                             "default_sweep": adapter.in_default_sweep(name),
+                             "origin": f"{engine_origin(engine)} ({engine})",
                              "description": "adaptive (error-controlled)" if adapter.adaptive(name) else ""})
     return rows
 
@@ -135,25 +139,53 @@ def cost_ratios(runs: pd.DataFrame, integrator: str, builtin: set[str], targets=
     return out
 
 
+def own_label(engine: str, integrator: str) -> str:
+    """An engine's own integrator is named with its engine ("euler (mujoco)": names repeat across engines and mean
+    different methods); a registered integrator by its name."""
+    from stereodyn.harness import integrators as registry
+    from stereodyn.harness.engines import get_engine
+
+    try:
+        space = get_engine(engine).state_space
+    except Exception:  # an engine that cannot be loaded: its rows keep their names
+        return integrator
+    return integrator if space and integrator in registry.names(space) else f"{integrator} ({engine})"
+
+
+def _labelled(table: pd.DataFrame | None) -> pd.DataFrame | None:
+    """The table with each row's integrator replaced by own_label (engine, integrator)."""
+    if table is None or table.empty or "engine" not in table:
+        return table
+    pairs = {pair: own_label(*pair) for pair in set(zip(table["engine"].astype(str), table["integrator"].astype(str)))}
+    return table.assign(integrator=[pairs[pair] for pair in zip(table["engine"].astype(str),
+                                                                 table["integrator"].astype(str))])
+
+
 def method_lines(df: pd.DataFrame, out_dir: Path, series: dict[tuple, dict] | None = None) -> list[str]:
-    """The report section "Each integrator (your method)": a subsection per integrator that ran."""
+    """The report section "Each integrator (your method)": a subsection per integrator that ran (an engine's own
+    named with its engine, own_label)."""
     from ..analysis import workprecision
 
-    ran = [i for i in dict.fromkeys(df.loc[df["status"] == "ok", "integrator"].astype(str)) if i != "taylor"]
+    truth_rows = df["integrator"].astype(str) == "taylor"
+    df = _labelled(df[~truth_rows])
+    ran = list(dict.fromkeys(df.loc[df["status"] == "ok", "integrator"].astype(str))) if not df.empty else []
     if not ran:
         return []
+    series = {(key[0], key[1], key[2], own_label(key[1], key[3]), *key[4:]): values
+              for key, values in (series or {}).items()}
     try:
-        catalogue = {row["name"]: row for row in integrator_rows()}
+        catalogue = {f"{row['name']} ({row['state_space'].removesuffix(' (engine)')})"
+                     if row["state_space"].endswith(" (engine)") else row["name"]: row for row in integrator_rows()}
     except Exception:  # the listing is context; the measurements stand without it
         catalogue = {}
     builtin = {name for name, row in catalogue.items() if str(row["origin"]).startswith("built in")}
-    convergence = workprecision.read_optional(Path(out_dir) / workprecision.CONVERGENCE_FILE,
-                                              ("formulation", "note", "source"))
+    convergence = _labelled(workprecision.read_optional(Path(out_dir) / workprecision.CONVERGENCE_FILE,
+                                                        ("formulation", "note", "source")))
     if convergence is not None:  # a table with no fitted value reads as text: the numbers as numbers
         numeric = ("order", "floor_dt", "floor_err", "stable_dt_max", "declared_order")
         convergence = convergence.assign(**{c: pd.to_numeric(convergence[c], errors="coerce")
                                             for c in numeric if c in convergence})
-    ladder = workprecision.read_optional(Path(out_dir) / workprecision.LADDER_FILE)
+    ladder = _labelled(workprecision.read_optional(Path(out_dir) / workprecision.LADDER_FILE))
     runs = df if ladder is None or ladder.empty else pd.concat(
         [df, ladder[[c for c in ladder.columns if c in df.columns]]], ignore_index=True)
     lines = ["## Each integrator (your method)", "",

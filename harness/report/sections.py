@@ -1,10 +1,12 @@
 """report.md's sections as registered plug-ins (as asv's publishers): each has a name, an order and a render function
 of the report's Context that returns Markdown lines ([] leaves the section out). The page is every registered section
-in order (then name); a new section is one `register` call, in any module imported before the report is built
-(DESIGN §7), and touches no other section."""
+in order (then name); a new section is one `register` call and touches no other section (DESIGN §7). A third party's
+sections are discovered as asv's plug-ins are: a distribution names its module under the entry-point group
+`stereodyn.report_sections`, and the report imports it (its `register` calls run) before it lists the sections."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Callable
 
@@ -35,7 +37,12 @@ class Section:
     render: Callable[[Context], list[str]]
 
 
+ENTRY_POINT_GROUP = "stereodyn.report_sections"
 _REGISTRY: dict[str, Section] = {}
+
+
+class SectionError(ImportError):
+    """A report-section plug-in that does not import: one line naming it."""
 
 
 def register(name: str, order: float) -> Callable:
@@ -51,8 +58,20 @@ def unregister(name: str) -> None:
     _REGISTRY.pop(name, None)
 
 
+def load_plugins() -> None:
+    """Import every module named under ENTRY_POINT_GROUP (each registers its sections); SectionError naming the
+    plug-in when one does not import."""
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            entry.load()
+        except Exception as exc:  # a plug-in's own bug: name it, never a traceback from inside the report
+            raise SectionError(f"report section plug-in {entry.name} ({entry.value}) does not import: "
+                               f"{type(exc).__name__}: {exc}") from None
+
+
 def registered() -> list[Section]:
-    """Every registered section, in the page's order."""
+    """Every registered section, the plug-ins' included, in the page's order."""
+    load_plugins()
     return sorted(_REGISTRY.values(), key=lambda section: (section.order, section.name))
 
 

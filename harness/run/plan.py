@@ -1,5 +1,5 @@
 """The plan of a sweep: every case x engine x integrator x formulation x dt as a RunSpec, and the rows of the runs
-skipped up front (the engine cannot model the case). harness.run.sweep executes the plan; harness.workprecision picks
+skipped up front (the engine cannot model the case). harness.run.sweep executes the plan; analysis.workprecision picks
 its run families from it."""
 from __future__ import annotations
 

@@ -70,7 +70,7 @@ class CaseError(ValueError):
 
 
 # Tags of cases whose error grows exponentially (a chaotic motion, or one on an unstable manifold): their fitted orders
-# are not held against the declared ones (harness.verdicts), and a short ladder that finds none says so (dt_ladders).
+# are not held against the declared ones (analysis.verdicts), and a short ladder that finds none says so (dt_ladders).
 CHAOTIC_TAGS = ("chaotic", "unstable")
 
 

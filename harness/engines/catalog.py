@@ -1,0 +1,114 @@
+"""Every registered engine as a row (`stereodyn engines`): where it comes from, what it runs, whether it is installed.
+
+origin: `built in` (stereodyn's own, its SDK a base dependency), `built in, extra stereodyn[X]` (stereodyn's own, its
+SDK an optional extra) or `plug-in from DIST VERSION` (the distribution whose entry point registers it). Loading an
+engine imports its adapter (and most adapters their SDK): a missing SDK shows as `not installed` with the adapter's
+reason, which names the install command.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from importlib.metadata import PackageNotFoundError, distribution, version
+
+from stereodyn.harness.engines import UnavailableEngine, _entry_points, get_engine
+
+OWN_DISTRIBUTION = "stereodyn"
+
+
+@dataclass(frozen=True)
+class EngineRow:
+    """One engine: name, origin, status (`installed` with its packages' versions, or `not installed: REASON`),
+    models (formulations), integrators (default-sweep ones marked *), precisions."""
+
+    name: str
+    origin: str
+    status: str
+    models: tuple[str, ...]
+    integrators: tuple[str, ...]
+    precisions: tuple[str, ...]
+
+
+def _distribution(entry) -> tuple[str, str]:
+    """(name, version) of the distribution that registers an entry point ("", "") where none does."""
+    dist = getattr(entry, "dist", None)
+    if dist is None:
+        return "", ""
+    name = dist.metadata["Name"] or ""
+    return name, dist.version or ""
+
+
+def _version(package: str) -> str:
+    try:
+        return version(package)
+    except PackageNotFoundError:
+        return "absent"
+
+
+@cache
+def _own_extras() -> frozenset[str]:
+    """stereodyn's optional extras (pyproject.toml): an own engine whose name is one has its SDK there."""
+    try:
+        return frozenset(distribution(OWN_DISTRIBUTION).metadata.get_all("Provides-Extra") or ())
+    except PackageNotFoundError:
+        return frozenset()
+
+
+def origin(name: str) -> str:
+    """Where the engine comes from (module docstring)."""
+    entry = _entry_points()[name]
+    dist, dist_version = _distribution(entry)
+    if dist.lower() == OWN_DISTRIBUTION:
+        return f"built in, extra stereodyn[{name}]" if name in _own_extras() else "built in"
+    if dist:
+        return f"plug-in from {dist} {dist_version}"
+    return f"plug-in ({entry.value}, no distribution)"
+
+
+def plugin_distributions() -> dict[str, str]:
+    """{distribution: "VERSION (engine NAME, ...; integrators)"} of every installed distribution other than stereodyn
+    that registers an engine or integrator plug-in (read from the entry points; nothing is imported): the sweep's
+    environment, so the report and `compare` show them."""
+    from importlib.metadata import entry_points
+
+    found: dict[str, list[str]] = {}
+    versions: dict[str, str] = {}
+    for group, what in (("stereodyn.engines", "engine"), ("stereodyn.integrators", "integrators")):
+        for entry in entry_points(group=group):
+            dist, dist_version = _distribution(entry)
+            if not dist or dist.lower() == OWN_DISTRIBUTION:
+                continue
+            versions[dist] = dist_version
+            found.setdefault(dist, []).append(f"{what} {entry.name}")
+    return {dist: f"{versions[dist]} (plug-in: {', '.join(found[dist])})" for dist in sorted(found)}
+
+
+def rows() -> list[EngineRow]:
+    """Every registered engine, in the registry's order."""
+    table = []
+    for name in _entry_points():
+        engine = get_engine(name)
+        if isinstance(engine, UnavailableEngine):
+            table.append(EngineRow(name, origin(name), f"not installed: {engine.reason}", (), (), ()))
+            continue
+        integrators = engine.integrators()
+        packages = ", ".join(f"{p} {_version(p)}" for p in engine.packages)
+        table.append(EngineRow(
+            name, origin(name), "installed" + (f" ({packages})" if packages else ""), engine.formulations(),
+            tuple(i + ("*" if engine.in_default_sweep(i) else "") for i in integrators),
+            tuple(dict.fromkeys(p for i in integrators for p in engine.precisions(i)))))
+    return table
+
+
+def render(table: list[EngineRow]) -> str:
+    """The rows as text: one block per engine (the lists are too long for one line)."""
+    lines = []
+    for row in table:
+        lines.append(f"{row.name}: {row.origin}; {row.status}")
+        if row.models:
+            lines.append(f"  models: {', '.join(row.models)}")
+        if row.integrators:
+            lines.append(f"  integrators (* in the default sweep): {', '.join(row.integrators)}")
+        if row.precisions:
+            lines.append(f"  precision: {', '.join(row.precisions)}")
+    return "\n".join(lines)
