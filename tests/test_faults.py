@@ -445,3 +445,99 @@ def test_a_full_disk_names_the_file(good, tmp_path, monkeypatch, capsys):
     for argv, target in ((["export", "free-asymmetric", "--format", "urdf"], tmp_path / "body.urdf"),
                          (["baseline", str(good[0])], tmp_path / "baseline.json")):
         _one_line(cli.main([*argv, "--out", str(target)]), capsys, 2, str(target), os.strerror(errno.ENOSPC))
+
+
+# --- the real command, interrupted and killed at wall-clock moments (slow: a minute or more each)
+
+ACCEPTANCE = ["run", "free-asymmetric", "lagrange-top", "--t-end", "2", "--jobs", "2", "--quiet"]
+
+
+def _command(out: Path, log: Path, *extra: str) -> subprocess.Popen:
+    """The acceptance command in its own session (a terminal's Ctrl-C reaches its whole process group)."""
+    return subprocess.Popen([sys.executable, "-m", "stereodyn", *ACCEPTANCE, "--out", str(out), *extra],
+                            stdout=subprocess.DEVNULL, stderr=log.open("w"), start_new_session=True)
+
+
+def _group(pgid: int) -> list[int]:
+    alive = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[2]) == pgid and fields[0] != "Z":  # field 5 of stat: the process group
+                alive.append(int(entry.name))
+    return alive
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("at_s", [0.3, 1, 2, 3, 4, 5, 6])
+def test_ctrl_c_at_any_moment_is_130_and_one_line(tmp_path, at_s):
+    """Ctrl-C (SIGINT to the process group) at start-up, while the engines import, while the pool starts, during the
+    sweep: never exit 0 unless the run finished, exactly one line, no row skipped or failed because of it; --resume
+    then finishes the folder."""
+    import pandas as pd
+
+    out, log = tmp_path / "out", tmp_path / "stderr"
+    process = _command(out, log)
+    time.sleep(at_s)
+    os.killpg(process.pid, signal.SIGINT)
+    code = process.wait(timeout=600)
+    err = log.read_text()
+    assert code in (0, 130), err
+    assert err.count("\n") == (0 if code == 0 else 1) and "Traceback" not in err, err
+    if code == 130:
+        assert err.startswith(INTERRUPTED), err
+    if (out / "results.csv").is_file() and (out / "results.csv").stat().st_size:
+        rows = pd.read_csv(out / "results.csv")
+        blamed = rows[rows["message"].fillna("").str.contains("unavailable|KeyboardInterrupt|initialization failed")]
+        assert blamed.empty, blamed.to_string()
+    assert _wait_gone(_group(process.pid), 60) == []
+    assert cli.main([*ACCEPTANCE, "--out", str(out), "--resume"]) == 0
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("at_s", [2, 4, 6, 8])
+def test_a_killed_command_leaves_no_process(tmp_path, at_s):
+    """SIGKILL to the command alone (its workers and the resource tracker orphaned) 2-8 s in: none of them is
+    alive 5 s later (the issue's bound), and no warning reaches the terminal."""
+    log = tmp_path / "stderr"
+    process = _command(tmp_path / "out", log)
+    time.sleep(at_s)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    time.sleep(5)
+    survivors = _group(process.pid)
+    for pid in survivors:
+        os.kill(pid, signal.SIGKILL)
+    assert survivors == []
+    time.sleep(1)
+    assert "Traceback" not in log.read_text() and "leaked" not in log.read_text(), log.read_text()
+
+
+@pytest.mark.slow
+def test_the_gate_races_a_sweep(good, tmp_path):
+    """check and baseline while a real sweep writes the folder: exit 2, one line naming it; once it ended, they
+    read it."""
+    out, log = tmp_path / "out", tmp_path / "stderr"
+    process = _command(out, log)
+    try:
+        deadline = time.monotonic() + 300
+        while not list((out / "store").glob("*.json")):  # the sweep is writing
+            assert process.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.05)
+        for argv in (["check", str(out), "--baseline", str(good[1])],
+                     ["baseline", str(out), "--out", str(tmp_path / "b.json")]):
+            child = subprocess.run([sys.executable, "-m", "stereodyn", *argv], capture_output=True, text=True,
+                                   timeout=300)
+            assert process.poll() is None, "the sweep ended before the race: not a race"
+            assert child.returncode == 2 and child.stderr.count("\n") == 1, child.stderr
+            assert str(out) in child.stderr and "writing" in child.stderr, child.stderr
+        assert process.wait(timeout=900) == 0, log.read_text()
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert cli.main(["baseline", str(out), "--out", str(tmp_path / "b.json")]) == 0

@@ -63,7 +63,7 @@ def test_a_drift_ten_times_worse_fails_listing_that_row(baseline, tmp_path, caps
     assert "1 row: pinocchio rk4, energy_drift up to 10x" in printed
     offending = [line for line in printed.splitlines() if "energy_drift" in line and line.startswith("lagrange-top")]
     assert len(offending) == 1 and offending[0].split()[-1] == "10x"
-    assert offending[0].split()[:4] == ["lagrange-top", "pinocchio", "rk4", "0.01"]
+    assert offending[0].split()[:5] == ["lagrange-top", "pinocchio", "rk4", "float64", "0.01"]
     assert "check failed: 1 of" in printed
 
 

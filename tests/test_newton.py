@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from stereodyn.harness.scenes import metrics
-from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines import UnavailableEngine, get_engine
 from stereodyn.harness.fitting import order_slope
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case
@@ -23,8 +23,10 @@ from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 @pytest.fixture(scope="module")
 def newton():
-    pytest.importorskip("newton")
-    return get_engine("newton")
+    engine = get_engine("newton")
+    if isinstance(engine, UnavailableEngine):  # the extra is not installed (the registry's reason names it)
+        pytest.skip(engine.reason)
+    return engine
 
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
@@ -78,3 +80,11 @@ def test_a_runaway_run_is_a_diverged_row(newton):
     assert run.status is Status.DIVERGED and "not finite or |omega|" in run.message
     bad = int(np.searchsorted(grid.times, run.diverged_at))
     assert np.isnan(run.quat[bad:]).all() and np.isfinite(run.quat[:bad]).all()
+
+
+def test_the_default_sweep_is_the_general_cases_at_one_coarse_stable_step(newton):
+    heavy, torqued = find_case("heavy-asymmetric"), find_case("self-excited-conic")
+    assert newton.default_dts(heavy, "featherstone", heavy.dt) == (1e-2,)  # not 0.3: beyond Euler's stability
+    assert newton.default_run(heavy, "ball", "xpbd") and not newton.default_run(heavy, "free", "xpbd")
+    assert not newton.default_run(find_case("hess"), "ball", "featherstone")
+    assert "no external torque" in newton.unsupported(torqued)

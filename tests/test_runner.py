@@ -71,8 +71,11 @@ def test_errors_are_measured_against_the_truth(short_suite):
     _, df = short_suite
     engines = df[(df.engine != "reference") & (df.status != "skipped")]
     assert np.isfinite(engines.attitude_err).all() and (engines.attitude_err >= engines.attitude_err_end).all()
-    # The truth is exact to round-off: rk4 at dt = 5e-3 over one second is far more accurate than Euler.
-    rk4 = engines[(engines.integrator == "rk4") & (engines.dt == 5e-3)]
+    # The truth is exact to round-off: rk4 at dt = 5e-3 over one second is far more accurate than Euler (but on an
+    # engine that declares its rk4 a known deviation: MJX's, 2nd order, 1.3e-4 here).
+    deviating = {name for name in set(engines.engine) if any(
+        d.integrator == "rk4" for d in get_engine(name).known_deviations)}
+    rk4 = engines[(engines.integrator == "rk4") & (engines.dt == 5e-3) & ~engines.engine.isin(deviating)]
     euler = engines[(engines.integrator == "euler") & (engines.dt == 5e-3)]
     assert rk4.attitude_err.max() < 1e-6 < euler.attitude_err.min()
     assert (engines.us_per_step > 0).all()

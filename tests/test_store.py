@@ -54,7 +54,8 @@ def test_the_key_changes_with_what_a_row_depends_on():
                 run_identity(case, "mujoco", "", "euler", 1e-2, False, versions),
                 run_identity(case, "mujoco", "", "rk4", 3e-3, False, versions),
                 run_identity(case, "mujoco", "", "rk4", 1e-2, True, versions),
-                run_identity(case, "mujoco", "", "rk4", 1e-2, False, {"mujoco": "4.0.1"})]
+                run_identity(case, "mujoco", "", "rk4", 1e-2, False, {"mujoco": "4.0.1"}),
+                run_identity(case, "mujoco", "", "rk4", 1e-2, False, versions, precision="float32")]
     keys = {run_key(identity) for identity in variants}
     assert base not in keys and len(keys) == len(variants)
     # A case's description and file path are not physics: same key.

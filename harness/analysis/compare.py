@@ -2,7 +2,8 @@
 
 A and B are result directories (results.csv, and runs.json for the environment) or baseline files (`stereodyn
 baseline`). This module compares (the tables, as data); harness.report.compare writes OUT/compare.md, compare.html and
-compare.csv. Rows are matched by (case, engine, formulation, integrator, dt) as in the gate.
+compare.csv. Rows are matched by (case, engine, formulation, integrator, precision, dt) as in the gate; a table or
+baseline without precision (0.2.0) holds float64 runs.
 """
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from pathlib import Path
 import pandas as pd
 
 from . import gate
+from ..engines.base import FLOAT64
+from ..run.results import with_precision
 from ..run.store import read_manifest
 
 # Values below this are round-off (the gate's floor): two of them have no meaningful ratio, so a ratio is taken of
@@ -37,6 +40,7 @@ def load(path: Path) -> tuple[pd.DataFrame, dict]:
     """(table, environment) of a result directory or a baseline file; CompareError when the table lacks the key
     columns or the status."""
     table, env = _load(Path(path))
+    table = with_precision(table)  # a table or baseline of 0.2.0 has no precision: float64 runs
     missing = [c for c in (*gate.KEY, "status") if c not in table.columns]
     if missing:
         name = Path(path) / "results.csv" if Path(path).is_dir() else Path(path)
@@ -113,5 +117,6 @@ def group(row) -> str:
 
 def label(row) -> str:
     dt = row["dt"] or "adaptive"
-    return " ".join(str(x) for x in (row["case"], row["engine"], row["formulation"], row["integrator"]) if x) + \
-        f" dt={dt}"
+    precision = row.get("precision") if row.get("precision") != FLOAT64 else ""
+    return " ".join(str(x) for x in (row["case"], row["engine"], row["formulation"], row["integrator"], precision)
+                    if x) + f" dt={dt}"

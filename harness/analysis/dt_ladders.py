@@ -42,9 +42,10 @@ from ..run import timing
 from ..run.processes import raise_if_interrupted
 from ..run.measure import measure as run_measure, prepare as prepare_run, rate
 from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
+from ..engines.base import EPS
 
-LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "rhs_evals", "status",
-                  "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
+LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "rhs_evals",
+                  "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
                   "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "source")
 LADDER, SHORT_LADDER = "ladder", "short-ladder"   # the `source` of a ladder's points and convergence row
 LADDER_POINTS = 10
@@ -95,7 +96,8 @@ def _timed(sim, grid) -> dict:
 def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
     """The ladders' timing phase (harness.run.timing.time_points: a timed run shares the cores with no other run)."""
     def prepare(row: dict):
-        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"],
+                                    row["precision"])]
         return prepare_run(family.run(dt=row["dt"]))
 
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
@@ -168,8 +170,8 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     top = stable_dt if math.isfinite(stable_dt) else (cap if "stable up to" in stability_note else start)
     points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
     frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "stable_dt_max": stable_dt, "source": LADDER, **fit(frame, declared)}
+    row = {**family.columns, "stable_dt_max": stable_dt, "source": LADDER,
+           **fit(frame, declared, family.precision)}
     if stability_note:
         row["note"] = "; ".join(x for x in (row["note"], stability_note) if x)
     return points, row
@@ -189,7 +191,7 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
         return pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns)
 
     def marked() -> pd.DataFrame:
-        return fitting.regimes(frame())[0]
+        return fitting.regimes(frame(), EPS[family.precision])[0]
 
     def asymptotic() -> int:
         return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
@@ -222,9 +224,8 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
         else:
             stops.append(f"dt = {dt if last else edge['dt']:.3g} is the " + (
                 f"largest tried (t_end / {MIN_STEPS})" if direction == 1 else f"smallest tried (t_end / {max_steps})"))
-    row = {"case": case.name, "engine": family.engine, "formulation": family.formulation,
-           "integrator": family.integrator, "stable_dt_max": math.nan, "source": SHORT_LADDER}
-    row.update(fit(frame(), declared))
+    row = {**family.columns, "stable_dt_max": math.nan, "source": SHORT_LADDER}
+    row.update(fit(frame(), declared, family.precision))
     if not math.isfinite(row["order"]):
         row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *_short_reason(family, marked())])
     return new, row
@@ -265,15 +266,14 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
     for spec in specs:
         if spec.dt is None or (formulations is not None and spec.formulation not in formulations):
             continue
-        out.setdefault((spec.case.name, spec.engine, spec.formulation, spec.integrator),
-                       Family(spec.case, spec.engine, spec.formulation, spec.integrator))
+        out.setdefault((spec.case.name, spec.engine, spec.formulation, spec.integrator, spec.precision),
+                       Family(spec.case, spec.engine, spec.formulation, spec.integrator, spec.precision))
     return list(out.values())
 
 
 def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> tuple[list[dict], dict]:
     """A family whose worker died: no points, and its convergence row says why."""
-    return [], {"case": family.case.name, "engine": family.engine, "formulation": family.formulation,
-                "integrator": family.integrator, "source": source,
+    return [], {**family.columns, "source": source,
                 "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
@@ -309,5 +309,5 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor 
         rows.append(results[index][1])
     # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
     time_points([p for p in points if p.get("source") == LADDER],
-                {(f.case.name, f.engine, f.formulation, f.integrator): f for f in chosen})
+                {f.key: f for f in chosen})
     return points, rows

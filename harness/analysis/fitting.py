@@ -23,13 +23,15 @@ import pandas as pd
 
 from ..scenes import checks
 from ..engines import EngineError, get_engine
+from ..engines.base import EPS as PRECISION_EPS, FLOAT64
+from ..run.results import with_precision
 from ..trajectory import Status
 # The Pareto table has its own module; its names stay importable from here.
 from .pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWEEP,  # noqa: F401
                      SOURCE_TOLERANCE, TIE_RTOL, is_failed, pareto, pareto_candidates, pareto_table,
                      run_name as _name, setting)
 
-CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "order", "floor_dt", "floor_err",
+CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")
 ORDER_QUANTITY = "convergence_order"
 
@@ -41,6 +43,9 @@ ASYMPTOTIC_MAX = 3e-2
 # 2-point slope below 0.03.
 ROUNDOFF_MARGIN = 30.0
 EPS = float(np.finfo(float).eps)
+# A run family: the runs that differ only in dt (a dt ladder) or in the requested tolerance. Precision is part of
+# it: float32 and float64 runs of one integrator are two families, fitted apart, each with its own eps.
+FAMILY = ("case", "engine", "formulation", "integrator", "precision")
 FLOOR_SLOPE = 0.5            # a local slope below this: the error has stopped falling
 FLOOR_MAX = 1e-6             # a stall above this is not round-off (pre-asymptotic wiggles, resonances)
 
@@ -74,11 +79,13 @@ PRE_ASYMPTOTIC, PRE_ASYMPTOTIC_GAP = "pre-asymptotic", 0.5
 # declared + 2 (rk4_naive, declared 2, fits 4 where the angular velocity keeps its direction: the stages commute).
 STEEP = 1.0
 SUPERCONVERGENT = "superconvergent on this motion"
+# The note of a float32 family whose round-off leaves no asymptotic range: a named reason, not a failure.
+NOT_MEASURABLE = "not measurable in"
 
 
-def regimes(points: pd.DataFrame) -> tuple[pd.DataFrame, float, float]:
+def regimes(points: pd.DataFrame, eps: float = EPS) -> tuple[pd.DataFrame, float, float]:
     """(points sorted by dt from large to small with a column `regime`, floor_dt, floor_err); points: columns dt,
-    steps, status, state_err."""
+    steps, status, state_err; eps: the unit round-off of the runs' precision (float64's by default)."""
     points = points.sort_values("dt", ascending=False, kind="stable").reset_index(drop=True)
     err = points["state_err"].to_numpy(float)
     ran = (points["status"] == Status.OK.value).to_numpy() & np.isfinite(err)
@@ -95,7 +102,7 @@ def regimes(points: pd.DataFrame) -> tuple[pd.DataFrame, float, float]:
     floor_err = float(err_ok[floor_at:].min()) if floor_at is not None else math.nan
     # the rounding level: eps per step, or the floor where the points show it (a formulation whose charts round
     # worse than eps per step, e.g. ZXZ angles growing without bound on a regular precession)
-    rounding = EPS * steps if floor_at is None else np.maximum(EPS * steps, floor_err)
+    rounding = eps * steps if floor_at is None else np.maximum(eps * steps, floor_err)
     regime = np.where(ran, ROUNDOFF, FAILED).astype(object)
     near_rounding = err_ok < ROUNDOFF_MARGIN * rounding
     past_floor = np.arange(len(index)) >= (len(index) if floor_at is None else floor_at)
@@ -145,6 +152,7 @@ def reason(marked: pd.DataFrame) -> str:
 # these): fit() and harness.analysis.dt_ladders write them.
 NOTE_GROUPS = (
     (SUPERCONVERGENT, SUPERCONVERGENT),
+    (NOT_MEASURABLE, "not measurable in float32: its round-off closes the asymptotic range"),
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),
     ("exact for this motion", "exact for this motion (round-off up to t_end / 20)"),
     ("round-off for every stable dt", "error at round-off for every stable dt"),
@@ -169,9 +177,10 @@ def note_group(note: str) -> str:
     return re.sub(r" \(dt = [^)]*\)", "", where.group(1)) if where else str(note)
 
 
-def fit(points: pd.DataFrame, declared: float) -> dict:
-    """order, floor_dt, floor_err, points and a note from ladder points (columns dt, steps, status, state_err)."""
-    marked, floor_dt, floor_err = regimes(points)
+def fit(points: pd.DataFrame, declared: float, precision: str = FLOAT64) -> dict:
+    """order, floor_dt, floor_err, points and a note from ladder points (columns dt, steps, status, state_err) of one
+    precision: the round-off margin is that precision's eps per step."""
+    marked, floor_dt, floor_err = regimes(points, PRECISION_EPS[precision])
     asymptotic = marked[marked["regime"] == ASYMPTOTIC]
     n = len(asymptotic)
     notes = []
@@ -186,6 +195,12 @@ def fit(points: pd.DataFrame, declared: float) -> dict:
         else:
             notes.append(f"2 points fit {slope:.2f}, more than {STEEP:g} above the declared {declared:g}: too few to "
                          "tell superconvergence from a point at round-off")
+    elif precision != FLOAT64 and (marked["regime"] == ROUNDOFF).any():
+        # eps of float32 is 5e8 times float64's: 30 eps per step reaches the range's top after ~8000 steps
+        ok = marked[marked["regime"] != FAILED]
+        notes.append(f"{NOT_MEASURABLE} {precision}: its round-off ({ROUNDOFF_MARGIN:g} x {precision} eps x steps = "
+                     f"{ROUNDOFF_MARGIN * PRECISION_EPS[precision] * ok['steps'].min():.2g} at the coarsest ok dt) "
+                     f"closes the asymptotic range (<= {ASYMPTOTIC_MAX:g}): {reason(marked)}")
     else:
         notes.append(f"{n} point(s) in the asymptotic range ({ROUNDOFF_MARGIN:g} x rounding <= state_err <= "
                      f"{ASYMPTOTIC_MAX:g}): {reason(marked)}")
@@ -207,23 +222,22 @@ def with_state_err(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def sweep_orders(results: pd.DataFrame, skip: set[tuple]) -> list[dict]:
-    """Convergence rows from the sweep's own dt lists (no extra runs), for families not in skip."""
-    df = with_state_err(results[results["dt"].notna()].fillna({"formulation": ""}))
+    """Convergence rows from the sweep's own dt lists (no extra runs), for families (FAMILY tuples) not in skip."""
+    df = with_state_err(with_precision(results[results["dt"].notna()]).fillna({"formulation": ""}))
     rows = []
-    for (case, engine, formulation, integrator), group in df.groupby(
-            ["case", "engine", "formulation", "integrator"], sort=False):
-        if (case, engine, formulation, integrator) in skip or group["dt"].nunique() < 2:
+    for key, group in df.groupby(list(FAMILY), sort=False):
+        if key in skip or group["dt"].nunique() < 2:
             continue
-        declared = declared_order(engine, integrator)
-        row = {"case": case, "engine": engine, "formulation": formulation, "integrator": integrator,
-               "stable_dt_max": math.nan, "source": "dt_list", **fit(group, declared)}
-        rows.append(row)
+        family = dict(zip(FAMILY, key))
+        declared = declared_order(family["engine"], family["integrator"])
+        rows.append({**family, "stable_dt_max": math.nan, "source": "dt_list",
+                     **fit(group, declared, family["precision"])})
     return rows
 
 
 def convergence_table(rows: list[dict]) -> pd.DataFrame:
     df = pd.DataFrame(rows, columns=list(CONVERGENCE_COLUMNS))
-    return df.fillna({"formulation": "", "note": ""})
+    return df.fillna({"formulation": "", "note": "", "precision": FLOAT64})
 
 
 def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
@@ -233,7 +247,7 @@ def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
         if not math.isfinite(row["order"]) or not math.isfinite(row["declared_order"]):
             continue
         records.append({"case": row["case"], "engine": row["engine"], "formulation": row["formulation"],
-                        "integrator": row["integrator"], "dt": math.nan, "quantity": ORDER_QUANTITY,
+                        "integrator": row["integrator"], "precision": row.get("precision", FLOAT64), "dt": math.nan, "quantity": ORDER_QUANTITY,
                         "theory": row["declared_order"], "measured": row["order"],
                         "error": checks.error(ORDER_QUANTITY, row["declared_order"], row["order"])})
     return pd.DataFrame(records, columns=list(checks.COLUMNS))
@@ -241,11 +255,11 @@ def order_checks(convergence: pd.DataFrame) -> pd.DataFrame:
 
 # ------------------------------------------------------------------------------------------------ tolerance ladders
 
-TOLERANCE_FIT_COLUMNS = ("case", "engine", "formulation", "integrator", "slope", "points", "tol_min", "tol_max",
+TOLERANCE_FIT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "slope", "points", "tol_min", "tol_max",
                          "below_tol", "max_err_over_tol", "note")
 
 
-def tolerance_fit(points: pd.DataFrame) -> dict:
+def tolerance_fit(points: pd.DataFrame, precision: str = FLOAT64) -> dict:
     """The tolerance proportionality of one adaptive method's ladder (columns tolerance, steps, status, state_err):
     slope: least-squares slope of log state_err against log tolerance (order_slope) over the points above round-off
     (ROUNDOFF_MARGIN eps steps <= state_err <= ASYMPTOTIC_MAX, as the dt ladders' asymptotic range), at least two;
@@ -256,7 +270,7 @@ def tolerance_fit(points: pd.DataFrame) -> dict:
                 & (points["state_err"].astype(float) > 0)]
     tol, err = ok["tolerance"].to_numpy(float), ok["state_err"].to_numpy(float)
     steps = ok["steps"].to_numpy(float)
-    fitted = (err <= ASYMPTOTIC_MAX) & (err >= ROUNDOFF_MARGIN * EPS * steps)
+    fitted = (err <= ASYMPTOTIC_MAX) & (err >= ROUNDOFF_MARGIN * PRECISION_EPS[precision] * steps)
     n = int(fitted.sum())
     notes = []
     if n < len(points):
@@ -275,11 +289,11 @@ def tolerance_fit(points: pd.DataFrame) -> dict:
 
 
 def tolerance_fits(points: pd.DataFrame) -> pd.DataFrame:
-    """tolerance_fit of every family (case, engine, formulation, integrator) of tolerance.csv's points: the rows of
-    tolerance_fit.csv."""
+    """tolerance_fit of every family (FAMILY) of tolerance.csv's points: the rows of tolerance_fit.csv."""
     rows = []
     if len(points):
-        for key, group in points.fillna({"formulation": ""}).groupby(["case", "engine", "formulation", "integrator"],
-                                                                     sort=False):
-            rows.append({**dict(zip(("case", "engine", "formulation", "integrator"), key)), **tolerance_fit(group)})
-    return pd.DataFrame(rows, columns=list(TOLERANCE_FIT_COLUMNS)).fillna({"formulation": "", "note": ""})
+        for key, group in with_precision(points).fillna({"formulation": ""}).groupby(list(FAMILY), sort=False):
+            family = dict(zip(FAMILY, key))
+            rows.append({**family, **tolerance_fit(group, family["precision"])})
+    return pd.DataFrame(rows, columns=list(TOLERANCE_FIT_COLUMNS)).fillna({"formulation": "", "note": "",
+                                                                             "precision": FLOAT64})

@@ -1,12 +1,12 @@
 """The regression gate: a baseline of a results table, and the rows of a new table that got worse than it allows.
 
-A row is identified by (case, engine, formulation, integrator, dt). It fails the gate when
+A row is identified by (case, engine, formulation, integrator, precision, dt). It fails the gate when
 - it is in the baseline and missing now;
 - its status got worse (ok < diverged < failed, skipped: a run that no longer completes);
 - one of its drifts or errors (every *_drift, *_err, *_err_end column), on a row that was ok and still is, exceeds
   factor * baseline + floor, or became NaN where the baseline had a number;
 - with a time factor only: us_per_step exceeds time_factor * baseline (timings differ between machines and runs).
-A convergence row (convergence.csv: case, engine, formulation, integrator) fails when its fitted order fell more than
+A convergence row (convergence.csv: case, engine, formulation, integrator, precision) fails when its order fell more than
 ORDER_DROP below the baseline's, or became NaN where the baseline had a number.
 
 The tolerance model, per metric: factor * baseline + floor. The default factor 2 passes round-off, which moves the
@@ -24,14 +24,16 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..engines.base import FLOAT64
 from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
-from ..run.results import METRIC_SUFFIXES, TableError, read_results, write_atomic
+from ..run.results import METRIC_SUFFIXES, TableError, read_results, with_precision, write_atomic
 
-KEY = ("case", "engine", "formulation", "integrator", "dt")
+# precision: a baseline or table of stereodyn 0.2.0 has none, and its runs were float64.
+KEY = ("case", "engine", "formulation", "integrator", "precision", "dt")
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
 BASELINE_FORMAT = "stereodyn-baseline/1"  # "orders" (the fitted convergence orders) is optional: older files lack it
 CONVERGENCE_FILE = "convergence.csv"  # written by harness.analysis.workprecision
-ORDER_KEY = ("case", "engine", "formulation", "integrator")
+ORDER_KEY = ("case", "engine", "formulation", "integrator", "precision")
 # A fitted order may fall this much below the baseline's. The fits are deterministic: on one machine kind round-off
 # moves them by < 0.01; a method that lost an order (MuJoCo 3.17's ball-joint RK4: 2.00 against 4.07) moves >= 1.
 ORDER_DROP = 0.5
@@ -101,7 +103,12 @@ def _dt_key(value) -> str:
 
 def _key(row: dict) -> tuple:
     return (str(row["case"]), str(row["engine"]), str(row.get("formulation") or ""), str(row["integrator"]),
-            _dt_key(row.get("dt")))
+            str(row.get("precision") or FLOAT64), _dt_key(row.get("dt")))
+
+
+def _order_key(row: dict) -> tuple:
+    return (str(row["case"]), str(row["engine"]), str(row.get("formulation") or ""), str(row["integrator"]),
+            str(row.get("precision") or FLOAT64))
 
 
 def _number(value) -> float:
@@ -154,10 +161,10 @@ def read_orders(results_dir: Path) -> pd.DataFrame | None:
         raise GateError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except (OSError, ValueError, pd.errors.ParserError) as exc:
         raise GateError(f"{path}: not a convergence table ({' '.join(str(exc).split())})") from None
-    missing = [column for column in (*ORDER_KEY, "order") if column not in df.columns]
+    missing = [column for column in (*ORDER_KEY, "order") if column not in df.columns and column != "precision"]
     if missing:
         raise GateError(f"{path}: missing columns {', '.join(missing)} (not a stereodyn convergence table)")
-    return df.fillna({"formulation": ""})
+    return with_precision(df).fillna({"formulation": ""})
 
 
 def _order_rows(convergence: pd.DataFrame | None) -> list[dict]:
@@ -165,7 +172,7 @@ def _order_rows(convergence: pd.DataFrame | None) -> list[dict]:
         return []
     rows = []
     for row in convergence.to_dict("records"):
-        entry = {column: str(row[column] or "") for column in ORDER_KEY}
+        entry = dict(zip(ORDER_KEY, _order_key(row)))
         for column, name in (("order", "fitted"), ("declared_order", "declared")):
             value = _number(row.get(column))
             entry[name] = None if math.isnan(value) else value
@@ -243,11 +250,11 @@ def read_baseline_file(path: Path) -> Baseline:
     if not rows:
         raise GateError(f"{path}: rows: empty (a baseline must hold at least one row)")
     _validate_rows(path, "rows", rows, ("case", "engine", "integrator", "status"),
-                   ("case", "engine", "formulation", "integrator", "status"),
+                   ("case", "engine", "formulation", "integrator", "precision", "status"),
                    lambda key: key.endswith(METRIC_SUFFIXES) or key in ("dt", "us_per_step"))
     if not isinstance(orders, list):
         raise GateError(f"{path}: orders: must be a list")
-    _validate_rows(path, "orders", orders, (*ORDER_KEY, "fitted"), ORDER_KEY,
+    _validate_rows(path, "orders", orders, (*ORDER_KEY[:4], "fitted"), ORDER_KEY,
                    lambda key: key in ("fitted", "declared"))
     if not isinstance(environment, dict):
         raise GateError(f"{path}: environment: must be an object")
@@ -342,13 +349,13 @@ def compare(current: pd.DataFrame, baseline: list[dict], tolerances: Tolerances 
 
 def compare_orders(current: pd.DataFrame | None, orders: list[dict]) -> list[Finding]:
     """Fitted orders that fell more than ORDER_DROP below the baseline's (or became NaN), or whose convergence row
-    is gone. Keys are (case, engine, formulation, integrator, "order")."""
+    is gone. Keys are (case, engine, formulation, integrator, precision, "order")."""
     if not orders:
         return []
-    now = {tuple(row[c] for c in ORDER_KEY): row for row in _order_rows(current)}
+    now = {_order_key(row): row for row in _order_rows(current)}
     findings = []
     for old in orders:
-        key = tuple(str(old[c] or "") for c in ORDER_KEY)
+        key = _order_key(old)
         before = _number(old.get("fitted"))
         if math.isnan(before):
             continue
@@ -397,7 +404,8 @@ def summary(findings: list[Finding]) -> list[str]:
     groups: dict[tuple, list[Finding]] = {}
     for f in findings:
         kind = f.what if f.what in ("missing", "status", "order", "missing order", "us_per_step") else "metric"
-        groups.setdefault((f.key[1], f.key[3], kind), []).append(f)
+        precision = "" if f.key[4] == FLOAT64 else f" {f.key[4]}"
+        groups.setdefault((f.key[1], f.key[3] + precision, kind), []).append(f)
     lines = []
     for (engine, integrator, kind), group in groups.items():
         rows = len({f.key for f in group})
@@ -430,7 +438,7 @@ def findings_table(findings: list[Finding]) -> str:
     """A fixed-width table of the findings, for the terminal and CI logs: each row's ratio, and for a status change
     or an order the run's message."""
     header = [*KEY, "what", "baseline", "current", "allowed", "ratio", "message"]
-    cells = [header] + [[*(f.key[:5] if f.key[-1] != "order" else (*f.key[:4], "")), f.what, f.baseline, f.current,
+    cells = [header] + [[*(f.key[:6] if f.key[-1] != "order" else (*f.key[:5], "")), f.what, f.baseline, f.current,
                          f.allowed, _ratio(f.ratio), f.message] for f in findings]
     widths = [max(len(row[i]) for row in cells) for i in range(len(header))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in cells)

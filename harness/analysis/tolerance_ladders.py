@@ -26,6 +26,7 @@ from typing import Callable
 
 from .. import budget
 from ..engines import get_engine
+from ..engines.base import FLOAT64
 from ..scenes.cases import Case
 from ..scenes.rigid_body import state_err
 from ..trajectory import Status
@@ -34,7 +35,7 @@ from ..run.measure import measure as run_measure, prepare as prepare_run, rate
 from ..run.processes import raise_if_interrupted
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family, case_truth_on
 
-TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "tolerance", "t_end", "steps", "rhs_evals",
+TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
                      "energy_drift", "state_err", "err_over_tol", "wall_s", "us_per_sim_s", "us_per_sim_s_spread",
                      "rhs_per_sim_s", "steps_per_sim_s")
@@ -70,7 +71,8 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
                 for formulation in own:
                     if engine.unsupported_run(case, formulation, integrator):
                         continue
-                    out.append(AdaptiveFamily(case, name, formulation, integrator))
+                    for precision in engine.precisions(integrator):
+                        out.append(AdaptiveFamily(case, name, formulation, integrator, precision))
     return out
 
 
@@ -126,15 +128,15 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
 
 
 def _failed_point(family: AdaptiveFamily, tolerance: float, message: str) -> dict:
-    return {"case": family.case.name, "engine": family.engine, "formulation": family.formulation,
-            "integrator": family.integrator, "tolerance": float(tolerance), "status": Status.FAILED.value,
+    return {**family.columns, "tolerance": float(tolerance), "status": Status.FAILED.value,
             "message": message.splitlines()[0]}
 
 
 def time_points(points: list[dict], families_by_key: dict[tuple, AdaptiveFamily]) -> None:
     """The timing phase, as the dt ladders' (harness.run.timing.time_points)."""
     def prepare(row: dict):
-        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"])]
+        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"],
+                                  row["precision"])]
         return prepare_run(family.run(tolerance=row["tolerance"]))
 
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
@@ -179,7 +181,7 @@ def tolerance_frame(points: list[dict]):
     import pandas as pd
 
     df = pd.DataFrame(points, columns=list(TOLERANCE_COLUMNS))
-    return df.fillna({"formulation": "", "message": ""}).astype({"tolerance": float})
+    return df.fillna({"formulation": "", "message": "", "precision": FLOAT64}).astype({"tolerance": float})
 
 
 __all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families",

@@ -3,10 +3,12 @@
 report shows them first; `run --strict` exits 1 when one fails; "What to use" recommends no run of a failed
 integrator.
 
-Per integrator (an engine, formulation and integrator, across the run's cases):
+Per integrator (an engine, formulation, integrator and precision, across the run's cases):
 - order: the fitted convergence order of every non-chaotic case (convergence.csv) within ORDER_TOLERANCE of the
   declared one; a family no case gave an order is "not measured" with each case's reason (EXCUSES: exact for this
   motion, at the precision floor, chaotic, no run ok), or NO_REASON where nothing excuses it, which --strict fails;
+  declared one; where the engine declares a known deviation of the order (Engine.known_deviations) and the fit
+  matches it, `known` (not a failure), and `fixed upstream?` where it stopped matching it but meets the declared one;
 - bounded energy, for a method that declares energy_bounded: its energy error over ENERGY_RATIO times a short run
   grows at most ENERGY_GROWTH times (no secular trend), on a conservative case, both floored at the round-off of the
   long run's steps (harness.testing.energy_noise: a method at round-off never fails it).
@@ -26,15 +28,16 @@ import numpy as np
 import pandas as pd
 
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
-from .fitting import SUPERCONVERGENT
+from .fitting import NOT_MEASURABLE, SUPERCONVERGENT
 from ..scenes.metrics import DRIFT_COLUMNS
-from ..run.results import write_atomic
+from ..run.results import with_precision, write_atomic
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
 from ..engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
-                                      engine_for_state_space)
+                                      engine_for_state_space, get_engine)
+from ..engines.base import FLOAT64, KnownDeviation
 
 VERDICTS_FILE = "verdicts.csv"
-COLUMNS = ("verdict", "engine", "formulation", "integrator", "case", "status", "detail", "rule")
+COLUMNS = ("verdict", "engine", "formulation", "integrator", "precision", "case", "status", "detail", "rule")
 PASS, FAIL, UNMEASURED = "pass", "fail", "not measured"
 # A declared order that nothing measured (no case's dt list or short ladder gave an order) and no reason excuses:
 # `run --strict` fails it as it fails FAIL, yet "What to use" still recommends its runs (no claim was disproved).
@@ -47,6 +50,10 @@ EXCUSES = (("exact for this motion", "exact for this motion"),
                                                      "dt whose run finished ok)"),
            ("its error grows exponentially", "chaotic"),
            ("no run ok", "no run finished ok"))
+# An engine's declared known deviation (Engine.known_deviations) that the measurement matches: not a failure (--strict
+# passes it), listed in the report with its upstream reference. FIXED: the measurement stopped matching the deviation
+# and meets the declared value instead: the deviation's declaration is stale (upstream fixed it?). Neither fails.
+KNOWN, FIXED = "known", "fixed upstream?"
 
 # The median of a family's fitted orders over the cases must be within ORDER_TOLERANCE of the declared order, and no
 # single case more than ORDER_CASE_TOLERANCE off. The suite's fits (reports/default/convergence.csv, 134 families) lie
@@ -88,6 +95,7 @@ class Verdict:
     engine: str = ""
     formulation: str = ""
     integrator: str = ""
+    precision: str = ""
     case: str = ""
     status: str = PASS
     detail: str = ""
@@ -96,7 +104,9 @@ class Verdict:
     @property
     def subject(self) -> str:
         if self.integrator:
-            return "integrator " + " ".join(x for x in (self.engine, self.formulation, self.integrator) if x)
+            precision = self.precision if self.precision not in ("", FLOAT64) else ""
+            return "integrator " + " ".join(x for x in (self.engine, self.formulation, self.integrator, precision)
+                                            if x)
         return f"case {self.case}"
 
     @property
@@ -113,17 +123,23 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
     where no case has one, UNMEASURED with each case's reason, or NO_REASON where some case has none (excuse)."""
     excluded = set(excluded_cases)
     out = []
-    df = convergence.fillna({"formulation": ""})
+    df = with_precision(convergence).fillna({"formulation": ""})
     rule = (f"|median fitted - declared| <= {ORDER_TOLERANCE:g} over the non-chaotic cases, and <= "
             f"{ORDER_CASE_TOLERANCE:g} on each")
-    for (engine, formulation, integrator), group in df.groupby(["engine", "formulation", "integrator"], sort=False):
+    for (engine, formulation, integrator, precision), group in df.groupby(
+            ["engine", "formulation", "integrator", "precision"], sort=False):
         declared = float(group["declared_order"].iloc[0])
         if not math.isfinite(declared):
             continue  # no claim to judge (an engine's integrator of unknown order)
         fitted = group[np.isfinite(group["order"].astype(float)) & ~group["case"].isin(excluded)]
-        base = dict(engine=engine, formulation=formulation, integrator=integrator, rule=rule)
+        base = dict(engine=engine, formulation=formulation, integrator=integrator, precision=precision, rule=rule)
         if fitted.empty:
-            out.append(_unmeasured(group, declared, excluded, base))
+            why = "; not measurable in " + precision + " (round-off closes the asymptotic range)" \
+                if precision != FLOAT64 and group["note"].fillna("").astype(str).str.contains(
+                    NOT_MEASURABLE, regex=False).any() else ""
+            out.append(Verdict("order", **base, status=UNMEASURED,
+                               detail=f"declares order {declared:g}; no non-chaotic case has a fitted order{why}")
+                       if why else _unmeasured(group, declared, excluded, base))
             continue
         orders = fitted["order"].astype(float)
         low, high = float(orders.min()), float(orders.max())
@@ -142,6 +158,18 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
         if len(bad):
             detail += " (off by more than 1 on " + ", ".join(bad["case"].astype(str).tolist()[:5]) + (
                 "…" if len(bad) > 5 else "") + ")"
+        deviation = _known_deviation(engine, integrator)
+        if deviation is not None:
+            off = fitted[(orders - deviation.expected).abs() > ORDER_CASE_TOLERANCE]
+            matches = abs(median - deviation.expected) <= deviation.tolerance and off.empty
+            detail += (f"; known deviation: order {deviation.expected:g} ({deviation.reference})" if matches else
+                       f"; stopped matching its known deviation (order {deviation.expected:g}: "
+                       f"{deviation.reference})")
+            status = KNOWN if matches else FIXED if not failed_ else FAIL
+            out.append(Verdict("order", **{**base, "rule": rule + f"; known deviation: |median - "
+                                           f"{deviation.expected:g}| <= {deviation.tolerance:g}"},
+                               status=status, detail=detail))
+            continue
         out.append(Verdict("order", **base, status=FAIL if failed_ else PASS, detail=detail))
     return out
 
@@ -172,6 +200,15 @@ def _unmeasured(group: pd.DataFrame, declared: float, excluded: set[str], base: 
     return Verdict("order", **base, status=NO_REASON,
                    detail=f"declares order {declared:g}; not measured, and no reason excuses it: "
                           + "; ".join(details) + more)
+
+
+def _known_deviation(engine: str, integrator: str) -> KnownDeviation | None:
+    """The engine's declared deviation of the integrator's order (Engine.known_deviations), if any."""
+    try:
+        declared = get_engine(engine).known_deviations
+    except (KeyError, ValueError):  # an engine no longer registered: nothing declared
+        return None
+    return next((d for d in declared if d.integrator == integrator and d.quantity == "order"), None)
 
 
 def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
@@ -302,7 +339,7 @@ def read(out_dir: Path) -> list[Verdict] | None:
     if not path.is_file():
         return None
     df = pd.read_csv(path, dtype=str, keep_default_na=False)
-    return [Verdict(**{c: row[c] for c in COLUMNS}) for _, row in df.iterrows()]
+    return [Verdict(**{c: row.get(c, "") for c in COLUMNS}) for _, row in df.iterrows()]  # 0.2.0: no precision
 
 
 def failed(verdicts: Iterable[Verdict]) -> list[Verdict]:
@@ -327,9 +364,14 @@ def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]
 
 
 def summary_lines(verdicts: list[Verdict]) -> list[str]:
-    """The terminal's verdict block: the counts, then one line per failed verdict."""
-    counts = {s: sum(v.status == s for v in verdicts) for s in (PASS, FAIL, UNMEASURED, NO_REASON)}
-    lines = [f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED] + counts[NO_REASON]} not "
-             f"measured" + (f" ({counts[NO_REASON]} with no reason: --strict fails them)" if counts[NO_REASON] else "")]
+    """The terminal's verdict block: the counts, then one line per failed verdict, per claim nothing measured and
+    no reason excuses, per known deviation and per deviation that stopped matching."""
+    counts = {s: sum(v.status == s for v in verdicts) for s in (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED)}
+    head = (f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED] + counts[NO_REASON]} not "
+            f"measured" + (f" ({counts[NO_REASON]} with no reason: --strict fails them)" if counts[NO_REASON] else ""))
+    head += f", {counts[KNOWN]} known deviations" if counts[KNOWN] else ""
+    head += f", {counts[FIXED]} {FIXED}" if counts[FIXED] else ""
+    lines = [head]
     lines += [f"verdict {'failed' if v.status == FAIL else 'not measured'}: {v.line}" for v in strict_failures(verdicts)]
+    lines += [f"verdict {v.status}: {v.line}" for v in verdicts if v.status in (KNOWN, FIXED)]
     return lines

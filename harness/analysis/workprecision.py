@@ -27,9 +27,9 @@ from . import tolerance_ladders
 from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
 from ..engines import get_engine
 from .pareto import ACCURACY_TARGETS
-from .fitting import (ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto, pareto_table,
-                      sweep_orders, tolerance_fits, with_state_err)
-from ..run.results import write_atomic
+from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
+                      pareto_table, sweep_orders, tolerance_fits, with_state_err)
+from ..run.results import with_precision, write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -42,7 +42,7 @@ ADVICE_FILE = "advice.csv"
 # 117 check runs; 1e-6 alone 20 s; with 1e-9 as well 91 s (Drake's and scipy's BDF/Radau tight runs: seconds each).
 DEFAULT_ADVICE_TARGETS = (1e-3, 1e-6)
 TOLERANCE_FILE, TOLERANCE_FIT_FILE = "tolerance.csv", "tolerance_fit.csv"
-TEXT_COLUMNS = ("formulation", "engine", "integrator", "message")
+TEXT_COLUMNS = ("formulation", "engine", "integrator", "precision", "message")
 FULL_MAX_STEPS = 200_000     # --dt-ladder: rk4 reaches its round-off floor on the suite's cases well before this
 DEFAULT_MAX_STEPS = 40_000   # the default run's small ladder (see DEFAULT_LADDER)
 # The default run ladders these cases only, on the quaternion formulation of the reference engine: one free body and
@@ -87,13 +87,12 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
-    fitted = {(r["case"], r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
-              if math.isfinite(r["order"])}
-    runs = with_state_err(results[results["dt"].notna()].fillna({"formulation": ""}))
-    by_family = {key: group for key, group in runs.groupby(["case", "engine", "formulation", "integrator"], sort=False)}
+    fitted = {tuple(r[c] for c in FAMILY) for r in sweep_rows if math.isfinite(r["order"])}
+    runs = with_state_err(with_precision(results[results["dt"].notna()]).fillna({"formulation": ""}))
+    by_family = {key: group for key, group in runs.groupby(list(FAMILY), sort=False)}
     out = []
     for family in families(cases, engines, integrators):
-        key = (family.case.name, family.engine, family.formulation, family.integrator)
+        key = family.key
         if key in laddered or key in fitted or not math.isfinite(declared_order(family.engine, family.integrator)):
             continue
         group = by_family.get(key)
@@ -152,7 +151,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         chosen, adaptive, tolerances = [], [], ()
     # the costliest first, so the pool ends together
     chosen.sort(key=_ladder_cost, reverse=True)
-    laddered = {(f.case.name, f.engine, f.formulation, f.integrator) for f in chosen}
+    laddered = {f.key for f in chosen}
     rigid_results = results[~results["case"].isin(other_kinds)]
     sweep_rows = sweep_orders(rigid_results, laddered)
     short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered) \
@@ -166,12 +165,11 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
         if chosen or short else ([], [])
-    by_key = {(r["case"], r["engine"], r["formulation"], r["integrator"]): r for r in ladder_rows
-              if r["source"] == SHORT_LADDER}
+    by_key = {tuple(r[c] for c in FAMILY): r for r in ladder_rows if r["source"] == SHORT_LADDER}
     # a short ladder's row takes the place of its family's row from the dt list; a family with one dt had none
     rows = [r for r in ladder_rows if r["source"] == LADDER]
     for row in sweep_rows:
-        rows.append(by_key.pop((row["case"], row["engine"], row["formulation"], row["integrator"]), row))
+        rows.append(by_key.pop(tuple(row[c] for c in FAMILY), row))
     convergence = convergence_table(rows + list(by_key.values()))
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     tolerance_df = tolerance_ladders.tolerance_frame(tolerance_ladders.run_ladders(adaptive, pool, progress, tolerances)

@@ -12,7 +12,7 @@ def main(args) -> int:
     from ..run.progress import ProgressBar
     from ..report.build import write_reports
     from ..report.markdown import drift_table_text
-    from ..analysis import summary, verdicts, workprecision
+    from ..analysis import agreement, summary, verdicts, workprecision
     from ..run.sweep import run_sweep, worker_pool
     from .. import budget
 
@@ -33,10 +33,13 @@ def main(args) -> int:
     with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
         # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
         with worker_pool(args.jobs, tuple(args.engines)) as pool:
+            compared: list[dict] = []  # the states the cross-engine agreement compares (agreement.csv)
             df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs,
                            certify=not args.no_certify, progress=progress, resume=args.resume,
                            scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool,
-                           final=False)
+                           agreement=compared, final=False)
+            agreement.write(args.out, compared)
+            del compared
             _work_precision(args, chosen, df, pool, progress)
         found = verdicts.evaluate(args.out, df, chosen)
         # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)

@@ -16,12 +16,7 @@ if TYPE_CHECKING:
     from stereodyn.harness.grid import TimeGrid
 
 
-# Floating-point precision of a run (results.csv `precision`): part of a row's identity. A table without the column
-# (stereodyn 0.2.0) holds float64 runs.
-FLOAT64, FLOAT32 = "float64", "float32"
-PRECISIONS = (FLOAT64, FLOAT32)
-# Unit round-off of each precision: the order fitter's round-off margin uses the row's own (harness.analysis.fitting).
-EPS = {FLOAT64: float(np.finfo(np.float64).eps), FLOAT32: float(np.finfo(np.float32).eps)}
+from stereodyn.harness.precision import EPS, FLOAT32, FLOAT64, PRECISIONS  # noqa: F401 (part of this API)
 
 
 @dataclass(frozen=True)
@@ -39,6 +34,16 @@ class KnownDeviation:
     expected: float
     tolerance: float
     reference: str
+
+
+def prepare_keywords(engine: "Engine", formulation: str, integrator: str, precision: str = FLOAT64) -> dict:
+    """The keywords a run passes to engine.prepare besides (case, integrator, dt): its formulation where the engine
+    has formulations, its precision where the engine declares any other than float64 only (an engine written before
+    precisions existed never receives one)."""
+    keywords: dict = {"formulation": formulation} if formulation else {}
+    if tuple(engine.precisions(integrator)) != (FLOAT64,):
+        keywords["precision"] = precision
+    return keywords
 
 
 class Simulation(Protocol):
@@ -257,9 +262,12 @@ class RigidBodyModel(SceneModel):
     def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
         return self.engine.export(case, fmt, integrator, dt)
 
-    def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None):
-        # formulation= only for an engine with formulations, tolerance= only when requested: the 0.2.0 signatures
-        extra = ({"formulation": variant} if variant else {}) | ({} if tolerance is None else {"tolerance": tolerance})
+    def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None,
+                precision: str = FLOAT64):
+        # formulation= only for an engine with formulations, tolerance= only when requested, precision= only for an
+        # engine that declares another precision than float64: the 0.2.0 signatures
+        extra = prepare_keywords(self.engine, variant, integrator, precision)
+        extra |= {} if tolerance is None else {"tolerance": tolerance}
         return self.engine.prepare(case, integrator, dt, **extra)
 
 

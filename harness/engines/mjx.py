@@ -101,6 +101,29 @@ def compiled_model(case: Case, integrator: str, dt: float) -> "mujoco.MjModel":
     return model
 
 
+# Compiled rollouts of this process: (precision, integrator, pytree structure of (model, data), sample intervals) ->
+# jax's Compiled. The structure holds a model's static fields, so one entry serves every case that shares them.
+_COMPILED: dict[tuple, object] = {}
+# The precision of the last trace: switching it clears jax's caches first. jax 0.10 caches the trace of a jitted
+# helper (jnp.tril, called by MJX's rungekutta4 on its float64 numpy tableau) across jax_enable_x64 settings, so rk4
+# traced in one precision after the other fails to lower ("func.call op operand type mismatch: expected
+# tensor<3x3xf32>, provided tensor<3x3xf64>"), in either order (tests/test_mjx.py). The Compiled objects above are
+# kept: clearing jax's caches does not touch them.
+_last_traced: list[str] = []
+
+
+def _compiled(precision: str, integrator: str, model, data, counts):
+    """The Compiled rollout for these arguments: from this process's cache, else traced and compiled (under the
+    precision's jax_enable_x64, already entered by the caller)."""
+    key = (precision, integrator, jax.tree_util.tree_structure((model, data)), counts.shape)
+    if key not in _COMPILED:
+        if _last_traced and _last_traced[-1] != precision:
+            jax.clear_caches()
+        _last_traced[:] = [precision]
+        _COMPILED[key] = _rollout.lower(model, data, counts).compile()
+    return _COMPILED[key]
+
+
 @jax.jit
 def _rollout(model, data, counts):
     """The states after each sample interval: counts (n,) int32 steps per interval -> (qpos (n, 4), qvel (n, 3))."""
@@ -132,7 +155,7 @@ class MjxSimulation:
             self.data = mjx.put_data(model, data)
             # compile now (not timed) for the case's own grid; another grid compiles on its first run
             grid = time_grid(case.t_end, self.dt, case.samples)
-            _rollout.lower(self.model, self.data, self._counts(grid)).compile()
+            _compiled(precision, integrator, self.model, self.data, self._counts(grid))
 
     def _counts(self, grid: TimeGrid):
         return jnp.asarray(np.diff(grid.sample_steps), dtype=jnp.int32)
@@ -141,7 +164,9 @@ class MjxSimulation:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         with jax.enable_x64(self.x64):  # the function is called under the setting it was compiled with
-            qpos, qvel = jax.block_until_ready(_rollout(self.model, self.data, self._counts(grid)))
+            counts = self._counts(grid)
+            rollout = _compiled(self.precision, self.integrator, self.model, self.data, counts)
+            qpos, qvel = jax.block_until_ready(rollout(self.model, self.data, counts))
         quat = np.empty((grid.times.size, 4))
         omega = np.empty((grid.times.size, 3))
         # the initial state as the device holds it (float32 rounds it: part of that precision's error)

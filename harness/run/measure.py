@@ -9,10 +9,17 @@ from typing import Callable
 
 from .. import budget
 from ..engines import get_engine
+from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status
 from .processes import raise_if_interrupted
 from .spec import RunKey, base_row
+
+
+def precision_keyword(run: RunKey) -> dict:
+    """precision= for a model's prepare, only where the run is not float64 (a model of 0.2.0's protocol, or of a
+    scene that has no precision, never gets it)."""
+    return {} if run.precision == FLOAT64 else {"precision": run.precision}
 
 
 def model_of(run: RunKey):
@@ -22,7 +29,8 @@ def model_of(run: RunKey):
 
 def prepare(run: RunKey):
     """(simulation, grid) of a run: the model built (not timed) and the sample times it runs on."""
-    return model_of(run).prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance), run.grid
+    return model_of(run).prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance,
+                                 **precision_keyword(run)), run.grid
 
 
 def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = False,
@@ -40,15 +48,16 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
     start = time.perf_counter()
     try:
         scene, model = scene_of(run.case), model_of(run)
-        sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance),
-                              budgets.prepare_s)
+        sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance,
+                                                    **precision_keyword(run)), budgets.prepare_s)
         with budget.within("run", budgets.run_s):
             traj = sim.run(grid)
             row["_accuracy_s"] = time.perf_counter() - start
             row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
 
             def rerun(case):
-                return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance).run(grid)
+                return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance,
+                                     **precision_keyword(run)).run(grid)
 
             row.update(scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states))
             budget.check()  # a loop that could not be stopped inside (one compiled call, MJX's) is judged here

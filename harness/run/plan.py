@@ -1,9 +1,11 @@
-"""The plan of a sweep: every case x engine x integrator x formulation x dt as a RunSpec, and the rows of the runs
+"""The plan of a sweep: every case x engine x integrator x formulation x dt x precision as a RunSpec, and the rows of the runs
 skipped up front (the engine cannot model the case). harness.run.sweep executes the plan; analysis.workprecision picks
 its run families from it."""
 from __future__ import annotations
 
 from ..engines import get_engine
+from ..precision import FLOAT64
+from ..scenes.cases import SLIDING_LADDER
 from ..scenes import scene_of
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
 
@@ -40,10 +42,30 @@ def plan(cases: list, engines: list[str], integrators: list[str] | None) -> tupl
                 for formulation_rank, formulation in enumerate(variants):
                     if integrator and integrators is None and not model.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
+                    # a precision is the rigid body's (Engine.precisions); another scene's model runs in float64
+                    precisions = engine.precisions(integrator) if integrator and case.kind != SLIDING_LADDER \
+                        else (FLOAT64,)
                     for dt in dts:
-                        spec = RunSpec(case, name, integrator, dt, formulation, engine_rank=engine_rank,
-                                       integrator_rank=integrator_rank, formulation_rank=formulation_rank)
-                        # a formulation/integrator pair that cannot model the case (Engine.unsupported_run)
-                        why = reason or (integrator and model.unsupported_run(case, formulation, integrator))
-                        (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
+                        for precision_rank, precision in enumerate(precisions):
+                            spec = RunSpec(case, name, integrator, dt, formulation, precision=precision,
+                                           engine_rank=engine_rank, integrator_rank=integrator_rank,
+                                           formulation_rank=formulation_rank, precision_rank=precision_rank)
+                            # a formulation/integrator pair that cannot model the case (Engine.unsupported_run)
+                            why = reason or (integrator and model.unsupported_run(case, formulation, integrator))
+                            (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
     return specs, skipped
+
+
+def agreement_candidates(specs: list[RunSpec]) -> set[int]:
+    """Indices of the fixed-step rigid-body runs whose states the cross-engine agreement compares: those whose
+    integrator names a method (Engine.method) that another engine also runs on the same case and dt."""
+    methods = {}
+    for index, spec in enumerate(specs):
+        if spec.dt is not None and spec.case.kind != SLIDING_LADDER:
+            method = get_engine(spec.engine).method(spec.integrator)
+            if method:
+                methods[index] = (spec.case.name, spec.dt, method)
+    engines: dict[tuple, set[str]] = {}
+    for index, key in methods.items():
+        engines.setdefault(key, set()).add(specs[index].engine)
+    return {index for index, key in methods.items() if len(engines[key]) > 1}

@@ -109,7 +109,7 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Proce
 def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> dict:
     """A sweep's run on a worker: measure() with the sweep's extras (checks, series, --save-trajectories' states),
     within the budgets (default this process's)."""
-    return measure(spec, truth, full=True, keep_states=spec.keep_states, budgets=budgets)
+    return measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, budgets=budgets)
 
 
 def run_local(specs: list[RunSpec], truths: dict, pool: ProcessPoolExecutor | None,

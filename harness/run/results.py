@@ -9,16 +9,17 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..precision import FLOAT64
 from ..readers import MAX_TABLE_BYTES
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
 
-COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "t_end", "steps", "status", "message", "diverged_at",
-           "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
+COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
+           "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
            "truth_err", "truth_omega_err", "chart_changes", "torque_mode", "precession_axis_drift")
 
 # Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
-# them, formulations as the engine lists them, dt descending.
-SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_formulation_rank", "_dt_rank")
+# them, formulations as the engine lists them, dt descending, precisions as the engine lists them.
+SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_formulation_rank", "_dt_rank", "_precision_rank")
 
 
 def frame(rows: list[dict]) -> pd.DataFrame:
@@ -81,7 +82,14 @@ def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.
     return df
 
 
-TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "status", "message", "torque_mode")
+def with_precision(df: pd.DataFrame) -> pd.DataFrame:
+    """The table with a `precision` column: a table of stereodyn 0.2.0 has none, and its runs were all float64."""
+    if "precision" not in df:
+        df = df.assign(precision=FLOAT64)
+    return df.fillna({"precision": FLOAT64}).replace({"precision": {"": FLOAT64}}).astype({"precision": str})
+
+
+TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "torque_mode")
 NAMED = ("case", "engine")  # never empty (the integrator is, on a skipped row of an engine that cannot run a case)
 # The accuracy metrics the gate, baselines and compare read (every column with one of these suffixes), the timing,
 # and the step of a row's key: finite or empty. Elsewhere a number may be inf (as the store writes it).
@@ -132,7 +140,7 @@ def read_results(path: Path) -> pd.DataFrame:
                 raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]]!r}: must be finite "
                                  "or empty")
         df[column] = values
-    return df
+    return with_precision(df)  # a results.csv of 0.2.0 has none: float64
 
 
 def _same_length_rows(path: Path) -> None:

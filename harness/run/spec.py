@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
+from ..precision import FLOAT64
 from ..grid import TimeGrid, time_grid
 from ..trajectory import Status
 
@@ -25,10 +26,12 @@ class RunKey:
     dt: float | None = None
     formulation: str = ""
     tolerance: float | None = None
+    precision: str = FLOAT64  # the run's floating-point precision (Engine.precisions)
 
     @property
     def family_label(self) -> str:
-        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator) if x)
+        precision = self.precision if self.precision != FLOAT64 else ""
+        return " ".join(x for x in (self.case.name, self.engine, self.formulation, self.integrator, precision) if x)
 
     @property
     def label(self) -> str:
@@ -49,7 +52,8 @@ class RunKey:
 
     def identity(self, store, certify: bool) -> dict:
         """Everything its row depends on (harness.run.store.run_identity; run_key(identity) is its store key)."""
-        return store.identity(self.case, self.engine, self.formulation, self.integrator, self.dt, certify)
+        return store.identity(self.case, self.engine, self.formulation, self.integrator, self.dt, certify,
+                              self.precision)
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,9 @@ class RunSpec(RunKey):
     engine_rank: int = field(default=0, kw_only=True)
     integrator_rank: int = field(default=0, kw_only=True)
     formulation_rank: int = field(default=0, kw_only=True)
+    precision_rank: int = field(default=0, kw_only=True)
     keep_states: bool = field(default=False, kw_only=True)  # return the recorded states ("_states"), --save-trajectories
+    compared: bool = field(default=False, kw_only=True)  # return them for the cross-engine agreement too
 
 
 @dataclass(frozen=True)
@@ -72,28 +78,34 @@ class Family:
     engine: str
     formulation: str
     integrator: str
+    precision: str = FLOAT64
 
     def run(self, dt: float | None = None, tolerance: float | None = None) -> RunKey:
-        return RunKey(self.case, self.engine, self.integrator, dt, self.formulation, tolerance)
+        return RunKey(self.case, self.engine, self.integrator, dt, self.formulation, tolerance, self.precision)
 
     @property
     def label(self) -> str:
         return self.run().family_label
 
     @property
-    def key(self) -> tuple[str, str, str, str]:
-        return self.case.name, self.engine, self.formulation, self.integrator
+    def key(self) -> tuple[str, str, str, str, str]:
+        return self.case.name, self.engine, self.formulation, self.integrator, self.precision
+
+    @property
+    def columns(self) -> dict:
+        """The family's identity columns of a ladder or convergence row."""
+        return dict(zip(("case", "engine", "formulation", "integrator", "precision"), self.key))
 
 
 def base_row(spec: RunKey, grid: TimeGrid | None) -> dict:
     """The columns every row of the run has (identity, grid, and for a RunSpec the private sort keys)."""
     row = {"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
-           "integrator": spec.integrator, "dt": math.nan if spec.dt is None else spec.dt,
+           "integrator": spec.integrator, "precision": spec.precision, "dt": math.nan if spec.dt is None else spec.dt,
            "t_end": grid.t_end if grid is not None else spec.case.t_end,
            "steps": grid.steps if grid is not None else math.nan}
     if isinstance(spec, RunSpec):
         row.update(_engine_rank=spec.engine_rank, _integrator_rank=spec.integrator_rank,
-                   _formulation_rank=spec.formulation_rank,
+                   _formulation_rank=spec.formulation_rank, _precision_rank=spec.precision_rank,
                    _dt_rank=-(spec.dt if spec.dt is not None else math.inf))
     return row
 

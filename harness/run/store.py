@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from ..scenes.cases import Case
+from ..precision import FLOAT64
 from ..environment import code_origin, library_versions, source_fingerprint
 from ..scenes.checks import ROW_KEY
 from ..readers import ReadError, read_json
@@ -142,10 +143,11 @@ def case_content(case: Case) -> dict:
 
 
 def run_identity(case: Case, engine: str, formulation: str, integrator: str, dt: float | None, certify: bool,
-                 versions: dict[str, str], code: dict | None = None) -> dict:
+                 versions: dict[str, str], code: dict | None = None, precision: str = FLOAT64) -> dict:
     """Everything a run's row depends on. code: the fingerprints of the code that runs it (Store.code)."""
     return {"case": case_content(case), "engine": engine, "formulation": formulation, "integrator": integrator,
-            "dt": None if dt is None else float(dt), "certify": bool(certify), "versions": versions, "code": code}
+            "precision": precision, "dt": None if dt is None else float(dt), "certify": bool(certify),
+            "versions": versions, "code": code}
 
 
 def integrator_classes(name: str) -> list[type]:
@@ -167,8 +169,8 @@ def run_key(identity: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
-_TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "status", "message")
-_IDENTITY_COLUMNS = ("engine", "formulation", "integrator")  # in both the identity and the row
+_TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message")
+_IDENTITY_COLUMNS = ("engine", "formulation", "integrator", "precision")  # in both the identity and the row
 _STATUSES = frozenset(s.value for s in Status)
 
 
@@ -274,9 +276,9 @@ class Store:
                 "integrator": self._origins["integrator", integrator]}
 
     def identity(self, case: Case, engine: str, formulation: str, integrator: str, dt: float | None,
-                 certify: bool) -> dict:
+                 certify: bool, precision: str = FLOAT64) -> dict:
         return run_identity(case, engine, formulation, integrator, dt, certify, self.versions,
-                            self.code(engine, integrator))
+                            self.code(engine, integrator), precision)
 
     def code_manifest(self) -> dict:
         """runs.json's "code": stereodyn's source fingerprint and the origin of each engine and integrator used."""

@@ -13,9 +13,11 @@ from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .. import budget
+from ..engines import get_engine
 from ..environment import environment as current_environment
 from ..scenes import checks, scene_of
 from ..scenes.rigid_body import CaseTruth, compute_truth, truth_grid  # noqa: F401 (0.2.0's names here)
@@ -23,7 +25,7 @@ from ..trajectory import Status
 from . import timing
 from .distributed import run_on_cluster
 from .measure import prepare
-from .plan import RunSpec, base_row, plan
+from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
 from .progress import ProgressBar
 from .results import frame, write_results
@@ -73,7 +75,8 @@ _cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # 
 def run_sweep(cases: list, engines: list[str], integrators: list[str] | None, out_dir: Path,
               jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
               resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
-              pool: ProcessPoolExecutor | None = None, final: bool = True) -> pd.DataFrame:
+              pool: ProcessPoolExecutor | None = None, agreement: list | None = None,
+              final: bool = True) -> pd.DataFrame:
     """Run everything and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -84,21 +87,27 @@ def run_sweep(cases: list, engines: list[str], integrators: list[str] | None, ou
     save_trajectories: also write each run's recorded states, and the truth on its times, to
     out_dir/trajectories/<key>.npz (Store.put_states) and their index, out_dir/trajectories/index.csv; with resume, a
     stored run without its file is redone.
+    agreement: a list the sweep appends the states of the runs the cross-engine agreement compares to (plan.
+    agreement_candidates; harness.analysis.agreement's entries), kept in memory; a resumed run's come from
+    out_dir/trajectories where it saved them, else it is left out.
     final: the sweep is all that writes the folder: mark it complete at the end (runs.json; harness.run.store
     mark_complete). `stereodyn run` marks it itself, after the work–precision tables and the report.
     """
     options = SweepOptions(None if integrators is None else tuple(integrators), jobs, certify, resume, scheduler,
                            save_trajectories)
-    return _sweep(cases, engines, out_dir, options, progress or ProgressBar(enabled=False), pool, final)
+    return _sweep(cases, engines, out_dir, options, progress or ProgressBar(enabled=False), pool, final, agreement)
 
 
 def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions, progress: ProgressBar,
-           pool: ProcessPoolExecutor | None, final: bool) -> pd.DataFrame:
+           pool: ProcessPoolExecutor | None, final: bool, agreement: list | None = None) -> pd.DataFrame:
     out_dir.mkdir(parents=True, exist_ok=True)
     integrators = None if options.integrators is None else list(options.integrators)
     specs, skipped_rows = plan(cases, engines, integrators)
     if options.save_trajectories:  # a scene whose state is not a body's (quat, omega) has none to save
         specs = [dataclasses.replace(s, keep_states=True) if scene_of(s.case).keeps_states else s for s in specs]
+    if agreement is not None:
+        candidates = agreement_candidates(specs)
+        specs = [dataclasses.replace(s, compared=True) if i in candidates else s for i, s in enumerate(specs)]
     specs.sort(key=cost, reverse=True)
     results_path = out_dir / "results.csv"
     budgets = budget.configured()  # the command's (harness.budget.configure), for every run, truth and --resume
@@ -134,8 +143,10 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
             key = keys[id(spec)]
             series = row.pop("_series", None)
             states = row.pop("_states", None)
+            if states is not None and spec.compared and row.get("status") == Status.OK.value:
+                _compare(spec, states)
             if not row.get("_lost"):
-                if states is not None:  # before the record: a stored record means its states are there too
+                if states is not None and spec.keep_states:  # before the record: its states are there too
                     store.put_states(key, row, states)
                 store.put(key, identities[id(spec)], row, series, row.get("_budget"))
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
@@ -145,6 +156,18 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
                 publish()
             progress.advance(spec.label, cost(spec), str(row.get("status", "")))
 
+        def _compare(spec: RunSpec, states: dict) -> None:
+            agreement.append({"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
+                              "integrator": spec.integrator, "precision": spec.precision, "dt": spec.dt,
+                              "method": get_engine(spec.engine).method(spec.integrator), "horizon": spec.case.horizon,
+                              "rank": tuple(_ranks(spec).values()), **states})
+
+        for spec in specs:  # resumed runs: their states where the earlier run saved them
+            key = keys[id(spec)]
+            if spec.compared and key in stored and stored[key].get("status") == Status.OK.value \
+                    and store.states_path(key).is_file():
+                with np.load(store.states_path(key)) as saved:
+                    _compare(spec, {name: saved[name] for name in ("times", "quat", "omega")})
         publish()
         pending = [s for s in specs if keys[id(s)] not in stored]
         local_jobs = 1 if options.scheduler else options.jobs or os.cpu_count() or 1

@@ -27,14 +27,15 @@ from scipy.optimize import brentq
 
 from .cases import Case
 from ..trajectory import Status, Trajectory
-from ..run.results import SORT_KEYS, write_atomic
+from ..precision import FLOAT64
 from ...reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
 from ...reference.rotations import quat_conj, quat_mul, quat_to_matrix
 
 ROW_KEY = "checks"      # a run's row carries its check rows under this key, so the result store keeps them with it
 CHECKS_FILE = "checks.csv"
-COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
-RUN_COLUMNS = COLUMNS[:5]
+COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "quantity", "theory", "measured",
+           "error")
+RUN_COLUMNS = COLUMNS[:6]
 ANGLE_QUANTITIES = frozenset({"montgomery_phase"})
 
 # Samples per local interpolating polynomial (degree 7): its error is ~ (h |ω|)^8 / 8!, far below the 1e-10 asked of
@@ -390,6 +391,8 @@ GRIOLI = Check("grioli", _grioli_theory, _grioli_measured)
 
 def table(rows: list[dict]) -> pd.DataFrame:
     """checks.csv's table from result rows (each with its ROW_KEY list), in the results table's row order."""
+    from ..run.results import SORT_KEYS  # not at import: run.results imports the scenes (a cycle)
+
     order = sorted(range(len(rows)), key=lambda i: tuple(rows[i].get(key, 0) for key in SORT_KEYS))
     records = [{**{column: rows[i].get(column) for column in RUN_COLUMNS}, **check}
                for i in order for check in rows[i].get(ROW_KEY) or ()]
@@ -397,16 +400,22 @@ def table(rows: list[dict]) -> pd.DataFrame:
     for column in ("dt", "theory", "measured", "error"):
         df[column] = pd.to_numeric(df[column], errors="coerce")  # the store writes NaN as null
     df["formulation"] = df["formulation"].fillna("")
+    df["precision"] = df["precision"].fillna(FLOAT64)  # a stored row of 0.2.0 has none: float64
     return df
 
 
 def write_checks(rows: list[dict], path: Path) -> None:
     """Write checks.csv atomically; full precision, since a period is checked to 1e-10 and more."""
+    from ..run.results import write_atomic
+
     write_atomic(Path(path), table(rows).to_csv(index=False, float_format="%.17g"))
 
 
 def read_checks(path: Path) -> pd.DataFrame:
-    return pd.read_csv(path, dtype={"formulation": str}, keep_default_na=True).fillna({"formulation": ""})
+    df = pd.read_csv(path, dtype={"formulation": str, "precision": str}, keep_default_na=True)
+    if "precision" not in df:  # a checks.csv of 0.2.0: float64 runs
+        df["precision"] = FLOAT64
+    return df.fillna({"formulation": "", "precision": FLOAT64})
 
 
 # ------------------------------------------------------------------------------------------------- the report
