@@ -301,7 +301,7 @@ def test_the_lock_covers_the_whole_command(tmp_path, monkeypatch, capsys):
     held = []
     original = build.write_reports
 
-    def spy(out_dir, df=None):
+    def spy(out_dir, df=None, **options):
         fd = os.open(out_dir / "store", os.O_RDONLY)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -310,7 +310,7 @@ def test_the_lock_covers_the_whole_command(tmp_path, monkeypatch, capsys):
             held.append(True)
         finally:
             os.close(fd)
-        return original(out_dir, df)
+        return original(out_dir, df, **options)
 
     monkeypatch.setattr(build, "write_reports", spy)
     path = case_file(tmp_path, BASE)

@@ -287,8 +287,11 @@ def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
     """Screenshots: the top of the page, and the page with every case opened (its figures shown); set
     STEREODYN_SCREENSHOTS=DIR to keep them."""
     out, _, _ = ran
-    page = tmp_path / "report.html"
-    page.write_text((out / "report.html").read_text().replace("</body>", CHECK + "\n</body>"))
+    # beside the report, so that the figures it links (figures/NAME.png) resolve; loaded at once, not lazily, so
+    # that the check sees each one's size
+    page = out / f"check-{tmp_path.name}.html"
+    page.write_text((out / "report.html").read_text().replace(' loading="lazy"', "")
+                    .replace("</body>", CHECK + "\n</body>"))
     dom = _chromium("--dump-dom", page.as_uri())
     title = re.search(r"<title>(CHECK [^<]*)</title>", dom.stdout)
     assert title, dom.stderr[-2000:]
@@ -296,7 +299,7 @@ def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
     assert found["broken"] == "0" and found["dangling"] == "0"
     assert int(found["images"]) == 2 * len(CASES) and int(found["links"]) >= 8 + len(CASES)
     keep = os.environ.get("STEREODYN_SCREENSHOTS")
-    opened = tmp_path / "opened.html"
+    opened = out / f"opened-{tmp_path.name}.html"
     opened.write_text(page.read_text().replace("<details ", "<details open "))
     for name, address, height in (("top", page.as_uri(), 2000), ("opened", opened.as_uri(), 6000)):
         shot = tmp_path / f"{name}.png"

@@ -56,7 +56,8 @@ def reported(tmp_path_factory):
                      "--dt", "0.3,1e-2", "--jobs", "2", "--quiet", "--out", str(out)]) == 0
     assert (out / "report.md").is_file() and (out / "report.html").is_file()  # run writes both
     CHECKS.to_csv(out / "checks.csv", index=False)
-    assert cli.main(["report", str(out)]) == 0
+    # the one-file page (report.html links figures/ by default; tests/test_figures_readable.py checks that page)
+    assert cli.main(["report", str(out), "--self-contained"]) == 0
     return out
 
 

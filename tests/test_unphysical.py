@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import cli
-from stereodyn.harness.cases import CaseError, load_case, unphysical_inertia
+from stereodyn.harness.scenes.cases import CaseError, load_case, unphysical_inertia
 from stereodyn.harness.engines import UnavailableEngine, get_engine
 
 # Hairer–Lubich–Wanner's free rigid body (Geometric Numerical Integration, §IV.1 and §VII.5): I = (2, 1, 2/3),

@@ -36,11 +36,23 @@ class Kutta3(ExplicitRK):
     description = "Kutta's third-order method"
 
 
+RK4_TABLEAU = ButcherTableau(a=((0.0, 0.0, 0.0, 0.0), (0.5, 0.0, 0.0, 0.0), (0.0, 0.5, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0)),
+                             b=(1 / 6, 1 / 3, 1 / 3, 1 / 6), c=(0.0, 0.5, 0.5, 1.0))
+
+
+class RK4ClaimsSix(ExplicitRK):
+    """Classical RK4, declared sixth order: the claim is wrong."""
+    name = "rk4_claims_6"
+    order = 6
+    tableau = RK4_TABLEAU
+    description = "classical RK4 with a wrong declared order"
+
+
 @pytest.fixture
 def plugins(monkeypatch):
-    """Both classes in the registry for this test only (the run is in-process: --jobs 1, no worker to tell)."""
+    """The classes in the registry for this test only (the run is in-process: --jobs 1, no worker to tell)."""
     registry.names()  # load the entry-point plug-ins first, as a run would
-    for cls in (HeunClaimsFour, Kutta3):
+    for cls in (HeunClaimsFour, Kutta3, RK4ClaimsSix):
         monkeypatch.setitem(registry._registry, (cls.state_space, cls.name), cls)
 
 
@@ -78,6 +90,87 @@ def test_strict_passes_a_correct_third_order_method(plugins, tmp_path, capsys):
     assert list(order.status) == ["pass"]
     fitted = [float(x) for x in re.findall(r"\d\.\d\d", order.detail.iloc[0])]
     assert all(abs(x - 3.0) <= 0.15 for x in fitted), order.detail.iloc[0]  # measured 2.99-3.01
+
+
+def _acceptance_run(out, integrator, extra=()):
+    # issue 21's command: one case at its own dt list (1e-2, 3e-3, 1e-3) over 2 s, where RK4's error is at round-off
+    # from 3e-3 on and the list alone gives no order (1 asymptotic point)
+    return cli.main(["run", "free-asymmetric", "--t-end", "2", "--engines", "pinocchio", "--integrators", integrator,
+                     "--jobs", "1", "--quiet", "--strict", "--out", str(out), *extra])
+
+
+def test_strict_measures_an_order_the_dt_list_cannot_and_fails_a_false_claim(plugins, tmp_path, capsys):
+    """Issue 21 item 4: the declared order is measured before it is judged (a short ladder doubling dt from 1e-2)."""
+    assert _acceptance_run(tmp_path / "out", "rk4_claims_6") == 1
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if x.startswith("verdict failed:"))
+    assert "rk4_claims_6 declares order 6, fitted 4.0" in line, err  # measured 4.00 (dt 2e-2 .. 1e-2)
+    convergence = pd.read_csv(tmp_path / "out" / "convergence.csv")
+    assert list(convergence.source) == [dt_ladders.SHORT_LADDER]
+
+
+def test_strict_passes_a_true_third_order_claim_at_the_cases_own_steps(plugins, tmp_path):
+    assert _acceptance_run(tmp_path / "out", "kutta3") == 0
+    table = pd.read_csv(tmp_path / "out" / "verdicts.csv", keep_default_na=False)
+    order = table[(table.verdict == "order") & (table.integrator == "kutta3")]
+    assert list(order.status) == ["pass"], order.detail.tolist()
+
+
+def test_strict_never_passes_a_claim_nothing_measured(plugins, tmp_path, capsys):
+    """--no-ladder: no short ladder, the dt list gives one asymptotic point: not measured and nothing excuses it."""
+    assert _acceptance_run(tmp_path / "out", "rk4_claims_6", ["--no-ladder"]) == 1
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if x.startswith("verdict not measured:"))
+    assert "rk4_claims_6 declares order 6; not measured, and no reason excuses it" in line
+    assert "no short ladder ran" in line
+    # without --strict no short ladder runs: the same verdict, exit 0, and the claim (not disproved) keeps its runs
+    # in "What to use"
+    assert cli.main(["run", "free-asymmetric", "--t-end", "2", "--engines", "pinocchio", "--integrators",
+                     "rk4_claims_6", "--jobs", "1", "--quiet", "--out", str(tmp_path / "b")]) == 0
+    table = pd.read_csv(tmp_path / "b" / "verdicts.csv", keep_default_na=False)
+    assert list(table[table.verdict == "order"].status) == [verdicts.NO_REASON]
+    pareto = pd.read_csv(tmp_path / "b" / "pareto.csv", keep_default_na=False)
+    assert "rk4_claims_6" in set(pareto.integrator)
+
+
+def test_an_unmeasured_claim_is_excused_only_by_a_reason():
+    def verdict(notes, sources=None, excluded=()):
+        rows = [{"case": c, "engine": "pinocchio", "formulation": "", "integrator": "m", "order": math.nan,
+                 "declared_order": 2.0, "note": n, "source": (sources or {}).get(c, "short-ladder")}
+                for c, n in notes.items()]
+        return verdicts.order_verdicts(pd.DataFrame(rows), excluded)[0]
+
+    exact = "3 point(s) ...; exact for this motion: the error is at round-off up to the largest dt tried"
+    floor = "0 point(s) ...; error at round-off for every dt up to 0.05 (dt = 0.1: did not run ok)"
+    assert verdict({"a": exact}).status == verdicts.UNMEASURED
+    assert "a exact for this motion" in verdict({"a": exact}).detail
+    assert verdict({"a": floor, "b": exact}).status == verdicts.UNMEASURED
+    assert "at the precision floor" in verdict({"a": floor}).detail
+    assert verdict({"c": "1 point(s) ...: 1 above 0.03"}, excluded=["c"]).status == verdicts.UNMEASURED  # chaotic
+    # a walk that ran out of points, or a dt list nothing extended: nothing excuses them, --strict fails them
+    stopped = "1 point(s) in the asymptotic range (...): 1 asymptotic; short ladder stopped at 6 points"
+    assert verdict({"a": exact, "b": stopped}).status == verdicts.NO_REASON
+    no_ladder = verdict({"a": "1 point(s) in the asymptotic range (...): 1 asymptotic"}, {"a": "dt_list"})
+    assert no_ladder.status == verdicts.NO_REASON and "no short ladder ran" in no_ladder.detail
+    assert verdicts.strict_failures([no_ladder]) == [no_ladder] and not verdicts.failed([no_ladder])
+
+
+def test_summary_names_no_run_that_failed_a_verdict():
+    """The report's Summary follows pareto.csv: a failed integrator is never the cheapest, and where only such runs
+    reach the accuracy it says so in pareto.csv's words."""
+    from stereodyn.harness.analysis.pareto import ONLY_FAILED
+    from stereodyn.harness.report.build import summary_lines
+
+    def row(integrator, err, wall):
+        return {"case": "c", "engine": "pinocchio", "formulation": "", "integrator": integrator, "dt": 0.01,
+                "status": "ok", "attitude_err": err, "wall_s": wall, "t_end": 1.0}
+
+    df = pd.DataFrame([row("cheap_liar", 1e-8, 0.001), row("rk4", 1e-9, 0.002)])
+    failed = {("pinocchio", "", "cheap_liar")}
+    assert "cheap_liar" in summary_lines(df)[2]                       # without verdicts: the cheapest
+    assert "rk4" in summary_lines(df, failed)[2] and "cheap_liar" not in summary_lines(df, failed)[2]
+    only = summary_lines(df[df.integrator == "cheap_liar"], failed)[2]
+    assert ONLY_FAILED in only and "cheap_liar" not in only.split("|")[4]
 
 
 # ------------------------------------------------------------------------------------------------ the rules

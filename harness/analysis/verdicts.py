@@ -5,6 +5,8 @@ integrator.
 
 Per integrator (an engine, formulation, integrator and precision, across the run's cases):
 - order: the fitted convergence order of every non-chaotic case (convergence.csv) within ORDER_TOLERANCE of the
+  declared one; a family no case gave an order is "not measured" with each case's reason (EXCUSES: exact for this
+  motion, at the precision floor, chaotic, no run ok), or NO_REASON where nothing excuses it, which --strict fails;
   declared one; where the engine declares a known deviation of the order (Engine.known_deviations) and the fit
   matches it, `known` (not a failure), and `fixed upstream?` where it stopped matching it but meets the declared one;
 - bounded energy, for a method that declares energy_bounded: its energy error over ENERGY_RATIO times a short run
@@ -37,6 +39,17 @@ from ..engines.base import FLOAT64, KnownDeviation
 VERDICTS_FILE = "verdicts.csv"
 COLUMNS = ("verdict", "engine", "formulation", "integrator", "precision", "case", "status", "detail", "rule")
 PASS, FAIL, UNMEASURED = "pass", "fail", "not measured"
+# A declared order that nothing measured (no case's dt list or short ladder gave an order) and no reason excuses:
+# `run --strict` fails it as it fails FAIL, yet "What to use" still recommends its runs (no claim was disproved).
+NO_REASON = "not measured, no reason"
+# Why a case has no fitted order, where the reason excuses it (the words of the convergence note, written by
+# harness.fitting and harness.run.dt_ladders' short ladders; fitting.NOTE_GROUPS) -> the reason in a reader's words.
+EXCUSES = (("exact for this motion", "exact for this motion"),
+           ("round-off for every stable dt", "at the precision floor (error at round-off for every stable dt)"),
+           ("error at round-off for every dt up to", "at the precision floor (error at round-off up to the largest "
+                                                     "dt whose run finished ok)"),
+           ("its error grows exponentially", "chaotic"),
+           ("no run ok", "no run finished ok"))
 # An engine's declared known deviation (Engine.known_deviations) that the measurement matches: not a failure (--strict
 # passes it), listed in the report with its upstream reference. FIXED: the measurement stopped matching the deviation
 # and meets the declared value instead: the deviation's declaration is stale (upstream fixed it?). Neither fails.
@@ -106,7 +119,8 @@ def _fmt_order(x: float) -> str:
 
 
 def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()) -> list[Verdict]:
-    """Per engine/formulation/integrator: the fitted orders of the cases not excluded against the declared order."""
+    """Per engine/formulation/integrator: the fitted orders of the cases not excluded against the declared order;
+    where no case has one, UNMEASURED with each case's reason, or NO_REASON where some case has none (excuse)."""
     excluded = set(excluded_cases)
     out = []
     df = with_precision(convergence).fillna({"formulation": ""})
@@ -124,7 +138,8 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
                 if precision != FLOAT64 and group["note"].fillna("").astype(str).str.contains(
                     NOT_MEASURABLE, regex=False).any() else ""
             out.append(Verdict("order", **base, status=UNMEASURED,
-                               detail=f"declares order {declared:g}; no non-chaotic case has a fitted order{why}"))
+                               detail=f"declares order {declared:g}; no non-chaotic case has a fitted order{why}")
+                       if why else _unmeasured(group, declared, excluded, base))
             continue
         orders = fitted["order"].astype(float)
         low, high = float(orders.min()), float(orders.max())
@@ -157,6 +172,34 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
             continue
         out.append(Verdict("order", **base, status=FAIL if failed_ else PASS, detail=detail))
     return out
+
+
+def excuse(row, excluded: set[str]) -> str | None:
+    """Why a convergence row (a case of a family) has no order, where that excuses it; None where nothing does."""
+    if row["case"] in excluded:
+        return "chaotic"
+    note = str(row.get("note", "") or "")
+    return next((words for marker, words in EXCUSES if marker in note), None)
+
+
+def _unmeasured(group: pd.DataFrame, declared: float, excluded: set[str], base: dict) -> Verdict:
+    """The order verdict of a family no case gave an order: not measured, with each case's reason (UNMEASURED), or,
+    where some case has none, NO_REASON naming the cases and why their points gave no order."""
+    reasons = [(str(row["case"]), excuse(row, excluded), row) for _, row in group.iterrows()]
+    unexcused = [(case, row) for case, why, row in reasons if why is None]
+    if not unexcused:
+        return Verdict("order", **base, status=UNMEASURED, detail=f"declares order {declared:g}; not measured: "
+                       + "; ".join(f"{case} {why}" for case, why, _ in reasons))
+    details = []
+    for case, row in unexcused[:3]:
+        note = str(row.get("note", "") or "").split(";")[0]
+        source = ("its dt list (no short ladder ran: --strict runs them)" if row.get("source", "") == "dt_list"
+                  else "a short ladder")
+        details.append(f"{case}: {source}: {note}" if note else f"{case}: {source}")
+    more = f" (+{len(unexcused) - 3} more)" if len(unexcused) > 3 else ""
+    return Verdict("order", **base, status=NO_REASON,
+                   detail=f"declares order {declared:g}; not measured, and no reason excuses it: "
+                          + "; ".join(details) + more)
 
 
 def _known_deviation(engine: str, integrator: str) -> KnownDeviation | None:
@@ -303,6 +346,11 @@ def failed(verdicts: Iterable[Verdict]) -> list[Verdict]:
     return [v for v in verdicts if v.status == FAIL]
 
 
+def strict_failures(verdicts: Iterable[Verdict]) -> list[Verdict]:
+    """What `run --strict` fails on: a failed verdict, and a claim nothing measured and no reason excuses."""
+    return [v for v in verdicts if v.status in (FAIL, NO_REASON)]
+
+
 def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]:
     """(engine, formulation, integrator) of the integrator verdicts that failed. An energy_bounded failure names the
     method itself, so it stands for every engine and formulation that ran it ("*")."""
@@ -316,13 +364,14 @@ def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]
 
 
 def summary_lines(verdicts: list[Verdict]) -> list[str]:
-    """The terminal's verdict block: the counts, then one line per failed verdict, per known deviation and per
-    deviation that stopped matching."""
-    counts = {s: sum(v.status == s for v in verdicts) for s in (PASS, FAIL, UNMEASURED, KNOWN, FIXED)}
-    head = f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED]} not measured"
+    """The terminal's verdict block: the counts, then one line per failed verdict, per claim nothing measured and
+    no reason excuses, per known deviation and per deviation that stopped matching."""
+    counts = {s: sum(v.status == s for v in verdicts) for s in (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED)}
+    head = (f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED] + counts[NO_REASON]} not "
+            f"measured" + (f" ({counts[NO_REASON]} with no reason: --strict fails them)" if counts[NO_REASON] else ""))
     head += f", {counts[KNOWN]} known deviations" if counts[KNOWN] else ""
     head += f", {counts[FIXED]} {FIXED}" if counts[FIXED] else ""
     lines = [head]
-    lines += [f"verdict failed: {v.line}" for v in failed(verdicts)]
+    lines += [f"verdict {'failed' if v.status == FAIL else 'not measured'}: {v.line}" for v in strict_failures(verdicts)]
     lines += [f"verdict {v.status}: {v.line}" for v in verdicts if v.status in (KNOWN, FIXED)]
     return lines

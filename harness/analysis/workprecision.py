@@ -22,7 +22,7 @@ from . import step_advice
 from ..scenes import checks
 from . import advice as advising
 from ..scenes import scene_of
-from ..scenes.cases import Case
+from ..scenes.cases import CHAOTIC_TAGS, Case
 from . import tolerance_ladders
 from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
 from ..engines import get_engine
@@ -125,8 +125,10 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
     DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
-    no order) or "off". Writes ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and appends
-    the orders to checks.csv; returns the paths written. pool: the sweep's worker pool (harness.run.sweep.worker_pool)
+    no order), "short" (those short ladders only, for the integrators no case's dt list measured: a --strict run of
+    named cases) or "off". Writes ladder.csv, convergence.csv,
+    tolerance.csv, tolerance_fit.csv, pareto.csv and appends the orders to checks.csv; returns the paths written.
+    pool: the sweep's worker pool (harness.run.sweep.worker_pool)
     the ladders run on; None runs them here."""
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained
@@ -153,7 +155,13 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     rigid_results = results[~results["case"].isin(other_kinds)]
     sweep_rows = sweep_orders(rigid_results, laddered)
     short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered) \
-        if ladder == "default" else []
+        if ladder in ("default", "short") else []
+    if ladder == "short":  # only what the order verdicts need: integrators no non-chaotic case's dt list measured
+        chaotic = {c.name for c in rigid if set(c.tags) & set(CHAOTIC_TAGS)}
+        measured = {(r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
+                    if math.isfinite(r["order"]) and r["case"] not in chaotic}
+        short = [item for item in short
+                 if (item[0].engine, item[0].formulation, item[0].integrator) not in measured]
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
         if chosen or short else ([], [])

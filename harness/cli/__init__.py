@@ -154,8 +154,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--certify", action="store_true", help="accepted for old scripts: certifying is the default")
     run.add_argument("--save-trajectories", action="store_true",
                      help="also write each run's recorded states, the truth's included, to "
-                          "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body; case, engine, "
-                          "formulation, integrator, dt)")
+                          "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body, truth_quat and "
+                          "truth_omega on the same times; case, engine, formulation, integrator, dt) and their "
+                          "index, DIR/trajectories/index.csv")
+    run.add_argument("--self-contained", action="store_true",
+                     help="embed the figures in report.html (one file to send; larger) instead of linking "
+                          "DIR/figures/")
     run.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per phase otherwise, on stderr)")
     run.add_argument("--verbose", action="store_true", help="also print every case's drift table")
@@ -185,6 +189,8 @@ def _parser() -> argparse.ArgumentParser:
     report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
     report.add_argument("dir", type=_path)
     _allow_partial(report)
+    report.add_argument("--self-contained", action="store_true",
+                        help="embed the figures in report.html (one file to send; larger) instead of linking them")
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
     baseline.add_argument("dir", type=_path)
     baseline.add_argument("--out", type=_path, required=True, metavar="FILE", help="baseline file to write (JSON)")

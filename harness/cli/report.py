@@ -17,7 +17,7 @@ def main(args) -> int:
     with folder_lock(args.dir):
         warnings = completeness(args.dir, args.allow_partial)  # an unfinished folder: refused
         try:
-            markdown, html = write_reports(args.dir)
+            markdown, html = write_reports(args.dir, self_contained=args.self_contained)
         except (KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
             if isinstance(exc, TableError):
                 raise

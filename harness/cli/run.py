@@ -47,11 +47,11 @@ def main(args) -> int:
         if args.verbose:
             print(drift_table_text(df))
         progress.stage("report: report.md, figures, report.html")
-        markdown, html = write_reports(args.out, df)
+        markdown, html = write_reports(args.out, df, self_contained=args.self_contained)
         mark_complete(args.out)  # the last write: check, baseline, compare and report read the folder from now on
         print("\n".join(summary.terminal_lines(df, found, args.out, html)))
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
-    if args.strict and verdicts.failed(found):
+    if args.strict and verdicts.strict_failures(found):
         print("\n".join(verdicts.summary_lines(found)[1:]), file=sys.stderr)
         return 1
     return 0
@@ -66,19 +66,25 @@ def _quiet_engines(out: Path) -> None:
 def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and the orders in checks.csv
     (analysis.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
-    --dt-ladder every family's."""
+    named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
+    (without --strict none); --dt-ladder every family's; --no-ladder none."""
     from ..analysis import workprecision
 
     if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
         raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}")
     if args.dt_ladder:
         mode = "full"
-    elif args.no_ladder or args.cases or args.case_file or args.dt is not None:
+    elif args.no_ladder:
         mode = "off"
+    elif args.cases or args.case_file or args.dt is not None:
+        # --strict judges: a declared order no case's dt list measured is measured (short ladders) before it is
+        # judged; without it such a claim is reported "not measured, no reason"
+        mode = "short" if args.strict else "off"
     else:
         mode = "default"
     if mode != "off" and progress is not None:
-        progress.stage(f"work–precision: {mode} dt and tolerance ladders"
+        progress.stage("work–precision: short ladders" if mode == "short" else
+                       f"work–precision: {mode} dt and tolerance ladders"
                        + (" and short ladders" if mode == "default" else ""))
     workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
                           max_steps=args.ladder_max_steps, pool=pool)

@@ -32,8 +32,32 @@ import numpy as np
 INSTALL = "pip install 'stereodyn[bullet]'"
 
 
+@contextmanager
+def _quiet():
+    """pybullet's C code writes "pybullet build time: ..." to the process's stderr (file descriptor 2, past
+    sys.stderr) when it is imported, and into C's stdout buffer at connect() and disconnect(): both land in every
+    worker's output and `run --quiet` is no longer quiet. Descriptors 1 and 2 point at /dev/null meanwhile, and C's
+    buffers are flushed there before they are restored."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            os.dup2(null.fileno(), 2)
+            try:
+                yield
+            finally:
+                ctypes.CDLL(None).fflush(None)
+    finally:
+        for fd, copy in zip((1, 2), saved):
+            os.dup2(copy, fd)
+            os.close(copy)
+
+
 try:
-    import pybullet
+    with _quiet():
+        import pybullet
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
@@ -46,31 +70,12 @@ from stereodyn.reference.rotations import matrix_to_quat, quat_conj, quat_mul
 from stereodyn.reference.torques import torque_function
 
 STEP = "semi_implicit_euler"
-
-
-@contextmanager
-def _quiet_stdout():
-    """pybullet's connect() printf()s "pybullet build time: ..." into C's stdout buffer, which reaches file
-    descriptor 1 at the process's exit, past sys.stdout (in every worker's output and in `stereodyn ... > file`):
-    fd 1 points at /dev/null while it runs and C's buffers are flushed there before it is restored."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            try:
-                yield
-            finally:
-                ctypes.CDLL(None).fflush(None)
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
 # A speed cap no run of these scenes reaches (the divergence rule ends a run long before: 1e6 x |omega0|).
 NO_CAP = 1e30
 
 
 def _disconnect(client: int) -> None:
-    with _quiet_stdout():
+    with _quiet():
         pybullet.disconnect(client)
 
 
@@ -90,7 +95,7 @@ class BulletSimulation:
         body = case.body
         moments, self.axes = principal_frame(body.inertia_com)
         self.qi = matrix_to_quat(self.axes)
-        with _quiet_stdout():
+        with _quiet():
             self.client = client = pybullet.connect(pybullet.DIRECT)
         self._close = weakref.finalize(self, _disconnect, client)
         pybullet.setGravity(*(body.gravity * np.asarray(body.gravity_direction, dtype=float)).tolist(),

@@ -18,6 +18,7 @@ import pandas as pd
 
 from ..scenes import checks as theory_checks
 from ..analysis import workprecision
+from ..analysis.verdicts import failed_integrators, read as read_verdicts
 from . import figures, html
 from . import sections
 # the modules whose sections the page shows besides this one's and markdown's (each registers its own)
@@ -40,9 +41,13 @@ def _run_name(row) -> str:
     return figures.run_label(row) + dt
 
 
-def summary_lines(df: pd.DataFrame) -> list[str]:
+def summary_lines(df: pd.DataFrame, failed: set = frozenset()) -> list[str]:
     """Per case: the most accurate fixed-step run, and the cheapest one within SUMMARY_ACCURACY (adaptive runs are the
-    truth and its relatives, not contenders)."""
+    truth and its relatives, not contenders) whose integrator passed its verdicts, as pareto.csv chooses (failed:
+    harness.analysis.verdicts.failed_integrators); where only runs that failed a verdict reach it, pareto.csv's words
+    say so."""
+    from ..analysis.pareto import NONE_REACHED, ONLY_FAILED, is_failed
+
     rows = []
     for case, group in df.groupby("case", sort=False):
         ok = group[(group["status"] == "ok") & np.isfinite(group["attitude_err"]) & np.isfinite(group["dt"])]
@@ -51,9 +56,11 @@ def summary_lines(df: pd.DataFrame) -> list[str]:
             continue
         best = ok.loc[ok["attitude_err"].idxmin()]
         timed = ok[(ok["attitude_err"] <= SUMMARY_ACCURACY) & np.isfinite(ok["wall_s"])]
-        cheap = timed.loc[(timed["wall_s"] / timed["t_end"]).idxmin()] if len(timed) else None
+        passed = timed[[not is_failed(failed, r["engine"], r["formulation"] if isinstance(r["formulation"], str)
+                                      else "", r["integrator"]) for _, r in timed.iterrows()]] if failed else timed
+        cheap = passed.loc[(passed["wall_s"] / passed["t_end"]).idxmin()] if len(passed) else None
         rows.append([case, _run_name(best), _num(best["attitude_err"]),
-                     "-" if cheap is None else _run_name(cheap),
+                     (ONLY_FAILED if len(timed) else NONE_REACHED) if cheap is None else _run_name(cheap),
                      "-" if cheap is None else _num(cheap["wall_s"] / cheap["t_end"] * 1e6, ".3g")])
     return _md_table(["case", "most accurate fixed-step run", "att_err",
                       f"cheapest fixed-step run with att_err <= {SUMMARY_ACCURACY:g}", "us per simulated s"],
@@ -66,7 +73,7 @@ def _summary(context: sections.Context) -> list[str]:
     counts = df["status"].value_counts()
     return ["## Summary", "", f"{len(df)} runs over {df['case'].nunique()} cases: "
             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "",
-            *summary_lines(df)]
+            *summary_lines(df, failed_integrators(read_verdicts(context.out_dir) or []))]
 
 
 @sections.register("oracle-and-theory-checks", 80)
@@ -225,8 +232,10 @@ def _series_index(out_dir: Path) -> dict[tuple, dict]:
     return index
 
 
-def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, Path]:
-    """Write DIR/report.md, DIR/figures/*.png and DIR/report.html from the folder's results; return the two pages."""
+def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained: bool = False) -> tuple[Path, Path]:
+    """Write DIR/report.md, DIR/figures/*.png and DIR/report.html from the folder's results; return the two pages.
+    report.html links the figures in DIR/figures/ (readable at 96 dpi, the ~55 figures of the default run would make a
+    self-contained page of over 3 MB); self_contained embeds them instead (one file to send)."""
     out_dir = Path(out_dir)
     df = read_results(out_dir / "results.csv") if df is None else df
     manifest = read_manifest(out_dir)
@@ -249,5 +258,5 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None) -> tuple[Path, 
             stale.unlink()
     md_path, html_path = out_dir / "report.md", out_dir / "report.html"
     write_atomic(md_path, markdown)
-    write_atomic(html_path, html.render(markdown, images, out_dir))
+    write_atomic(html_path, html.render(markdown, images, out_dir, embed=self_contained))
     return md_path, html_path

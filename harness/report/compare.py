@@ -4,7 +4,6 @@ each metric as the ratio B / A, and a figure of the largest changes — and comp
 table)."""
 from __future__ import annotations
 
-import io
 import math
 from pathlib import Path
 
@@ -61,7 +60,8 @@ def figure(changes: pd.DataFrame) -> bytes | None:
     if top.empty:
         return None
     from matplotlib.figure import Figure
-    from PIL import Image
+
+    from . import figures
 
     values = [math.log10(r[r["metric"]]) for _, r in top.iterrows()]
     labels = [f"{label(r)}: {r['metric']}" for _, r in top.iterrows()]
@@ -70,15 +70,13 @@ def figure(changes: pd.DataFrame) -> bytes | None:
                                                                                                      + 1.2))
     axes = fig.subplots()
     axes.barh(range(len(values)), values, color=["#d62728" if v > 0 else "#2ca02c" for v in values])
-    axes.set_yticks(range(len(values)), labels, fontsize=7)
+    axes.set_yticks(range(len(values)), labels, fontsize=figures.MIN_FONT_PT)
+    axes.tick_params(axis="x", labelsize=figures.MIN_FONT_PT)
     axes.invert_yaxis()
     axes.axvline(0, color="black", linewidth=0.8)
-    axes.set_xlabel("log10(B / A) of the row's most-changed metric (red: worse in B)", fontsize=8)
-    axes.set_title("largest changes", fontsize=10)
-    buffer, small = io.BytesIO(), io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=80)
-    Image.open(buffer).convert("RGB").quantize(colors=64).save(small, format="png", optimize=True)
-    return small.getvalue()
+    axes.set_xlabel("log10(B / A) of the row's most-changed metric (red: worse in B)", fontsize=figures.LABEL_FONT_PT)
+    axes.set_title("largest changes", fontsize=figures.TITLE_FONT_PT)
+    return figures.png(fig)  # the report's resolution and palette: readable at 100% (10 in = 960 px)
 
 
 def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, Path, list[str]]:

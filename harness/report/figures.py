@@ -14,9 +14,18 @@ from matplotlib.ticker import NullFormatter
 
 from ...reference.integrals import INTEGRALS
 
-# keeps the default report.html under 2 MB with every figure (1.97 MB; with Drake's and scipy's rows 72 gave 2.39 MB, 64
-# gave 2.11 MB)
-DPI = 60
+# Readable at 100% (issue 21 item 5): a figure is drawn at DPI and never wider than MAX_WIDTH_PX, the width report.html
+# gives a figure in a 1400 px wide window, so the browser shows it at its own size; its smallest text, MIN_FONT_PT, is
+# then MIN_FONT_PT * DPI / 72 = 10.7 px. Panels that do not fit side by side in MAX_WIDTH_PX wrap to the next row (tests/test_figures_readable.py
+# measures every figure of a report in Chromium). At 1400 px Chromium gives a case's figure 1337 px (1385 px of body
+# less its padding, the <details> border and indent).
+DPI = 96
+MAX_WIDTH_PX = 1300
+MAX_WIDTH_IN = MAX_WIDTH_PX / DPI
+MIN_FONT_PT = 8       # tick labels, legends
+LABEL_FONT_PT = 9     # axis labels
+TITLE_FONT_PT = 10    # panel titles
+SUPTITLE_FONT_PT = 11
 PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
 # (The registry's integrals with a label, reference.integrals, then the attitude error.)
@@ -87,8 +96,9 @@ def facets(rows: pd.DataFrame, key=None, limit: int = MAX_SERIES) -> list[tuple[
 
 
 def _panel_grid(count: int, width_in: float, height_in: float, legend_in: float, extra_top: float = 0.0):
-    """A figure with `count` panels, at most 3 a row, each with room for its legend on its right."""
-    columns = min(3, count)
+    """A figure with `count` panels, as many a row as fit in MAX_WIDTH_IN (at most 3), each with room for its legend
+    on its right."""
+    columns = max(1, min(3, count, int(MAX_WIDTH_IN // (width_in + legend_in))))
     rows = math.ceil(count / columns)
     width, height = columns * (width_in + legend_in), rows * height_in + 0.5 + extra_top
     figure = Figure(figsize=(width, height))
@@ -101,17 +111,35 @@ def _panel_grid(count: int, width_in: float, height_in: float, legend_in: float,
     return figure, grid
 
 
-def _png(figure: Figure) -> bytes:
+def png(figure: Figure) -> bytes:
     """The figure as a palette PNG: a quarter of the bytes of full colour, which matters in a self-contained page."""
     from PIL import Image
+    from PIL.PngImagePlugin import PngInfo
 
     buffer = io.BytesIO()
     # Fixed margins (subplots_adjust) rather than bbox_inches="tight" or tight_layout: each of those lays out all the
     # text once more, which doubles the time of a report.
     figure.savefig(buffer, format="png", dpi=DPI)
     small = io.BytesIO()
-    Image.open(buffer).convert("RGB").quantize(colors=PALETTE).save(small, format="png", optimize=True)
+    # the resolution and the smallest text drawn travel with the PNG (pHYs, tEXt), so a reader of the page can tell
+    # how large the text is where the page shows the figure (tests/test_figures_readable.py)
+    info = PngInfo()
+    info.add_text(FONT_KEY, f"{smallest_font(figure):g}")
+    Image.open(buffer).convert("RGB").quantize(colors=PALETTE).save(small, format="png", optimize=True,
+                                                                     dpi=(DPI, DPI), pnginfo=info)
     return small.getvalue()
+
+
+FONT_KEY = "stereodyn:smallest-font-pt"  # the PNG text chunk that holds smallest_font
+
+
+def smallest_font(figure: Figure) -> float:
+    """The smallest font size (pt) of the figure's visible, non-empty text (tick labels, legends, titles)."""
+    from matplotlib.text import Text
+
+    sizes = [t.get_fontsize() for t in figure.findobj(Text) if t.get_visible() and t.get_text().strip()
+             and (t.axes is None or t.axes.get_visible())]
+    return min(sizes) if sizes else math.nan
 
 
 def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
@@ -139,8 +167,8 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
                       linewidth=1.0, label=short)
         _log_log(axes, title)
     _axis_labels(grid, "µs per simulated s", "max attitude error (rad)")
-    figure.suptitle(f"{case}: work–precision (points along dt or tolerance, largest first)", fontsize=10)
-    return _png(figure)
+    figure.suptitle(f"{case}: work–precision (points along dt or tolerance, largest first)", fontsize=SUPTITLE_FONT_PT)
+    return png(figure)
 
 
 def _log_log(axes, title: str) -> None:
@@ -148,17 +176,19 @@ def _log_log(axes, title: str) -> None:
     axes.set_xscale("log")
     axes.set_yscale("log")
     axes.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short decade range
-    axes.set_title(title, fontsize=9)
-    axes.tick_params(labelsize=7)
+    axes.set_title(title, fontsize=TITLE_FONT_PT)
+    axes.tick_params(labelsize=MIN_FONT_PT)
     axes.grid(True, which="major", alpha=0.3)
-    axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    axes.legend(fontsize=MIN_FONT_PT, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
 
 
 def _axis_labels(grid, xlabel: str, ylabel: str) -> None:
-    for axes in grid[-1]:
-        axes.set_xlabel(xlabel, fontsize=8)
+    for column in grid.T:  # the lowest panel drawn in each column (a wrapped last row may leave some empty)
+        shown = [axes for axes in column if axes.get_visible()]
+        if shown:
+            shown[-1].set_xlabel(xlabel, fontsize=LABEL_FONT_PT)
     for axes in grid[:, 0]:
-        axes.set_ylabel(ylabel, fontsize=8)
+        axes.set_ylabel(ylabel, fontsize=LABEL_FONT_PT)
 
 
 def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
@@ -182,8 +212,8 @@ def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
         axes.plot([low, high], [low, high], color="grey", linestyle="--", linewidth=0.8, label="error = tol")
         _log_log(axes, title)
     _axis_labels(grid, "tolerance requested", "max state error")
-    figure.suptitle(f"{case}: error against tolerance", fontsize=10)
-    return _png(figure)
+    figure.suptitle(f"{case}: error against tolerance", fontsize=SUPTITLE_FONT_PT)
+    return png(figure)
 
 
 def _legend(frame: pd.DataFrame) -> tuple[list, list[str]]:
@@ -245,6 +275,27 @@ def invariant_rows(group: pd.DataFrame, series: dict[tuple, dict], case: str) ->
     return [QUANTITIES[q] for q in figure_quantities([s for _, s in _shown(group, series, case)[1]])]
 
 
+INVARIANT_COLUMN_IN, INVARIANT_LEGEND_IN = 2.7, 2.3  # an invariants panel's width, and the legend's on the right
+
+
+def _share_y(panels: list, inner: list[list]) -> None:
+    """One log y range over the panels of a quantity (those without a line too), tick labels only on the first panel
+    of each row (inner: the others)."""
+    with_data = [axes for axes in panels if axes.has_data()]
+    for row in inner:
+        for axes in row:
+            axes.tick_params(labelleft=False)
+    if not with_data:
+        return
+    for axes in with_data:
+        axes.set_yscale("log")
+    low = min(axes.get_ylim()[0] for axes in with_data)
+    high = max(axes.get_ylim()[1] for axes in with_data)
+    for axes in panels:
+        axes.set_yscale("log")
+        axes.set_ylim(low, high)
+
+
 def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> bytes | None:
     """Deviation of each conserved quantity the case has (energy, momentum, and its special integral: Lagrange,
     Kovalevskaya, Goryachev–Chaplygin, Hess, self-excited) and the attitude error against time: a row per quantity, a
@@ -263,13 +314,23 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
     # the truth is drawn in every panel: one series fewer for the runs
     fixed = frame[frame["dt"].notna()]
     panels = facets(fixed, limit=MAX_SERIES - 1) if len(fixed) else [("adaptive", adaptive)]
-    columns = len(panels)
-    width, height = columns * 2.5 + 2.3, 1.3 * len(quantities) + 1.0
+    # columns of INVARIANT_COLUMN_IN beside a legend of INVARIANT_LEGEND_IN, as many as fit in MAX_WIDTH_IN; more
+    # panels wrap into further blocks of rows below (a block: a row per quantity)
+    columns = max(1, min(len(panels), int((MAX_WIDTH_IN - INVARIANT_LEGEND_IN - 0.9) // INVARIANT_COLUMN_IN)))
+    blocks = math.ceil(len(panels) / columns)
+    rows = blocks * len(quantities)
+    width = columns * INVARIANT_COLUMN_IN + INVARIANT_LEGEND_IN + 0.9
+    height = 1.45 * rows + 0.45 * (blocks - 1) + 1.1
     figure = Figure(figsize=(width, height))
-    figure.subplots_adjust(left=0.8 / width, right=1 - 2.3 / width, bottom=0.5 / height, top=1 - 0.6 / height,
-                           wspace=0.12, hspace=0.12)
-    grid = figure.subplots(len(quantities), columns, squeeze=False, sharex=True, sharey="row")
-    for column, (title, panel) in enumerate(panels):
+    figure.subplots_adjust(left=0.9 / width, right=1 - INVARIANT_LEGEND_IN / width, bottom=0.55 / height,
+                           top=1 - 0.65 / height, wspace=0.12, hspace=0.2 if blocks == 1 else 0.45)
+    grid = figure.subplots(rows, columns, squeeze=False, sharex=True)
+    for index in range(len(panels), blocks * columns):  # the last block's empty places
+        for line in range(len(quantities)):
+            grid[(blocks - 1) * len(quantities) + line, index % columns].set_visible(False)
+    for position, (title, panel) in enumerate(panels):
+        block, column = divmod(position, columns)
+        top = block * len(quantities)
         members = pd.concat([panel, _truth_for(adaptive, panel)]).drop_duplicates("_index")
         for _, row in members.iterrows():
             values = shown[int(row["_index"])][1]
@@ -282,20 +343,22 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
                 y = np.array([np.nan if v is None else v for v in values[quantity]], dtype=float)
                 y[~(y > 0)] = np.nan  # a log axis has no place for the exact zero at t = 0
                 if np.isfinite(y).any():
-                    grid[line, column].plot(t, y, linestyle=linestyle(row["engine"]),
-                                            color="black" if is_truth else colour, linewidth=1.0)
-        grid[0, column].set_title(title, fontsize=9)
-        grid[-1, column].set_xlabel("t (s)", fontsize=8)
-    for line, quantity in enumerate(quantities):
-        grid[line, 0].set_ylabel(QUANTITIES[quantity], fontsize=8)
-        for axes in grid[line]:
-            if axes.has_data():
-                axes.set_yscale("log")
+                    grid[top + line, column].plot(t, y, linestyle=linestyle(row["engine"]),
+                                                  color="black" if is_truth else colour, linewidth=1.0)
+        grid[top, column].set_title(title, fontsize=TITLE_FONT_PT)
+        grid[top + len(quantities) - 1, column].set_xlabel("t (s)", fontsize=LABEL_FONT_PT)
+    for line, quantity in enumerate(quantities):  # one log y range per quantity, across the blocks
+        panels_of = [grid[block * len(quantities) + line] for block in range(blocks)]
+        drawn = [axes for row in panels_of for axes in row if axes.get_visible()]
+        for row in panels_of:
+            row[0].set_ylabel(QUANTITIES[quantity], fontsize=LABEL_FONT_PT)
+        for axes in drawn:
             axes.grid(True, alpha=0.3)
-            axes.tick_params(labelsize=7)
-    figure.legend(*_legend(frame), fontsize=7, frameon=False, loc="upper left",
-                  bbox_to_anchor=(1 - 2.2 / width, 1 - 0.6 / height))
+            axes.tick_params(labelsize=MIN_FONT_PT)
+        _share_y(drawn, [row[1:] for row in panels_of])
+    figure.legend(*_legend(frame), fontsize=MIN_FONT_PT, frameon=False, loc="upper left",
+                  bbox_to_anchor=(1 - (INVARIANT_LEGEND_IN - 0.1) / width, 1 - 0.65 / height))
     when = f"dt = {dt:g} s" if math.isfinite(dt) else "adaptive"
     figure.suptitle(f"{case}: invariants and attitude error against time ({when}; black: the adaptive truth)",
-                    fontsize=10)
-    return _png(figure)
+                    fontsize=SUPTITLE_FONT_PT)
+    return png(figure)

@@ -1,4 +1,5 @@
-"""report.html: report.md rendered as one self-contained page (inline CSS, figures embedded as base64 PNG).
+"""report.html: report.md rendered as one page (inline CSS; the figures linked from figures/, or embedded as base64
+PNG in a self-contained page).
 
 report.md is the single source, so every section anyone adds to it appears in the HTML too. The renderer knows the
 subset of Markdown the report uses (headings, pipe tables, bullet lists with indented continuation lines, paragraphs,
@@ -149,15 +150,26 @@ def _table(lines: list[str]) -> str:
     return "\n".join(out + ["</table>"])
 
 
-def _image(alt: str, source: str, images: dict[str, bytes], base: Path | None) -> str:
+def _image(alt: str, source: str, images: dict[str, bytes], base: Path | None, embed: bool = True) -> str:
+    """A figure: embedded as base64 (embed), or linked by its path relative to the page, at its own pixel size."""
     data = images.get(source)
     if data is None and base is not None and (base / source).is_file():
         data = (base / source).read_bytes()
     if data is None:
         return f"<p>(figure {html.escape(source)} not found)</p>"
-    encoded = base64.b64encode(data).decode("ascii")
-    return (f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{encoded}">'
+    size = _png_size(data)
+    dims = f' width="{size[0]}" height="{size[1]}"' if size else ""
+    src = f"data:image/png;base64,{base64.b64encode(data).decode('ascii')}" if embed else html.escape(source)
+    lazy = "" if embed else ' loading="lazy"'
+    return (f'<figure><img alt="{html.escape(alt)}" src="{src}"{dims}{lazy}>'
             f"<figcaption>{html.escape(alt)}</figcaption></figure>")
+
+
+def _png_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) px from a PNG's IHDR, None for anything else."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n" or len(data) < 24:
+        return None
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
 
 
 def _scale_legend() -> str:
@@ -167,9 +179,11 @@ def _scale_legend() -> str:
             f'linear-gradient(to right, {stops})"></span> from 1e{low:.0f} (green) to 1e{high:.0f} (red).</p>')
 
 
-def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | None = None) -> str:
+def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | None = None,
+           embed: bool = True) -> str:
     """The HTML page of a report.md. images: figure path as written in the Markdown -> PNG bytes; missing ones are
-    read from `base` (the report's folder)."""
+    read from `base` (the report's folder). embed: the figures inside the page (base64), else linked by their paths,
+    relative to the page's folder."""
     images = images or {}
     lines = markdown.splitlines()
     body: list[str] = []
@@ -234,7 +248,7 @@ def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | N
             continue
         elif image:
             flush()
-            body.append(_image(image.group(1), image.group(2), images, base))
+            body.append(_image(image.group(1), image.group(2), images, base, embed))
         elif line.startswith("- "):
             if paragraph:
                 flush()

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from ..scenes.cases import Case
 from ..precision import FLOAT64
@@ -39,6 +40,9 @@ from ..trajectory import Status
 
 STORE_DIR = "store"
 TRAJECTORIES_DIR = "trajectories"  # stereodyn run --save-trajectories: DIR/trajectories/<key>.npz
+TRAJECTORY_INDEX = "index.csv"     # DIR/trajectories/index.csv: each saved run's key columns -> its file
+TRAJECTORY_INDEX_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "status", "file")
+STATE_ARRAYS = ("times", "quat", "omega", "truth_quat", "truth_omega")
 MANIFEST = "runs.json"
 FORMAT = 1
 COMPLETE = "complete"  # runs.json: false while a sweep writes the folder, true once its command ended (mark_complete)
@@ -314,16 +318,27 @@ class Store:
 
     def put_states(self, key: str, row: dict, states: dict) -> None:
         """Write a run's recorded states atomically to DIR/trajectories/<key>.npz: arrays times (n,) s, quat (n, 4)
-        wxyz body -> world, omega (n, 3) rad/s body frame (NaN after a divergence), and the row's case, engine,
-        formulation, integrator (0-d strings) and dt (0-d float, NaN for an adaptive integrator)."""
+        wxyz body -> world, omega (n, 3) rad/s body frame (NaN after a divergence), truth_quat (n, 4) and truth_omega
+        (n, 3): the case's truth at the same times, and the row's case, engine, formulation, integrator (0-d strings)
+        and dt (0-d float, NaN for an adaptive integrator)."""
         buffer = io.BytesIO()
-        np.savez(buffer, times=np.asarray(states["times"], dtype=float), quat=np.asarray(states["quat"], dtype=float),
-                 omega=np.asarray(states["omega"], dtype=float),
+        arrays = {name: np.asarray(states[name], dtype=float) for name in STATE_ARRAYS if name in states}
+        np.savez(buffer, **arrays,
                  **{c: np.str_(row.get(c) or "") for c in ("case", "engine", "formulation", "integrator")},
                  dt=np.float64(row.get("dt", math.nan)))
         path = self.states_path(key)
         path.parent.mkdir(exist_ok=True)
         write_atomic(path, buffer.getvalue())
+
+    def write_trajectory_index(self, rows: list[tuple[dict, str]]) -> None:
+        """DIR/trajectories/index.csv: one line per saved run (rows: (its results row, its key)), its key columns
+        (case, engine, formulation, integrator, dt), status and file (relative to DIR), in results.csv's order."""
+        lines = [{**{c: row.get(c) for c in TRAJECTORY_INDEX_COLUMNS[:6]},
+                  "file": f"{TRAJECTORIES_DIR}/{key}.npz"} for row, key in rows
+                 if self.states_path(key).is_file()]
+        path = self.out_dir / TRAJECTORIES_DIR / TRAJECTORY_INDEX
+        path.parent.mkdir(exist_ok=True)
+        write_atomic(path, pd.DataFrame(lines, columns=list(TRAJECTORY_INDEX_COLUMNS)).to_csv(index=False))
 
     def write_manifest(self, keys: list[str], environment: dict, complete: bool = False) -> None:
         """DIR/runs.json: the store keys behind results.csv, the environment of the sweep, the code fingerprints in

@@ -84,8 +84,9 @@ def run_sweep(cases: list, engines: list[str], integrators: list[str] | None, ou
     redoing them. scheduler: a Dask scheduler address to run on (harness.run.distributed) instead of local processes.
     pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
     certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
-    save_trajectories: also write each run's recorded states to out_dir/trajectories/<key>.npz (Store.put_states);
-    with resume, a stored run without its file is redone.
+    save_trajectories: also write each run's recorded states, and the truth on its times, to
+    out_dir/trajectories/<key>.npz (Store.put_states) and their index, out_dir/trajectories/index.csv; with resume, a
+    stored run without its file is redone.
     agreement: a list the sweep appends the states of the runs the cross-engine agreement compares to (plan.
     agreement_candidates; harness.analysis.agreement's entries), kept in memory; a resumed run's come from
     out_dir/trajectories where it saved them, else it is left out.
@@ -134,6 +135,9 @@ def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions
             checks.write_checks([{**stored[keys[id(s)]], **_ranks(s)} for s in specs if keys[id(s)] in stored],
                                 out_dir / checks.CHECKS_FILE)
             store.write_manifest([keys[id(s)] for s in specs if keys[id(s)] in stored], environment)
+            if options.save_trajectories:
+                store.write_trajectory_index([(stored[keys[id(s)]], keys[id(s)]) for s in specs
+                                              if s.keep_states and keys[id(s)] in stored])
 
         def finished(spec: RunSpec, row: dict) -> None:
             key = keys[id(spec)]

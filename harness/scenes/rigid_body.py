@@ -116,8 +116,10 @@ class RigidBodyScene:
         applicable = truth.applicable if truth is not None else applicable_integrals(case)
         out.update(drifts(case, traj, applicable))
         if full:
-            if keep_states:
-                out["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega}
+            if keep_states:  # with the truth on the run's own times, so that each file is audited on its own
+                truth_quat, truth_omega = truth.on(grid)
+                out["_states"] = {"times": traj.times, "quat": traj.quat, "omega": traj.omega,
+                                  "truth_quat": truth_quat, "truth_omega": truth_omega}
             out.update(torque_metrics(case, traj))
             out["_series"] = invariant_series(case, traj, applicable, truth.on(grid)[0])
             out["oracle_err"] = oracle_err(case, traj, truth.times, truth.exact_quat)
