@@ -225,6 +225,10 @@ class SceneModel:
         """Whether a sweep that names no integrators runs the pair. Default: every pair."""
         return True
 
+    def precisions(self, integrator: str) -> tuple[str, ...]:
+        """The precisions this model runs an integrator in (a scene other than the rigid body: float64)."""
+        return (FLOAT64,)
+
     def torque_mode(self, case) -> str:
         """How external torques enter the model (results column torque_mode) when the trajectory does not say."""
         return "none"
@@ -258,6 +262,9 @@ class RigidBodyModel(SceneModel):
 
     def torque_mode(self, case) -> str:
         return self.engine.torque_mode(case)
+
+    def precisions(self, integrator: str) -> tuple[str, ...]:
+        return tuple(self.engine.precisions(integrator))
 
     def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
         return self.engine.export(case, fmt, integrator, dt)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from ..engines import get_engine
 from ..precision import FLOAT64
-from ..scenes.cases import SLIDING_LADDER
 from ..scenes import scene_of
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
 
@@ -42,9 +41,8 @@ def plan(cases: list, engines: list[str], integrators: list[str] | None) -> tupl
                 for formulation_rank, formulation in enumerate(variants):
                     if integrator and integrators is None and not model.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
-                    # a precision is the rigid body's (Engine.precisions); another scene's model runs in float64
-                    precisions = engine.precisions(integrator) if integrator and case.kind != SLIDING_LADDER \
-                        else (FLOAT64,)
+                    # the precisions the engine's model of this scene runs (SceneModel.precisions)
+                    precisions = model.precisions(integrator) if integrator else (FLOAT64,)
                     for dt in dts:
                         for precision_rank, precision in enumerate(precisions):
                             spec = RunSpec(case, name, integrator, dt, formulation, precision=precision,
@@ -61,7 +59,7 @@ def agreement_candidates(specs: list[RunSpec]) -> set[int]:
     integrator names a method (Engine.method) that another engine also runs on the same case and dt."""
     methods = {}
     for index, spec in enumerate(specs):
-        if spec.dt is not None and spec.case.kind != SLIDING_LADDER:
+        if spec.dt is not None and scene_of(spec.case).keeps_states:  # a scene whose states are (quat, omega)
             method = get_engine(spec.engine).method(spec.integrator)
             if method:
                 methods[index] = (spec.case.name, spec.dt, method)
