@@ -87,7 +87,7 @@ def test_special_integrals_only_on_their_cases(truth_sweep):
 def test_checks_rows_have_the_expected_quantities(truth_sweep):
     out, _, _, checks = truth_sweep
     assert tuple(read_checks(out / "checks.csv").columns) == (
-        "case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
+        "case", "engine", "formulation", "integrator", "precision", "dt", "quantity", "theory", "measured", "error")
     found = {case: set(group.quantity) for case, group in checks.groupby("case")}
     assert found == EXPECTED_CHECKS
     assert np.isfinite(checks[["theory", "measured", "error"]].to_numpy()).all()
