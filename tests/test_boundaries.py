@@ -15,7 +15,7 @@ import pytest
 from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli
 from stereodyn.harness.report.build import figure_stem
-from stereodyn.harness.store import Store, StoreBusy, folder_lock
+from stereodyn.harness.run.store import Store, StoreBusy, folder_lock
 
 # A small valid body: a free asymmetric top, 11 steps. Each hostile input below replaces one line of it.
 BASE = """name = "base"
@@ -150,8 +150,6 @@ def test_bad_options_exit_2_with_one_line(argv, expected, capsys, tmp_path):
 
 
 def test_jobs_are_capped_at_the_number_of_runs(tmp_path, monkeypatch):
-    from stereodyn.harness import runner
-
     seen = []
     original = run_pool.ProcessPoolExecutor
 

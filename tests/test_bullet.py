@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from stereodyn.harness import metrics
+from stereodyn.harness.scenes import metrics
 from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.engines import UnavailableEngine, get_engine
 from stereodyn.harness.analysis.fitting import order_slope

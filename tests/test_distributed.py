@@ -2,7 +2,8 @@
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, distributed as stereodyn_distributed
+from stereodyn.harness import cli
+from stereodyn.harness.run import distributed as stereodyn_distributed
 from stereodyn.harness.run.timing import DISTURBED
 
 dask_distributed = pytest.importorskip(

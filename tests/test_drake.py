@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from stereodyn.harness import metrics
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes import metrics
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
@@ -202,8 +202,8 @@ def test_every_integrator_runs_on_both_models_and_counts_its_work(drake):
 def test_the_default_sweep_has_drake_rows_on_every_case(drake):
     """The plan of a run naming no integrators: every rigid-body case runs rpy_ball, and quaternion_free exactly where
     O is the centre of mass (absent elsewhere, not skipped); the sliding ladder is one skipped row naming why."""
-    from stereodyn.harness.cases import load_suite
-    from stereodyn.harness.plan import plan
+    from stereodyn.harness.scenes.cases import load_suite
+    from stereodyn.harness.run.plan import plan
 
     suite = load_suite()
     specs, skipped = plan(suite, ["drake"], None)

@@ -13,7 +13,7 @@ import pytest
 
 from stereodyn.harness.scenes import metrics
 from stereodyn.harness.engines import UnavailableEngine, get_engine
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.trajectory import Status

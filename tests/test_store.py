@@ -14,8 +14,8 @@ import pytest
 
 from stereodyn.harness import cli
 from stereodyn.harness.run.timing import DISTURBED
-from stereodyn.harness.cases import find_case
-from stereodyn.harness.store import Store, StoreBusy, run_identity, run_key
+from stereodyn.harness.scenes.cases import find_case
+from stereodyn.harness.run.store import Store, StoreBusy, run_identity, run_key
 
 TIMINGS = ["wall_s", "us_per_step", "us_per_step_spread"]  # the noise of a timing is a timing too
 # Two cases, both simulators, 32 runs; the slowest take ~0.1 s, so a sweep on one process lasts a few seconds.

@@ -11,7 +11,7 @@ import pytest
 
 from stereodyn.harness import cli, environment
 from stereodyn.harness import integrators as registry
-from stereodyn.harness.store import Store, read_records
+from stereodyn.harness.run.store import Store, read_records
 
 SWEEP = ["free-asymmetric", "--engines", "pinocchio", "--t-end", "0.2", "--dt", "1e-2", "--jobs", "1", "--quiet"]
 

@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import cli
-from stereodyn.harness.cases import find_case
-from stereodyn.harness.store import read_manifest
+from stereodyn.harness.scenes.cases import find_case
+from stereodyn.harness.run.store import read_manifest
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 from stereodyn.reference.truth import ANGLE_ROUNDING, UNIT_ROUNDOFF, truth, truth_bound
 
