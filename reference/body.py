@@ -1,23 +1,25 @@
 """The physical parameters of a rigid body with a fixed point O."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass
 
 import numpy as np
 
-from stereodyn.reference.torque_models import BodyTorque, CentralField, PrecessionTorque
+from stereodyn.reference.torque_models import BodyTorque, CentralField, PrecessionTorque, TorqueModel, merged
 
 
 @dataclass(frozen=True, eq=False)
 class RigidBody:
-    """A rigid body pinned at O, possibly in uniform gravity.
+    """A rigid body pinned at O, possibly in uniform gravity and under external torques.
 
     inertia: (3, 3) kg m^2, about O, body frame (the seeds' sigma), symmetric positive definite.
     mass: kg.
     com: (3,) m, body frame, the vector O -> G.
     gravity: m/s^2, magnitude g (0 for a torque-free body).
     gravity_direction: (3,) world frame, unit; the world gravity vector is gravity * gravity_direction.
-    body_torque, central_field, precession_torque: the external torques of reference.torques (None: absent).
+    torques: the external torques beyond gravity, terms of reference.torque_models' registered models (at most one
+    per model), held in registry order. body_torque=, central_field=, precession_torque= (0.2.0's keywords, also
+    positional) add or replace the term of that model; the attributes of those names read it (None: absent).
     """
 
     inertia: np.ndarray
@@ -25,11 +27,12 @@ class RigidBody:
     com: np.ndarray
     gravity: float = 0.0
     gravity_direction: np.ndarray = None  # type: ignore[assignment]
-    body_torque: BodyTorque | None = None
-    central_field: CentralField | None = None
-    precession_torque: PrecessionTorque | None = None
+    body_torque: InitVar[BodyTorque | None] = None
+    central_field: InitVar[CentralField | None] = None
+    precession_torque: InitVar[PrecessionTorque | None] = None
+    torques: tuple[TorqueModel, ...] = ()
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, body_torque, central_field, precession_torque) -> None:
         direction = (0.0, 0.0, -1.0) if self.gravity_direction is None else self.gravity_direction
         for name, value, shape in (("inertia", self.inertia, (3, 3)), ("com", self.com, (3,)),
                                    ("gravity_direction", direction, (3,))):
@@ -38,6 +41,14 @@ class RigidBody:
                 raise ValueError(f"{name} must have shape {shape}, got {array.shape}")
             array.setflags(write=False)
             object.__setattr__(self, name, array)
+        object.__setattr__(self, "torques", merged(self.torques, body_torque, central_field, precession_torque))
+
+    def torque(self, model: type) -> TorqueModel | None:
+        """The body's term of a torque model (a class of reference.torque_models), or None."""
+        for term in self.torques:
+            if type(term) is model:
+                return term
+        return None
 
     @property
     def has_gravity(self) -> bool:
@@ -45,9 +56,8 @@ class RigidBody:
 
     @property
     def has_external_torque(self) -> bool:
-        """A torque other than uniform gravity acts (reference.torques)."""
-        return (self.body_torque is not None or self.central_field is not None
-                or self.precession_torque is not None)
+        """A torque other than uniform gravity acts (a term in torques)."""
+        return bool(self.torques)
 
     @property
     def weight_moment(self) -> np.ndarray:
@@ -59,3 +69,10 @@ class RigidBody:
         """(3, 3) kg m^2, inertia about the centre of mass, body axes (Huygens–Steiner)."""
         c = self.com
         return self.inertia - self.mass * (c @ c * np.eye(3) - np.outer(c, c))
+
+
+# 0.2.0's attributes, read from the terms (set after the dataclass is made: its __init__ keeps their keywords).
+RigidBody.body_torque = property(lambda self: self.torque(BodyTorque), doc="The BodyTorque term, or None.")
+RigidBody.central_field = property(lambda self: self.torque(CentralField), doc="The CentralField term, or None.")
+RigidBody.precession_torque = property(lambda self: self.torque(PrecessionTorque),
+                                       doc="The PrecessionTorque term, or None.")

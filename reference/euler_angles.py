@@ -200,7 +200,7 @@ def lagrange_equations() -> tuple[list, list, object]:
 
     p = ∂T/∂α̇, ∂T/∂α, ∂U/∂α and ṗ's explicit part are taken symbolically (hy.diff) from T = ½ ω'·σω' (C4) and U;
     the other torques' Q = Jᵀ M explicitly, M at H = Rᵀ D(t); the mass matrix is inverted in closed form,
-    M⁻¹ = J⁻¹ σ⁻¹ J⁻ᵀ. Parameters: reference.truth's layout (40).
+    M⁻¹ = J⁻¹ σ⁻¹ J⁻ᵀ. Parameters: reference.truth's layout.
     """
     variables = hy.make_vars("phi", "theta", "psi", "phid", "thetad", "psid")
     angles, rates = variables[:3], variables[3:]
@@ -212,9 +212,8 @@ def lagrange_equations() -> tuple[list, list, object]:
     rotation = _rotation_expr(*angles)
     potential = ex.dot(ex.vector(ex.DOWN), ex.matvec(rotation, ex.vector(ex.WEIGHT_MOMENT)))
     momentum = [hy.diff(kinetic, rates[k]) for k in range(3)]
-    field = truth.field_direction_expression()
-    h = [hy.sum([rotation[j][i] * field[j] for j in range(3)]) for i in range(3)]  # Rᵀ D(t)
-    torque = truth.body_torque_expressions(h, omega, ex.symmetric(ex.SIGMA))
+    torque = truth.body_torque_expressions(  # Rᵀ D for a vector D of the chart's reference frame
+        lambda d: [hy.sum([rotation[j][i] * d[j] for j in range(3)]) for i in range(3)], omega, ex.symmetric(ex.SIGMA))
     jacobian_t = [[st * sp, st * cp, ct], [cp, -sp, 0.0], [0.0, 0.0, 1.0]]  # Jᵀ (C4)
     external = ex.matvec(jacobian_t, torque)
     f = [hy.diff(kinetic, angles[k]) + hy.diff(potential, angles[k]) + external[k]

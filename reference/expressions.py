@@ -8,8 +8,8 @@ runtime parameters, so one compiled integrator per formulation serves every body
     12..14  w = m g (O -> G), body frame, N m (zero without gravity)
     15..17  n, the unit downward vertical in the current chart's reference frame
     18      the threshold of the chart's terminal event (re-chart criterion, or the singularity guard)
-    19..39  the external torques, reference.truth's layout (truth.TORQUE_OFFSET; truth.N_PARS in all), the central
-            field's directions in the chart's reference frame (Formulation.parameters)
+    19..    the torque models' blocks, reference.truth's layout (truth.TORQUE_OFFSET; truth.parameter_count() in
+            all), a term's world vectors in the chart's reference frame (Formulation.parameters)
 """
 from __future__ import annotations
 

@@ -35,7 +35,7 @@ from typing import ClassVar
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference import euler_angles, euler_poisson, gibbs, torques, truth
+from stereodyn.reference import euler_angles, euler_poisson, gibbs, torque_models, torques, truth
 from stereodyn.reference import expressions as ex
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.rotations import quat_mul, quat_normalize, quat_to_matrix
@@ -218,8 +218,8 @@ class Formulation(abc.ABC):
         return self.parameters(chart)
 
     def parameters(self, chart: Chart, chart_changes: bool = True) -> np.ndarray:
-        """The heyoka runtime parameters (reference.truth's layout, truth.N_PARS) for this body, chart and chart policy:
-        the body's and the event threshold (reference.expressions), then the torques with the central field's
+        """The heyoka runtime parameters (reference.truth's layout, truth.parameter_count()) for this body, chart and
+        chart policy: the body's and the event threshold (reference.expressions), then the torques with the field's
         directions in the chart's reference frame."""
         threshold = self.recentre_threshold if chart_changes else self.guard_threshold
         return np.concatenate([ex.parameters(self.body, chart.frame, threshold if self.charted else 0.0),
@@ -467,11 +467,16 @@ def get(name: str, body: RigidBody) -> Formulation:
 
 # --- compiled right-hand sides and Taylor integration ------------------------------------------------------------
 
-@functools.cache
 def compiled_rhs(name: str):
     """The right-hand side of formulation `name` compiled by heyoka (hy.cfunc, compact mode) from its equations():
-    called as f(y (size,), pars=(N_PARS,) Formulation.rhs_parameters(chart), time=t). Cached per process;
-    heyoka's compiled functions are stateless, so threads may share one."""
+    called as f(y (size,), pars=(truth.parameter_count(),) Formulation.rhs_parameters(chart), time=t). Cached per
+    process and set of registered torque models; heyoka's compiled functions are stateless, so threads may share
+    one."""
+    return _compiled_rhs(name, torque_models.models())
+
+
+@functools.cache
+def _compiled_rhs(name: str, registered: tuple):
     variables, rhs, _ = FORMULATIONS[name].equations()
     return hy.cfunc(rhs, variables, compact_mode=True)
 
@@ -480,11 +485,15 @@ def compiled_rhs(name: str):
 COMPILE_SECONDS: dict[str, float] = {}
 
 
-@functools.cache
 def taylor_integrator(name: str, tol: float | None = None) -> tuple[object, threading.Lock]:
     """The compiled heyoka integrator of a charted formulation (tolerance tol, None: truth.TRUTH_TOL; one terminal
-    event on the chart measure against parameter 18) and the lock that guards it. Compiled once per process and
-    tolerance, in compact mode."""
+    event on the chart measure against parameter 18) and the lock that guards it. Compiled once per process,
+    tolerance and set of registered torque models, in compact mode."""
+    return _taylor_integrator(name, tol, torque_models.models())
+
+
+@functools.cache
+def _taylor_integrator(name: str, tol: float | None, registered: tuple) -> tuple[object, threading.Lock]:
     cls = FORMULATIONS[name]
     if not cls.charted:
         raise ValueError(f"formulation {name!r} is integrated by reference.truth")
@@ -494,9 +503,16 @@ def taylor_integrator(name: str, tol: float | None = None) -> tuple[object, thre
     event = hy.t_event(measure - hy.par[ex.THRESHOLD], direction=direction)
     integrator = hy.taylor_adaptive(list(zip(variables, rhs)), np.array(cls.regular_state),
                                     tol=truth.TRUTH_TOL if tol is None else truth.check_tolerance(tol),
-                                    pars=np.zeros(truth.N_PARS), compact_mode=True, t_events=[event])
+                                    pars=np.zeros(truth.parameter_count()), compact_mode=True, t_events=[event])
     COMPILE_SECONDS[name if tol is None else f"{name} tol={tol:g}"] = time.perf_counter() - start
     return integrator, threading.Lock()
+
+
+# The compiled functions' caches, read through the public functions (as 0.2.0's functools.cache were).
+compiled_rhs.cache_info = _compiled_rhs.cache_info
+compiled_rhs.cache_clear = _compiled_rhs.cache_clear
+taylor_integrator.cache_info = _taylor_integrator.cache_info
+taylor_integrator.cache_clear = _taylor_integrator.cache_clear
 
 
 @dataclass(frozen=True, eq=False)

@@ -307,14 +307,16 @@ def _force_function_expr(q: list, weight_moment: list, down: list):
 
 
 def _external_force_expr(q: list, omega: list) -> list:
-    """Q = ρ M (16), M the torques of reference.torque_models (truth.body_torque_expressions) at ω (body) and
-    H = R(q)ᵀ D(t) = D - 2/(1 + q²) q × (D - q × D), D(t) the field direction in the chart's reference frame."""
+    """Q = ρ M (16), M the torques of reference.torque_models (truth.body_torque_expressions) at ω (body), a vector
+    D of the chart's reference frame seen in the body as R(q)ᵀ D = D - 2/(1 + q²) q × (D - q × D)."""
     one_plus = 1.0 + ex.dot(q, q)
-    d = truth.field_direction_expression()
-    q_cross_d = ex.cross(q, d)
-    turned = ex.cross(q, [d[i] - q_cross_d[i] for i in range(3)])
-    h = [d[i] - 2.0 * turned[i] / one_plus for i in range(3)]
-    torque = truth.body_torque_expressions(h, omega, ex.symmetric(ex.SIGMA))
+
+    def body_components(d):
+        q_cross_d = ex.cross(q, d)
+        turned = ex.cross(q, [d[i] - q_cross_d[i] for i in range(3)])
+        return [d[i] - 2.0 * turned[i] / one_plus for i in range(3)]
+
+    torque = truth.body_torque_expressions(body_components, omega, ex.symmetric(ex.SIGMA))
     q_cross_m = ex.cross(q, torque)
     return [2.0 * (torque[i] + q_cross_m[i]) / one_plus for i in range(3)]
 
@@ -324,7 +326,7 @@ def lagrangian_equations() -> tuple[list, list, object]:
 
     The Christoffel symbols and F = ∇U are taken symbolically (hy.diff) from a_hk and U, independently of the numpy
     closed forms above, so the two check each other; the other torques' generalized force is written explicitly
-    (_external_force_expr). Parameters: reference.truth's layout (40).
+    (_external_force_expr). Parameters: reference.truth's layout.
     """
     variables = hy.make_vars("q1", "q2", "q3", "qd1", "qd2", "qd3")
     q, qdot = variables[:3], variables[3:]
@@ -350,7 +352,7 @@ def hamiltonian_expression(q: list, p: list):
 
 def hamiltonian_equations() -> tuple[list, list, object]:
     """(18) for heyoka: variables (q1, q2, q3, p1, p2, p3), q̇ = ∂ℋ/∂p and ṗ = -∂ℋ/∂q + Q (ℋ by hy.diff, the other
-    torques' Q = ρ M explicitly), chart measure q·q. Parameters: reference.truth's layout (40)."""
+    torques' Q = ρ M explicitly), chart measure q·q. Parameters: reference.truth's layout."""
     variables = hy.make_vars("q1", "q2", "q3", "p1", "p2", "p3")
     q, p = variables[:3], variables[3:]
     energy = hamiltonian_expression(q, p)

@@ -328,8 +328,7 @@ def _self_excited_scale(body, quat0, omega0):
 def _momentum_under_torque(body: RigidBody) -> bool:
     """K along a central field's fixed direction is conserved: no orbit rate, no gravity, no other torque."""
     field = body.central_field
-    return (field is not None and field.orbit_rate == 0.0 and not body.has_gravity
-            and not torques.has_nonpotential_torque(body))
+    return field is not None and field.orbit_rate == 0.0 and not body.has_gravity and len(body.torques) == 1
 
 
 # The registry of drift columns, in table order. A new invariant is one entry here (DESIGN §7): the results table,

@@ -1,60 +1,46 @@
-"""External torques beyond uniform gravity (FORMULARY G12–G15), their energies and invariants, in numpy.
+"""External torques beyond uniform gravity (FORMULARY G12–G15): the sums over a body's terms (reference.torque_models,
+one module per model) in numpy, in the engines' per-stage float closure (torque_function), their energies, work and
+invariants.
 
-Three torque models, each optional on a RigidBody (reference.body):
-
-* BodyTorque: M = (a + b |ω|²) u, u fixed in the body (002 eq. 30, the self-excited body).
-* CentralField: the gravity-gradient torque of a Newtonian centre, M = (3μ/r³) H × σH (G15, O the centre of mass),
-  H the body components of the unit vector centre -> O; in the world that vector is D0 fixed, or D0 turned about
-  world z by orbit_rate t.
-* PrecessionTorque: Grioli's torque (41) with u = i3 and θ, l, M3 constant, σ diagonal (G14): every initial state
-  precesses about the space-fixed axis e (40). Singular at ω ∥ u.
+The built-in models: BodyTorque (G12), CentralField (G15), PrecessionTorque (G14; see their modules).
 
 Conserved quantities and balances (the report's definitions):
-* fixed field direction: E = ½ σω·ω − α k·H_g + (3μ/2r³) H·σH (MacCullagh potential);
-* turning field direction (rate Ω about z): the Jacobi integral J = E − Ω K_z, K_z = ẑ·Rσω, conserved because the
-  scene is stationary in the frame turning with the orbit (derivation: with ω_rel = ω − Ω z_b, z_b = Rᵀẑ, the
-  Lagrangian ½(ω_rel + Ω z_b)·σ(ω_rel + Ω z_b) − V(H) does not depend on time, and its Jacobi function
-  ∂L/∂ω_rel·ω_rel − L = ½σω·ω − Ω z_b·σω + V);
+* potential terms (a fixed field direction): E = ½ σω·ω − α k·H_g + Σ V (for the field MacCullagh's potential
+  (3μ/2r³) H·σH);
+* a term whose scene is stationary in a frame turning at rate Ω about world z (the turning field direction): the
+  Jacobi integral J = E − Ω K_z, K_z = ẑ·Rσω, conserved because the scene is stationary in the frame turning with the
+  orbit (derivation: with ω_rel = ω − Ω z_b, z_b = Rᵀẑ, the Lagrangian ½(ω_rel + Ω z_b)·σ(ω_rel + Ω z_b) − V(H) does
+  not depend on time, and its Jacobi function ∂L/∂ω_rel·ω_rel − L = ½σω·ω − Ω z_b·σω + V);
 * any non-potential torque M_np (body torque, torque (41)): J(t) − J(0) − ∫ M_np·(ω − Ω z_b) dt = 0 (with Ω = 0 the
   work–energy balance E(t) − E(0) − ∫ M·ω dt).
 """
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.rotations import quat_to_matrix
-# The torques' parameters and formulas (defined once there; re-exported here, where 0.1 code imports them from).
-from stereodyn.reference.torque_models import (BodyTorque, CentralField, PrecessionTorque,  # noqa: F401
+# The torques' parameters and formulas (defined once in reference.torque_models; re-exported here, where 0.1 code
+# imports them from).
+from stereodyn.reference.torque_models import (At, BodyTorque, CentralField, PrecessionTorque,  # noqa: F401
                                                body_torque_components, gravity_gradient_components,
                                                precession_components)
+from stereodyn.reference.torque_models.central_field import (field_direction_body,  # noqa: F401
+                                                             field_direction_world)
+from stereodyn.reference.torque_models.precession import (PRECESSION_SINGULAR_ANGLE, precession_axis,  # noqa: F401
+                                                          transverse_angle)
 
 # Degree of the spline through the samples of M·ω whose antiderivative is the work: error O(h^8) on smooth samples,
 # far below the 1e-12 the truth's balance is judged against for the suite's sample spacings (h |ω| <= 0.05).
 WORK_SPLINE_DEGREE = 7
 # Relative tolerance of "u is a principal axis" and "σ is diagonal": case numbers are exact or far off.
 PRINCIPAL_RTOL = 1e-12
-# Torque (41) is singular at ω ∥ u; within this angle (rad) of it a run is skipped and the axis drift not measured:
-# at 0.05 rad the 1/|ω × u| of (40) amplifies an ω error twentyfold, and the sqrt's derivatives grow as 1/angle.
-PRECESSION_SINGULAR_ANGLE = 0.05
 
 
 # --- evaluation ---------------------------------------------------------------------------------------------------
-
-def field_direction_world(field: CentralField, t) -> np.ndarray:
-    """(..., 3) world unit vector centre -> O at times t (...,) s."""
-    t = np.asarray(t, dtype=float)
-    d = np.asarray(field.direction, dtype=float)
-    c, s = np.cos(field.orbit_rate * t), np.sin(field.orbit_rate * t)
-    return np.stack([c * d[0] - s * d[1], s * d[0] + c * d[1], np.broadcast_to(d[2], t.shape)], axis=-1)
-
-
-def field_direction_body(field: CentralField, t, quat: np.ndarray) -> np.ndarray:
-    """H = Rᵀ D(t): (..., 3) body frame."""
-    return np.einsum("...ji,...j->...i", quat_to_matrix(quat), field_direction_world(field, t))
-
 
 def _components(omega) -> np.ndarray:
     """(..., 3) -> the three (...) component arrays."""
@@ -82,25 +68,49 @@ def precession_torque(torque: PrecessionTorque, sigma: np.ndarray, omega: np.nda
     return np.stack([m1, m2, np.broadcast_to(m3, m1.shape)], axis=-1)
 
 
-def nonpotential_torque(body: RigidBody, omega: np.ndarray) -> np.ndarray:
-    """The torques without a potential (body torque + torque (41)): (..., 3) N m, body frame."""
+def _numpy_at(body: RigidBody, t, quat, omega: np.ndarray) -> At:
+    """The point for numpy arrays: omega (..., 3), quat (..., 4) (None: only terms that ignore the attitude may use
+    it), t s broadcast to the samples."""
+    components = _components(omega)
+
+    def body_components(vector):
+        rotation = quat_to_matrix(quat)
+        shape = np.broadcast_shapes(rotation.shape[:-2], np.shape(t), *(np.shape(v) for v in vector))
+        world = np.stack([np.broadcast_to(v, shape) for v in vector], axis=-1)
+        return _components(np.einsum("...ji,...j->...i", rotation, world))
+
+    return At(t=t, omega=components, sigma=np.asarray(body.inertia, dtype=float).tolist(), body=body_components,
+              sqrt=np.sqrt, cos=np.cos, sin=np.sin)
+
+
+def _term_torque(term, at: At, shape: tuple) -> np.ndarray:
+    """One term's torque (shape) N m, body frame, at the numpy point at."""
+    return np.stack([np.broadcast_to(m, shape[:-1]) for m in term.components(term.parameters(), at)], axis=-1)
+
+
+def nonpotential_torque(body: RigidBody, omega: np.ndarray, quat: np.ndarray | None = None, t=0.0) -> np.ndarray:
+    """The torques without a potential (TorqueModel.potential False: body torque, torque (41), ...): (..., 3) N m,
+    body frame, at omega (..., 3) rad/s body (and quat (..., 4), t s for a term that depends on them)."""
     omega = np.asarray(omega, dtype=float)
-    total = np.zeros(omega.shape)
-    if body.body_torque is not None:
-        total = total + body_torque(body.body_torque, omega)
-    if body.precession_torque is not None:
-        total = total + precession_torque(body.precession_torque, body.inertia, omega)
+    shape = omega.shape if quat is None else np.broadcast_shapes(omega.shape, np.shape(quat)[:-1] + (3,))
+    total = np.zeros(shape)
+    at = _numpy_at(body, t, quat, omega)
+    for term in body.torques:
+        if not term.potential:
+            total = total + _term_torque(term, at, shape)
     return total
 
 
 def external_torque(body: RigidBody, quat: np.ndarray, omega: np.ndarray, t=0.0) -> np.ndarray:
-    """Every torque of this module at (t s, quat (..., 4), omega (..., 3)): (..., 3) N m, body frame (not gravity)."""
+    """Every torque of the body's terms at (t s, quat (..., 4), omega (..., 3)): (..., 3) N m, body frame (not
+    gravity)."""
     omega = np.asarray(omega, dtype=float)
     shape = np.broadcast_shapes(omega.shape, np.shape(quat)[:-1] + (3,))
-    total = np.broadcast_to(nonpotential_torque(body, omega), shape)
-    if body.central_field is not None:
-        h = field_direction_body(body.central_field, np.broadcast_to(np.asarray(t, dtype=float), shape[:-1]), quat)
-        total = total + gravity_gradient(body.central_field, body.inertia, h)
+    total = np.broadcast_to(nonpotential_torque(body, omega, quat, t), shape)
+    at = _numpy_at(body, np.broadcast_to(np.asarray(t, dtype=float), shape[:-1]), quat, omega)
+    for term in body.torques:
+        if term.potential:
+            total = total + _term_torque(term, at, shape)
     return np.array(total)
 
 
@@ -117,24 +127,24 @@ def point_mass_torque(mu: float, radius: float, h: np.ndarray, masses: np.ndarra
 def field_potential(body: RigidBody, times: np.ndarray, quat: np.ndarray) -> np.ndarray:
     """MacCullagh's potential (3μ/2r³) H·σH (n,) J; zero without a central field."""
     field = body.central_field
-    if field is None:
-        return np.zeros(np.shape(times))
-    h = field_direction_body(field, times, quat)
-    return 0.5 * field.coefficient * np.einsum("...i,ij,...j->...", h, body.inertia, h)
+    return np.zeros(np.shape(times)) if field is None else field.potential_energy(body, times, quat)
 
 
 def _orbit_rate(body: RigidBody) -> float:
-    return 0.0 if body.central_field is None else float(body.central_field.orbit_rate)
+    """Ω of the frame in which the scene is stationary (a term's frame_rate; 0 for none)."""
+    return next((term.frame_rate for term in body.torques if term.frame_rate != 0.0), 0.0)
 
 
 def energy_terms(body: RigidBody, times: np.ndarray, quat: np.ndarray, omega: np.ndarray) -> dict[str, np.ndarray]:
-    """The terms of the Jacobi function J = T + V_gravity + V_field − Ω K_z (E for Ω = 0), each (n,) J."""
+    """The terms of the Jacobi function J = T + V_gravity + Σ V_term − Ω K_z (E for Ω = 0), each (n,) J: kinetic,
+    gravity, each potential term's energy_name ("field"), orbit."""
     quat, omega = np.asarray(quat, dtype=float), np.asarray(omega, dtype=float)
     rotation = quat_to_matrix(quat)
     momentum = omega @ body.inertia
     terms = {"kinetic": 0.5 * np.einsum("...i,...i->...", omega, momentum),
              "gravity": -np.einsum("...ji,j,i->...", rotation, body.gravity_direction, body.weight_moment),
-             "field": field_potential(body, times, quat)}
+             **{term.energy_name: term.potential_energy(body, times, quat) for term in body.torques
+                if term.potential}}
     rate = _orbit_rate(body)
     if rate != 0.0:
         terms["orbit"] = -rate * np.einsum("...j,...j->...", rotation[..., 2, :], momentum)
@@ -150,7 +160,7 @@ def work(body: RigidBody, times: np.ndarray, quat: np.ndarray, omega: np.ndarray
     rate = _orbit_rate(body)
     if rate != 0.0:
         relative = relative - rate * quat_to_matrix(quat)[..., 2, :]
-    power = np.einsum("...i,...i->...", nonpotential_torque(body, omega), relative)
+    power = np.einsum("...i,...i->...", nonpotential_torque(body, omega, quat, times), relative)
     if not np.any(power):
         return np.zeros_like(times)
     degree = min(WORK_SPLINE_DEGREE, len(times) - 1)
@@ -161,7 +171,7 @@ def work(body: RigidBody, times: np.ndarray, quat: np.ndarray, omega: np.ndarray
 
 
 def has_nonpotential_torque(body: RigidBody) -> bool:
-    return body.body_torque is not None or body.precession_torque is not None
+    return any(not term.potential for term in body.torques)
 
 
 def energy_balance(body: RigidBody, times: np.ndarray, quat: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray,
@@ -194,8 +204,7 @@ def principal_frame_for(sigma: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray
 
 def self_excited_applies(body: RigidBody) -> bool:
     """(36) holds: the only torque is a body torque along a principal axis i3 with A3 ≠ A1, A2 (G12)."""
-    if body.body_torque is None or body.central_field is not None or body.precession_torque is not None \
-            or body.has_gravity:
+    if body.body_torque is None or len(body.torques) != 1 or body.has_gravity:
         return False
     found = principal_frame_for(body.inertia, np.asarray(body.body_torque.axis))
     if found is None:
@@ -216,64 +225,43 @@ def self_excited_value(body: RigidBody, omega: np.ndarray) -> np.ndarray:
     return first - second
 
 
-def precession_axis(body: RigidBody, quat: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """(40) e = sin θ (ω − (ω·u)u)/|ω × u| + cos θ u in world components, u = i3: (..., 3)."""
-    theta = body.precession_torque.theta
-    omega = np.asarray(omega, dtype=float)
-    transverse = omega * np.array([1.0, 1.0, 0.0])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        e = np.sin(theta) * transverse / np.linalg.norm(transverse, axis=-1, keepdims=True)
-    e = e + np.cos(theta) * np.array([0.0, 0.0, 1.0])
-    return np.einsum("...ij,...j->...i", quat_to_matrix(quat), e)
-
-
-def transverse_angle(omega: np.ndarray) -> np.ndarray:
-    """The angle (rad) between ω and u = i3, folded to [0, π/2]: 0 at the singularity of (41)."""
-    omega = np.asarray(omega, dtype=float)
-    return np.arctan2(np.linalg.norm(omega[..., :2], axis=-1), np.abs(omega[..., 2]))
+def _body_components(quat, vector) -> tuple:
+    """Rᵀ v for floats, R from the normalised quaternion (w, x, y, z) (engines' quaternions drift off unit length by
+    round-off)."""
+    w, x, y, z = quat
+    inv = 1.0 / (w * w + x * x + y * y + z * z)
+    r00, r01, r02 = 1 - 2 * (y * y + z * z) * inv, 2 * (x * y - w * z) * inv, 2 * (x * z + w * y) * inv
+    r10, r11, r12 = 2 * (x * y + w * z) * inv, 1 - 2 * (x * x + z * z) * inv, 2 * (y * z - w * x) * inv
+    r20, r21, r22 = 2 * (x * z - w * y) * inv, 2 * (y * z + w * x) * inv, 1 - 2 * (x * x + y * y) * inv
+    dx, dy, dz = vector
+    return (r00 * dx + r10 * dy + r20 * dz, r01 * dx + r11 * dy + r21 * dz, r02 * dx + r12 * dy + r22 * dz)
 
 
 def torque_function(body: RigidBody):
     """f(t s, quat (w, x, y, z) floats, omega (3 floats, rad/s body)) -> (3 floats) N m body frame: every torque of
-    this module, in scalar arithmetic (an engine calls it at every stage of every step; numpy's per-call cost on
+    the body's terms, in scalar arithmetic (an engine calls it at every stage of every step; numpy's per-call cost on
     3-vectors would be ten times the arithmetic). None for a body without them."""
     if not body.has_external_torque:
         return None
     sigma = np.asarray(body.inertia, dtype=float).tolist()
-    torque, field, precession = body.body_torque, body.central_field, body.precession_torque
-    u = tuple(torque.axis) if torque else (0.0, 0.0, 0.0)
-    a, b = (torque.a, torque.b) if torque else (0.0, 0.0)
-    k = field.coefficient if field else 0.0
-    d0 = tuple(field.direction) if field else (0.0, 0.0, 0.0)
-    rate = field.orbit_rate if field else 0.0
-    if precession:
-        a1, a2, a3 = sigma[0][0], sigma[1][1], sigma[2][2]
-        cot, ell, m3 = 1.0 / math.tan(precession.theta), precession.l, precession.m3
+    # Python floats: numpy scalars in the blocks would cost ~10x per operation
+    terms = [(term.components, tuple(map(float, term.parameters()))) for term in body.torques]
     cos, sin, sqrt = math.cos, math.sin, math.sqrt
-    # The formulas of torque_models on floats: a few function calls a stage, against ~5 µs for pin.aba's stage.
+    # The formulas of torque_models on floats: a few function calls a stage (~1-4 µs on the 2-core dev machine),
+    # against ~5 µs for pin.aba's stage.
+    if len(terms) == 1:
+        (components, parameters), = terms
+        return lambda t, quat, omega: components(parameters, At(t, omega, sigma, lambda v: _body_components(quat, v),
+                                                                sqrt, cos, sin))
 
     def evaluate(t, quat, omega):
-        m = body_torque_components(u, a, b, omega)
-        if field is not None:
-            c, n = cos(rate * t), sin(rate * t)
-            dx, dy, dz = c * d0[0] - n * d0[1], n * d0[0] + c * d0[1], d0[2]
-            w, x, y, z = quat
-            inv = 1.0 / (w * w + x * x + y * y + z * z)  # engines' quaternions drift off unit length by round-off
-            # H = Rᵀ D with R from the normalised quaternion
-            r00, r01, r02 = 1 - 2 * (y * y + z * z) * inv, 2 * (x * y - w * z) * inv, 2 * (x * z + w * y) * inv
-            r10, r11, r12 = 2 * (x * y + w * z) * inv, 1 - 2 * (x * x + z * z) * inv, 2 * (y * z - w * x) * inv
-            r20, r21, r22 = 2 * (x * z - w * y) * inv, 2 * (y * z + w * x) * inv, 1 - 2 * (x * x + y * y) * inv
-            h = (r00 * dx + r10 * dy + r20 * dz, r01 * dx + r11 * dy + r21 * dz, r02 * dx + r12 * dy + r22 * dz)
-            g0, g1, g2 = gravity_gradient_components(k, sigma, h)
-            m[0] += g0
-            m[1] += g1
-            m[2] += g2
-        if precession is not None:
-            p1, p2 = omega[0], omega[1]
-            q0, q1, q2 = precession_components(a1, a2, a3, cot, ell, m3, omega, sqrt(p1 * p1 + p2 * p2))
-            m[0] += q0
-            m[1] += q1
-            m[2] += q2
+        at = At(t, omega, sigma, lambda v: _body_components(quat, v), sqrt, cos, sin)
+        m = [0.0, 0.0, 0.0]
+        for components, parameters in terms:
+            m0, m1, m2 = components(parameters, at)
+            m[0] += m0
+            m[1] += m1
+            m[2] += m2
         return m
 
     return evaluate

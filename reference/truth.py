@@ -3,8 +3,9 @@
 State (w, x, y, z, ω1, ω2, ω3): scalar-first quaternion, angular velocity in body components (DESIGN §2).
 Runtime parameters: inertia about O (6: σ11, σ22, σ33, σ12, σ13, σ23), its inverse (same layout), m g c (3, body
 frame) and the world downward direction d (3); index 18 is unused (the charted formulations' event threshold), then
-the torques of reference.torques (TORQUE_PARAMETERS), so one compiled integrator per precision serves every body and
-every scene. It is compiled on first use and cached in the module; each call resets its time, state and parameters.
+the parameter blocks of every registered torque model (reference.torque_models, in registry order: torque_parameters),
+so one compiled integrator per precision serves every body and every scene. It is compiled on first use and cached
+in the module (per set of registered models); each call resets its time, state and parameters.
 
 The attitude matrix inside the right-hand side is the homogeneous quadratic form of q (no division by |q|²): the
 kinematics q̇ = ½ q ⊗ (0, ω) conserve |q| exactly, so this is R(q) to the integrator's tolerance and keeps the
@@ -25,8 +26,7 @@ import numpy as np
 
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
-from stereodyn.reference.torque_models import (body_torque_components, gravity_gradient_components,
-                                               precession_components)
+from stereodyn.reference.torque_models import At, models
 
 TRUTH_TOL = 1e-16       # double precision; the issue requires <= 1e-15
 TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)
@@ -59,14 +59,22 @@ _FP_TYPE = {"double": float, "quad": hy.real128}
 _TOLERANCE = {"double": TRUTH_TOL, "quad": TRUTH_TOL_QUAD}
 # Upper-triangle index pairs of a symmetric 3x3 matrix, in the parameter layout above.
 _SYMMETRIC_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-# The torque parameters (reference.torques), after the 18 of the body and gravity and the unused index 18:
-#   19..21 u, 22 a, 23 b                          body torque (a + b |ω|²) u
-#   24 3μ/r³, 25..27 Da, 28..30 Db, 31..33 Dc, 34 Ω   central field; D(t) = cos Ωt Da + sin Ωt Db + Dc in the frame
-#                                                   of the coordinates (Da = (D0x, D0y, 0), Db = ẑ × Da, Dc = (0, 0, D0z))
-#   35 cot θ, 36 l, 37 M3, 38 on (1/0), 39 ε       torque (41); ρ = √(p1² + p2² + ε): ε = 1 when the torque is off, so
-#                                                   the Taylor series of √ never meets 0 on a motion with ω ∥ i3
+# The torque models' parameter blocks follow the 18 of the body and gravity and the unused index 18; each model
+# declares its block (TorqueModel.parameters, absent): for the built-ins 19..23 the body torque, 24..34 the central
+# field, 35..39 torque (41).
 TORQUE_OFFSET = 19
-N_PARS = 40  # every formulation's heyoka systems take this layout (reference.formulations)
+
+
+def parameter_count() -> int:
+    """The runtime parameters of every formulation's heyoka systems (reference.formulations): TORQUE_OFFSET and the
+    registered models' blocks."""
+    return TORQUE_OFFSET + sum(model.parameter_count for model in models())
+
+
+def __getattr__(name: str):
+    if name == "N_PARS":  # 0.2.0's constant: now the registry's (a registered model adds its block)
+        return parameter_count()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,57 +146,34 @@ def _body_components(w, v, vector) -> list:
     return [scalar * vector[i] + 2.0 * v_dot_x * v[i] - 2.0 * w * v_cross_x[i] for i in range(3)]
 
 
-def field_direction_expression() -> list:
-    """D(t), the unit vector centre -> O in the coordinates' frame, as heyoka expressions of the parameters
-    TORQUE_OFFSET + 6.. and heyoka's time (layout above)."""
-    par, o = hy.par, TORQUE_OFFSET
-    phase = par[o + 15] * hy.time
-    cos_phase, sin_phase = hy.cos(phase), hy.sin(phase)
-    return [cos_phase * par[o + 6 + i] + sin_phase * par[o + 9 + i] + par[o + 12 + i] for i in range(3)]
-
-
-def body_torque_expressions(h, omega, sigma) -> list:
-    """The torques of reference.torque_models (body frame) as heyoka expressions, given H (the body components of
-    field_direction_expression()), ω and σ (body frame): the same formulas the engines and the numpy forms evaluate.
-    Every formulation's equations take them from here (reference.gibbs, reference.euler_angles)."""
-    par = hy.par
-    o = TORQUE_OFFSET
-    axis = [par[o], par[o + 1], par[o + 2]]
-    body = body_torque_components(axis, par[o + 3], par[o + 4], omega)
-    gradient = gravity_gradient_components(par[o + 5], sigma, h)
-    p1, p2, _ = omega
-    cot, ell, m3, on, eps = (par[o + 16 + i] for i in range(5))
-    rho = hy.sqrt(p1 * p1 + p2 * p2 + eps)
-    precession = precession_components(sigma[0][0], sigma[1][1], sigma[2][2], cot, ell, m3, omega, rho)
-    return [body[i] + gradient[i] + on * precession[i] for i in range(3)]
+def body_torque_expressions(body_components, omega, sigma) -> list:
+    """The sum of every registered torque model's formula (reference.torque_models, body frame) as heyoka
+    expressions of its parameter block: body_components(v) gives Rᵀ v for a vector v in the coordinates' frame, ω
+    and σ the body's. A body without a model has that model's absent() block, whose torque vanishes. Every
+    formulation's equations take them from here (reference.gibbs, reference.euler_angles)."""
+    at = At(hy.time, omega, sigma, body_components, hy.sqrt, hy.cos, hy.sin)
+    offset, total = TORQUE_OFFSET, None
+    for model in models():
+        block = [hy.par[offset + i] for i in range(model.parameter_count)]
+        offset += model.parameter_count
+        components = model.components(block, at)
+        total = components if total is None else [total[i] + components[i] for i in range(3)]
+    return total if total is not None else [hy.expression(0.0)] * 3
 
 
 def torque_expressions(w, v, omega, sigma) -> list:
-    """body_torque_expressions() with H = Rᵀ D(t) from the quaternion (w, v) (homogeneous in q)."""
-    return body_torque_expressions(_body_components(w, v, field_direction_expression()), omega, sigma)
+    """body_torque_expressions() with Rᵀ from the quaternion (w, v) (homogeneous in q)."""
+    return body_torque_expressions(lambda vector: _body_components(w, v, vector), omega, sigma)
 
 
 def torque_parameters(body: RigidBody, frame_matrix: np.ndarray | None = None) -> np.ndarray:
-    """The 21 torque parameters (layout above, float64); frame_matrix (3, 3): the coordinates' frame in the world
-    (identity for the quaternion formulation)."""
-    out = np.zeros(N_PARS - TORQUE_OFFSET)
-    out[20] = 1.0  # ε: the torque (41) is off
-    if body.body_torque is not None:
-        out[0:3] = body.body_torque.axis
-        out[3], out[4] = body.body_torque.a, body.body_torque.b
-    if body.central_field is not None:
-        field = body.central_field
-        d = np.asarray(field.direction, dtype=float)
-        basis = np.eye(3) if frame_matrix is None else np.asarray(frame_matrix, dtype=float)
-        out[5] = field.coefficient
-        out[6:9] = basis.T @ np.array([d[0], d[1], 0.0])
-        out[9:12] = basis.T @ np.array([-d[1], d[0], 0.0])
-        out[12:15] = basis.T @ np.array([0.0, 0.0, d[2]])
-        out[15] = field.orbit_rate
-    if body.precession_torque is not None:
-        torque = body.precession_torque
-        out[16:21] = (1.0 / np.tan(torque.theta), torque.l, torque.m3, 1.0, 0.0)
-    return out
+    """The torque parameters (float64): every registered model's block, the body's term's or absent(), in registry
+    order; frame_matrix (3, 3): the coordinates' frame in the world (identity for the quaternion formulation)."""
+    blocks = []
+    for model in models():
+        term = body.torque(model)
+        blocks.append(model.absent() if term is None else term.parameters(frame_matrix))
+    return np.array([value for block in blocks for value in block], dtype=float)
 
 
 # Seconds spent building each integrator in this process: ~0.17 s (double) and ~0.19 s (quad) cold, ~0.015 s when
@@ -196,15 +181,20 @@ def torque_parameters(body: RigidBody, frame_matrix: np.ndarray | None = None) -
 COMPILE_SECONDS: dict[str, float] = {}
 
 
-@functools.cache
 def taylor_integrator(precision: str = "double", tol: float | None = None) -> tuple[object, threading.Lock]:
     """The compiled heyoka integrator for a precision ("double" or "quad") and a tolerance (None: the truth's,
     TRUTH_TOL or TRUTH_TOL_QUAD), and the lock that guards it.
 
-    Compiled once per process and tolerance (heyoka picks the Taylor order from it; compact mode: one small function
-    per operation kind, so compilation is fast and independent of the body); the compile time is recorded in
-    COMPILE_SECONDS[precision] (COMPILE_SECONDS[f"{precision} tol={tol:g}"] for another tolerance).
+    Compiled once per process, tolerance and set of registered torque models (heyoka picks the Taylor order from
+    the tolerance; compact mode: one small function per operation kind, so compilation is fast and independent of
+    the body); the compile time is recorded in COMPILE_SECONDS[precision] (COMPILE_SECONDS[f"{precision}
+    tol={tol:g}"] for another tolerance).
     """
+    return _taylor_integrator(precision, tol, models())
+
+
+@functools.cache
+def _taylor_integrator(precision: str, tol: float | None, registered: tuple) -> tuple[object, threading.Lock]:
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
     fp_type = _FP_TYPE[precision]
@@ -213,12 +203,17 @@ def taylor_integrator(precision: str = "double", tol: float | None = None) -> tu
         equations(),
         np.array([1.0, 0, 0, 0, 0, 0, 0]).astype(fp_type),
         tol=fp_type(_TOLERANCE[precision] if tol is None else check_tolerance(tol)),
-        pars=np.zeros(N_PARS).astype(fp_type),
+        pars=np.zeros(parameter_count()).astype(fp_type),
         compact_mode=True,
         fp_type=fp_type,
     )
     COMPILE_SECONDS[precision if tol is None else f"{precision} tol={tol:g}"] = time.perf_counter() - start
     return integrator, threading.Lock()
+
+
+# The compiled integrators' cache, read through the public function (as 0.2.0's functools.cache was).
+taylor_integrator.cache_info = _taylor_integrator.cache_info
+taylor_integrator.cache_clear = _taylor_integrator.cache_clear
 
 
 def check_tolerance(tol: float) -> float:

@@ -124,6 +124,16 @@ def test_markdown_subset_rendering():
     assert "<td class=\"t\">a | b</td>" in page and "<li>one more</li><li>two</li>" in page
 
 
+def test_bold_renders_bold_in_cells_and_text_but_not_in_code():
+    """What to use's cells say '**tie** with N', the verdicts' '**FAIL**': bold in the page, not asterisks (a1)."""
+    page = render("# T\n\n## A\n\n| 1e-06 | verdict |\n|---|---|\n| mujoco rk4 dt=0.01 **tie** with 2 | **FAIL** |\n\n"
+                  "a **bold** word, `x**2**y` and 2 ** 3\n")
+    assert "<td class=\"t\">mujoco rk4 dt=0.01 <strong>tie</strong> with 2</td>" in page
+    assert "<td class=\"t\"><strong>FAIL</strong></td>" in page
+    assert "a <strong>bold</strong> word, <code>x**2**y</code> and 2 ** 3" in page
+    assert "**" not in page.replace("<code>x**2**y</code>", "").replace("2 ** 3", "")
+
+
 @pytest.mark.skipif(not (shutil.which("chromium") or shutil.which("chromium-browser")),
                     reason="no Chromium to render the page headless (apt-get install chromium)")
 def test_chromium_renders_the_page(reported, tmp_path):

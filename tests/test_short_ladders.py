@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import dt_ladders
+from stereodyn.harness.analysis import dt_ladders
 from stereodyn.harness.analysis import fitting, workprecision
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.analysis.dt_ladders import Family, run_short_ladder
 from stereodyn.harness.analysis.fitting import fit
 
@@ -176,6 +176,78 @@ def test_a_walk_that_would_go_on_stops_at_six_points(monkeypatch):
     new, row = run_short_ladder(Family(case, "mujoco", "", "rk4"), _known(case, far_above), 10_000_000)
     assert tried == pytest.approx([5e-3 / 2 ** k for k in range(1, 7)], rel=1e-3)  # six halvings (4 digits each)
     assert len(new) == 6 and "short ladder stopped at 6 points" in row["note"], row["note"]
+
+
+def test_finer_points_that_did_not_run_do_not_block_exactness(monkeypatch):
+    """Issue 21: strang_free_flow on a 500 s case is at round-off at dt = 0.5 while its dt 0.02 and 0.01 runs hit the
+    run budget (1.3 ms a step). A run that did not finish has no error: the walk to t_end / 20 decides, and the note
+    says what rests on what."""
+    case = with_overrides(find_case("sleeping-top-stable"), t_end=T_END, dt=[0.01, 0.005, 0.0025])
+    tried = _fake(monkeypatch, _round_off)
+    known = _known(case, _round_off)
+    for point in known[1:]:  # the finer two: out of budget
+        point.update(status="failed", state_err=math.nan)
+    new, row = run_short_ladder(Family(case, "mujoco", "", "euler"), known, max_steps=40_000)
+    assert tried == pytest.approx([0.02, 0.04, 0.08, 0.16, 0.32])
+    assert math.isnan(row["order"])
+    assert "exact for this motion" in row["note"], row["note"]
+    assert ("dt = 0.005, 0.0025 did not run ok: no error, no evidence either way, so this rests on the 6 points that "
+            "ran, dt = 0.01 to 0.32") in row["note"], row["note"]
+    from stereodyn.harness.analysis import verdicts
+    why = verdicts.excuse({**row, "case": case.name}, set())
+    assert why.startswith("exact for this motion (dt = 0.005, 0.0025 did not run ok"), why
+    # a point that did not run COARSER than the round-off ones is still a stability limit, not exactness
+    _fake(monkeypatch, _round_off, unstable_above=0.05)
+    _, row = run_short_ladder(Family(case, "mujoco", "", "euler"), known, max_steps=40_000)
+    assert "exact" not in row["note"] and "round-off for every stable dt: every dt up to 0.04" in row["note"], row
+
+
+def test_the_coarse_walk_goes_on_to_t_end_over_20(monkeypatch):
+    """An exact method from dt = 1e-3 over 10 s: 8 doublings to reach 0.256 (t_end / 20 = 0.5); all of them cost
+    fewer steps than the one run at 1e-3. With six points at most the walk stopped at 0.064 and no reason was given."""
+    case = with_overrides(find_case("sleeping-top-stable"), t_end=T_END, dt=[1e-3])
+    tried = _fake(monkeypatch, _round_off)
+    new, row = run_short_ladder(Family(case, "mujoco", "", "euler"), _known(case, _round_off), max_steps=40_000)
+    assert tried == pytest.approx([1e-3 * 2 ** k for k in range(1, 9)])
+    assert sum(p["steps"] for p in new) < T_END / 1e-3
+    assert "exact for this motion" in row["note"] and "stopped at" not in row["note"], row["note"]
+
+
+def _phase(dt, steps):
+    """A second-order method's global error on an integrable motion: a phase error growing linearly in time."""
+    return 40.0 * (steps * dt) * dt ** 2
+
+
+def test_a_long_horizon_has_its_order_measured_over_its_first_part(monkeypatch):
+    """Over 10 s with at most 1000 steps the error is 0.04 at the cap (dt = 0.01): above the range, no order (as
+    moser_veselov over 500 s: 0.036 at dt = 0.01, the cap 0.00625). The first part: t_end halved until the model error
+    at 4 x the part's cap is <= 0.015 (2.5 s: 0.01 at dt 0.01), then a short ladder there: order 2 over 2.5 s."""
+    case = with_overrides(find_case("sleeping-top-stable"), t_end=T_END, dt=[0.02, 0.01])
+    family = Family(case, "mujoco", "", "rk4")
+    monkeypatch.setattr(fitting, "declared_order", lambda engine, integrator: 2.0)
+    monkeypatch.setattr(dt_ladders, "declared_order", lambda engine, integrator: 2.0)
+    tried = _fake(monkeypatch, _phase)
+    known = _known(case, _phase)
+    new, row = run_short_ladder(family, known, max_steps=1000)
+    assert tried == [] and math.isnan(row["order"]) and "smallest tried (t_end / 1000)" in row["note"], row["note"]
+    assert dt_ladders.first_part_span(T_END, 0.01, _phase(0.01, 1000), 2.0, 1000) == 2.5
+    more, part = dt_ladders.run_first_part(family, known + new, 1000, row)
+    assert tried == pytest.approx([0.01, 0.02, 0.005, 0.0025])  # from 4 x the cap: coarser once, then finer
+    assert [p["t_end"] for p in more] == pytest.approx([2.5] * 4)
+    assert part["order"] == pytest.approx(2.0, abs=1e-6) and part["points"] == 3, part
+    assert part["note"].startswith(f"{fitting.FIRST_PART} 2.5 s of 10 s (over all 10 s, 0 point(s) in the asymptotic "
+                                   "range down to dt = 0.01 (state_err 0.04), steps cap t_end / 1000)"), part["note"]
+    # the verdict says over what span, and a false claim still fails on it
+    from stereodyn.harness.analysis import verdicts
+    table = pd.DataFrame([{**part, "case": case.name, "engine": "e", "formulation": "", "integrator": "m"}])
+    [verdict] = verdicts.order_verdicts(table)
+    assert verdict.status == verdicts.PASS and f"{case.name}: {fitting.FIRST_PART} 2.5 s of 10 s" in verdict.detail
+    [verdict] = verdicts.order_verdicts(table.assign(declared_order=4.0))
+    assert verdict.status == verdicts.FAIL, verdict
+    # nothing above the range at the cap (an order found, or round-off): no first part, nothing run
+    tried.clear()
+    assert dt_ladders.run_first_part(family, known, 1000, {**row, "order": 2.0}) == ([], {**row, "order": 2.0})
+    assert dt_ladders.run_first_part(family, _known(case, _round_off), 1000, row) == ([], row) and tried == []
 
 
 # ------------------------------------------------------------------------------------------------ real runs

@@ -8,12 +8,15 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness.run import pool as run_pool
-from stereodyn.harness import cli, dt_ladders, runner, timing
+from stereodyn.harness import cli
+from stereodyn.harness.analysis import dt_ladders
+from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run import timing
 from stereodyn.harness.analysis import verdicts, workprecision
 from stereodyn.harness import integrators as registry
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
-from stereodyn.harness.integrators.geometric import StrangSplitting
+from stereodyn.harness.integrators.geometric import MoserVeselov, StrangSplitting
 
 HEUN = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
 KUTTA3 = ButcherTableau(a=((0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (-1.0, 2.0, 0.0)), b=(1 / 6, 2 / 3, 1 / 6),
@@ -131,6 +134,42 @@ def test_strict_never_passes_a_claim_nothing_measured(plugins, tmp_path, capsys)
     assert list(table[table.verdict == "order"].status) == [verdicts.NO_REASON]
     pareto = pd.read_csv(tmp_path / "b" / "pareto.csv", keep_default_na=False)
     assert "rk4_claims_6" in set(pareto.integrator)
+
+
+class MoserVeselovClaimsFour(MoserVeselov):
+    """Moser–Veselov (order 2), declared fourth order: the claim is wrong."""
+    name = "mv_claims_4"
+    order = 4
+    description = "Moser–Veselov with a wrong declared order"
+
+
+def test_strict_measures_a_long_horizon_over_its_first_part(plugins, tmp_path, capsys, monkeypatch):
+    """Issue 21 (HLW over 500 s): where a method's error over the whole span is above the asymptotic range down to
+    the short ladder's steps cap, its order is measured over the case's first part and the verdict says over what
+    span; a false claim still fails there. Scaled down: free-asymmetric over 40 s, dt 0.05 and 0.025, a cap of 1600
+    steps (dt >= 0.025). Measured (Pinocchio moser_veselov, 100 s): 1.42, 0.35, 0.087 rad at dt 0.1, 0.05, 0.025,
+    i.e. ~1.4 t dt^2: over 40 s 0.035 at the cap, above 0.03; the first 10 s from dt 0.025 down to 0.00625."""
+    monkeypatch.setitem(registry._registry, (MoserVeselovClaimsFour.state_space, MoserVeselovClaimsFour.name),
+                        MoserVeselovClaimsFour)
+    monkeypatch.setattr(workprecision, "SHORT_MAX_STEPS", 1600)
+    monkeypatch.setattr(workprecision, "SHORT_MAX_EVALS", 1600)
+    out = tmp_path / "out"
+    assert cli.main(["run", "free-asymmetric", "--engines", "pinocchio", "--integrators", "moser_veselov,mv_claims_4",
+                     "--t-end", "40", "--dt", "0.05,0.025", "--jobs", "1", "--quiet", "--strict",
+                     "--out", str(out)]) == 1
+    table = pd.read_csv(out / "verdicts.csv", keep_default_na=False)
+    order = table[table.verdict == "order"].set_index("integrator")
+    true, false = order.loc["moser_veselov"], order.loc["mv_claims_4"]
+    assert true.status == verdicts.PASS, true.detail
+    assert "free-asymmetric: order measured over the first 10 s of 40 s" in true.detail, true.detail
+    fitted = float(re.search(r"fitted ([\d.]+)", true.detail).group(1))
+    assert abs(fitted - 2.0) <= 0.15, true.detail  # measured 2.0
+    assert false.status == verdicts.FAIL and "order measured over the first 10 s" in false.detail, false.detail
+    err = capsys.readouterr().err
+    assert [x for x in err.splitlines() if x.startswith("verdict ")] == \
+        [f"verdict failed: integrator pinocchio mv_claims_4 {false.detail}"]  # the only --strict failure
+    points = pd.read_csv(out / "ladder.csv")
+    assert set(points[points.integrator == "moser_veselov"].t_end.round(6)) == {10.0}
 
 
 def test_an_unmeasured_claim_is_excused_only_by_a_reason():
@@ -389,7 +428,7 @@ def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypat
 
     monkeypatch.setattr(run_pool, "measure", spy)
     case = find_case("free-asymmetric")
-    df = runner.run_sweep([case], ["pinocchio"], ["rk4", "euler"], tmp_path, jobs=1)
+    df = run_sweep([case], ["pinocchio"], ["rk4", "euler"], tmp_path, jobs=1)
     assert timed_in_execute and not any(timed_in_execute)
     ok = df[df.status == "ok"]
     assert np.isfinite(ok.wall_s).all() and (ok.us_per_step_spread >= 0).all()

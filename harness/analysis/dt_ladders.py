@@ -16,9 +16,14 @@ doubling/halving from a start until the outcome changes, then geometric bisectio
 
 A short ladder (run_short_ladder) is for a family whose sweep dt list has fewer than two points in the asymptotic
 range: it walks from the list, doubling dt while the coarsest point is asymptotic or at round-off and halving it while
-the finest is above the range or failed, until SHORT_TARGET points are asymptotic, a point leaves the range in the
-walk's direction, dt leaves [t_end / max_steps, t_end / MIN_STEPS] or SHORT_POINTS points are spent. Its points are
-untimed: they are for the order only. Without an order, its note says where the points lie and why the walk stopped.
+the finest is above the range or failed (unless a coarser run finished: then it failed for its cost), until SHORT_TARGET points are asymptotic, a point leaves the range in the
+walk's direction, dt leaves [t_end / max_steps, t_end / MIN_STEPS] or (halving) SHORT_POINTS points are spent. Its
+points are untimed: they are for the order only. Without an order, its note says where the points lie and why the walk
+stopped.
+
+A first part (run_first_part) is for a family whose error over the whole span stays above the asymptotic range down to
+the steps cap (a long horizon): its order is measured by a short ladder over the case's first part, t_end halved until
+the cap leaves room for three asymptotic points (first_part_span); its note says over what span.
 
 The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one task per family.
 """
@@ -35,7 +40,7 @@ from .. import budget
 from . import fitting
 from .fitting import declared_order, fit
 from ..scenes import scene_of
-from ..scenes.cases import CHAOTIC_TAGS, Case
+from ..scenes.cases import CHAOTIC_TAGS, Case, with_overrides
 from ..scenes.rigid_body import state_err
 from ..trajectory import Status
 from ..run import timing
@@ -53,10 +58,12 @@ TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
 STABLE_ENERGY_DRIFT = 1.0    # energy off by its whole scale: the run has blown up even if |ω| is not yet 1e6 x
 STABILITY_RTOL = 0.02        # bisection stops when the bracket [stable, unstable] is this tight (relative)
 MIN_STEPS = 20               # the largest dt tried is t_end / MIN_STEPS: fewer steps say nothing about stability
-# A short ladder adds at most SHORT_POINTS points (each at most max_steps steps) and stops at SHORT_TARGET asymptotic
-# points: three, so that one point bent by rounding or by the pre-asymptotic range shows as a bent line, and so that a
-# fit steeper than the declared order can be kept as superconvergence (fitting.STEEP). Six doublings reach
-# t_end / MIN_STEPS from the suite's largest dt (1e-2 s over 10-20 s), which an exact method needs to be called exact.
+# A short ladder stops at SHORT_TARGET asymptotic points: three, so that one point bent by rounding or by the
+# pre-asymptotic range shows as a bent line, and so that a fit steeper than the declared order can be kept as
+# superconvergence (fitting.STEEP). Its walk to finer steps ends after SHORT_POINTS points in all (each at most
+# max_steps steps); its walk to coarser steps goes on up to t_end / MIN_STEPS, which an exact method needs to be called
+# exact: doubling from dt, all its points together cost fewer steps than one run at dt (t_end/2dt + t_end/4dt + ...).
+# Measured: strang_free_flow on a 500 s case from dt = 0.25 stopped at 6.4 s with a 6-point cap, its claim unmeasured.
 SHORT_POINTS, SHORT_TARGET = 6, 3
 
 
@@ -204,9 +211,11 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
         edge = points.iloc[0] if direction == 1 else points.iloc[-1]
         if asymptotic() >= SHORT_TARGET or edge["regime"] in leaves[direction]:
             continue
+        if direction == -1 and edge["regime"] == fitting.FAILED and (points["regime"] != fitting.FAILED).any():
+            continue  # failed finer than a run that finished (a run budget, not a stability limit): finer costs more
         last = None
         for dt in walk(float(edge["dt"]), direction, floor, cap):
-            if len(new) >= SHORT_POINTS:
+            if direction == -1 and len(new) >= SHORT_POINTS:  # the coarse walk ends at the cap (its cost: see above)
                 stops.append(f"short ladder stopped at {SHORT_POINTS} points")
                 break
             previous = marked().iloc[-1]  # the finest point before this one (used when walking finer)
@@ -235,10 +244,18 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
     """Why a short ladder found no order, in words a reader acts on (points: fitting.regimes' marked points)."""
     at_round_off = points[points["regime"] == fitting.ROUNDOFF]
     others = points[points["regime"] != fitting.ROUNDOFF]
+    # A point finer than every point at round-off that did not run ok (a run budget: an elliptic-function step costs
+    # 1.3 ms) has no error: no evidence either way. Whether the method is exact rests on the points that ran.
+    unrun = others[(others["regime"] == fitting.FAILED) & (others["dt"] < at_round_off["dt"].min())] \
+        if len(at_round_off) else others.iloc[:0]
+    others = others.drop(unrun.index)
     if len(at_round_off) and (others.empty or others["dt"].min() > at_round_off["dt"].max()):
         largest = at_round_off["dt"].max()
+        ran = "" if unrun.empty else (
+            f" (dt = {', '.join(f'{dt:.3g}' for dt in unrun['dt'])} did not run ok: {fitting.NO_EVIDENCE}, so this "
+            f"rests on the {len(at_round_off)} points that ran, dt = {at_round_off['dt'].min():.3g} to {largest:.3g})")
         if others.empty:  # exact at every dt the walk reached: up to t_end / MIN_STEPS, or the walk stopped early
-            return ["exact for this motion: the error is at round-off up to the largest dt tried"] \
+            return ["exact for this motion: the error is at round-off up to the largest dt tried" + ran] \
                 if largest * 2.0 > family.case.t_end / MIN_STEPS * (1 + 1e-9) else []
         first = others.loc[others["dt"].idxmin()]
         what = {fitting.FAILED: "did not run ok", fitting.ABOVE: f"state_err > {fitting.ASYMPTOTIC_MAX:g}",
@@ -246,14 +263,66 @@ def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
                 fitting.IRREGULAR: "the error leaves round-off"}[first["regime"]]
         if first["regime"] == fitting.FAILED:
             return [f"error at round-off for every stable dt: every dt up to {largest:.3g} (dt = {first['dt']:.3g}: "
-                    f"{what})"]
-        return [f"error at round-off for every dt up to {largest:.3g} (dt = {first['dt']:.3g}: {what})"]
+                    f"{what}){ran}"]
+        return [f"error at round-off for every dt up to {largest:.3g} (dt = {first['dt']:.3g}: {what}){ran}"]
     chaotic = sorted(set(family.case.tags) & set(CHAOTIC_TAGS))
     ok = points[points["regime"] != fitting.FAILED]
     if len(ok) and (ok["regime"] == fitting.ABOVE).all() and chaotic:
         return [f"the case is {'/'.join(chaotic)}: its error grows exponentially and stays above the asymptotic "
                 "range at every dt tried"]
     return []
+
+
+# A first part keeps FIRST_PART_MARGIN between the range's top and its model error at the coarsest of three points
+# above the steps cap, and is at least t_end / 2 ** FIRST_PART_HALVINGS long.
+FIRST_PART_MARGIN, FIRST_PART_HALVINGS = 2.0, 10
+
+
+def first_part_span(t_end: float, dt: float, err: float, order: float, max_steps: int) -> float:
+    """The longest span t_end / 2^k (k >= 1) over which three dt down to its steps cap, 4, 2 and 1 x span / max_steps,
+    are in the asymptotic range by the error model err x (t / t_end) x (dt' / dt)^order (a phase error, growing
+    linearly in time; order the declared one) from one point (dt, err) over t_end; NaN where none is."""
+    for k in range(1, FIRST_PART_HALVINGS + 1):
+        span = t_end / 2 ** k
+        coarsest = 4.0 * span / max_steps
+        if err * (span / t_end) * (coarsest / dt) ** order <= fitting.ASYMPTOTIC_MAX / FIRST_PART_MARGIN:
+            return span
+    return math.nan
+
+
+def run_first_part(family: Family, points: list[dict], max_steps: int, row: dict) -> tuple[list[dict], dict]:
+    """The order of a family whose short ladder found none, its finest ok point above the asymptotic range (or its
+    only asymptotic one) at the steps cap: a short ladder over the case's first part (first_part_span) from 4 x the
+    part's cap. points: the family's sweep runs and short-ladder points; row: its convergence row. Returns the new
+    points (their t_end the part's) and the row: the part's fit where it gives an order, its note saying over what
+    span; else the row as it was, its note saying what the part gave. ([], row) where this does not apply."""
+    case = family.case
+    declared = declared_order(family.engine, family.integrator)
+    columns = ["dt", "steps", "status", "state_err"]
+    marked = fitting.regimes(pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in points],
+                                          columns=columns), EPS[family.precision])[0]
+    ok = marked[marked["regime"] != fitting.FAILED]
+    if math.isfinite(row.get("order", math.nan)) or not math.isfinite(declared) or ok.empty \
+            or ok.iloc[-1]["regime"] not in (fitting.ABOVE, fitting.ASYMPTOTIC):
+        return [], row
+    finest = ok.iloc[-1]
+    span = first_part_span(case.t_end, float(finest["dt"]), float(finest["state_err"]), declared, max_steps)
+    if not math.isfinite(span):
+        return [], row
+    start = float(f"{4.0 * span / max_steps:.4g}")
+    part = Family(with_overrides(case, t_end=span, dt=[start]), family.engine, family.formulation, family.integrator,
+                  family.precision)
+    new = [measure(part, start, timed=False) | {"source": SHORT_LADDER}]
+    more, fitted = run_short_ladder(part, new, max_steps)
+    new += more
+    why = (f"over all {case.t_end:g} s, {int((marked['regime'] == fitting.ASYMPTOTIC).sum())} point(s) in the "
+           f"asymptotic range down to dt = {finest['dt']:.3g} (state_err {finest['state_err']:.2g}), steps cap t_end / "
+           f"{max_steps}")
+    if math.isfinite(fitted["order"]):
+        note = f"{fitting.FIRST_PART} {span:g} s of {case.t_end:g} s ({why})"
+        return new, {**fitted, "note": "; ".join(x for x in (note, fitted["note"]) if x)}
+    return new, {**row, "note": "; ".join(x for x in (row["note"], f"over the first {span:g} s no order either "
+                                                                     f"({fitted['points']} asymptotic point(s))") if x)}
 
 
 def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
@@ -279,14 +348,17 @@ def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> 
 
 def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor | None = None,
                 progress: Callable[[str], None] | None = None,
-                short: list[tuple[Family, list[dict], int]] = ()) -> tuple[list[dict], list[dict]]:
-    """Every family's ladder and every short ladder (short: (family, its sweep runs, its steps cap), run_short_ladder),
-    their accuracy runs in this process (pool None) or on the sweep's pool, then
-    the ladders' points timed here (time_points; the short ladders' points stay untimed). Returns (points, convergence
-    rows): the ladders' in the order of `chosen`, then the short ladders' in the order of `short`, whatever order the
-    families finish in."""
+                short: list[tuple[Family, list[dict], int]] = (),
+                first_parts: list[tuple[Family, list[dict], int, dict]] = ()) -> tuple[list[dict], list[dict]]:
+    """Every family's ladder, every short ladder (short: (family, its sweep runs, its steps cap), run_short_ladder)
+    and every first part (first_parts: (family, its points, its steps cap, its row), run_first_part), their accuracy
+    runs in this process (pool None) or on the sweep's pool, then the ladders' points timed here (time_points; the
+    short ladders' points stay untimed). Returns (points, convergence rows): the ladders' in the order of `chosen`,
+    then the short ladders' in the order of `short`, then the first parts', whatever order the families finish in."""
     tasks = [(run_ladder, family, (family, max_steps), LADDER) for family in chosen]
     tasks += [(run_short_ladder, family, (family, known, steps), SHORT_LADDER) for family, known, steps in short]
+    tasks += [(run_first_part, family, (family, known, steps, row), SHORT_LADDER)
+              for family, known, steps, row in first_parts]
     results: dict[int, tuple[list[dict], dict]] = {}
     if pool is None or len(tasks) <= 1:
         for index, (function, family, args, _) in enumerate(tasks):

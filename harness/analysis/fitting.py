@@ -81,6 +81,11 @@ STEEP = 1.0
 SUPERCONVERGENT = "superconvergent on this motion"
 # The note of a float32 family whose round-off leaves no asymptotic range: a named reason, not a failure.
 NOT_MEASURABLE = "not measurable in"
+# A short ladder's point that did not run ok (a run budget) where the others are at round-off: its words in the note.
+NO_EVIDENCE = "no error, no evidence either way"
+# The note of an order measured over the case's first part only (analysis.dt_ladders.run_first_part): the verdict
+# quotes it, so a reader sees over what span the order was measured.
+FIRST_PART = "order measured over the first"
 
 
 def regimes(points: pd.DataFrame, eps: float = EPS) -> tuple[pd.DataFrame, float, float]:
@@ -151,6 +156,7 @@ def reason(marked: pd.DataFrame) -> str:
 # The kinds of reason a convergence row's note gives, by the words that start them (the report counts families by
 # these): fit() and harness.analysis.dt_ladders write them.
 NOTE_GROUPS = (
+    (FIRST_PART, "order measured over the case's first part (the whole span's error above the range at the cap)"),
     (SUPERCONVERGENT, SUPERCONVERGENT),
     (NOT_MEASURABLE, "not measurable in float32: its round-off closes the asymptotic range"),
     ("too few to tell superconvergence", "2 points steeper than declared: too few to tell superconvergence"),

@@ -5,9 +5,9 @@ integrator.
 
 Per integrator (an engine, formulation, integrator and precision, across the run's cases):
 - order: the fitted convergence order of every non-chaotic case (convergence.csv) within ORDER_TOLERANCE of the
-  declared one; a family no case gave an order is "not measured" with each case's reason (EXCUSES: exact for this
-  motion, at the precision floor, chaotic, no run ok), or NO_REASON where nothing excuses it, which --strict fails;
-  declared one; where the engine declares a known deviation of the order (Engine.known_deviations) and the fit
+  declared one (an order measured over a case's first part only says over what span); a family no case gave an order
+  is "not measured" with each case's reason (EXCUSES: exact for this motion, at the precision floor, chaotic, no run
+  ok), or NO_REASON where nothing excuses it, which --strict fails; where the engine declares a known deviation of the order (Engine.known_deviations) and the fit
   matches it, `known` (not a failure), and `fixed upstream?` where it stopped matching it but meets the declared one;
 - bounded energy, for a method that declares energy_bounded: its energy error over ENERGY_RATIO times a short run
   grows at most ENERGY_GROWTH times (no secular trend), on a conservative case, both floored at the round-off of the
@@ -20,6 +20,7 @@ Per case, of the truth (the reference's quaternion Taylor row):
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Iterable
@@ -28,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
-from .fitting import NOT_MEASURABLE, SUPERCONVERGENT
+from .fitting import FIRST_PART, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
 from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import with_precision, write_atomic
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
@@ -155,6 +156,12 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
                   + (f" (median {median:.2f})" if len(fitted) > 2 else ""))
         if special.any():
             detail += f" ({SUPERCONVERGENT}: " + ", ".join(fitted.loc[special, "case"].astype(str).tolist()) + ")"
+        # an order measured over a case's first part only (a long horizon): over what span, in the note's words
+        notes = fitted["note"].fillna("").astype(str) if "note" in fitted else pd.Series("", index=fitted.index)
+        parts = [f"{case}: {segment}" for case, note in zip(fitted["case"].astype(str), notes)
+                 for segment in note.split("; ") if segment.startswith(FIRST_PART)]
+        if parts:
+            detail += " (" + "; ".join(parts) + ")"
         if len(bad):
             detail += " (off by more than 1 on " + ", ".join(bad["case"].astype(str).tolist()[:5]) + (
                 "…" if len(bad) > 5 else "") + ")"
@@ -179,7 +186,12 @@ def excuse(row, excluded: set[str]) -> str | None:
     if row["case"] in excluded:
         return "chaotic"
     note = str(row.get("note", "") or "")
-    return next((words for marker, words in EXCUSES if marker in note), None)
+    words = next(((marker, words) for marker, words in EXCUSES if marker in note), None)
+    if words is None:
+        return None
+    # points that did not run ok beside the ones at round-off (a run budget): the reason rests on those that ran
+    unrun = re.search(r"\(dt = [^()]*" + re.escape(NO_EVIDENCE) + r"[^()]*\)", note)
+    return words[1] + (f" {unrun.group(0)}" if unrun else "")
 
 
 def _unmeasured(group: pd.DataFrame, declared: float, excluded: set[str], base: dict) -> Verdict:

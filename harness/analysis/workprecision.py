@@ -29,6 +29,7 @@ from ..engines import get_engine
 from .pareto import ACCURACY_TARGETS
 from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
                       pareto_table, sweep_orders, tolerance_fits, with_state_err)
+from ..engines.base import FLOAT64
 from ..run.results import with_precision, write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
@@ -108,6 +109,31 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
     return out
 
 
+def first_part_families(short: list[tuple[Family, list[dict], int]], points: list[dict], ladder_rows: list[dict],
+                        sweep_rows: list[dict], cases: list[Case]) -> list[tuple[Family, list[dict], int, dict]]:
+    """The short-laddered families that may get a first part, each with its points, steps cap and row: no order, a
+    case not chaotic, and a claim (engine, formulation, integrator, precision) that no non-chaotic case's fit measured
+    (only the order verdict needs it; it costs up to ~2 caps of steps). analysis.dt_ladders.run_first_part runs one
+    only where the finest ok point is above the range (or the only asymptotic one): never where the reason is
+    exactness, round-off or no run ok."""
+    chaotic = {c.name for c in cases if set(c.tags) & set(CHAOTIC_TAGS)}
+
+    def claim(row) -> tuple:
+        return row["engine"], row["formulation"], row["integrator"], row.get("precision", FLOAT64)
+
+    measured = {claim(r) for r in [*ladder_rows, *sweep_rows] if math.isfinite(r["order"]) and r["case"] not in chaotic}
+    rows = {tuple(r[c] for c in FAMILY): r for r in ladder_rows if r["source"] == SHORT_LADDER}
+    out = []
+    for family, known, steps in short:
+        row = rows.get(family.key)
+        if row is None or math.isfinite(row["order"]) or family.case.name in chaotic or claim(row) in measured:
+            continue
+        own = [p for p in points if p.get("source") == SHORT_LADDER
+               and tuple(p.get(c, FLOAT64 if c == "precision" else "") for c in FAMILY) == family.key]
+        out.append((family, known + own, steps, row))
+    return out
+
+
 def default_tolerance_families(cases: list[Case], engines: list[str],
                                integrators: list[str] | None) -> list[tolerance_ladders.AdaptiveFamily]:
     """The default run's tolerance ladders: on DEFAULT_LADDER_FORMULATIONS, the adaptive methods named, or without
@@ -165,6 +191,13 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
         if chosen or short else ([], [])
+    first_parts = first_part_families(short, points, ladder_rows, sweep_rows, rigid)
+    if first_parts:  # a long horizon: the order over the case's first part, where the verdict needs it
+        more, parts = run_ladders([], max_steps or DEFAULT_MAX_STEPS, pool, progress, first_parts=first_parts)
+        points += more
+        by_family = {tuple(r[c] for c in FAMILY): r for r in parts}
+        ladder_rows = [by_family.get(tuple(r[c] for c in FAMILY), r) if r["source"] == SHORT_LADDER else r
+                       for r in ladder_rows]
     by_key = {tuple(r[c] for c in FAMILY): r for r in ladder_rows if r["source"] == SHORT_LADDER}
     # a short ladder's row takes the place of its family's row from the dt list; a family with one dt had none
     rows = [r for r in ladder_rows if r["source"] == LADDER]

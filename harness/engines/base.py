@@ -10,7 +10,6 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from stereodyn.harness.trajectory import Trajectory
-from stereodyn.reference.torques import PRECESSION_SINGULAR_ANGLE, transverse_angle
 
 if TYPE_CHECKING:
     from stereodyn.harness.scenes.cases import Case
@@ -325,12 +324,10 @@ class EnsembleSimulation(Protocol):
     def run(self, grid: "TimeGrid") -> list[Trajectory]: ...
 
 
-def precession_singular(case: Case) -> str | None:
-    """Torque (41) is singular at ω ∥ u = i3: a case starting within PRECESSION_SINGULAR_ANGLE of it is skipped."""
-    if case.precession_torque is None:
-        return None
-    angle = float(transverse_angle(np.asarray(case.omega0, dtype=float)))
-    if angle < PRECESSION_SINGULAR_ANGLE:
-        return (f"[precession_torque] singular: omega0 within {angle:.3g} rad of u = i3 (torque (41) needs "
-                f">= {PRECESSION_SINGULAR_ANGLE:g} rad)")
-    return None
+def singular_torque(case: Case) -> str | None:
+    """Why a torque of the case is not defined at its initial state (TorqueModel.singular, e.g. torque (41) near
+    ω ∥ u = i3), so that its runs are skipped; None."""
+    return next((reason for term in case.torques if (reason := term.singular(case.omega0)) is not None), None)
+
+
+precession_singular = singular_torque  # 0.2.0's name

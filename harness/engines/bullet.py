@@ -63,7 +63,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
 
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import Engine, precession_singular
+from stereodyn.harness.engines.base import Engine, singular_torque
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
 from stereodyn.reference.rotations import matrix_to_quat, quat_conj, quat_mul
@@ -228,7 +228,7 @@ class BulletEngine(Engine):
 
     def unsupported(self, case: Case) -> str | None:
         # [body] physical = false: a link's inertia is a physical body's (as MuJoCo's and Drake's; not probed further)
-        return unphysical_inertia(case) or precession_singular(case)
+        return unphysical_inertia(case) or singular_torque(case)
 
     def torque_mode(self, case: Case) -> str:
         return "step" if case.body.has_external_torque else "none"

@@ -57,7 +57,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
 
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, singular_torque
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
 from stereodyn.reference.rotations import quat_to_matrix
@@ -351,7 +351,7 @@ class DrakeEngine(Engine):
 
     def unsupported(self, case: Case) -> str | None:
         # SpatialInertia::IsPhysicallyValid() refuses a body that breaks the triangle inequality
-        return unphysical_inertia(case) or precession_singular(case)
+        return unphysical_inertia(case) or singular_torque(case)
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         if formulation == QUATERNION_FREE and np.any(np.asarray(case.body.com) != 0.0):

@@ -3,8 +3,9 @@
 Ball joint: qpos = quaternion (w, x, y, z) body -> world, qvel = angular velocity in body components (ENGINES.md).
 Autoreset is disabled, so a divergence shows as NaN (or a runaway |omega|) in the states, which run() detects.
 
-External torques (reference.torques; Trajectory.info["torque_mode"] says how each entered): a constant body torque
-(b = 0, nothing else) through qfrc_applied set once before the first step ("qfrc_applied"); any torque that depends
+External torques (reference.torques; Trajectory.info["torque_mode"] says how each entered): torques constant in the
+body frame (TorqueModel.constant: a body torque with b = 0) through qfrc_applied set once before the first step
+("qfrc_applied"); any torque that depends
 on the state or the time through mjcb_passive ("passive_callback"), which MuJoCo calls at every force evaluation,
 every RK4 stage included, with that stage's qpos, qvel and time. Refreshing qfrc_applied from Python between steps
 instead would hold the torque through the stages and make RK4 first order (tests/test_torques.py shows it). Torqued
@@ -31,7 +32,7 @@ from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case, unphysical_inertia
 from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                                           diverged_trajectory, sample_good, samples_good)
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, singular_torque
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.reference.torques import torque_function
 
@@ -65,27 +66,26 @@ INTEGRATORS: dict[str, tuple[str, int]] = {
 # per-call cost is well under 1% of the stepping.
 CHUNK_STEPS = 10_000
 
-_FEATURES = ("body_torque", "central_field", "precession_torque")
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 
 
 def _unsupported(case: Case) -> str | None:
     # MuJoCo's compiler refuses a body that breaks the triangle inequality (balanceinertia would alter it silently)
-    return unphysical_inertia(case) or precession_singular(case)
+    return unphysical_inertia(case) or singular_torque(case)
 
 
 def torque_mode(case: Case) -> str:
     """How the case's external torque enters: "none", "qfrc_applied" (constant, set once) or "passive_callback"."""
     if not case.body.has_external_torque:
         return "none"
-    if case.central_field is None and case.precession_torque is None and case.body_torque.b == 0.0:
+    if all(term.constant for term in case.torques):  # constant in the body frame: applied once
         return "qfrc_applied"
     return "passive_callback"
 
 
 def _runtime_torques(case: Case) -> str | None:
     """The MJCF scene cannot hold a torque that enters at run time (export refuses it)."""
-    present = [f"[{name}]" for name in _FEATURES if getattr(case, name) is not None]
+    present = [f"[{term.key}]" for term in case.torques]
     if present:
         return (f"{', '.join(present)} enters the MuJoCo adapter at run time (qfrc_applied or a passive callback), "
                 f"which an MJCF file cannot hold")

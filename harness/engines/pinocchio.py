@@ -19,7 +19,7 @@ from stereodyn.harness import integrators
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, singular_torque
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators.base import check_stepper
 from stereodyn.harness.integrators.ensemble import integrate_ensemble
@@ -124,8 +124,7 @@ def urdf(case: Case) -> str:
     Raises ValueError for a case this adapter cannot model exactly.
     """
     reason = PinocchioEngine().unsupported(case)
-    present = [f"[{name}]" for name in ("body_torque", "central_field", "precession_torque")
-               if getattr(case, name) is not None]
+    present = [f"[{term.key}]" for term in case.torques]
     if present and not reason:
         reason = f"{', '.join(present)} enters the Pinocchio adapter at run time (tau), which URDF cannot hold"
     if reason:
@@ -241,7 +240,7 @@ class PinocchioEngine(Engine):
         return integrators.names(state_space="lie")
 
     def unsupported(self, case: Case) -> str | None:
-        return precession_singular(case)
+        return singular_torque(case)
 
     def prepare(self, case: Case, integrator: str | type[integrators.Integrator], dt: float) -> PinocchioSimulation:
         reason = self.unsupported(case)

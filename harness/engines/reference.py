@@ -12,7 +12,7 @@ from stereodyn.harness import integrators
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, precession_singular
+from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, singular_torque
 from stereodyn.harness.grid import TimeGrid
 from stereodyn.harness.integrators import scipy_ivp
 from stereodyn.reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
@@ -176,7 +176,7 @@ class ReferenceEngine(Engine):
         return True
 
     def unsupported(self, case: Case) -> str | None:
-        return precession_singular(case)
+        return singular_torque(case)
 
     def torque_mode(self, case: Case) -> str:
         return "rhs" if case.body.has_external_torque else "none"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.fitting import ASYMPTOTIC_MAX, ROUNDOFF_MARGIN, SUPERCONVERGENT, _name, note_group
+from ..analysis.fitting import ASYMPTOTIC_MAX, FIRST_PART, ROUNDOFF_MARGIN, SUPERCONVERGENT, _name, note_group
 from ..analysis import dt_ladders
 from ..analysis.workprecision import (ADVICE_FILE, CONVERGENCE_FILE, PARETO_FILE, SHORT_MAX_EVALS, SHORT_MAX_STEPS,
                                       TOLERANCE_FIT_FILE, read_optional)
@@ -63,11 +63,12 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
             lines += ["Fitted on the sweep's dt lists and the short ladders:", "",
                       *_md(["run", "declared", "cases", "smallest order", "largest order"], summary), ""]
         reasons = convergence[~np.isfinite(convergence["order"]) | convergence["note"].str.contains(
-            SUPERCONVERGENT, regex=False)]
+            SUPERCONVERGENT, regex=False) | convergence["note"].str.contains(FIRST_PART, regex=False)]
         if len(reasons):
             counts = reasons["note"].map(note_group).value_counts()
-            lines += ["Families without a fitted order, or fitted steeper than declared, by reason (convergence.csv "
-                      "`note`):", "", *_md(["reason", "families"], [[k, str(v)] for k, v in counts.items()]), ""]
+            lines += ["Families without a fitted order, fitted steeper than declared, or fitted over the case's first "
+                      "part only, by reason (convergence.csv `note`):", "",
+                      *_md(["reason", "families"], [[k, str(v)] for k, v in counts.items()]), ""]
     return lines + tolerance_report_lines(out_dir, tolerance_figures or {})
 
 

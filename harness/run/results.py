@@ -11,11 +11,11 @@ import pandas as pd
 
 from ..precision import FLOAT64
 from ..readers import MAX_TABLE_BYTES
-from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS
+from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
            "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
-           "truth_err", "truth_omega_err", "chart_changes", "torque_mode", "precession_axis_drift")
+           "truth_err", "truth_omega_err", "chart_changes", "torque_mode", *TORQUE_COLUMNS)
 
 # Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
 # them, formulations as the engine lists them, dt descending, precisions as the engine lists them.

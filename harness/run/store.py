@@ -138,6 +138,8 @@ def case_content(case: Case) -> dict:
     for field in dataclasses.fields(case):
         if field.name not in NOT_CONTENT:
             value = getattr(case, field.name)
+            if field.name == "torques":  # the terms (reference.torque_models), by their case table
+                value = {term.key: dataclasses.asdict(term) for term in value}
             content[field.name] = dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
     return _plain(content)
 

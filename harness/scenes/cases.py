@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass
 from importlib.resources import files
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -14,14 +14,15 @@ from ...reference.body import RigidBody
 from .base import kinds, scene
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
 from ...reference.sliding_ladder import Ladder
-from ...reference.torques import BodyTorque, CentralField, PrecessionTorque
+from ...reference.torque_models import BodyTorque, CentralField, PrecessionTorque, TorqueModel, merged, models
+from ...reference.torque_models.precession import MIN_SIN_THETA  # noqa: F401 (0.2.0's name here)
 from ..readers import ReadError, read_toml
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
 ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "staude_rotation",
            "grioli_precession", "hess_grioli", "mlodzejowski", "self_excited_spinup", "self_excited_uniform")
-# The oracles whose exact solutions model a body torque (their checks see it through Case.body).
-TORQUE_ORACLES = ("self_excited_spinup", "self_excited_uniform")
+# The oracles whose exact solutions model a torque (their checks see it through Case.body; TorqueModel.oracles).
+TORQUE_ORACLES = tuple(dict.fromkeys(oracle for model in models() for oracle in model.oracles))
 # Scene kinds (top-level `kind`): a rigid body with a fixed point (default), and the sliding ladder (FORMULARY T5).
 RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"
 
@@ -43,17 +44,14 @@ MAX_STEPS = 10_000_000     # t_end / dt per run: 10x the extremes' long horizon 
 # times the longest a report table shows on one line.
 MAX_NAME = 200
 MAX_DTS = 32               # steps in one dt list: the truth samples the union of their grids, <= 3.2e6 states (180 MB)
-MIN_SIN_THETA = 1e-9       # torque (41): cot θ stays <= 1e9
 
 _TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     # table: (allowed keys, required keys)
-    "": (frozenset({"name", "description", "tags", "kind", "body", "gravity", "body_torque", "central_field",
-                    "precession_torque", "initial", "run", "expect"}), frozenset({"body", "initial", "run"})),
-    "precession_torque": (frozenset({"theta", "l", "m3"}), frozenset({"theta", "l", "m3"})),
+    # and the torque models' tables (reference.torque_models: each model's key and schema)
+    "": (frozenset({"name", "description", "tags", "kind", "body", "gravity", "initial", "run", "expect"}),
+         frozenset({"body", "initial", "run"})),
     "body": (frozenset({"mass", "com", "inertia", "principal_moments", "physical"}), frozenset({"mass", "com"})),
     "gravity": (frozenset({"g", "direction"}), frozenset({"g"})),
-    "body_torque": (frozenset({"axis", "a", "b"}), frozenset({"axis", "a", "b"})),
-    "central_field": (frozenset({"mu", "radius", "direction", "orbit_rate"}), frozenset({"mu", "radius", "direction"})),
     "initial": (frozenset({"attitude", "omega"}), frozenset({"attitude", "omega"})),
     "initial.attitude": (frozenset({"quaternion", "euler_zxz", "gibbs"}), frozenset()),
     "run": (frozenset({"t_end", "dt", "samples"}), frozenset({"t_end", "dt"})),
@@ -81,6 +79,9 @@ class Case:
     inertia: (3, 3) kg m^2 about O, body frame. com: (3,) m body frame. gravity_direction: (3,) world unit.
     quat0: (4,) initial attitude, scalar first, body -> world, unit. omega0: (3,) rad/s, body frame.
     dt: the steps to sweep, s. path: the file it came from (None for a case built in code).
+    torques: the external torques beyond gravity (reference.torque_models' terms, registry order; RigidBody's);
+    body_torque=, central_field=, precession_torque= (0.2.0's keywords) add or replace that model's term, and the
+    attributes of those names read it (None: absent).
     """
 
     name: str
@@ -98,17 +99,21 @@ class Case:
     samples: int
     oracle: str | None = None
     horizon: float | None = None
-    body_torque: BodyTorque | None = None
-    central_field: CentralField | None = None
+    body_torque: InitVar[BodyTorque | None] = None
+    central_field: InitVar[CentralField | None] = None
     path: Path | None = None
-    precession_torque: PrecessionTorque | None = None
+    precession_torque: InitVar[PrecessionTorque | None] = None
     kind: str = RIGID_BODY
     physical: bool = True               # [body] physical = false: the triangle inequalities are not required
+    torques: tuple[TorqueModel, ...] = ()
+
+    def __post_init__(self, body_torque, central_field, precession_torque) -> None:
+        object.__setattr__(self, "torques", merged(self.torques, body_torque, central_field, precession_torque))
 
     @property
     def body(self) -> RigidBody:
-        return RigidBody(self.inertia, self.mass, self.com, self.gravity, self.gravity_direction, self.body_torque,
-                         self.central_field, self.precession_torque)
+        return RigidBody(self.inertia, self.mass, self.com, self.gravity, self.gravity_direction,
+                         torques=self.torques)
 
     @property
     def source(self) -> str:
@@ -337,28 +342,19 @@ class _Parser:
 
     def rigid_body(self, data: dict) -> Case:
         """A rigid body with a fixed point (DESIGN §3)."""
-        self.table(data, "")
+        allowed, required = _TABLES[""]
+        self.table(data, "", (allowed | {model.key for model in models()}, required))
         name, description, tags = self.words(data)
         mass, com, inertia, physical = self.body(data["body"])
         gravity, gravity_direction = 0.0, np.array([0.0, 0.0, -1.0])
         if "gravity" in data:
             gravity, gravity_direction = self.gravity(data["gravity"])
-        body_torque = self.body_torque(data["body_torque"]) if "body_torque" in data else None
-        central_field = None
-        if "central_field" in data:
-            central_field = self.central_field(data["central_field"])
-            if np.any(com != 0.0):
-                raise self.fail("body.com", "must be [0, 0, 0] with [central_field] (O is the centre of mass)")
-        precession_torque = None
-        if "precession_torque" in data:
-            precession_torque = self.precession_torque(data["precession_torque"])
-            others = [f"[{t}]" for t in ("gravity", "body_torque", "central_field") if t in data]
-            if others:
-                raise self.fail("precession_torque", f"must be the only torque (G14: every motion precesses only "
-                                                     f"under (41) alone), remove {', '.join(others)}")
-            if np.any(inertia != np.diag(np.diag(inertia))):
-                raise self.fail("precession_torque", "needs principal body axes (torque (41) is written with "
-                                                     "u = i3 in principal components): inertia must be diagonal")
+        terms = []
+        for model in models():  # each torque model parses and checks its own table (reference.torque_models)
+            if model.key in data:
+                term = model.parse(self, data[model.key])
+                term.check(self, data, inertia, com)
+                terms.append(term)
         quat0, omega0 = self.initial(data["initial"])
         t_end, dt, samples = self.run(data["run"])
         oracle, horizon = self.expect(data["expect"], t_end) if "expect" in data else (None, None)
@@ -367,9 +363,8 @@ class _Parser:
             array.setflags(write=False)
         case = Case(name=name, description=description, tags=tags, mass=mass, com=com, inertia=inertia,
                     gravity=gravity, gravity_direction=gravity_direction, quat0=quat0, omega0=omega0, t_end=t_end,
-                    dt=dt, samples=samples, oracle=oracle, horizon=horizon, body_torque=body_torque,
-                    central_field=central_field, path=Path(self.path), precession_torque=precession_torque,
-                    physical=physical)
+                    dt=dt, samples=samples, oracle=oracle, horizon=horizon, path=Path(self.path),
+                    physical=physical, torques=tuple(terms))
         if oracle is not None:
             self.oracle_applies(case)
         return case
@@ -389,17 +384,6 @@ class _Parser:
         if not isinstance(tags, list):
             raise self.fail("tags", f"must be a list of strings, got {_describe(tags)}")
         return name, description, tuple(self.string(tag, f"tags[{i}]") for i, tag in enumerate(tags))
-
-    def precession_torque(self, data: Any) -> PrecessionTorque:
-        self.table(data, "precession_torque")
-        theta = self.number(data["theta"], "precession_torque.theta")
-        if not 0.0 < theta < math.pi:
-            raise self.fail("precession_torque.theta", f"must be in (0, pi) rad, got {theta:g}")
-        if math.sin(theta) < MIN_SIN_THETA:
-            raise self.fail("precession_torque.theta", f"sin theta must be >= {MIN_SIN_THETA:g} (cot theta is a "
-                                                       f"coefficient of the torque), got theta = {theta:.17g}")
-        return PrecessionTorque(theta=theta, l=self.number(data["l"], "precession_torque.l"),
-                                m3=self.number(data["m3"], "precession_torque.m3"))
 
     def body(self, data: Any) -> tuple[float, np.ndarray, np.ndarray, bool]:
         """mass, com, inertia about O, physical. physical = false (Euler's equations only, not a mass distribution:
@@ -461,20 +445,6 @@ class _Parser:
             direction = self.unit(data["direction"], "gravity.direction", 3, "direction", "d")
         return g, direction
 
-    def body_torque(self, data: Any) -> BodyTorque:
-        self.table(data, "body_torque")
-        axis = self.unit(data["axis"], "body_torque.axis", 3, "axis", "axis")
-        return BodyTorque(axis=tuple(axis.tolist()), a=self.number(data["a"], "body_torque.a"),
-                          b=self.number(data["b"], "body_torque.b"))
-
-    def central_field(self, data: Any) -> CentralField:
-        self.table(data, "central_field")
-        return CentralField(
-            mu=self.positive(data["mu"], "central_field.mu"),
-            radius=self.positive(data["radius"], "central_field.radius"),
-            direction=tuple(self.unit(data["direction"], "central_field.direction", 3, "direction", "d").tolist()),
-            orbit_rate=self.number(data.get("orbit_rate", 0.0), "central_field.orbit_rate"))
-
     def initial(self, data: Any) -> tuple[np.ndarray, np.ndarray]:
         self.table(data, "initial")
         attitude = self.table(data["attitude"], "initial.attitude")
@@ -524,11 +494,10 @@ class _Parser:
 
     def oracle_applies(self, case: Case) -> None:
         """The case's state must be on its oracle's motion (reference.exact's check, to its tolerance)."""
-        for table, present in (("body_torque", case.body_torque), ("central_field", case.central_field),
-                               ("precession_torque", case.precession_torque)):
-            if present is not None and not (table == "body_torque" and case.oracle in TORQUE_ORACLES):
+        for term in case.torques:
+            if case.oracle not in term.oracles:
                 # the oracles' checks see only the body, gravity and initial state: an extra torque would pass them
-                raise self.fail("expect.oracle", f"no exact solution here models [{table}]; remove the oracle or "
+                raise self.fail("expect.oracle", f"no exact solution here models [{term.key}]; remove the oracle or "
                                                  f"the table")
         reason = EXACT_SOLUTIONS[case.oracle].check(case.body, case.quat0, case.omega0)
         if reason is not None:
@@ -561,3 +530,14 @@ def _short(value: Any) -> str:
 
 def _fmt(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
+
+
+# 0.2.0's attributes, read from the terms (set after the dataclass is made: its __init__ keeps their keywords).
+Case.body_torque = property(lambda self: _term(self, BodyTorque), doc="The BodyTorque term, or None.")
+Case.central_field = property(lambda self: _term(self, CentralField), doc="The CentralField term, or None.")
+Case.precession_torque = property(lambda self: _term(self, PrecessionTorque),
+                                  doc="The PrecessionTorque term, or None.")
+
+
+def _term(case: Case, model: type) -> TorqueModel | None:
+    return next((term for term in case.torques if type(term) is model), None)

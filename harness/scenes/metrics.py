@@ -7,12 +7,14 @@ import numpy as np
 
 from .cases import Case
 from ..trajectory import Trajectory
-from ...reference import torques
+from ...reference import torque_models, torques
 # DRIFT_COLUMNS: the registry's (reference.integrals), re-exported where the results table's columns are listed
 from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS, applicable, drift  # noqa: F401
 from ...reference.rotations import attitude_angle, quat_to_matrix
 
 ERROR_COLUMNS = ("attitude_err", "attitude_err_end", "omega_err")
+# The columns the torque models measure (TorqueModel.columns), the registry's at import: precession_axis_drift.
+TORQUE_COLUMNS = tuple(column for model in torque_models.models() for column in model.columns)
 
 
 def applicable_integrals(case: Case) -> tuple[str, ...]:
@@ -44,16 +46,15 @@ def drifts(case: Case, traj: Trajectory, applicable: tuple[str, ...]) -> dict[st
 
 
 def torque_metrics(case: Case, traj: Trajectory) -> dict[str, float]:
-    """precession_axis_drift (G14): max |e(t) − e(0)| of the world precession axis (40) over the samples, NaN
-    without [precession_torque] or when a sample comes within PRECESSION_SINGULAR_ANGLE of ω ∥ u (the axis is
-    undefined there)."""
+    """The columns the torque models declare (TorqueModel.columns, e.g. precession_axis_drift, G14) from the case's
+    terms (TorqueModel.metrics) over the run's samples; NaN for a model the case lacks, or a sample not finite."""
+    out = dict.fromkeys((column for model in torque_models.models() for column in model.columns), math.nan)
+    if not (np.isfinite(traj.quat).all() and np.isfinite(traj.omega).all()):
+        return out
     body = case.body
-    if body.precession_torque is None or not (np.isfinite(traj.quat).all() and np.isfinite(traj.omega).all()):
-        return {"precession_axis_drift": math.nan}
-    if np.min(torques.transverse_angle(traj.omega)) < torques.PRECESSION_SINGULAR_ANGLE:
-        return {"precession_axis_drift": math.nan}
-    axis = torques.precession_axis(body, traj.quat, traj.omega)
-    return {"precession_axis_drift": float(np.max(np.linalg.norm(axis - axis[0], axis=1)))}
+    for term in body.torques:
+        out.update(term.metrics(body, traj.quat, traj.omega))
+    return out
 
 
 def errors(traj: Trajectory, truth_quat: np.ndarray, truth_omega: np.ndarray,

@@ -14,7 +14,8 @@ from ...reference import truth as reference_truth
 from .base import register
 from .cases import RIGID_BODY, Case
 from .checks import ROW_KEY, measure as measure_checks
-from .metrics import DRIFT_COLUMNS, ERROR_COLUMNS, applicable_integrals, drifts, errors, torque_metrics
+from .metrics import (DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS, applicable_integrals, drifts, errors,
+                      torque_metrics)
 from .oracles import exact_attitude, oracle_err
 from .series import invariant_series
 
@@ -85,7 +86,7 @@ class RigidBodyScene:
     keeps_states = True
     work_precision = True
     columns = (*DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err", "truth_err", "truth_omega_err", "chart_changes",
-               "torque_mode", "precession_axis_drift", "rhs_per_sim_s")
+               "torque_mode", *TORQUE_COLUMNS, "rhs_per_sim_s")
 
     def parse(self, parser, data: dict) -> Case:
         return parser.rigid_body(data)

@@ -21,7 +21,7 @@ from stereodyn.reference.torques import body_torque, principal_frame_for
 def _only_body_torque(body: RigidBody) -> str | None:
     if body.body_torque is None:
         return "needs a [body_torque]"
-    if body.has_gravity or body.central_field is not None or body.precession_torque is not None:
+    if body.has_gravity or len(body.torques) != 1:
         return "the body torque must be the only torque (no gravity, no central field)"
     return None
 
