@@ -81,7 +81,7 @@ def test_every_ok_row_of_an_engine_with_a_process_global_precision_is_timed(toy,
     declaration the timing phase prepares all four first, and each switch of precision releases the models built
     before it (their rows untimed: what e2 saw with Genesis, 7 of 8 rows untimed)."""
     monkeypatch.setattr(ToyEngine, "process_global_precision", process_global)
-    table = sweep.run_sweep([CASE], [NAME], None, tmp_path / "out", jobs=1, certify=False)
+    table = sweep.run_sweep([CASE], sweep.SweepOptions([NAME], tmp_path / "out", jobs=1, certify=False))
     rows = table[table.engine == NAME]
     assert list(rows.status) == ["ok"] * 4 and set(rows.precision) == {FLOAT64, FLOAT32}
     timed = {p: int(rows[rows.precision == p].us_per_step.notna().sum()) for p in (FLOAT64, FLOAT32)}
