@@ -106,6 +106,7 @@ def external_torque(body: RigidBody, quat: np.ndarray, omega: np.ndarray, t=0.0)
     gravity)."""
     omega = np.asarray(omega, dtype=float)
     shape = np.broadcast_shapes(omega.shape, np.shape(quat)[:-1] + (3,))
+    # the non-potential terms first, then the potential ones: the order of the sums before the terms (same bits)
     total = np.broadcast_to(nonpotential_torque(body, omega, quat, t), shape)
     at = _numpy_at(body, np.broadcast_to(np.asarray(t, dtype=float), shape[:-1]), quat, omega)
     for term in body.torques:
