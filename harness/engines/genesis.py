@@ -32,18 +32,18 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, precession_singular, require_modules
+from .base import FLOAT32, FLOAT64, Engine, precession_singular, require_modules
 
 INSTALL = "pip install 'stereodyn[genesis]'"
 # Genesis does not declare torch; importing it costs 15-30 s, so the SDK is imported on the first prepare and only
 # its presence is checked here.
 require_modules(f"{INSTALL} (Genesis also needs torch: the CPU wheel is enough)", "genesis", "torch")
 
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.stepping import run_steps
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Trajectory
-from stereodyn.reference.torques import torque_function
+from ..scenes.cases import Case, unphysical_inertia
+from .stepping import run_steps
+from ..grid import TimeGrid
+from ..trajectory import Trajectory
+from ...reference.torques import torque_function
 
 BALL, FREE = "ball", "free"
 MODELS = (BALL, FREE)

@@ -36,16 +36,16 @@ if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_XLA_THREADS}".strip()
 import mujoco
 
-from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular, require_modules
+from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular, require_modules
 
 # jax and mujoco.mjx are imported on the first prepare (_sdk: 2-8 s); loading the adapter only checks them
 require_modules(INSTALL, "jax", "mujoco.mjx")
 
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness import budget
-from stereodyn.harness.engines.mujoco import scene, torque_mode
-from stereodyn.harness.grid import TimeGrid, time_grid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from .mujoco import scene, torque_mode
+from ..grid import TimeGrid, time_grid
+from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
 
 # harness name (MuJoCo's, lower case) -> dynamics evaluations per step. MJX's `implicit` raises NotImplementedError.
 INTEGRATORS: dict[str, int] = {"euler": 1, "rk4": 4, "implicitfast": 1}
@@ -168,7 +168,7 @@ class MjxSimulation:
         data.qpos[:] = case.quat0
         data.qvel[:] = case.omega0
         if self.torque_mode == "qfrc_applied":
-            from stereodyn.reference.torques import torque_function
+            from ...reference.torques import torque_function
             data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
         sdk = _sdk()
         with sdk.jax.enable_x64(self.x64):

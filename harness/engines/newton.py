@@ -28,17 +28,17 @@ import math
 
 import numpy as np
 
-from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular, require_modules
+from .base import FLOAT32, Engine, precession_singular, require_modules
 
 INSTALL = "pip install 'stereodyn[newton]'"
 require_modules(INSTALL, "newton", "warp")  # imported on the first prepare (_sdk): 4-8 s
 
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.stepping import run_steps
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Trajectory
-from stereodyn.reference.rotations import quat_to_matrix
-from stereodyn.reference.torques import torque_function
+from ..scenes.cases import Case, unphysical_inertia
+from .stepping import run_steps
+from ..grid import TimeGrid
+from ..trajectory import Trajectory
+from ...reference.rotations import quat_to_matrix
+from ...reference.torques import torque_function
 
 DEVICE = "cpu"
 BALL, FREE = "ball", "free"

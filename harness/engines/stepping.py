@@ -9,9 +9,9 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from stereodyn.harness import budget
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from .. import budget
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
 
 
 class Stepped(Protocol):

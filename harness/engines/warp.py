@@ -24,17 +24,17 @@ import numpy as np
 
 import mujoco
 
-from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular, require_modules
+from .base import FLOAT32, Engine, precession_singular, require_modules
 
 INSTALL = "pip install 'stereodyn[warp]'"
 require_modules(INSTALL, "warp", "mujoco_warp")  # imported on the first prepare (_sdk): 5-10 s
 
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.mujoco import scene, torque_mode
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
-from stereodyn.reference.torques import torque_function
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from .mujoco import scene, torque_mode
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from ...reference.torques import torque_function
 
 DEVICE = "cpu"
 MODEL_NAME = "stereodyn"  # one name for every case's model (as the MJX adapter's)
