@@ -51,8 +51,8 @@ def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
 
 def _init_worker(engines: tuple[str, ...], budgets: budget.Budgets | None = None) -> None:
     """A pool worker's start-up: ignore Ctrl-C, take the parent's budgets (for the ladders' points, which run here
-    too) and import the engines' SDKs now, while the parent computes the truths, rather than in the worker's first
-    run."""
+    too) and load the engines' adapters now, while the parent computes the truths, rather than in the worker's first
+    run (an adapter whose SDK takes seconds to import, base.require_modules, imports it on its first prepare)."""
     if budgets is not None:
         budget.configure(budgets)
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
