@@ -164,7 +164,7 @@ def ladder_dts(top: float, bottom: float, points: int = LADDER_POINTS) -> list[f
 def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     """The ladder of one family: its points and its convergence row. Never raises."""
     case = family.case
-    declared = declared_order(family.engine, family.integrator)
+    declared = declared_order(family.engine, family.integrator, family.formulation)
     cap, floor = case.t_end / MIN_STEPS, case.t_end / max_steps
     cache: dict[float, dict] = {}
 
@@ -189,7 +189,7 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
     state_err) has fewer than two asymptotic points: its points (untimed) and its convergence row. A point that
     breaks is data (measure), as in the sweep."""
     case = family.case
-    declared = declared_order(family.engine, family.integrator)
+    declared = declared_order(family.engine, family.integrator, family.formulation)
     cap, floor = case.t_end / MIN_STEPS, case.t_end / max_steps
     columns = ["dt", "steps", "status", "state_err"]
     new: list[dict] = []
@@ -297,7 +297,7 @@ def run_first_part(family: Family, points: list[dict], max_steps: int, row: dict
     points (their t_end the part's) and the row: the part's fit where it gives an order, its note saying over what
     span; else the row as it was, its note saying what the part gave. ([], row) where this does not apply."""
     case = family.case
-    declared = declared_order(family.engine, family.integrator)
+    declared = declared_order(family.engine, family.integrator, family.formulation)
     columns = ["dt", "steps", "status", "state_err"]
     marked = fitting.regimes(pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in points],
                                           columns=columns), EPS[family.precision])[0]

@@ -57,10 +57,11 @@ def order_slope(dt, err) -> float:
     return float(np.polyfit(np.log(np.asarray(dt, dtype=float)), np.log(np.asarray(err, dtype=float)), 1)[0])
 
 
-def declared_order(engine: str, integrator: str) -> float:
-    """The order the engine declares for an integrator (Engine.declared_order); NaN for an engine not registered."""
+def declared_order(engine: str, integrator: str, formulation: str = "") -> float:
+    """The order the engine declares for an integrator on a model (Engine.formulation_order, by default
+    Engine.declared_order); NaN for an engine not registered."""
     try:
-        return get_engine(engine).declared_order(integrator)
+        return get_engine(engine).formulation_order(formulation, integrator)
     except (KeyError, EngineError):
         return math.nan
 
@@ -235,7 +236,7 @@ def sweep_orders(results: pd.DataFrame, skip: set[tuple]) -> list[dict]:
         if key in skip or group["dt"].nunique() < 2:
             continue
         family = dict(zip(FAMILY, key))
-        declared = declared_order(family["engine"], family["integrator"])
+        declared = declared_order(family["engine"], family["integrator"], family["formulation"])
         rows.append({**family, "stable_dt_max": math.nan, "source": "dt_list",
                      **fit(group, declared, family["precision"])})
     return rows

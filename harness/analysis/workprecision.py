@@ -95,7 +95,8 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
     out = []
     for family in families(cases, engines, integrators):
         key = family.key
-        if key in laddered or key in fitted or not math.isfinite(declared_order(family.engine, family.integrator)):
+        declared = declared_order(family.engine, family.integrator, family.formulation)
+        if key in laddered or key in fitted or not math.isfinite(declared):
             continue
         group = by_family.get(key)
         if group is None or group["status"].isin(("failed", "skipped")).all():

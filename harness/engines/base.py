@@ -196,6 +196,12 @@ class Engine:
         except KeyError:
             return math.nan
 
+    def formulation_order(self, formulation: str, integrator: str) -> float:
+        """The order the integrator has on one of the engine's models (formulations), for an engine whose integrator
+        is another method on another model (convergence.csv's declared_order, the order verdict). Default:
+        declared_order(integrator) on every model."""
+        return self.declared_order(integrator)
+
     def prepare_ensemble(self, case: "Case", integrator: str, dt: float, quat0: np.ndarray, omega0: np.ndarray,
                          threads: int = 1) -> "EnsembleSimulation":
         """N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together. Default: not supported."""

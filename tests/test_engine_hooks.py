@@ -1,8 +1,9 @@
-"""Engines with process-wide state (issue 23): an engine whose precision is process-global (Genesis's gs.init releases
-the models of the other precision) gets every ok row timed, in the sweep's and the ladders' timing phases
+"""Engine hooks of issue 23's gaps: an engine whose precision is process-global (Genesis's gs.init releases the models
+of the other precision) gets every ok row timed, in the sweep's and the ladders' timing phases
 (Engine.process_global_precision, harness.run.timing.groups); an engine whose first preparation compiles for minutes
-declares a longer prepare budget (Engine.prepare_budget_s, harness.run.measure.prepare_budget). A toy engine stands
-in for Genesis: it keeps one precision per process and wraps MuJoCo's euler."""
+declares a longer prepare budget (Engine.prepare_budget_s, harness.run.measure.prepare_budget); an integrator that is
+another method on another model declares its order there (Engine.formulation_order). A toy engine stands in for
+Genesis: it keeps one precision per process and wraps MuJoCo's euler."""
 from __future__ import annotations
 
 import dataclasses
@@ -51,7 +52,13 @@ class ToyEngine(Engine):
     def precisions(self, integrator):
         return (FLOAT64, FLOAT32)
 
-    def prepare(self, case, integrator, dt, precision=FLOAT64):
+    def formulations(self):
+        return ("ball", "free")
+
+    def formulation_order(self, formulation, integrator):
+        return 2.0 if formulation == "free" else self.declared_order(integrator)
+
+    def prepare(self, case, integrator, dt, precision=FLOAT64, formulation="ball"):
         return ToySimulation(case, dt, precision)
 
 
@@ -83,6 +90,7 @@ def test_every_ok_row_of_an_engine_with_a_process_global_precision_is_timed(toy,
     monkeypatch.setattr(ToyEngine, "process_global_precision", process_global)
     table = sweep.run_sweep([CASE], sweep.SweepOptions([NAME], tmp_path / "out", jobs=1, certify=False))
     rows = table[table.engine == NAME]
+    rows = rows[rows.formulation == "ball"]
     assert list(rows.status) == ["ok"] * 4 and set(rows.precision) == {FLOAT64, FLOAT32}
     timed = {p: int(rows[rows.precision == p].us_per_step.notna().sum()) for p in (FLOAT64, FLOAT32)}
     if process_global:
@@ -128,3 +136,18 @@ def test_an_engine_declares_a_longer_prepare_budget(toy, monkeypatch, declared, 
         assert row["_budget"] == {"what": "prepare", "seconds": 0.1}
     else:
         assert math.isfinite(row["_accuracy_s"])
+
+
+def test_an_integrator_declares_its_order_on_each_model(toy, tmp_path):
+    """convergence.csv's declared_order (what the order verdict judges) is the engine's order on the family's model:
+    the toy's euler is 1 on `ball` and declares 2 on `free` (as Genesis's implicitfast, the implicit midpoint rule on
+    a free body); an engine that does not override the hook declares declared_order on every model."""
+    from stereodyn.harness.analysis import fitting
+
+    assert fitting.declared_order(NAME, "euler", "ball") == 1.0 == fitting.declared_order(NAME, "euler")
+    assert fitting.declared_order(NAME, "euler", "free") == 2.0
+    assert fitting.declared_order("mujoco", "rk4", "anything") == 4.0
+    table = sweep.run_sweep([CASE], sweep.SweepOptions([NAME], tmp_path / "out", jobs=1, certify=False))
+    declared = {(row["formulation"], row["precision"]): row["declared_order"]
+                for row in fitting.sweep_orders(table[table.engine == NAME], set())}
+    assert declared == {("ball", FLOAT64): 1.0, ("ball", FLOAT32): 1.0, ("free", FLOAT64): 2.0, ("free", FLOAT32): 2.0}
