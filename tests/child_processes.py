@@ -1,8 +1,10 @@
-"""Child processes of the tests' worker pools: which started, and whether they ended (tests/test_scheduling.py,
-tests/test_workprecision_pool.py)."""
+"""Processes the tests start: the worker pools' children, which started and whether they ended
+(tests/test_scheduling.py, tests/test_workprecision_pool.py); a command's session or process group, from /proc
+(tests/test_boundaries.py, tests/test_faults.py)."""
 import multiprocessing
 import os
 import time
+from pathlib import Path
 
 
 def started_since(before: set) -> set:
@@ -31,3 +33,18 @@ def exists(pid: int) -> bool:
     except ProcessLookupError:
         return False
     return True
+
+
+def alive_in(*, session: int | None = None, group: int | None = None) -> list[int]:
+    """The live (not zombie) processes of a session or of a process group, read from /proc/PID/stat (Linux)."""
+    field, value = (3, session) if session is not None else (2, group)  # after the name: state, ppid, pgrp, session
+    alive = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[field]) == value and fields[0] != "Z":
+                alive.append(int(entry.name))
+    return alive

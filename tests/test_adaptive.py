@@ -8,13 +8,13 @@ import pandas as pd
 import pytest
 from test_euler_angles import lagrange_through_vertical
 
-from stereodyn.harness import tolerance_ladders
+from stereodyn.harness.analysis import tolerance_ladders
 from stereodyn.harness.analysis import fitting
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines.reference import ReferenceEngine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import scipy_ivp
-from stereodyn.harness.runner import truth_grid
+from stereodyn.harness.scenes.rigid_body import truth_grid
 from stereodyn.harness.trajectory import Status
 from stereodyn.reference import truth
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
@@ -165,7 +165,7 @@ def test_taylor_takes_the_tolerance_keyword():
 def test_the_default_sweep_runs_the_explicit_scipy_methods_on_the_quaternion_only():
     """Engine.default_run: a sweep that names no integrators plans scipy_rk45, scipy_dop853 and scipy_lsoda on the
     quaternion formulation (the cost measured in docs/ENGINES.md); naming one runs it on every formulation."""
-    from stereodyn.harness.plan import plan
+    from stereodyn.harness.run.plan import plan
 
     case = _free()
     specs, _ = plan([case], ["reference"], None)

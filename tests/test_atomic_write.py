@@ -3,8 +3,8 @@ import os
 
 import pytest
 
-from stereodyn.harness import results
-from stereodyn.harness.results import write_atomic
+from stereodyn.harness.run import results
+from stereodyn.harness.run.results import write_atomic
 
 
 class _HalfWriter:

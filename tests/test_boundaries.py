@@ -12,41 +12,15 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from child_processes import alive_in
+from helpers import FAST, case_file, one_line_error, tiny_case
+
 from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli
 from stereodyn.harness.report.build import figure_stem
-from stereodyn.harness.store import Store, StoreBusy, folder_lock
+from stereodyn.harness.run.store import Store, StoreBusy, folder_lock
 
-# A small valid body: a free asymmetric top, 11 steps. Each hostile input below replaces one line of it.
-BASE = """name = "base"
-[body]
-mass = 1.0
-com = [0.0, 0.0, 0.0]
-principal_moments = [2.0, 1.5, 1.0]
-[initial]
-attitude = { euler_zxz = [0.3, 0.8, -0.5] }
-omega = [0.4, 0.1, 2.0]
-[run]
-t_end = 0.1
-dt = [1e-2]
-samples = 11
-"""
-FAST = ["--engines", "mujoco", "--integrators", "rk4", "--jobs", "1", "--quiet"]
-
-
-def case_file(tmp_path: Path, text: str, name: str = "case.toml") -> Path:
-    path = tmp_path / name
-    path.write_text(text, encoding="utf-8")
-    return path
-
-
-def one_line_error(code: int, capsys, *expected: str) -> str:
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for text in expected:
-        assert text in err, err
-    return err
+BASE = tiny_case()  # a small valid body; each hostile input below replaces one line of it
 
 
 # --- 1. numbers at the boundary: the inputs the issue lists, each exit 2 naming the key (or data, below)
@@ -150,8 +124,6 @@ def test_bad_options_exit_2_with_one_line(argv, expected, capsys, tmp_path):
 
 
 def test_jobs_are_capped_at_the_number_of_runs(tmp_path, monkeypatch):
-    from stereodyn.harness import runner
-
     seen = []
     original = run_pool.ProcessPoolExecutor
 
@@ -331,19 +303,6 @@ def test_the_lock_covers_the_whole_command(tmp_path, monkeypatch, capsys):
             Store(out).__enter__()
 
 
-def _session_processes(session: int) -> list[int]:
-    alive = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[3]) == session and fields[0] != "Z":  # field 6 of stat: the session id
-                alive.append(int(entry.name))
-    return alive
-
-
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
 def test_a_sigkilled_sweep_leaves_no_process_and_the_next_run_no_temporary(tmp_path):
     path = case_file(tmp_path, BASE.replace("t_end = 0.1", "t_end = 2.0").replace("dt = [1e-2]",
@@ -360,18 +319,18 @@ def test_a_sigkilled_sweep_leaves_no_process_and_the_next_run_no_temporary(tmp_p
             assert process.poll() is None, (tmp_path / "stderr").read_text()
             assert time.monotonic() < deadline
             time.sleep(0.02)
-        assert len(_session_processes(process.pid)) >= 3  # the sweep and its two workers at least
+        assert len(alive_in(session=process.pid)) >= 3  # the sweep and its two workers at least
         os.kill(process.pid, signal.SIGKILL)  # the parent alone: its workers are orphaned
         process.wait()
         # the orphaned workers poll their parent every PARENT_POLL_S = 0.5 s (harness/run/processes.py) and are gone
         # ~0.5 s later on an idle machine; the 60 s bound only keeps a loaded machine from failing the test (under
         # load it failed the former fixed 5 s wait), it is not a timing check
         deadline = time.monotonic() + 60
-        while _session_processes(process.pid) and time.monotonic() < deadline:
+        while alive_in(session=process.pid) and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert _session_processes(process.pid) == []
+        assert alive_in(session=process.pid) == []
     finally:
-        for pid in _session_processes(process.pid):
+        for pid in alive_in(session=process.pid):
             os.kill(pid, signal.SIGKILL)
     (out / "figures").mkdir(exist_ok=True)
     for leftover in (out / ".results.csv.abc.tmp", out / "figures" / ".x.png.abc.tmp", out / "store" / ".k.json.tmp"):

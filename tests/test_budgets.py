@@ -5,15 +5,14 @@ that budget is raised.
 No timing is asserted: each stopped run here would take minutes (1e7 steps, a propagation over 1e5 s) without its
 budget, so a test that passes has seen it stop."""
 import dataclasses
-import json
 import time
-from pathlib import Path
 
 import pandas as pd
 import pytest
+from helpers import installed_engine, store_mtimes, store_records, tiny_case
 
 from stereodyn.harness import budget, cli
-from stereodyn.harness.engines import UnavailableEngine, get_engine
+from stereodyn.harness.engines import get_engine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.reference import truth as reference_truth
@@ -44,13 +43,6 @@ def test_a_reference_propagation_out_of_time_leaves_within_as_the_budget():
     assert stopped.value.what == "truth" and "--truth-budget" in str(stopped.value)
 
 
-def _engine(name):
-    engine = get_engine(name)
-    if isinstance(engine, UnavailableEngine):
-        pytest.skip(engine.reason)
-    return engine
-
-
 # Every built-in loop: the harness's integrators (Pinocchio, the reference formulations), MuJoCo's rollout chunks and
 # its Python step loop (a torque), scipy's methods, heyoka's Taylor runs, Drake's fixed-step and error-controlled
 # integrators (its simulator's monitor), Bullet's and MuJoCo Warp's step loops, and the sliding ladder's models and
@@ -71,7 +63,7 @@ RIGID = [("free-asymmetric", "pinocchio", "", "rk4", 1e-4), ("free-asymmetric", 
 def test_every_engine_loop_stops_at_the_run_budget(name, engine, formulation, integrator, dt):
     case = with_overrides(find_case(name), t_end=LONG, dt=1e-4)
     extra = {"formulation": formulation} if formulation else {}
-    sim = _engine(engine).prepare(case, integrator, dt, **extra)
+    sim = installed_engine(engine).prepare(case, integrator, dt, **extra)
     grid = time_grid(LONG, dt or LONG / 99, 100)
     with pytest.raises(budget.BudgetExceeded, match="run budget exceeded"):
         with budget.within("run", 0.05):
@@ -86,30 +78,14 @@ def test_the_sliding_ladder_stops_at_the_run_budget(engine, model, integrator, d
     # the extreme rod of issue 22: l = 1e-9 m, g = 1e6 m/s^2 (sqrt(g/l) ~ 3e7 rad/s) for the equation
     ladder = dataclasses.replace(case.ladder, mass=1e6, half_length=1e-9, g=1e6) if dt is None else case.ladder
     case = dataclasses.replace(case, ladder=ladder, t_end=LONG if dt else 1.5, dt=(dt or 1e-3,))
-    sim = _engine(engine).models()["sliding_ladder"].prepare(case, model, integrator, dt)
+    sim = installed_engine(engine).models()["sliding_ladder"].prepare(case, model, integrator, dt)
     grid = time_grid(case.t_end, dt or case.t_end / 99, 100)
     with pytest.raises(budget.BudgetExceeded):
         with budget.within("run", 0.05):
             sim.run(grid)
 
 
-CASE = """name = "budgeted"
-[body]
-mass = 1.0
-com = [0.0, 0.0, 0.0]
-principal_moments = [2.0, 1.5, 1.0]
-[initial]
-attitude = { euler_zxz = [0.3, 0.8, -0.5] }
-omega = [0.4, 0.1, 2.0]
-[run]
-t_end = 2.0
-dt = [1e-3]
-samples = 11
-"""
-
-
-def _records(out: Path) -> dict[str, dict]:
-    return {p.name: json.loads(p.read_text()) for p in (out / "store").glob("*.json")}
+CASE = tiny_case("budgeted", t_end=2.0, dt="1e-3")  # 2000 steps: long enough to pass a tiny budget
 
 
 @pytest.fixture
@@ -125,10 +101,6 @@ def budgeted(tmp_path):
         return pd.read_csv(out / "results.csv", keep_default_na=False).set_index(["engine", "integrator"])
 
     return out, run
-
-
-def _mtimes(out: Path) -> dict[str, int]:
-    return {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
 
 
 @pytest.mark.parametrize("what, flag, tiny", [("run", "--run-budget", "0.001"), ("prepare", "--prepare-budget",
@@ -151,21 +123,21 @@ def test_a_row_past_its_budget_is_failed_stored_so_and_redone_only_when_the_budg
     assert stopped.status == "failed"
     assert stopped.message == f"{what} budget exceeded: stopped after 0.001 s of wall time ({flag} raises it)"
     assert stopped.attitude_err == "" and stopped.wall_s == ""  # no numbers from a run that did not finish
-    records = _records(out)
+    records = store_records(out)
     [record] = [r for r in records.values() if r["row"]["engine"] == "pinocchio"]
     assert record["budget"] == {"what": what, "seconds": 0.001}
-    before = _mtimes(out)
+    before = store_mtimes(out)
     assert run(flag, tiny, "--resume").loc[("pinocchio", "rk4")].status == "failed"
-    assert _mtimes(out) == before  # the same budget: the stored rows serve, the failure included
+    assert store_mtimes(out) == before  # the same budget: the stored rows serve, the failure included
     other = "--truth-budget" if what == "run" else "--run-budget"
     run(flag, tiny, other, "500", "--resume")  # another budget raised: this row would stop again, so it is reused
-    assert _mtimes(out) == before
+    assert store_mtimes(out) == before
     again = run(flag, "60", "--resume")  # its budget raised: redone, now ok
     assert again.loc[("pinocchio", "rk4")].status == "ok" and float(again.loc[("pinocchio", "rk4")].attitude_err) > 0
-    after = _mtimes(out)
+    after = store_mtimes(out)
     redone = {name for name in before if after.get(name) != before[name]}
     assert redone == {f"{record['key']}.json"}
-    assert "budget" not in _records(out)[f"{record['key']}.json"]
+    assert "budget" not in store_records(out)[f"{record['key']}.json"]
 
 
 def test_a_truth_past_its_budget_fails_its_case_and_is_redone_when_raised(budgeted):
@@ -174,7 +146,7 @@ def test_a_truth_past_its_budget_fails_its_case_and_is_redone_when_raised(budget
     assert set(rows.status) == {"failed"} and len(rows) == 1
     assert set(rows.message) == {"truth failed: truth budget exceeded: stopped after 0.001 s of wall time "
                                  "(--truth-budget raises it)"}
-    assert {r["budget"]["what"] for r in _records(out).values()} == {"truth"}
+    assert {r["budget"]["what"] for r in store_records(out).values()} == {"truth"}
     assert set(run("--truth-budget", "0.001", "--resume").status) == {"failed"}
     assert set(run("--truth-budget", "120", "--resume").status) == {"ok"}
 

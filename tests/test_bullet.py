@@ -4,15 +4,14 @@ the extra is missing. Skipped where pybullet is not installed (but the missing-e
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from helpers import assert_skipped_without_sdk, installed_engine
 
-from stereodyn.harness import metrics
+from stereodyn.harness.scenes import metrics
 from stereodyn.harness.scenes.cases import find_case
-from stereodyn.harness.engines import UnavailableEngine, get_engine
+from stereodyn.harness.engines import get_engine
 from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status
@@ -24,22 +23,11 @@ STEP = "semi_implicit_euler"
 
 @pytest.fixture(scope="module")
 def bullet():
-    engine = get_engine("bullet")
-    if isinstance(engine, UnavailableEngine):  # the extra is not installed (the registry's reason names it)
-        pytest.skip(engine.reason)
-    return engine
+    return installed_engine("bullet")
 
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
-    code = ("import sys; sys.modules['pybullet'] = None\n"
-            "from stereodyn.harness.engines import get_engine, UnavailableEngine\n"
-            "engine = get_engine('bullet')\n"
-            "print(isinstance(engine, UnavailableEngine)); print(engine.unsupported(None))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stderr[-2000:]
-    unavailable, reason = result.stdout.splitlines()
-    assert unavailable == "True"
-    assert reason.startswith("bullet engine unavailable:") and "pip install 'stereodyn[bullet]'" in reason
+    assert_skipped_without_sdk("bullet", "pybullet")
 
 
 # Cases: a torque-free asymmetric body with non-principal axes is not among them, but heavy-asymmetric has a full

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stereodyn.harness.cases import (ORACLES, BodyTorque, CaseError, CentralField, find_case, load_case, load_suite, suite_dir,
+from stereodyn.harness.scenes.cases import (ORACLES, BodyTorque, CaseError, CentralField, find_case, load_case, load_suite, suite_dir,
                            with_overrides)
 from stereodyn.reference.exact import ORACLES as EXACT_SOLUTIONS
 

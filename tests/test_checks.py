@@ -8,8 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import checks, cli
-from stereodyn.harness.cases import find_case
+from stereodyn.harness import cli
+from stereodyn.harness.scenes import checks
+from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.trajectory import Status, Trajectory
 from stereodyn.harness.grid import time_grid
 from stereodyn.reference.exact import lyapunov_exponent, sleeping_top_threshold

@@ -1,22 +1,15 @@
 """Sweeps on a Dask cluster: a LocalCluster on this machine gives the local run's table, timings aside."""
 import pandas as pd
 import pytest
+from helpers import without_timings
 
-from stereodyn.harness import cli, distributed as stereodyn_distributed
-from stereodyn.harness.run.timing import DISTURBED
+from stereodyn.harness import cli
+from stereodyn.harness.run import distributed as stereodyn_distributed
 
 dask_distributed = pytest.importorskip(
     "distributed", reason="dask.distributed is not installed (pip install 'stereodyn[dask]')")
 
 SWEEP = ["lagrange-top", "--t-end", "0.5", "--dt", "1e-2", "--quiet"]
-TIMINGS = ["wall_s", "us_per_step", "us_per_step_spread"]  # the noise of a timing is a timing too
-
-
-def without_timing_marks(table: pd.DataFrame) -> pd.DataFrame:
-    """The table less its timings, and less the 'timing disturbed' marks the timing phase appends to a message (on a
-    loaded machine they come and go from run to run: they are timings too)."""
-    marks = table["message"].astype("string").str.replace(rf"(; )?{DISTURBED}:[^;]*", "", regex=True)
-    return table.drop(columns=TIMINGS).assign(message=marks.replace("", pd.NA))
 
 
 def test_a_local_cluster_gives_the_local_table(tmp_path, capsys):
@@ -35,7 +28,7 @@ def test_a_local_cluster_gives_the_local_table(tmp_path, capsys):
         assert "other library versions: mujoco 0.0.1 (here 4" in capsys.readouterr().err
     expected, got = pd.read_csv(local / "results.csv"), pd.read_csv(remote / "results.csv")
     assert (got.status == "ok").sum() >= 8 + 1  # every simulator run and the truth
-    pd.testing.assert_frame_equal(without_timing_marks(got), without_timing_marks(expected))
+    pd.testing.assert_frame_equal(without_timings(got), without_timings(expected))
     assert got[got.status == "ok"].us_per_step.notna().all()
     # one record per run; rows skipped up front (Drake's quaternion_free model of this heavy top) are not runs
     ran = got[got.status != "skipped"]

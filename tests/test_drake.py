@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from helpers import assert_skipped_without_sdk
 
-from stereodyn.harness import metrics
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes import metrics
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
@@ -43,15 +42,7 @@ def state_error(case, grid, traj) -> float:
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
     """pydrake made unimportable: the registry's stand-in engine skips every case with the adapter's message."""
-    code = ("import sys; sys.modules['pydrake'] = None\n"
-            "from stereodyn.harness.engines import get_engine, UnavailableEngine\n"
-            "engine = get_engine('drake')\n"
-            "print(isinstance(engine, UnavailableEngine)); print(engine.unsupported(None))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stderr[-2000:]
-    unavailable, reason = result.stdout.splitlines()
-    assert unavailable == "True"
-    assert reason.startswith("drake engine unavailable:") and "pip install 'stereodyn[drake]'" in reason
+    assert_skipped_without_sdk("drake", "pydrake")
 
 
 def test_integrators_orders_adaptivity_and_default_sweep(drake):
@@ -202,8 +193,8 @@ def test_every_integrator_runs_on_both_models_and_counts_its_work(drake):
 def test_the_default_sweep_has_drake_rows_on_every_case(drake):
     """The plan of a run naming no integrators: every rigid-body case runs rpy_ball, and quaternion_free exactly where
     O is the centre of mass (absent elsewhere, not skipped); the sliding ladder is one skipped row naming why."""
-    from stereodyn.harness.cases import load_suite
-    from stereodyn.harness.plan import plan
+    from stereodyn.harness.scenes.cases import load_suite
+    from stereodyn.harness.run.plan import plan
 
     suite = load_suite()
     specs, skipped = plan(suite, ["drake"], None)

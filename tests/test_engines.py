@@ -10,14 +10,13 @@ import pytest
 
 import stereodyn.harness.integrators as integrators
 from stereodyn.harness.analysis.fitting import order_slope
-from stereodyn.harness.cases import BodyTorque, Case, CentralField
+from stereodyn.harness.scenes.cases import BodyTorque, Case, CentralField
 from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
 from stereodyn.reference import truth as reference_truth
 from stereodyn.reference.euler_poisson import omega_dot
 from stereodyn.reference.rotations import attitude_angle, quat_mul, quat_to_matrix
-
 from stereodyn.harness.engines import mujoco as mujoco_engine  # noqa: E402  (base dependencies: a broken
 from stereodyn.harness.engines import pinocchio as pinocchio_engine  # noqa: E402  adapter must fail, not skip)
 MUJOCO = mujoco_engine.MujocoEngine()

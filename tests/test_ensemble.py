@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.pinocchio import build_model, retract_rows

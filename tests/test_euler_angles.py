@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.reference import ReferenceEngine
 from stereodyn.harness.grid import time_grid

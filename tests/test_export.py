@@ -5,7 +5,7 @@ import pinocchio as pin
 import pytest
 
 from stereodyn.harness import cli
-from stereodyn.harness.cases import load_suite
+from stereodyn.harness.scenes.cases import load_suite
 from stereodyn.harness.engines.mujoco import MujocoEngine
 from stereodyn.harness.engines.pinocchio import PinocchioSystem, build_model
 from stereodyn.reference.euler_poisson import omega_dot

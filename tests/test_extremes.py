@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness.cases import load_suite, suite_dir
-from stereodyn.harness.runner import run_sweep
+from stereodyn.harness.scenes.cases import load_suite, suite_dir
+from stereodyn.harness.run.sweep import run_sweep
 
 EXTREME_DIR = suite_dir() / "extreme"
 # The fast subset: these cases on MuJoCo and Pinocchio; the long horizon (1e6 steps), the 1e5-step round-off case and

@@ -16,6 +16,8 @@ import time
 from pathlib import Path
 
 import pytest
+from child_processes import alive_in
+from helpers import FAST, one_line_error, tiny_case
 
 from stereodyn.harness import cli
 from stereodyn.harness.run import processes
@@ -147,30 +149,8 @@ def test_a_worker_ignores_ctrl_c_from_its_first_moment():
 
 # --- a result folder: read only when no command writes it, and only complete
 
-BASE = """name = "base"
-[body]
-mass = 1.0
-com = [0.0, 0.0, 0.0]
-principal_moments = [2.0, 1.5, 1.0]
-[initial]
-attitude = { euler_zxz = [0.3, 0.8, -0.5] }
-omega = [0.4, 0.1, 2.0]
-[run]
-t_end = 0.1
-dt = [1e-2]
-samples = 11
-"""
-FAST = ["--engines", "mujoco", "--integrators", "rk4", "--jobs", "1", "--quiet"]
+BASE = tiny_case()
 REPORTS = Path(__file__).resolve().parents[1] / "reports"
-
-
-def _one_line(code: int, capsys, expected_code: int = 2, *expected: str) -> str:
-    err = capsys.readouterr().err
-    assert code == expected_code, err
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for text in expected:
-        assert text in err, err
-    return err
 
 
 @pytest.fixture(scope="module")
@@ -210,7 +190,7 @@ def test_the_gate_never_reads_a_folder_a_command_is_writing(good, tmp_path, caps
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # what a running sweep holds
         for argv in _reads(folder, good[1], good[0], tmp_path):
-            _one_line(cli.main(argv), capsys, 2, str(folder), "writing")
+            one_line_error(cli.main(argv), capsys, str(folder), "writing")
         assert not (tmp_path / "new.json").exists()
     finally:
         os.close(fd)
@@ -235,7 +215,7 @@ def test_an_unfinished_folder_is_refused_or_read_as_partial(good, tmp_path, caps
     _mark(folder, False)
     capsys.readouterr()
     for argv in _reads(folder, good[1], good[0], tmp_path):
-        _one_line(cli.main(argv), capsys, 2, str(folder), "unfinished", "--allow-partial")
+        one_line_error(cli.main(argv), capsys, str(folder), "unfinished", "--allow-partial")
     for argv in _reads(folder, good[1], good[0], tmp_path, "--allow-partial"):
         err = capsys.readouterr().err
         assert cli.main(argv) == 0
@@ -272,7 +252,7 @@ def test_a_run_interrupted_before_its_end_leaves_the_folder_unfinished(good, tmp
     assert cli.main(["run", "--case-file", str(good[2]), "--out", str(out), *FAST]) == 130
     monkeypatch.setattr(build, "write_reports", write_reports)
     capsys.readouterr()
-    _one_line(cli.main(["check", str(out), "--baseline", str(good[1])]), capsys, 2, "unfinished")
+    one_line_error(cli.main(["check", str(out), "--baseline", str(good[1])]), capsys, "unfinished")
     assert cli.main(["run", "--case-file", str(good[2]), "--out", str(out), "--resume", *FAST]) == 0
     assert cli.main(["check", str(out), "--baseline", str(good[1])]) == 0
 
@@ -307,7 +287,7 @@ def test_a_malformed_results_table_is_refused_by_every_reader(good, tmp_path, ca
     _rewrite(folder / "results.csv", edit)
     capsys.readouterr()
     for argv in _reads(folder, good[1], good[0], tmp_path):
-        _one_line(cli.main(argv), capsys, 2, str(folder / "results.csv"), *expected)
+        one_line_error(cli.main(argv), capsys, str(folder / "results.csv"), *expected)
     assert not (tmp_path / "new.json").exists()  # baseline wrote nothing check would refuse
 
 
@@ -341,27 +321,27 @@ def test_a_hostile_baseline_file_is_one_line(good, tmp_path, capsys, text, expec
     path = tmp_path / "hostile.json"
     path.write_text(text)
     capsys.readouterr()
-    _one_line(cli.main(["check", str(good[0]), "--baseline", str(path)]), capsys, 2, str(path), expected)
-    _one_line(cli.main(["compare", str(path), str(good[0]), "--out", str(tmp_path / "cmp")]), capsys, 2, str(path))
+    one_line_error(cli.main(["check", str(good[0]), "--baseline", str(path)]), capsys, str(path), expected)
+    one_line_error(cli.main(["compare", str(path), str(good[0]), "--out", str(tmp_path / "cmp")]), capsys, str(path))
 
 
 def test_hostile_case_and_tolerance_files_are_one_line(good, tmp_path, capsys):
     huge = "1" + "0" * 4999
     case = tmp_path / "case.toml"
     case.write_text(BASE.replace("samples = 11", f"samples = {huge}"))
-    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+    one_line_error(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys,
               str(case), "more than 4300 digits")
     nested = tmp_path / "nested.toml"
     nested.write_text(BASE + "x = " + "[" * 100_000 + "]" * 100_000 + "\n")
-    _one_line(cli.main(["run", "--case-file", str(nested), "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+    one_line_error(cli.main(["run", "--case-file", str(nested), "--out", str(tmp_path / "o"), *FAST]), capsys,
               str(nested), "nested too deep")
     if Path("/dev/zero").exists():  # read without end in 0.2.0 (MemoryError)
-        _one_line(cli.main(["run", "--case-file", "/dev/zero", "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+        one_line_error(cli.main(["run", "--case-file", "/dev/zero", "--out", str(tmp_path / "o"), *FAST]), capsys,
                   "/dev/zero", "larger than")
     tolerances = tmp_path / "tolerances.toml"
     tolerances.write_text(f"[default]\nfactor = {huge}\n")
-    _one_line(cli.main(["check", str(good[0]), "--baseline", str(good[1]), "--tolerances", str(tolerances)]),
-              capsys, 2, str(tolerances), "more than 4300 digits")
+    one_line_error(cli.main(["check", str(good[0]), "--baseline", str(good[1]), "--tolerances", str(tolerances)]),
+              capsys, str(tolerances), "more than 4300 digits")
 
 
 def test_a_nested_store_record_is_absent_and_recomputed_by_resume(good, tmp_path):
@@ -381,11 +361,11 @@ def test_a_nested_store_record_is_absent_and_recomputed_by_resume(good, tmp_path
 # --- the smaller points (issue 22, 7)
 
 def test_a_newline_in_a_path_or_a_name_is_one_line(tmp_path, capsys):
-    _one_line(cli.main(["baseline", str(tmp_path / "a\nb"), "--out", str(tmp_path / "b.json")]), capsys, 2,
+    one_line_error(cli.main(["baseline", str(tmp_path / "a\nb"), "--out", str(tmp_path / "b.json")]), capsys,
               "a\\nb")
     case = tmp_path / "case.toml"
     case.write_text(BASE.replace('name = "base"', 'name = "two\\nlines"'))
-    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys, 2, "name")
+    one_line_error(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys, "name")
 
 
 def test_an_unreachable_scheduler_is_refused_before_any_truth(tmp_path, capsys):
@@ -393,18 +373,18 @@ def test_an_unreachable_scheduler_is_refused_before_any_truth(tmp_path, capsys):
     out = tmp_path / "out"
     case = tmp_path / "case.toml"
     case.write_text(BASE)
-    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(out), "--scheduler", "tcp://127.0.0.1:1",
-                        *FAST]), capsys, 2, "--scheduler", "127.0.0.1:1")
+    one_line_error(cli.main(["run", "--case-file", str(case), "--out", str(out), "--scheduler", "tcp://127.0.0.1:1",
+                        *FAST]), capsys, "--scheduler", "127.0.0.1:1")
     assert not (out / "results.csv").exists() and not list((out / "store").glob("*.json"))
 
 
 def test_a_step_given_twice_is_refused(tmp_path, capsys):
     case = tmp_path / "case.toml"
     case.write_text(BASE)
-    _one_line(cli.main(["run", "--case-file", str(case), "--dt", "1e-2,1e-2", "--out", str(tmp_path / "o"), *FAST]),
-              capsys, 2, "--dt", "given twice")
+    one_line_error(cli.main(["run", "--case-file", str(case), "--dt", "1e-2,1e-2", "--out", str(tmp_path / "o"), *FAST]),
+              capsys, "--dt", "given twice")
     case.write_text(BASE.replace("dt = [1e-2]", "dt = [1e-2, 5e-3, 1e-2]"))
-    _one_line(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys, 2,
+    one_line_error(cli.main(["run", "--case-file", str(case), "--out", str(tmp_path / "o"), *FAST]), capsys,
               "run.dt[2]", "given twice")
 
 
@@ -413,7 +393,7 @@ def test_a_step_given_twice_is_refused(tmp_path, capsys):
     ["compare", "a", "b", "--out", ""], ["export", "free-asymmetric", "--format", "mjcf", "--out", ""],
 ])
 def test_an_empty_path_is_refused(argv, capsys):
-    _one_line(cli.main(argv), capsys, 2, "empty path")
+    one_line_error(cli.main(argv), capsys, "empty path")
 
 
 def test_extremes_with_a_case_file_runs_both(tmp_path):
@@ -431,7 +411,7 @@ def test_extremes_with_a_case_file_runs_both(tmp_path):
 
 @pytest.mark.parametrize("option", [["--integrator", "rk4"], ["--dt", "0.01"]])
 def test_export_urdf_refuses_mjcf_options(option, capsys):
-    _one_line(cli.main(["export", "free-asymmetric", "--format", "urdf", *option]), capsys, 2, option[0], "mjcf")
+    one_line_error(cli.main(["export", "free-asymmetric", "--format", "urdf", *option]), capsys, option[0], "mjcf")
 
 
 def test_a_full_disk_names_the_file(good, tmp_path, monkeypatch, capsys):
@@ -444,7 +424,7 @@ def test_a_full_disk_names_the_file(good, tmp_path, monkeypatch, capsys):
     capsys.readouterr()
     for argv, target in ((["export", "free-asymmetric", "--format", "urdf"], tmp_path / "body.urdf"),
                          (["baseline", str(good[0])], tmp_path / "baseline.json")):
-        _one_line(cli.main([*argv, "--out", str(target)]), capsys, 2, str(target), os.strerror(errno.ENOSPC))
+        one_line_error(cli.main([*argv, "--out", str(target)]), capsys, str(target), os.strerror(errno.ENOSPC))
 
 
 # --- the real command, interrupted and killed at wall-clock moments (slow: a minute or more each)
@@ -456,19 +436,6 @@ def _command(out: Path, log: Path, *extra: str) -> subprocess.Popen:
     """The acceptance command in its own session (a terminal's Ctrl-C reaches its whole process group)."""
     return subprocess.Popen([sys.executable, "-m", "stereodyn", *ACCEPTANCE, "--out", str(out), *extra],
                             stdout=subprocess.DEVNULL, stderr=log.open("w"), start_new_session=True)
-
-
-def _group(pgid: int) -> list[int]:
-    alive = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[2]) == pgid and fields[0] != "Z":  # field 5 of stat: the process group
-                alive.append(int(entry.name))
-    return alive
 
 
 @pytest.mark.slow
@@ -494,7 +461,7 @@ def test_ctrl_c_at_any_moment_is_130_and_one_line(tmp_path, at_s):
         rows = pd.read_csv(out / "results.csv")
         blamed = rows[rows["message"].fillna("").str.contains("unavailable|KeyboardInterrupt|initialization failed")]
         assert blamed.empty, blamed.to_string()
-    assert _wait_gone(_group(process.pid), 60) == []
+    assert _wait_gone(alive_in(group=process.pid), 60) == []
     assert cli.main([*ACCEPTANCE, "--out", str(out), "--resume"]) == 0
 
 
@@ -510,7 +477,7 @@ def test_a_killed_command_leaves_no_process(tmp_path, at_s):
     os.kill(process.pid, signal.SIGKILL)
     process.wait()
     time.sleep(5)
-    survivors = _group(process.pid)
+    survivors = alive_in(group=process.pid)
     for pid in survivors:
         os.kill(pid, signal.SIGKILL)
     assert survivors == []

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereodyn.harness.cases import find_case, load_suite
+from stereodyn.harness.scenes.cases import find_case, load_suite
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status

@@ -9,15 +9,16 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness.analysis.fitting import order_slope
-from stereodyn.harness import cli, plan
-from stereodyn.harness.cases import Case, find_case, load_suite
+from stereodyn.harness import cli
+from stereodyn.harness.run import plan
+from stereodyn.harness.scenes.cases import Case, find_case, load_suite
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.reference import FormulationSystem, ReferenceEngine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import get as get_integrator
 from stereodyn.harness.report.markdown import formulation_lines
-from stereodyn.harness.results import COLUMNS
+from stereodyn.harness.run.results import COLUMNS
 from stereodyn.reference import formulations, truth
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.euler_angles import to_quat

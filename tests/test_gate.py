@@ -5,9 +5,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from stereodyn.harness import cli, plan
+from stereodyn.harness import cli
+from stereodyn.harness.run import plan
 from stereodyn.harness.analysis import gate
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import UnavailableEngine, engine_names, get_engine
 
 SWEEP = ["lagrange-top", "heavy-asymmetric", "--t-end", "0.5", "--dt", "1e-2", "--jobs", "1", "--quiet"]

@@ -4,13 +4,12 @@ torch is not installed (but the missing-extra test runs). Importing Genesis cost
 for a minute or more (then the kernel cache serves): the tests share one module-scoped engine."""
 from __future__ import annotations
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from helpers import assert_skipped_without_sdk, installed_engine
 
-from stereodyn.harness.engines import UnavailableEngine, get_engine
+from stereodyn.harness.engines import get_engine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.trajectory import Status
@@ -19,10 +18,7 @@ from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 @pytest.fixture(scope="module")
 def genesis():
-    engine = get_engine("genesis")
-    if isinstance(engine, UnavailableEngine):  # the extra is not installed (the registry's reason names it)
-        pytest.skip(engine.reason)
-    return engine
+    return installed_engine("genesis")
 
 
 def _against_mujoco_euler(engine, case, integrator, model, precision, seconds=2.0, dt=1e-2):
@@ -35,16 +31,7 @@ def _against_mujoco_euler(engine, case, integrator, model, precision, seconds=2.
 
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
-    code = ("import sys; sys.modules['genesis'] = None\n"
-            "import importlib.util; importlib.util.find_spec = lambda name, *a: None\n"
-            "from stereodyn.harness.engines import get_engine, UnavailableEngine\n"
-            "engine = get_engine('genesis')\n"
-            "print(isinstance(engine, UnavailableEngine)); print(engine.unsupported(None))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stderr[-2000:]
-    unavailable, reason = result.stdout.splitlines()
-    assert unavailable == "True"
-    assert reason.startswith("genesis engine unavailable:") and "pip install 'stereodyn[genesis]'" in reason
+    assert_skipped_without_sdk("genesis", "genesis", hide_specs=True)
 
 
 # heavy-asymmetric: a full inertia off the principal axes and the centre of mass off every axis, on the ball joint;

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from stereodyn.harness import integrators, testing
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators.geometric import ImplicitMidpoint, MoserVeselov, StrangSplitting

@@ -314,7 +314,7 @@ def test_chromium_renders_every_figure_and_resolves_every_link(ran, tmp_path):
 def test_the_default_suites_summary_fits_in_80_lines():
     """On the committed default suite (reports/default: 1001 runs, 9 of them diverged for one reason)."""
     from stereodyn.harness.analysis import verdicts
-    from stereodyn.harness.results import read_results
+    from stereodyn.harness.run.results import read_results
 
     folder = Path(__file__).resolve().parents[1] / "reports" / "default"
     df = read_results(folder / "results.csv")

@@ -5,11 +5,10 @@ compiles two rollouts (euler in float64 and float32); the order measurement is m
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from helpers import assert_skipped_without_sdk
 
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
@@ -34,15 +33,7 @@ def _both(engine, case, integrator, dt, **precision):
 
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
-    code = ("import sys; sys.modules['jax'] = None\n"
-            "from stereodyn.harness.engines import get_engine, UnavailableEngine\n"
-            "engine = get_engine('mjx')\n"
-            "print(isinstance(engine, UnavailableEngine)); print(engine.unsupported(None))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stderr[-2000:]
-    unavailable, reason = result.stdout.splitlines()
-    assert unavailable == "True"
-    assert reason.startswith("mjx engine unavailable:") and "pip install 'stereodyn[mjx]'" in reason
+    assert_skipped_without_sdk("mjx", "jax")
 
 
 def test_float64_euler_is_mujoco_c_euler_and_float32_rounds(mjx):

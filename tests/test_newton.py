@@ -5,15 +5,14 @@ a minute or more (then Warp's kernel cache serves)."""
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from helpers import assert_skipped_without_sdk, installed_engine
 
 from stereodyn.harness.scenes import metrics
-from stereodyn.harness.engines import UnavailableEngine, get_engine
-from stereodyn.harness.fitting import order_slope
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.trajectory import Status
@@ -23,22 +22,11 @@ from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 
 @pytest.fixture(scope="module")
 def newton():
-    engine = get_engine("newton")
-    if isinstance(engine, UnavailableEngine):  # the extra is not installed (the registry's reason names it)
-        pytest.skip(engine.reason)
-    return engine
+    return installed_engine("newton")
 
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
-    code = ("import sys; sys.modules['newton'] = None\n"
-            "from stereodyn.harness.engines import get_engine, UnavailableEngine\n"
-            "engine = get_engine('newton')\n"
-            "print(isinstance(engine, UnavailableEngine)); print(engine.unsupported(None))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stderr[-2000:]
-    unavailable, reason = result.stdout.splitlines()
-    assert unavailable == "True"
-    assert reason.startswith("newton engine unavailable:") and "pip install 'stereodyn[newton]'" in reason
+    assert_skipped_without_sdk("newton", "newton")
 
 
 @pytest.mark.parametrize("name, model", [("heavy-asymmetric", "ball"), ("free-asymmetric", "free")])

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from stereodyn.harness import cli
-from stereodyn.harness.cases import load_suite
-from stereodyn.harness.checks import read_checks
-from stereodyn.harness.results import read_results
+from stereodyn.harness.scenes.cases import load_suite
+from stereodyn.harness.scenes.checks import read_checks
+from stereodyn.harness.run.results import read_results
 
 REPO = Path(__file__).resolve().parent.parent
 # The bound on oracle_err, the truth against the exact solution, within each case's horizon.

@@ -1,9 +1,10 @@
 """The progress bar: drawn on a terminal with an ETA, silent otherwise."""
 import io
 
-from stereodyn.harness import cli, runner
-from stereodyn.harness.cases import find_case, with_overrides
-from stereodyn.harness.progress import ProgressBar
+from stereodyn.harness import cli
+from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.scenes.cases import find_case, with_overrides
+from stereodyn.harness.run.progress import ProgressBar
 
 
 class Terminal(io.StringIO):
@@ -41,7 +42,7 @@ def test_silent_when_not_a_terminal_or_disabled():
 def test_a_sweep_drives_the_bar(tmp_path):
     screen = Terminal()
     case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
-    runner.run_sweep([case], ["mujoco"], ["euler", "rk4"], tmp_path, jobs=1, progress=ProgressBar(screen, width=100))
+    run_sweep([case], ["mujoco"], ["euler", "rk4"], tmp_path, jobs=1, progress=ProgressBar(screen, width=100))
     final = screen.getvalue().split("\r")[-1]
     assert "4/4" in final and "100%" in final and screen.getvalue().endswith("\n")
 

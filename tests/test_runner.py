@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness.run import measure as run_measure
-from stereodyn.harness import cli, runner
+from stereodyn.harness import cli
 from stereodyn.harness.engines import Engine, UnavailableEngine, get_engine
-from stereodyn.harness.results import COLUMNS
+from stereodyn.harness.run.results import COLUMNS
 
 
 def run_cli(*argv):

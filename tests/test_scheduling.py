@@ -5,9 +5,11 @@ import pytest
 from child_processes import ended, started_since
 
 from stereodyn.harness.run import truth as run_truth
-from stereodyn.harness import runner
-from stereodyn.harness.cases import find_case, with_overrides
-from stereodyn.harness.plan import RunSpec
+from stereodyn.harness.run import timing
+from stereodyn.harness.run.pool import cost, local_pool
+from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.scenes.cases import find_case, with_overrides
+from stereodyn.harness.run.plan import RunSpec
 
 
 def spec(engine, integrator, dt, case="lagrange-top", formulation=""):
@@ -15,7 +17,6 @@ def spec(engine, integrator, dt, case="lagrange-top", formulation=""):
 
 
 def test_the_cost_grows_with_steps_stages_and_the_engines_cost_of_a_step():
-    cost = runner._cost
     assert cost(spec("mujoco", "euler", 1e-3)) > cost(spec("mujoco", "euler", 1e-2))
     assert cost(spec("mujoco", "rk4", 1e-3)) > cost(spec("mujoco", "euler", 1e-3))
     assert cost(spec("pinocchio", "rk4", 1e-3)) > cost(spec("mujoco", "rk4", 1e-3))
@@ -26,20 +27,20 @@ def test_the_cost_grows_with_steps_stages_and_the_engines_cost_of_a_step():
 
 def test_an_adaptive_run_is_not_ranked_below_the_engines_runs_at_the_finest_step():
     case = find_case("lagrange-top")
-    adaptive = runner._cost(spec("reference", "taylor", None, formulation="gibbs"))
-    assert adaptive >= runner._cost(spec("reference", "euler", min(case.dt), formulation="gibbs"))
+    adaptive = cost(spec("reference", "taylor", None, formulation="gibbs"))
+    assert adaptive >= cost(spec("reference", "euler", min(case.dt), formulation="gibbs"))
 
 
 def test_the_timing_budget_bounds_the_cost_of_a_long_run(monkeypatch):
     long_run = spec("reference", "rk4", 1e-3, formulation="gibbs")
-    repeated = runner._cost(long_run)
-    monkeypatch.setattr(runner.timing, "BUDGET_S", 0.0)  # one timed run at most
-    assert runner._cost(long_run) < repeated
+    repeated = cost(long_run)
+    monkeypatch.setattr(timing, "BUDGET_S", 0.0)  # one timed run at most
+    assert cost(long_run) < repeated
 
 
 def test_the_pool_starts_its_workers_before_any_run_is_submitted():
     before = set(multiprocessing.active_children())
-    with runner._local_pool(2, 5, ("mujoco",)) as pool:
+    with local_pool(2, 5, ("mujoco",)) as pool:
         workers = started_since(before)
         assert pool is not None and len(workers) == 2
     assert ended(workers)  # idle workers exit on their own after the sweep
@@ -48,7 +49,7 @@ def test_the_pool_starts_its_workers_before_any_run_is_submitted():
 @pytest.mark.parametrize("jobs, runs", [(1, 5), (2, 1), (2, 0)])
 def test_a_serial_or_single_run_sweep_starts_no_pool(jobs, runs):
     before = set(multiprocessing.active_children())
-    with runner._local_pool(jobs, runs, ("mujoco",)) as pool:
+    with local_pool(jobs, runs, ("mujoco",)) as pool:
         assert pool is None and not started_since(before)
 
 
@@ -62,6 +63,6 @@ def test_an_interrupt_while_computing_the_truth_ends_the_started_workers(tmp_pat
     monkeypatch.setattr(run_truth, "case_truth", interrupted)
     case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
     with pytest.raises(KeyboardInterrupt):
-        runner.run_sweep([case], ["mujoco"], ["euler"], tmp_path, jobs=2)
+        run_sweep([case], ["mujoco"], ["euler"], tmp_path, jobs=2)
     assert len(workers) == 2 and ended(workers)
     assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGTERM), not left to finish their start-up

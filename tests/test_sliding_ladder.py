@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from stereodyn.harness.cases import CaseError, LadderCase, find_case, load_case
-from stereodyn.harness.plan import plan
+from stereodyn.harness.scenes.cases import CaseError, LadderCase, find_case, load_case
+from stereodyn.harness.run.plan import plan
 from stereodyn.harness.run.measure import measure
 from stereodyn.reference import sliding_ladder as ref_ladder
 

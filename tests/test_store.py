@@ -11,28 +11,20 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from helpers import TIMINGS, store_mtimes, without_timings
 
 from stereodyn.harness import cli
-from stereodyn.harness.run.timing import DISTURBED
-from stereodyn.harness.cases import find_case
-from stereodyn.harness.store import Store, StoreBusy, run_identity, run_key
+from stereodyn.harness.scenes.cases import find_case
+from stereodyn.harness.run.store import Store, StoreBusy, run_identity, run_key
 
-TIMINGS = ["wall_s", "us_per_step", "us_per_step_spread"]  # the noise of a timing is a timing too
 # Two cases, both simulators, 32 runs; the slowest take ~0.1 s, so a sweep on one process lasts a few seconds.
 SWEEP = ["lagrange-top", "kovalevskaya", "--engines", "mujoco,pinocchio", "--t-end", "2", "--dt", "1e-2,3e-3",
          "--quiet"]
 
 
 def table(out: Path) -> pd.DataFrame:
-    """results.csv less its timings, and less the 'timing disturbed' marks of the timing phase (they come and go from
-    run to run on a loaded machine: timings too; tests/test_distributed.py)."""
-    df = pd.read_csv(out / "results.csv")
-    marks = df["message"].astype("string").str.replace(rf"(; )?{DISTURBED}:[^;]*", "", regex=True)
-    return df.drop(columns=TIMINGS).assign(message=marks.replace("", pd.NA))
-
-
-def records(out: Path) -> dict[str, float]:
-    return {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
+    """results.csv less its timings and the timing phase's marks (helpers.without_timings)."""
+    return without_timings(pd.read_csv(out / "results.csv"))
 
 
 @pytest.fixture(scope="module")
@@ -78,10 +70,10 @@ def test_one_sweep_per_folder_and_leftovers_are_removed(tmp_path):
 def test_resume_reuses_every_stored_run(uninterrupted, tmp_path):
     out = tmp_path / "copy"
     shutil.copytree(uninterrupted, out)
-    before, first = records(out), pd.read_csv(out / "results.csv")
+    before, first = store_mtimes(out), pd.read_csv(out / "results.csv")
     assert len(before) == len(first)
     assert cli.main(["run", *SWEEP, "--jobs", "1", "--out", str(out), "--resume"]) == 0
-    assert records(out) == before  # nothing recomputed, nothing rewritten
+    assert store_mtimes(out) == before  # nothing recomputed, nothing rewritten
     pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv"), first)  # timings included: they are stored
     pd.testing.assert_frame_equal(table(out), table(uninterrupted))
     manifest = json.loads((out / "runs.json").read_text())
@@ -92,10 +84,10 @@ def test_without_resume_every_run_is_redone(tmp_path):
     argv = ["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2", "--dt",
             "1e-2", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
     assert cli.main(argv) == 0
-    before = records(tmp_path)
+    before = store_mtimes(tmp_path)
     time.sleep(0.01)
     assert cli.main(argv) == 0
-    after = records(tmp_path)
+    after = store_mtimes(tmp_path)
     assert after.keys() == before.keys() and all(after[k] > before[k] for k in before)
 
 
@@ -107,7 +99,7 @@ def _interrupted(out: Path, sig: int, jobs: str, at_least: int) -> tuple[int, di
                                     str(out)], stdout=subprocess.DEVNULL, stderr=stderr, start_new_session=True)
     try:
         deadline = time.monotonic() + 120
-        while not (out / "store").is_dir() or len(records(out)) < at_least:
+        while not (out / "store").is_dir() or len(store_mtimes(out)) < at_least:
             assert process.poll() is None, log.read_text()
             assert time.monotonic() < deadline, "the sweep stored nothing in two minutes"
             time.sleep(0.01)
@@ -119,7 +111,7 @@ def _interrupted(out: Path, sig: int, jobs: str, at_least: int) -> tuple[int, di
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
-    return code, records(out)
+    return code, store_mtimes(out)
 
 
 def _no_partial_files(out: Path) -> None:
@@ -139,7 +131,7 @@ def test_a_killed_sweep_resumes_to_the_uninterrupted_table(uninterrupted, tmp_pa
     assert len(partial) <= total
     rows = {name: json.loads((out / "store" / name).read_text())["row"] for name in stored}
     assert cli.main(["run", *SWEEP, "--jobs", "1", "--out", str(out), "--resume"]) == 0
-    after = records(out)
+    after = store_mtimes(out)
     # what was done was not redone: a record is rewritten only when the kill came before the sweep's timing phase,
     # which then adds the run's timing and changes nothing else
     for name, mtime in stored.items():
@@ -179,7 +171,7 @@ def test_a_run_whose_worker_died_is_not_stored_and_is_retried(tmp_path, monkeypa
     assert cli.main(argv) == 0
     first = pd.read_csv(tmp_path / "results.csv").set_index("integrator")
     assert first.loc["rk4", "status"] == "failed" and first.loc["rk4", "message"].startswith("worker process failed")
-    assert len(records(tmp_path)) == 1  # only the euler run is stored
+    assert len(store_mtimes(tmp_path)) == 1  # only the euler run is stored
     monkeypatch.setattr(run_pool, "sweep_run", real)
     assert cli.main([*argv, "--resume"]) == 0
-    assert set(pd.read_csv(tmp_path / "results.csv").status) == {"ok"} and len(records(tmp_path)) == 2
+    assert set(pd.read_csv(tmp_path / "results.csv").status) == {"ok"} and len(store_mtimes(tmp_path)) == 2

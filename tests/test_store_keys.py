@@ -4,14 +4,14 @@ import json
 import shutil
 import sys
 import textwrap
-from pathlib import Path
 
 import pandas as pd
 import pytest
+from helpers import TIMINGS, store_mtimes, tiny_case
 
 from stereodyn.harness import cli, environment
 from stereodyn.harness import integrators as registry
-from stereodyn.harness.store import Store, read_records
+from stereodyn.harness.run.store import Store, read_records
 
 SWEEP = ["free-asymmetric", "--engines", "pinocchio", "--t-end", "0.2", "--dt", "1e-2", "--jobs", "1", "--quiet"]
 
@@ -26,10 +26,6 @@ class HeunFingerprint(ExplicitRK):
     tableau = ButcherTableau(a=((0.0, 0.0), (1.0, 0.0)), b=(0.5, 0.5), c=(0.0, 1.0))
     description = "Heun's method"
 '''
-
-
-def mtimes(out: Path) -> dict[str, int]:
-    return {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
 
 
 @pytest.fixture
@@ -70,11 +66,11 @@ def test_an_edited_source_file_redoes_every_run_under_resume(source_copy, tmp_pa
     out = tmp_path / "out"
     argv = ["run", *SWEEP, "--integrators", "euler", "--out", str(out)]
     assert cli.main(argv) == 0
-    before = mtimes(out)
+    before = store_mtimes(out)
     manifest = json.loads((out / "runs.json").read_text())
     assert manifest["code"]["stereodyn source"] == environment.source_fingerprint()
     assert cli.main([*argv, "--resume"]) == 0
-    assert mtimes(out) == before  # unchanged code: everything reused
+    assert store_mtimes(out) == before  # unchanged code: everything reused
     with (source_copy["stereodyn.reference"] / "rotations.py").open("a") as handle:
         handle.write("# one more line\n")
     environment.clear_fingerprints()
@@ -104,14 +100,14 @@ def test_an_edited_plugin_redoes_only_its_runs_under_resume(tmp_path, monkeypatc
     assert first["code"]["engines"]["pinocchio"]["distribution"] == "stereodyn"
     records = {r["row"]["integrator"]: r for r in read_records(out)}
     euler_key, heun_key = records["euler"]["key"], records["heun_fingerprint"]["key"]
-    before = mtimes(out)
+    before = store_mtimes(out)
 
     module.write_text(PLUGIN + "# a change of code without a new version\n")
     environment.clear_fingerprints()
     assert cli.main([*argv, "--resume"]) == 0
     after = json.loads((out / "runs.json").read_text())
     assert euler_key in after["runs"] and heun_key not in after["runs"]
-    assert mtimes(out)[f"{euler_key}.json"] == before[f"{euler_key}.json"]  # the other integrator's run was reused
+    assert store_mtimes(out)[f"{euler_key}.json"] == before[f"{euler_key}.json"]  # the other integrator's run was reused
     assert after["code"]["integrators"]["heun_fingerprint"][0]["source"] != origin[0]["source"]
     assert set(pd.read_csv(out / "results.csv").integrator) == {"euler", "heun_fingerprint"}
     environment.clear_fingerprints()
@@ -141,31 +137,16 @@ def test_a_malformed_record_is_redone_and_not_reported(tmp_path, damage):
     path.write_text(json.dumps(record))
     assert Store(out).get(victim["key"]) is None
     assert len(read_records(out)) == len(good) - 1  # the report never sees it
-    others = {k: v for k, v in mtimes(out).items() if k != path.name}
+    others = {k: v for k, v in store_mtimes(out).items() if k != path.name}
     assert cli.main([*argv, "--resume"]) == 0
-    assert {k: v for k, v in mtimes(out).items() if k != path.name} == others  # only the bad one was redone
+    assert {k: v for k, v in store_mtimes(out).items() if k != path.name} == others  # only the bad one was redone
     redone = json.loads(path.read_text())
     assert redone["row"]["status"] == "ok" and redone["row"]["engine"] == "pinocchio"
     assert isinstance(redone["row"]["attitude_err"], float)
-    timings = ["wall_s", "us_per_step", "us_per_step_spread"]  # measured anew, so not equal
-    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv").drop(columns=timings), good.drop(columns=timings))
+    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv").drop(columns=TIMINGS), good.drop(columns=TIMINGS))  # timings: measured anew
 
 
-HORIZON_CASE = """name = "horizon"
-[body]
-mass = 1.0
-com = [0.0, 0.0, 0.0]
-principal_moments = [2.0, 1.5, 1.0]
-[initial]
-attitude = { euler_zxz = [0.3, 0.8, -0.5] }
-omega = [0.4, 0.1, 2.0]
-[run]
-t_end = 0.2
-dt = [1e-2]
-samples = 21
-[expect]
-horizon = HORIZON
-"""
+HORIZON_CASE = tiny_case("horizon", t_end=0.2, samples=21, extra="[expect]\nhorizon = HORIZON\n")
 
 
 def test_a_changed_horizon_redoes_the_runs_under_resume(tmp_path):
@@ -241,14 +222,14 @@ def test_an_edited_engine_plugin_redoes_only_its_runs_under_resume(tmp_path, mon
         first = json.loads((out / "runs.json").read_text())
         assert first["code"]["engines"]["fingerprint_engine"]["distribution"] == "none"
         records = {r["row"]["engine"]: r["key"] for r in read_records(out)}
-        before = mtimes(out)
+        before = store_mtimes(out)
 
         module.write_text(ENGINE_PLUGIN + "# a change of code without a new version\n")
         environment.clear_fingerprints()
         assert cli.main([*argv, "--resume"]) == 0
         after = json.loads((out / "runs.json").read_text())
         assert records["pinocchio"] in after["runs"] and records["fingerprint_engine"] not in after["runs"]
-        assert mtimes(out)[f"{records['pinocchio']}.json"] == before[f"{records['pinocchio']}.json"]  # reused
+        assert store_mtimes(out)[f"{records['pinocchio']}.json"] == before[f"{records['pinocchio']}.json"]  # reused
         assert after["code"]["engines"]["fingerprint_engine"]["source"] != \
             first["code"]["engines"]["fingerprint_engine"]["source"]
         assert set(pd.read_csv(out / "results.csv").engine) == {"fingerprint_engine", "pinocchio"}

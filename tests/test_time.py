@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import integrators
-from stereodyn.harness.cases import find_case
+from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, Integrator, VectorRK, get, register

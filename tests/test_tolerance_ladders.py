@@ -10,9 +10,12 @@ import pandas as pd
 import pytest
 from scipy.integrate import solve_ivp
 
-from stereodyn.harness import engines, runner, tolerance_ladders
+from stereodyn.harness import engines
+from stereodyn.harness.run.pool import worker_pool
+from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.analysis import tolerance_ladders
 from stereodyn.harness.analysis import fitting, workprecision
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines.base import Engine
 from stereodyn.harness.report import build
 from stereodyn.harness.report.build import write_reports
@@ -94,7 +97,7 @@ def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine,
     found = tolerance_ladders.families([case], ["stub"], None)
     assert [(f.engine, f.formulation, f.integrator) for f in found] == [("stub", "", "stub_dop853")]
     # the whole phase, as `stereodyn run --dt-ladder` has it: the sweep's rows, then the ladders and the tables
-    df = runner.run_sweep([case], ["stub"], ["stub_dop853"], tmp_path, jobs=1)
+    df = run_sweep([case], ["stub"], ["stub_dop853"], tmp_path, jobs=1)
     workprecision.analyse(tmp_path, df, [case], ["stub"], ["stub_dop853"], ladder="full")
     points = pd.read_csv(tmp_path / workprecision.TOLERANCE_FILE, keep_default_na=False, na_values=[""])
     assert tuple(points.columns) == tolerance_ladders.TOLERANCE_COLUMNS
@@ -129,7 +132,7 @@ def test_the_tolerance_ladders_run_on_the_sweeps_pool(tmp_path):
     formulations of a short case, the points back in the families' order and timed here."""
     case = with_overrides(find_case("free-asymmetric"), t_end=1.0)
     chosen = tolerance_ladders.families([case], ["reference"], ["taylor"], ("quaternion", "gibbs"))
-    with runner.worker_pool(2, ("reference",)) as pool:
+    with worker_pool(2, ("reference",)) as pool:
         points = tolerance_ladders.run_ladders(chosen, pool, tolerances=(1e-4, 1e-8))
     assert [(p["formulation"], p["tolerance"]) for p in points] == [("quaternion", 1e-4), ("quaternion", 1e-8),
                                                                      ("gibbs", 1e-4), ("gibbs", 1e-8)]
@@ -283,7 +286,7 @@ def test_an_adaptive_row_with_no_error_at_all_is_the_reference_and_no_candidate(
 
 def test_the_default_run_ladders_the_adaptive_methods_of_each_engines_default_sweep():
     from stereodyn.harness.analysis import workprecision
-    from stereodyn.harness.cases import find_case
+    from stereodyn.harness.scenes.cases import find_case
     from stereodyn.harness.engines import UnavailableEngine, get_engine
 
     engines = ["reference"] + ([] if isinstance(get_engine("drake"), UnavailableEngine) else ["drake"])

@@ -181,3 +181,12 @@ def test_the_truths_parameter_blocks_follow_the_registry():
     np.testing.assert_array_equal(pars[16:], [1.0 / np.tan(0.7), 0.1, 0.2, 1.0, 0.0])
     np.testing.assert_array_equal(truth.torque_parameters(RigidBody(np.eye(3), 1.0, np.zeros(3)))[16:],
                                   [0.0, 0.0, 0.0, 0.0, 1.0])
+
+
+def test_every_module_of_the_folder_registers_its_model():
+    """A model is its module: each file of reference/torque_models/ but base.py registers exactly one model."""
+    import pkgutil
+
+    from stereodyn.reference import torque_models
+    modules = {info.name for info in pkgutil.iter_modules(torque_models.__path__)} - {"base"}
+    assert sorted(model.__module__.rsplit(".", 1)[1] for model in models()) == sorted(modules)

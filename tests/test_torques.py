@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from stereodyn.harness.analysis.fitting import order_slope
-from stereodyn.harness import metrics
-from stereodyn.harness.cases import find_case, load_suite
+from stereodyn.harness.scenes import metrics
+from stereodyn.harness.scenes.cases import find_case, load_suite
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.grid import time_grid
-from stereodyn.harness.plan import plan
+from stereodyn.harness.run.plan import plan
 from stereodyn.reference import torques, truth
 from stereodyn.reference.exact import ORACLES
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix

@@ -7,10 +7,11 @@ import mpmath as mp
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import store_mtimes
 
 from stereodyn.harness import cli
-from stereodyn.harness.cases import find_case
-from stereodyn.harness.store import read_manifest
+from stereodyn.harness.scenes.cases import find_case
+from stereodyn.harness.run.store import read_manifest
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
 from stereodyn.reference.truth import ANGLE_ROUNDING, UNIT_ROUNDOFF, truth, truth_bound
 
@@ -212,16 +213,16 @@ def test_resume_with_save_trajectories_redoes_only_the_runs_whose_states_are_mis
     shutil.copytree(audited_run, out)
     states = sorted((out / "trajectories").glob("*.npz"))
     assert len(states) == len(read_manifest(out)["runs"]) >= 2
-    records = {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
+    records = store_mtimes(out)
     states[0].unlink()
     argv = ["run", "free-asymmetric", "--engines", "reference", "--integrators", "taylor", "--t-end", str(T_END),
             "--jobs", "1", "--quiet", "--out", str(out), "--resume"]
     assert cli.main(argv) == 0  # without --save-trajectories the stored runs serve as they are
     assert not states[0].exists()
-    assert {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")} == records
+    assert store_mtimes(out) == records
     assert cli.main([*argv, "--save-trajectories"]) == 0
     assert states[0].exists()
-    after = {p.name: p.stat().st_mtime_ns for p in (out / "store").glob("*.json")}
+    after = store_mtimes(out)
     redone = {name for name in records if after[name] != records[name]}
     assert redone == {states[0].name.replace(".npz", ".json")}
     assert not list(out.rglob(".*.tmp"))

@@ -8,10 +8,13 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness.run import pool as run_pool
-from stereodyn.harness import cli, dt_ladders, runner, timing
+from stereodyn.harness import cli
+from stereodyn.harness.analysis import dt_ladders
+from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run import timing
 from stereodyn.harness.analysis import verdicts, workprecision
 from stereodyn.harness import integrators as registry
-from stereodyn.harness.cases import find_case, with_overrides
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
 from stereodyn.harness.integrators.geometric import MoserVeselov, StrangSplitting
 
@@ -425,7 +428,7 @@ def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypat
 
     monkeypatch.setattr(run_pool, "measure", spy)
     case = find_case("free-asymmetric")
-    df = runner.run_sweep([case], ["pinocchio"], ["rk4", "euler"], tmp_path, jobs=1)
+    df = run_sweep([case], ["pinocchio"], ["rk4", "euler"], tmp_path, jobs=1)
     assert timed_in_execute and not any(timed_in_execute)
     ok = df[df.status == "ok"]
     assert np.isfinite(ok.wall_s).all() and (ok.us_per_step_spread >= 0).all()

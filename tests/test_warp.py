@@ -5,11 +5,10 @@ machine compiles its kernels (~40 s, then cached on disk: ~1 s)."""
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from helpers import assert_skipped_without_sdk
 
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
@@ -28,15 +27,7 @@ def _case(name, t_end, samples=101):
 
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
-    code = ("import sys; sys.modules['mujoco_warp'] = None\n"
-            "from stereodyn.harness.engines import get_engine, UnavailableEngine\n"
-            "engine = get_engine('warp')\n"
-            "print(isinstance(engine, UnavailableEngine)); print(engine.unsupported(None))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stderr[-2000:]
-    unavailable, reason = result.stdout.splitlines()
-    assert unavailable == "True"
-    assert reason.startswith("warp engine unavailable:") and "pip install 'stereodyn[warp]'" in reason
+    assert_skipped_without_sdk("warp", "mujoco_warp")
 
 
 @pytest.mark.parametrize("integrator", ["euler", "rk4"])

@@ -240,7 +240,9 @@ def formulation_lines(df: pd.DataFrame) -> list[str]:
     where the coordinates differ most), first in table order on a tie; one such case without external torques (the
     Lagrange top, in the default suite) and one with them (torque_mode other than none), each where the sweep has one.
     Empty when no engine ran two formulations."""
-    torqued = (df["torque_mode"].fillna("none") != "none") if "torque_mode" in df else pd.Series(False, index=df.index)
+    # (no fillna("none"): a column read back all empty is float64, and pandas deprecates filling it with a string)
+    torqued = (df["torque_mode"].notna() & (df["torque_mode"] != "none")) if "torque_mode" in df \
+        else pd.Series(False, index=df.index)
     tables = []
     for picked in (_side_by_side(df[~torqued]), _side_by_side(df[torqued])):
         if picked is None:

@@ -8,13 +8,20 @@ engines' per-stage closure, energies and work), reference.truth concatenates the
     central_field.py   CentralField: the gravity-gradient torque of a Newtonian centre (G15)
     precession.py      PrecessionTorque: Grioli's torque (41) (G14)
 
-The built-ins register in this order (the order of the truth's parameter blocks). reference.body imports this
-package and nothing else of the torques, so the body and the torque sums (reference.torques) do not import each
-other. 0.2.0's names (the three dataclasses and their *_components formulas) stay importable from here.
+The built-ins register in this order (the order of the truth's parameter blocks), then every other module of this
+folder in name order: a new model is its file, nothing else. reference.body imports this package and nothing else
+of the torques, so the body and the torque sums (reference.torques) do not import each other. 0.2.0's names (the
+three dataclasses and their *_components formulas) stay importable from here.
 """
 from __future__ import annotations
+
+import importlib
+import pkgutil
 
 from .base import TORQUES, At, TorqueModel, merged, models, ordered, register  # noqa: F401
 from .body_torque import BodyTorque, body_torque_components  # noqa: F401
 from .central_field import CentralField, gravity_gradient_components  # noqa: F401
 from .precession import PrecessionTorque, precession_components  # noqa: F401
+
+for _module in sorted(info.name for info in pkgutil.iter_modules(__path__)):
+    importlib.import_module(f"{__name__}.{_module}")  # registers its model

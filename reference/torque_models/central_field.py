@@ -24,7 +24,8 @@ def direction_components(p, at) -> list:
     """D(t) = cos Ωt Da + sin Ωt Db + Dc from the block p (layout of CentralField.parameters)."""
     phase = p[10] * at.t
     cos_phase, sin_phase = at.cos(phase), at.sin(phase)
-    return [cos_phase * p[1 + i] + sin_phase * p[4 + i] + p[7 + i] for i in range(3)]
+    return [cos_phase * p[1] + sin_phase * p[4] + p[7], cos_phase * p[2] + sin_phase * p[5] + p[8],
+            cos_phase * p[3] + sin_phase * p[6] + p[9]]  # unrolled: an engine's stage calls it (floats)
 
 
 @register

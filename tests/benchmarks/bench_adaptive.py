@@ -23,12 +23,13 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2, help="workers of the tolerance ladders' accuracy runs")
     args = parser.parse_args()
 
-    from stereodyn.harness import runner, tolerance_ladders
+    from stereodyn.harness.run import sweep as runner
+    from stereodyn.harness.analysis import tolerance_ladders
     from stereodyn.harness.analysis import workprecision
-    from stereodyn.harness.cases import load_suite
+    from stereodyn.harness.scenes.cases import load_suite
     from stereodyn.harness.engines import engine_names
     from stereodyn.harness.integrators import scipy_ivp
-    from stereodyn.harness.plan import plan
+    from stereodyn.harness.run.plan import plan
 
     cases = [case for case in load_suite() if case.kind == "rigid_body"]
     specs = [s for s in plan(cases, list(engine_names()), None)[0] if s.integrator in scipy_ivp.METHODS]

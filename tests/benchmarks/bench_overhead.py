@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 from mujoco import rollout
 
-from stereodyn.harness.cases import Case
+from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.engines.mujoco import MujocoEngine
 from stereodyn.harness.engines.pinocchio import PinocchioEngine, build_model
 from stereodyn.harness.grid import time_grid

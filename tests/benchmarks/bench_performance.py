@@ -38,12 +38,13 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_overhead  # noqa: E402 - the overhead benchmarks live beside this file
 
-from stereodyn.harness import metrics, runner  # noqa: E402
-from stereodyn.harness.cases import find_case, with_overrides  # noqa: E402
+from stereodyn.harness.scenes import metrics  # noqa: E402
+from stereodyn.harness.run import truth as run_truth  # noqa: E402
+from stereodyn.harness.scenes.cases import find_case, with_overrides  # noqa: E402
 from stereodyn.harness.engines import get_engine  # noqa: E402
 from stereodyn.harness.engines.pinocchio import build_model  # noqa: E402
 from stereodyn.harness.grid import time_grid  # noqa: E402
-from stereodyn.harness.runner import run_sweep  # noqa: E402
+from stereodyn.harness.run.sweep import run_sweep  # noqa: E402
 
 GENERAL_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
 
@@ -123,7 +124,7 @@ def truth_share(jobs: int, quick: bool) -> dict[str, float]:
     if quick:
         cases = [with_overrides(c, t_end=5.0) for c in cases]
     spent = []
-    original = runner.compute_truth
+    original = run_truth.case_truth  # what the sweep calls for each case's truth (run/truth.py)
 
     def timed(*args, **kwargs):
         start = time.perf_counter()
@@ -132,14 +133,14 @@ def truth_share(jobs: int, quick: bool) -> dict[str, float]:
         finally:
             spent.append(time.perf_counter() - start)
 
-    runner.compute_truth = timed
+    run_truth.case_truth = timed
     try:
         with tempfile.TemporaryDirectory() as out:
             start = time.perf_counter()
             run_sweep(cases, ["mujoco", "pinocchio", "reference"], None, Path(out), jobs=jobs)
             total = time.perf_counter() - start
     finally:
-        runner.compute_truth = original
+        run_truth.case_truth = original
     return {"truth_s": sum(spent), "sweep_s": total}
 
 

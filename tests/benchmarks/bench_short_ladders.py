@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness import cases as case_files, runner
+from stereodyn.harness.scenes import cases as case_files
+from stereodyn.harness.run import sweep as runner
 from stereodyn.harness.analysis import workprecision
-from stereodyn.harness.results import read_results
+from stereodyn.harness.run.results import read_results
 
 ENGINES = ["mujoco", "pinocchio", "reference"]
 
