@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness.scenes.cases import load_suite, suite_dir
-from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 
 EXTREME_DIR = suite_dir() / "extreme"
 # The fast subset: these cases on MuJoCo and Pinocchio; the long horizon (1e6 steps), the 1e5-step round-off case and
@@ -45,7 +45,7 @@ def test_extreme_cases_are_tagged():
 
 def test_extremes_fast_subset_runs_clean(tmp_path):
     cases = [c for c in load_suite(EXTREME_DIR) if c.name in FAST_CASES]
-    df = run_sweep(cases, ["mujoco", "pinocchio"], ["euler", "rk4", "symplectic_euler"], tmp_path, jobs=2)
+    df = run_sweep(cases, SweepOptions(["mujoco", "pinocchio"], tmp_path, ["euler", "rk4", "symplectic_euler"], jobs=2))
     _assert_clean(df)
     beyond = df[(df["case"] == "beyond-stability") & (df["integrator"] == "euler")]  # MuJoCo's and Pinocchio's
     assert (beyond["status"] == "diverged").all() and np.isfinite(beyond["diverged_at"]).all()
@@ -56,7 +56,7 @@ def test_extremes_fast_subset_runs_clean(tmp_path):
 @pytest.mark.slow
 def test_extremes_suite_runs_clean(tmp_path):
     """Every extreme case on every engine and integrator of a default sweep (minutes: the 1e6-step horizon)."""
-    df = run_sweep(load_suite(EXTREME_DIR), ["mujoco", "pinocchio", "reference"], None, tmp_path, jobs=2)
+    df = run_sweep(load_suite(EXTREME_DIR), SweepOptions(["mujoco", "pinocchio", "reference"], tmp_path, jobs=2))
     _assert_clean(df)
     long = df[(df["case"] == "long-horizon") & (df["engine"] == "mujoco")]
     assert (long["steps"] == 1_000_000).all()

@@ -1,12 +1,17 @@
 """0.2.0's import paths of the modules moved by the layout of issue 20 keep working (harness/moved.py): the old name
-gives the module at its new path, the same object, with a DeprecationWarning naming the new path."""
+gives the module at its new path, the same object, with a DeprecationWarning naming the new path; run_sweep's 0.2.0
+arguments still run a sweep, with a DeprecationWarning naming SweepOptions."""
 import importlib
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
+from helpers import TIMINGS
 
 from stereodyn.harness.moved import MOVED
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 
 
 @pytest.mark.parametrize("old", sorted(MOVED))
@@ -36,3 +41,14 @@ def test_no_module_of_the_package_imports_an_old_path():
             "import stereodyn.harness.cli.run, stereodyn.harness.cli.advise, stereodyn.harness.analysis.advice\n"
             "import stereodyn.harness.report.build, stereodyn.harness.testing, stereodyn.harness.engines.reference\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_run_sweep_with_0_2_0_arguments_warns_and_sweeps_as_with_options(tmp_path):
+    case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
+    new = run_sweep([case], SweepOptions(["pinocchio"], tmp_path / "new", ["euler", "rk4"], jobs=1, certify=False))
+    with pytest.warns(DeprecationWarning, match=r"run_sweep\(cases, SweepOptions\("):
+        old = run_sweep([case], ["pinocchio"], ["euler", "rk4"], tmp_path / "old", jobs=1, certify=False)
+    assert len(new) == 4 and set(new["status"]) == {"ok"}  # 2 integrators x 2 dts
+    pd.testing.assert_frame_equal(old.drop(columns=TIMINGS), new.drop(columns=TIMINGS))
+    with pytest.raises(TypeError, match="unexpected arguments"):  # options and 0.2.0's arguments: not both
+        run_sweep([case], SweepOptions(["pinocchio"], tmp_path / "both"), jobs=1)

@@ -2,7 +2,7 @@
 import io
 
 from stereodyn.harness import cli
-from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.run.progress import ProgressBar
 
@@ -42,7 +42,8 @@ def test_silent_when_not_a_terminal_or_disabled():
 def test_a_sweep_drives_the_bar(tmp_path):
     screen = Terminal()
     case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
-    run_sweep([case], ["mujoco"], ["euler", "rk4"], tmp_path, jobs=1, progress=ProgressBar(screen, width=100))
+    run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["euler", "rk4"], jobs=1),
+              progress=ProgressBar(screen, width=100))
     final = screen.getvalue().split("\r")[-1]
     assert "4/4" in final and "100%" in final and screen.getvalue().endswith("\n")
 

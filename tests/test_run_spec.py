@@ -5,6 +5,8 @@ import math
 import numpy as np
 
 from stereodyn.harness.analysis import tolerance_ladders
+from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.run import plan as planning
 from stereodyn.harness.run.measure import measure
 from stereodyn.harness.run.spec import Family, RunKey, RunSpec, base_row
 from stereodyn.harness.scenes.cases import find_case, with_overrides
@@ -54,3 +56,40 @@ def test_the_same_path_gives_the_sweep_its_extras_and_the_ladders_their_columns(
         assert full[column] == lean[column]  # one computation, whatever the caller keeps
     assert "checks" in full and "_series" in full and "checks" not in lean and "oracle_err" not in lean
     assert math.isnan(full["truth_err"])  # the truth was not certified: no bound
+
+
+class CoarseByDefault(Engine):
+    """euler and rk4, rk4 alone in the default sweep, at the coarsest dt only, and not on the Lagrange top."""
+
+    name = "coarse_by_default"
+
+    def integrators(self):
+        return ("euler", "rk4")
+
+    def in_default_sweep(self, integrator):
+        return integrator == "rk4"
+
+    def default_dts(self, case, integrator, dts):
+        return (max(dts),)
+
+    def default_run(self, case, formulation, integrator):
+        return case.name != "lagrange-top"
+
+    def unsupported(self, case):
+        return None
+
+
+def test_the_plan_resolves_no_integrators_to_each_engines_default_sweep_once(monkeypatch):
+    """integrators None: the engine's default sweep (Selection.default) with its default steps and pairs; named: those
+    names, at every dt of the case, on every case."""
+    engine = CoarseByDefault()
+    monkeypatch.setattr(planning, "get_engine", lambda name: engine)
+    assert planning.Selection.of(engine, None) == planning.Selection(("rk4",), True)
+    assert planning.Selection.of(engine, ["rk4", "euler", "other"]) == planning.Selection(("euler", "rk4"), False)
+    cases = [with_overrides(find_case(name), dt=[1e-2, 5e-3]) for name in ("free-asymmetric", "lagrange-top")]
+    default, _ = planning.plan(cases, ["coarse_by_default"], None)
+    assert sorted((s.case.name, s.integrator, s.dt) for s in default) == [("free-asymmetric", "rk4", 1e-2)]
+    named, _ = planning.plan(cases, ["coarse_by_default"], ["rk4"])
+    assert sorted((s.case.name, s.integrator, s.dt) for s in named) == [
+        ("free-asymmetric", "rk4", 5e-3), ("free-asymmetric", "rk4", 1e-2),
+        ("lagrange-top", "rk4", 5e-3), ("lagrange-top", "rk4", 1e-2)]

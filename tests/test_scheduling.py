@@ -7,7 +7,7 @@ from child_processes import ended, started_since
 from stereodyn.harness.run import truth as run_truth
 from stereodyn.harness.run import timing
 from stereodyn.harness.run.pool import cost, local_pool
-from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.run.plan import RunSpec
 
@@ -63,6 +63,6 @@ def test_an_interrupt_while_computing_the_truth_ends_the_started_workers(tmp_pat
     monkeypatch.setattr(run_truth, "case_truth", interrupted)
     case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
     with pytest.raises(KeyboardInterrupt):
-        run_sweep([case], ["mujoco"], ["euler"], tmp_path, jobs=2)
+        run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["euler"], jobs=2))
     assert len(workers) == 2 and ended(workers)
     assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGTERM), not left to finish their start-up

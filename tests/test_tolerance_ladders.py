@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 
 from stereodyn.harness import engines
 from stereodyn.harness.run.pool import worker_pool
-from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.analysis import tolerance_ladders
 from stereodyn.harness.analysis import fitting, workprecision
 from stereodyn.harness.scenes.cases import find_case, with_overrides
@@ -97,7 +97,7 @@ def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine,
     found = tolerance_ladders.families([case], ["stub"], None)
     assert [(f.engine, f.formulation, f.integrator) for f in found] == [("stub", "", "stub_dop853")]
     # the whole phase, as `stereodyn run --dt-ladder` has it: the sweep's rows, then the ladders and the tables
-    df = run_sweep([case], ["stub"], ["stub_dop853"], tmp_path, jobs=1)
+    df = run_sweep([case], SweepOptions(["stub"], tmp_path, ["stub_dop853"], jobs=1))
     workprecision.analyse(tmp_path, df, [case], ["stub"], ["stub_dop853"], ladder="full")
     points = pd.read_csv(tmp_path / workprecision.TOLERANCE_FILE, keep_default_na=False, na_values=[""])
     assert tuple(points.columns) == tolerance_ladders.TOLERANCE_COLUMNS

@@ -10,7 +10,7 @@ import pytest
 from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli
 from stereodyn.harness.analysis import dt_ladders
-from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.run import timing
 from stereodyn.harness.analysis import verdicts, workprecision
 from stereodyn.harness import integrators as registry
@@ -428,7 +428,7 @@ def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypat
 
     monkeypatch.setattr(run_pool, "measure", spy)
     case = find_case("free-asymmetric")
-    df = run_sweep([case], ["pinocchio"], ["rk4", "euler"], tmp_path, jobs=1)
+    df = run_sweep([case], SweepOptions(["pinocchio"], tmp_path, ["rk4", "euler"], jobs=1))
     assert timed_in_execute and not any(timed_in_execute)
     ok = df[df.status == "ok"]
     assert np.isfinite(ok.wall_s).all() and (ok.us_per_step_spread >= 0).all()

@@ -9,7 +9,7 @@ import pytest
 from child_processes import ended, started_since
 
 from stereodyn.harness.run.pool import worker_pool
-from stereodyn.harness.run.sweep import run_sweep
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.analysis import workprecision
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 
@@ -24,7 +24,7 @@ def test_the_sweep_and_the_ladders_share_one_pool(tmp_path):
     before = set(multiprocessing.active_children())
     with worker_pool(2, ("reference",)) as pool:
         workers = started_since(before)
-        df = run_sweep([_case()], ["reference"], ["rk4"], tmp_path, pool=pool)
+        df = run_sweep([_case()], SweepOptions(["reference"], tmp_path, ["rk4"]), pool=pool)
         workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200,
                               pool=pool)
         assert started_since(before) == workers and len(workers) == 2  # no other process was started
@@ -47,7 +47,7 @@ def test_an_interrupt_during_the_ladders_ends_the_workers_at_once(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         with worker_pool(2, ("reference",)) as pool:
             workers.update(started_since(before))
-            df = run_sweep([_case()], ["reference"], ["rk4"], tmp_path, pool=pool)
+            df = run_sweep([_case()], SweepOptions(["reference"], tmp_path, ["rk4"]), pool=pool)
             workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full",
                                   max_steps=20_000, pool=pool, progress=interrupt)
     assert len(done) == 1 and len(workers) == 2 and ended(workers)
@@ -63,7 +63,7 @@ def test_only_the_runner_starts_a_process_pool_for_runs():
 
 
 def test_without_a_pool_the_ladders_run_here(tmp_path):
-    df = run_sweep([_case()], ["reference"], ["rk4"], tmp_path, jobs=1)
+    df = run_sweep([_case()], SweepOptions(["reference"], tmp_path, ["rk4"], jobs=1))
     paths = workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200)
     ladder = pd.read_csv(paths["ladder"])
     assert len(ladder) == 4 * 10 and math.isfinite(ladder["state_err"].min())

@@ -30,6 +30,7 @@ from .pareto import ACCURACY_TARGETS
 from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
                       pareto_table, sweep_orders, tolerance_fits, with_state_err)
 from ..engines.base import FLOAT64
+from ..run.plan import Selection
 from ..run.results import with_precision, write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
@@ -136,12 +137,13 @@ def first_part_families(short: list[tuple[Family, list[dict], int]], points: lis
 
 def default_tolerance_families(cases: list[Case], engines: list[str],
                                integrators: list[str] | None) -> list[tolerance_ladders.AdaptiveFamily]:
-    """The default run's tolerance ladders: on DEFAULT_LADDER_FORMULATIONS, the adaptive methods named, or without
-    --integrators those of each engine's default sweep (Engine.in_default_sweep). The others get ladders with
-    --dt-ladder: Drake's six other error-controlled schemes were 70% of the tolerance ladders' timed seconds in a
-    default run (2-core machine; radau3 and bogacki_shampine3 at 1e-11 take 0.2-0.6 M steps)."""
+    """The default run's tolerance ladders: on DEFAULT_LADDER_FORMULATIONS, the adaptive methods of the sweep's
+    selection (run.plan.Selection: those named, or without --integrators each engine's default sweep). The others get
+    ladders with --dt-ladder: Drake's six other error-controlled schemes were 70% of the tolerance ladders' timed
+    seconds in a default run (2-core machine; radau3 and bogacki_shampine3 at 1e-11 take 0.2-0.6 M steps)."""
+    selected = {name: Selection.of(get_engine(name), integrators).integrators for name in engines}
     return [f for f in tolerance_ladders.families(cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
-            if integrators is not None or get_engine(f.engine).in_default_sweep(f.integrator)]
+            if f.integrator in selected[f.engine]]
 
 
 def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: list[str],

@@ -13,7 +13,7 @@ def main(args) -> int:
     from ..report.build import write_reports
     from ..report.markdown import drift_table_text
     from ..analysis import agreement, summary, verdicts, workprecision
-    from ..run.sweep import run_sweep, worker_pool
+    from ..run.sweep import SweepOptions, run_sweep, worker_pool
     from .. import budget
 
     from ..run.store import folder_lock, mark_complete
@@ -22,6 +22,8 @@ def main(args) -> int:
     if args.certify and args.no_certify:
         raise BadInput("--certify and --no-certify: give one (certifying is the default)")
     chosen = select_cases(args)
+    options = SweepOptions(args.engines, args.out, args.integrators, jobs=args.jobs, certify=not args.no_certify,
+                           resume=args.resume, scheduler=args.scheduler, save_trajectories=args.save_trajectories)
     progress = ProgressBar(enabled=not args.quiet)
     output_folder(args.out, "--out")
     _quiet_engines(args.out)
@@ -32,15 +34,12 @@ def main(args) -> int:
         check_cluster(args.scheduler)
     with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
         # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
-        with worker_pool(args.jobs, tuple(args.engines)) as pool:
+        with worker_pool(options.jobs, options.engines) as pool:
             compared: list[dict] = []  # the states the cross-engine agreement compares (agreement.csv)
-            df = run_sweep(chosen, args.engines, args.integrators, args.out, jobs=args.jobs,
-                           certify=not args.no_certify, progress=progress, resume=args.resume,
-                           scheduler=args.scheduler, save_trajectories=args.save_trajectories, pool=pool,
-                           agreement=compared, final=False)
+            df = run_sweep(chosen, options, progress=progress, pool=pool, agreement=compared, final=False)
             agreement.write(args.out, compared)
             del compared
-            _work_precision(args, chosen, df, pool, progress)
+            _work_precision(args, options, chosen, df, pool, progress)
         found = verdicts.evaluate(args.out, df, chosen)
         # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
         workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
@@ -63,7 +62,7 @@ def _quiet_engines(out: Path) -> None:
     os.environ["STEREODYN_MUJOCO_LOG"] = str(Path(out).resolve() / "MUJOCO_LOG.TXT")  # engines.mujoco.LOG_ENV
 
 
-def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
+def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -> None:
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and the orders in checks.csv
     (analysis.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
     named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
@@ -86,5 +85,5 @@ def _work_precision(args, chosen: list, df, pool=None, progress=None) -> None:
         progress.stage("work–precision: short ladders" if mode == "short" else
                        f"work–precision: {mode} dt and tolerance ladders"
                        + (" and short ladders" if mode == "default" else ""))
-    workprecision.analyse(args.out, df, chosen, args.engines, args.integrators, ladder=mode,
+    workprecision.analyse(options.out_dir, df, chosen, list(options.engines), options.integrators, ladder=mode,
                           max_steps=args.ladder_max_steps, pool=pool)

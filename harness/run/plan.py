@@ -3,27 +3,46 @@ skipped up front (the engine cannot model the case). harness.run.sweep executes 
 its run families from it."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Sequence
+
 from ..engines import get_engine
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
 
 
-def plan(cases: list, engines: list[str], integrators: list[str] | None) -> tuple[list[RunSpec], list[dict]]:
+@dataclass(frozen=True)
+class Selection:
+    """The integrators a sweep runs on one engine, resolved from the names asked for (--integrators, SweepOptions):
+    those of them the engine has, in its order; none asked for, the engine's default sweep (default True:
+    Engine.in_default_sweep), which also takes the engine's default steps (Engine.default_dts) and leaves out the
+    pairs its models decline (SceneModel.default_run)."""
+
+    integrators: tuple[str, ...]
+    default: bool
+
+    @classmethod
+    def of(cls, engine, names: Sequence[str] | None) -> "Selection":
+        if names is None:
+            return cls(tuple(i for i in engine.integrators() if engine.in_default_sweep(i)), True)
+        return cls(tuple(i for i in engine.integrators() if i in names), False)
+
+
+def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> tuple[list[RunSpec], list[dict]]:
     """The runs of a sweep, and the rows of runs skipped up front (engine cannot model the case).
 
     Each case runs on each engine's model of its scene (Engine.models(); an engine without one gives one skipped row,
     Engine.unmodelled). An engine's adaptive integrators (Engine.adaptive) run once per case with dt None, the others
     once per dt of the case; each runs every variant of the model (SceneModel.variants: the rigid body's
     formulations, Engine.formulations; "" for a model without), except the pairs the model leaves out of a sweep
-    that names no integrators (SceneModel.default_run, the rigid body's Engine.default_run).
+    that names no integrators (SceneModel.default_run, the rigid body's Engine.default_run). integrators: the names
+    asked for, None for each engine's default sweep (Selection, resolved here once per engine).
     """
     specs, skipped = [], []
     for engine_rank, name in enumerate(engines):
         engine = get_engine(name)
-        chosen = [i for i in engine.integrators()
-                  if (integrators is None and engine.in_default_sweep(i))
-                  or (integrators is not None and i in integrators)]
+        selection = Selection.of(engine, integrators)
         models = engine.models()
         for case in cases:
             scene = scene_of(case)
@@ -34,12 +53,12 @@ def plan(cases: list, engines: list[str], integrators: list[str] | None) -> tupl
                 continue
             reason = model.unsupported(case)
             variants = tuple(model.variants()) or ("",)
-            for integrator_rank, integrator in enumerate(model.integrators(chosen) or ([""] if reason else [])):
+            for integrator_rank, integrator in enumerate(model.integrators(list(selection.integrators)) or ([""] if reason else [])):
                 dts = (None,) if integrator and engine.adaptive(integrator) else case.dt
-                if integrator and integrators is None and dts != (None,):
+                if integrator and selection.default and dts != (None,):
                     dts = engine.default_dts(case, integrator, tuple(dts))
                 for formulation_rank, formulation in enumerate(variants):
-                    if integrator and integrators is None and not model.default_run(case, formulation, integrator):
+                    if integrator and selection.default and not model.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
                     # the precisions the engine's model of this scene runs (SceneModel.precisions)
                     precisions = model.precisions(integrator) if integrator else (FLOAT64,)

@@ -8,6 +8,7 @@ import functools
 import math
 import os
 import time
+import warnings
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass
@@ -37,16 +38,26 @@ PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a swee
 
 @dataclass(frozen=True)
 class SweepOptions:
-    """How run_sweep runs: integrators (None: each engine's default sweep), jobs (local worker processes; None: all
-    cores), certify (bound every truth's error by a quadruple-precision rerun), resume (reuse the stored runs),
-    scheduler (a Dask scheduler address instead of local processes), save_trajectories (write each run's states)."""
+    """What a sweep runs and how, as `stereodyn run` was asked: engines (registry names, in report order), out_dir
+    (the result folder), integrators (names; None: each engine's default sweep, resolved where the plan is made:
+    run.plan.Selection), jobs (local worker processes; None: all cores), certify (bound every truth's error by a
+    quadruple-precision rerun), resume (reuse the stored runs), scheduler (a Dask scheduler address instead of local
+    processes), save_trajectories (write each run's states)."""
 
+    engines: tuple[str, ...]
+    out_dir: Path
     integrators: tuple[str, ...] | None = None
     jobs: int | None = None
     certify: bool = True
     resume: bool = False
     scheduler: str | None = None
     save_trajectories: bool = False
+
+    def __post_init__(self):  # lists welcome: the fields are stored as tuples, the folder as a Path
+        object.__setattr__(self, "engines", tuple(self.engines))
+        object.__setattr__(self, "out_dir", Path(self.out_dir))
+        if self.integrators is not None:
+            object.__setattr__(self, "integrators", tuple(self.integrators))
 
 
 def execute(spec: RunSpec, truth, timed: bool = False, budgets: budget.Budgets | None = None) -> dict:
@@ -72,37 +83,50 @@ def time_spec(spec: RunSpec, steps: float) -> dict:
 _cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # the names of 0.2.0's runner
 
 
-def run_sweep(cases: list, engines: list[str], integrators: list[str] | None, out_dir: Path,
-              jobs: int | None = None, certify: bool = True, progress: ProgressBar | None = None,
-              resume: bool = False, scheduler: str | None = None, save_trajectories: bool = False,
-              pool: ProcessPoolExecutor | None = None, agreement: list | None = None,
-              final: bool = True) -> pd.DataFrame:
-    """Run everything and return the table.
+def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar | None = None,
+              pool: ProcessPoolExecutor | None = None, agreement: list | None = None, final: bool = True,
+              **legacy_options) -> pd.DataFrame:
+    """Run every case as `options` says and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
-    re-assembled from the store, atomically, after each; resume=True reuses the stored runs of this sweep instead of
-    redoing them. scheduler: a Dask scheduler address to run on (harness.run.distributed) instead of local processes.
-    pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for `jobs` processes.
-    certify: bound every truth's error by a quadruple-precision rerun (truth_err, truth_omega_err; ~0.2 s a case).
-    save_trajectories: also write each run's recorded states, and the truth on its times, to
-    out_dir/trajectories/<key>.npz (Store.put_states) and their index, out_dir/trajectories/index.csv; with resume, a
-    stored run without its file is redone.
+    re-assembled from the store, atomically, after each; options.resume reuses the stored runs of this sweep instead
+    of redoing them; options.scheduler runs on a Dask scheduler (harness.run.distributed) instead of local processes;
+    options.save_trajectories also writes each run's recorded states, and the truth on its times, to
+    out_dir/trajectories/<key>.npz (Store.put_states) and their index, out_dir/trajectories/index.csv (with resume, a
+    stored run without its file is redone).
+    pool: a worker_pool to run on (its owner ends it); without one the sweep starts its own for options.jobs processes.
+    progress: the bar to advance (none drawn without one).
     agreement: a list the sweep appends the states of the runs the cross-engine agreement compares to (plan.
     agreement_candidates; harness.analysis.agreement's entries), kept in memory; a resumed run's come from
     out_dir/trajectories where it saved them, else it is left out.
     final: the sweep is all that writes the folder: mark it complete at the end (runs.json; harness.run.store
     mark_complete). `stereodyn run` marks it itself, after the work–precision tables and the report.
+
+    0.2.0's form, run_sweep(cases, engines, integrators, out_dir, jobs=..., certify=..., resume=..., scheduler=...,
+    save_trajectories=..., progress=..., pool=..., agreement=..., final=...), still runs, with a DeprecationWarning.
     """
-    options = SweepOptions(None if integrators is None else tuple(integrators), jobs, certify, resume, scheduler,
-                           save_trajectories)
-    return _sweep(cases, engines, out_dir, options, progress or ProgressBar(enabled=False), pool, final, agreement)
+    if not isinstance(options, SweepOptions):
+        options = _legacy_options(options, *legacy, **legacy_options)
+    elif legacy or legacy_options:
+        raise TypeError(f"run_sweep(cases, options, ...): unexpected arguments "
+                        f"{', '.join([repr(a) for a in legacy] + list(legacy_options))}")
+    return _sweep(cases, options, progress or ProgressBar(enabled=False), pool, final, agreement)
 
 
-def _sweep(cases: list, engines: list[str], out_dir: Path, options: SweepOptions, progress: ProgressBar,
-           pool: ProcessPoolExecutor | None, final: bool, agreement: list | None = None) -> pd.DataFrame:
+def _legacy_options(engines, integrators, out_dir, jobs=None, certify=True, *, resume=False, scheduler=None,
+                    save_trajectories=False) -> SweepOptions:
+    """SweepOptions from 0.2.0's arguments of run_sweep (progress, pool, agreement and final are run_sweep's own)."""
+    warnings.warn("run_sweep(cases, engines, integrators, out_dir, jobs=..., ...) is deprecated: call "
+                  "run_sweep(cases, SweepOptions(engines, out_dir, integrators, jobs, ...))", DeprecationWarning,
+                  stacklevel=3)
+    return SweepOptions(engines, out_dir, integrators, jobs, certify, resume, scheduler, save_trajectories)
+
+
+def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: ProcessPoolExecutor | None, final: bool,
+           agreement: list | None = None) -> pd.DataFrame:
+    out_dir, engines = options.out_dir, options.engines
     out_dir.mkdir(parents=True, exist_ok=True)
-    integrators = None if options.integrators is None else list(options.integrators)
-    specs, skipped_rows = plan(cases, engines, integrators)
+    specs, skipped_rows = plan(cases, engines, options.integrators)
     if options.save_trajectories:  # a scene whose state is not a body's (quat, omega) has none to save
         specs = [dataclasses.replace(s, keep_states=True) if scene_of(s.case).keeps_states else s for s in specs]
     if agreement is not None:

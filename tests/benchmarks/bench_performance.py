@@ -44,7 +44,7 @@ from stereodyn.harness.scenes.cases import find_case, with_overrides  # noqa: E4
 from stereodyn.harness.engines import get_engine  # noqa: E402
 from stereodyn.harness.engines.pinocchio import build_model  # noqa: E402
 from stereodyn.harness.grid import time_grid  # noqa: E402
-from stereodyn.harness.run.sweep import run_sweep  # noqa: E402
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep  # noqa: E402
 
 GENERAL_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
 
@@ -124,7 +124,7 @@ def truth_share(jobs: int, quick: bool) -> dict[str, float]:
     if quick:
         cases = [with_overrides(c, t_end=5.0) for c in cases]
     spent = []
-    original = run_truth.case_truth  # what the sweep calls for each case's truth (run/truth.py)
+    original = run_truth.case_truth  # what the sweep calls for each case's truth (harness/run/truth.py)
 
     def timed(*args, **kwargs):
         start = time.perf_counter()
@@ -137,7 +137,7 @@ def truth_share(jobs: int, quick: bool) -> dict[str, float]:
     try:
         with tempfile.TemporaryDirectory() as out:
             start = time.perf_counter()
-            run_sweep(cases, ["mujoco", "pinocchio", "reference"], None, Path(out), jobs=jobs)
+            run_sweep(cases, SweepOptions(["mujoco", "pinocchio", "reference"], Path(out), jobs=jobs))
             total = time.perf_counter() - start
     finally:
         run_truth.case_truth = original
@@ -198,7 +198,7 @@ def parallel_efficiency(quick: bool, rounds: int = 2) -> dict[str, float]:
         for jobs in (1, 2):
             with tempfile.TemporaryDirectory() as out:
                 start = time.perf_counter()
-                run_sweep(cases, ["mujoco", "pinocchio", "reference"], None, Path(out), jobs=jobs)
+                run_sweep(cases, SweepOptions(["mujoco", "pinocchio", "reference"], Path(out), jobs=jobs))
                 times[jobs] = min(times[jobs], time.perf_counter() - start)
     return {"jobs1_s": times[1], "jobs2_s": times[2]}
 
