@@ -20,7 +20,7 @@ TRUTH_PACKAGES = ("heyoka", "stereodyn")
 
 def packages() -> tuple[str, ...]:
     """CORE_PACKAGES, every registered engine's packages, then TRUTH_PACKAGES; each once."""
-    from stereodyn.harness.engines import EngineError, engine_names, get_engine
+    from .engines import EngineError, engine_names, get_engine
 
     names = list(CORE_PACKAGES)
     for name in engine_names():
@@ -201,7 +201,7 @@ def git_commit(start: Path | None = None) -> str:
 def environment() -> dict[str, str]:
     """Everything a report's footer states about where the numbers came from: the libraries, every installed plug-in
     distribution (engines and integrators: harness.engines.catalog.plugin_distributions), the machine."""
-    from stereodyn.harness.engines.catalog import plugin_distributions
+    from .engines.catalog import plugin_distributions
 
     return {**library_versions(), "pandas": _version("pandas"), **plugin_distributions(), "cpu": cpu_name(),
             "machine": platform.machine(),

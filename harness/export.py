@@ -6,8 +6,8 @@ body, its ball joint as a three-joint gimbal).
 """
 from __future__ import annotations
 
-from stereodyn.harness.scenes import scene_of
-from stereodyn.harness.scenes.cases import Case
+from .scenes import scene_of
+from .scenes.cases import Case
 
 
 class ExportError(ValueError):
@@ -16,7 +16,7 @@ class ExportError(ValueError):
 
 def formats() -> dict[str, str]:
     """format -> the name of the engine that writes it, over every registered engine that loads."""
-    from stereodyn.harness.engines import EngineError, engine_names, get_engine
+    from .engines import EngineError, engine_names, get_engine
 
     found: dict[str, str] = {}
     for name in engine_names():
@@ -30,11 +30,11 @@ def formats() -> dict[str, str]:
 def export(case: Case, fmt: str, integrator: str | None = None, dt: float | None = None) -> str:
     """The model text. integrator and dt (default: the engine's choice and the case's first dt) apply to formats
     whose model holds a stepper (MJCF's <option>)."""
-    from stereodyn.harness.engines import UnavailableEngine, get_engine
+    from .engines import UnavailableEngine, get_engine
 
     writers = formats()
     if fmt not in writers:
-        from stereodyn.harness.engines import engine_names
+        from .engines import engine_names
 
         unavailable = [n for n in engine_names() if isinstance(get_engine(n), UnavailableEngine)]
         hint = f" (unavailable engines: {', '.join(get_engine(n).reason for n in unavailable)})" if unavailable else ""

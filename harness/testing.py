@@ -26,15 +26,15 @@ from typing import Iterable
 
 import numpy as np
 
-from stereodyn.harness import integrators as registry
-from stereodyn.harness.scenes import metrics
-from stereodyn.harness.scenes.cases import Case, find_case, with_overrides
-from stereodyn.harness.engines import engine_for_state_space, get_engine
-from stereodyn.harness.analysis.fitting import order_slope
-from stereodyn.harness.trajectory import Status
-from stereodyn.harness.grid import time_grid
-from stereodyn.harness.integrators.base import Integrator
-from stereodyn.reference import truth as reference_truth
+from . import integrators as registry
+from .scenes import metrics
+from .scenes.cases import Case, find_case, with_overrides
+from .engines import engine_for_state_space, get_engine
+from .analysis.fitting import order_slope
+from .trajectory import Status
+from .grid import time_grid
+from .integrators.base import Integrator
+from ..reference import truth as reference_truth
 
 # A fitted order within this of the declared one passes: the asymptotic fits of the suite's integrators land within
 # 0.15 of their order (convergence.csv), and an order off by a whole unit is what a wrong method shows.

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from stereodyn.harness.grid import TimeGrid
+    from .grid import TimeGrid
 
 
 class Status(str, enum.Enum):

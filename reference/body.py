@@ -5,7 +5,7 @@ from dataclasses import InitVar, dataclass
 
 import numpy as np
 
-from stereodyn.reference.torque_models import BodyTorque, CentralField, PrecessionTorque, TorqueModel, merged
+from .torque_models import BodyTorque, CentralField, PrecessionTorque, TorqueModel, merged
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,9 +17,9 @@ from __future__ import annotations
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference import expressions as ex
-from stereodyn.reference import truth
-from stereodyn.reference.rotations import matrix_to_zxz, quat_mul, quat_to_matrix
+from . import expressions as ex
+from . import truth
+from .rotations import matrix_to_zxz, quat_mul, quat_to_matrix
 
 
 def _split(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.rotations import quat_mul, quat_to_matrix
-from stereodyn.reference.torques import external_torque
+from .body import RigidBody
+from .rotations import quat_mul, quat_to_matrix
+from .torques import external_torque
 
 
 def downward_vertical(body: RigidBody, quat: np.ndarray) -> np.ndarray:

@@ -16,8 +16,8 @@ from __future__ import annotations
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.rotations import quat_to_matrix
+from .body import RigidBody
+from .rotations import quat_to_matrix
 
 SIGMA, SIGMA_INV, WEIGHT_MOMENT, DOWN, THRESHOLD = 0, 6, 12, 15, 18
 N_PARS = 19

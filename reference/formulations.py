@@ -35,10 +35,10 @@ from typing import ClassVar
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference import euler_angles, euler_poisson, gibbs, torque_models, torques, truth
-from stereodyn.reference import expressions as ex
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.rotations import quat_mul, quat_normalize, quat_to_matrix
+from . import euler_angles, euler_poisson, gibbs, torque_models, torques, truth
+from . import expressions as ex
+from .body import RigidBody
+from .rotations import quat_mul, quat_normalize, quat_to_matrix
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 

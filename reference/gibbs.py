@@ -18,9 +18,9 @@ from __future__ import annotations
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference import expressions as ex
-from stereodyn.reference import truth
-from stereodyn.reference.rotations import skew
+from . import expressions as ex
+from . import truth
+from .rotations import skew
 
 # skew(e_r) for r = 0, 1, 2: ∂Q/∂q^r.
 _UNIT_SKEWS = skew(np.eye(3))

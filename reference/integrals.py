@@ -15,10 +15,10 @@ from typing import Callable
 
 import numpy as np
 
-from stereodyn.reference import torques
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.euler_poisson import downward_vertical
-from stereodyn.reference.rotations import quat_to_matrix
+from . import torques
+from .body import RigidBody
+from .euler_poisson import downward_vertical
+from .rotations import quat_to_matrix
 
 # Relative tolerance of the structural conditions (equal moments, com in a plane, K_H = 0, ...). A case satisfies
 # them to rounding (1e-16) or not at all; 1e-9 leaves room for moments computed from a rotated inertia tensor.

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference.truth import step_callback, stopped_at_deadline
+from .truth import step_callback, stopped_at_deadline
 
 # The Taylor tolerance of the reference ladder: machine precision, as the truth's.
 LADDER_TOL = 1e-16

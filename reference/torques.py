@@ -21,17 +21,17 @@ import math
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.rotations import quat_to_matrix
+from .body import RigidBody
+from .rotations import quat_to_matrix
 # The torques' parameters and formulas (defined once in reference.torque_models; re-exported here, where 0.1 code
 # imports them from).
-from stereodyn.reference.torque_models import (At, BodyTorque, CentralField, PrecessionTorque,  # noqa: F401
-                                               body_torque_components, gravity_gradient_components,
-                                               precession_components)
-from stereodyn.reference.torque_models.central_field import (field_direction_body,  # noqa: F401
-                                                             field_direction_world)
-from stereodyn.reference.torque_models.precession import (PRECESSION_SINGULAR_ANGLE, precession_axis,  # noqa: F401
-                                                          transverse_angle)
+from .torque_models import (At, BodyTorque, CentralField, PrecessionTorque,  # noqa: F401
+                            body_torque_components, gravity_gradient_components,
+                            precession_components)
+from .torque_models.central_field import (field_direction_body,  # noqa: F401
+                                          field_direction_world)
+from .torque_models.precession import (PRECESSION_SINGULAR_ANGLE, precession_axis,  # noqa: F401
+                                       transverse_angle)
 
 # Degree of the spline through the samples of M·ω whose antiderivative is the work: error O(h^8) on smooth samples,
 # far below the 1e-12 the truth's balance is judged against for the suite's sample spacings (h |ω| <= 0.05).
@@ -106,6 +106,7 @@ def external_torque(body: RigidBody, quat: np.ndarray, omega: np.ndarray, t=0.0)
     gravity)."""
     omega = np.asarray(omega, dtype=float)
     shape = np.broadcast_shapes(omega.shape, np.shape(quat)[:-1] + (3,))
+    # the non-potential terms first, then the potential ones: the order of the sums before the terms (same bits)
     total = np.broadcast_to(nonpotential_torque(body, omega, quat, t), shape)
     at = _numpy_at(body, np.broadcast_to(np.asarray(t, dtype=float), shape[:-1]), quat, omega)
     for term in body.torques:

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import heyoka as hy
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
-from stereodyn.reference.torque_models import At, models
+from .body import RigidBody
+from .rotations import attitude_angle, quat_to_matrix
+from .torque_models import At, models
 
 TRUTH_TOL = 1e-16       # double precision; the issue requires <= 1e-15
 TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)

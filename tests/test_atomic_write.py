@@ -1,10 +1,10 @@
-"""write_atomic (harness/run/results.py): a write that fails mid-way leaves the old file intact and no temporary."""
+"""write_atomic (harness/atomic.py): a write that fails mid-way leaves the old file intact and no temporary."""
 import os
 
 import pytest
 
-from stereodyn.harness.run import results
-from stereodyn.harness.run.results import write_atomic
+from stereodyn.harness import atomic
+from stereodyn.harness.atomic import write_atomic
 
 
 class _HalfWriter:
@@ -34,7 +34,7 @@ def test_a_write_failing_mid_way_leaves_the_old_file_and_no_temporary(tmp_path, 
     target = tmp_path / "results.csv"
     target.write_text("old,contents\n1,2\n")
     real_fdopen = os.fdopen
-    monkeypatch.setattr(results.os, "fdopen", lambda *a, **k: _HalfWriter(real_fdopen(*a, **k)))
+    monkeypatch.setattr(atomic.os, "fdopen", lambda *a, **k: _HalfWriter(real_fdopen(*a, **k)))
     monkeypatch.setattr("builtins.open", lambda *a, **k: _HalfWriter(real_fdopen(os.open(a[0], os.O_WRONLY
                                                                        | os.O_CREAT | os.O_TRUNC), *a[1:], **k)))
     with pytest.raises(OSError, match="No space left"):
@@ -51,7 +51,7 @@ def test_a_failing_rename_leaves_the_old_file_and_no_temporary(tmp_path, monkeyp
     def refuse(src, dst):
         raise PermissionError(13, "Permission denied", str(dst))
 
-    monkeypatch.setattr(results.os, "replace", refuse)
+    monkeypatch.setattr(atomic.os, "replace", refuse)
     with pytest.raises(PermissionError):
         write_atomic(target, "{\"new\": 1}")
     monkeypatch.undo()
@@ -74,7 +74,7 @@ def test_the_temporary_file_is_beside_the_target(tmp_path, monkeypatch):
     elsewhere = tmp_path / "system-temp"
     elsewhere.mkdir()
     monkeypatch.setenv("TMPDIR", str(elsewhere))
-    monkeypatch.setattr(results.tempfile, "tempdir", str(elsewhere))
+    monkeypatch.setattr(atomic.tempfile, "tempdir", str(elsewhere))
     target = tmp_path / "out" / "results.csv"
     target.parent.mkdir()
     renamed = []
@@ -85,7 +85,7 @@ def test_the_temporary_file_is_beside_the_target(tmp_path, monkeypatch):
         assert sorted(p.name for p in elsewhere.iterdir()) == []
         return real_replace(src, dst)
 
-    monkeypatch.setattr(results.os, "replace", spy)
+    monkeypatch.setattr(atomic.os, "replace", spy)
     write_atomic(target, "a,b\n1,2\n")
     [(src, dst)] = renamed
     assert os.path.dirname(src) == os.path.dirname(dst) == os.path.realpath(target.parent)

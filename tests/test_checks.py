@@ -123,6 +123,13 @@ def test_an_engine_agrees_with_theory(mujoco_rk4):
         assert row.error <= ENGINE_TOLERANCE[row.quantity], (row.case, row.quantity, row.error)
 
 
+def test_check_rows_follow_the_results_table_order(mujoco_rk4):
+    """The sweep runs the costliest first; checks.csv is written in results.csv's row order all the same."""
+    cases = list(dict.fromkeys(checks.read_checks(mujoco_rk4 / "checks.csv").case))
+    in_results = [c for c in dict.fromkeys(pd.read_csv(mujoco_rk4 / "results.csv").case) if c in cases]
+    assert len(cases) >= 5 and cases == in_results
+
+
 def test_check_rows_are_stored_and_survive_resume(mujoco_rk4):
     before = (mujoco_rk4 / "checks.csv").read_text()
     records = [json.loads(path.read_text()) for path in (mujoco_rk4 / "store").glob("*.json")]

@@ -43,7 +43,7 @@ def advise_family(family: Family, adaptive: bool, known: list[dict], order: floa
     model = error_model(frame, order, what)
     if adaptive:
         lo, hi, cap = TOLERANCE_LO, TOLERANCE_HI, "the tolerance ladders' tightest"
-        from stereodyn.reference import truth as reference_truth
+        from ...reference import truth as reference_truth
 
         try:
             truth = reference_truth.truth(case.body, case.quat0, case.omega0,

@@ -327,7 +327,7 @@ def check_names(args) -> None:
 
 def _load() -> None:
     global case_files, CaseError, engine_names, EngineError, budget
-    from stereodyn.harness import budget
+    from .. import budget
     from ..scenes import cases as case_files
     from ..scenes.cases import CaseError
     from ..engines import EngineError, engine_names

@@ -7,7 +7,7 @@ from __future__ import annotations
 from functools import cache
 from importlib.metadata import EntryPoint, entry_points
 
-from stereodyn.harness.engines.base import Engine
+from .base import Engine
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
 # The truth of every case: this engine's formulation and adaptive integrator (the one spelling of its engine's name

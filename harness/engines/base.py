@@ -8,14 +8,14 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from stereodyn.harness.trajectory import Trajectory
+from ..trajectory import Trajectory
 
 if TYPE_CHECKING:
-    from stereodyn.harness.scenes.cases import Case
-    from stereodyn.harness.grid import TimeGrid
+    from ..scenes.cases import Case
+    from ..grid import TimeGrid
 
 
-from stereodyn.harness.precision import EPS, FLOAT32, FLOAT64, PRECISIONS  # noqa: F401 (part of this API)
+from ..precision import EPS, FLOAT32, FLOAT64, PRECISIONS  # noqa: F401 (part of this API)
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ class Engine:
     def in_default_sweep(self, integrator: str) -> bool:
         """Whether a sweep that names no integrators runs this one on this engine. Default: the registry's
         in_default_sweep (False only for classes declaring default_sweep = False; an engine's own name is run)."""
-        from stereodyn.harness import integrators
+        from .. import integrators
 
         return integrators.in_default_sweep(integrator)
 
@@ -165,7 +165,7 @@ class Engine:
     def declared_order(self, integrator: str) -> float:
         """The order an integrator claims (convergence.csv's declared_order). Default: the registry's order in
         state_space; NaN for an integrator the registry does not know (override for the engine's own)."""
-        from stereodyn.harness import integrators
+        from .. import integrators
 
         try:
             return float(integrators.get(integrator, self.state_space or "lie").order)

@@ -61,13 +61,13 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import Engine, singular_torque
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
-from stereodyn.reference.rotations import matrix_to_quat, quat_conj, quat_mul
-from stereodyn.reference.torques import torque_function
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from .base import Engine, singular_torque
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from ...reference.rotations import matrix_to_quat, quat_conj, quat_mul
+from ...reference.torques import torque_function
 
 STEP = "semi_implicit_euler"
 # A speed cap no run of these scenes reaches (the divergence rule ends a run long before: 1e6 x |omega0|).

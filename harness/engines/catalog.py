@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import PackageNotFoundError, distribution, version
 
-from stereodyn.harness.engines import UnavailableEngine, _entry_points, get_engine
+from . import UnavailableEngine, _entry_points, get_engine
 
 OWN_DISTRIBUTION = "stereodyn"
 

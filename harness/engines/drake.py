@@ -55,13 +55,13 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, singular_torque
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
-from stereodyn.reference.rotations import quat_to_matrix
-from stereodyn.reference.torques import torque_function
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from .base import SLIDING_LADDER, Engine, singular_torque
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
+from ...reference.rotations import quat_to_matrix
+from ...reference.torques import torque_function
 
 RPY_BALL, QUATERNION_FREE = "rpy_ball", "quaternion_free"
 MODELS = (RPY_BALL, QUATERNION_FREE)

@@ -41,12 +41,12 @@ for _module in ("genesis", "torch"):
         raise ImportError(f"No module named {_module!r}; install the extra: {INSTALL} (Genesis also needs torch: "
                           f"the CPU wheel is enough)")
 
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, precession_singular
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
-from stereodyn.reference.torques import torque_function
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from .base import FLOAT32, FLOAT64, Engine, precession_singular
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from ...reference.torques import torque_function
 
 BALL, FREE = "ball", "free"
 MODELS = (BALL, FREE)

@@ -46,11 +46,11 @@ if not jax.config.jax_compilation_cache_dir:
                       os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "stereodyn",
                                    "jax"))
 
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular
-from stereodyn.harness.engines.mujoco import scene, torque_mode
-from stereodyn.harness.grid import TimeGrid, time_grid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
+from ..scenes.cases import Case, unphysical_inertia
+from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular
+from .mujoco import scene, torque_mode
+from ..grid import TimeGrid, time_grid
+from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
 
 # harness name (MuJoCo's, lower case) -> dynamics evaluations per step. MJX's `implicit` raises NotImplementedError.
 INTEGRATORS: dict[str, int] = {"euler": 1, "rk4": 4, "implicitfast": 1}
@@ -148,7 +148,7 @@ class MjxSimulation:
         data.qpos[:] = case.quat0
         data.qvel[:] = case.omega0
         if self.torque_mode == "qfrc_applied":
-            from stereodyn.reference.torques import torque_function
+            from ...reference.torques import torque_function
             data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
         with jax.enable_x64(self.x64):
             self.model = mjx.put_model(model)

@@ -28,13 +28,13 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 from mujoco import rollout  # noqa: E402
 
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
-                                          diverged_trajectory, sample_good, samples_good)
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, singular_torque
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.reference.torques import torque_function
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from ..trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
+                          diverged_trajectory, sample_good, samples_good)
+from .base import SLIDING_LADDER, Engine, SceneModel, singular_torque
+from ..grid import TimeGrid
+from ...reference.torques import torque_function
 
 # Where MuJoCo's warnings outside a run go (a run collects its own, MuJoCoSimulation.run): the file named by this
 # environment variable (`stereodyn run` sets DIR/MUJOCO_LOG.TXT), never stderr nor the working directory's

@@ -33,12 +33,12 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_message, first_bad_sample
-from stereodyn.reference.rotations import quat_to_matrix
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from .base import FLOAT32, Engine, precession_singular
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
+from ...reference.rotations import quat_to_matrix
 
 # Warp prints its device table and, at its default log level, a line for every module it loads
 wp.config.quiet = True

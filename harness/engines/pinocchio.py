@@ -15,16 +15,16 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 import pinocchio as pin
 
-from stereodyn.harness import integrators
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case
-from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, singular_torque
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.integrators.base import check_stepper
-from stereodyn.harness.integrators.ensemble import integrate_ensemble
-from stereodyn.reference import sliding_ladder as ref_ladder
-from stereodyn.reference.torques import torque_function
+from .. import integrators
+from .. import budget
+from ..scenes.cases import Case
+from ..trajectory import SlidingLadderTrajectory, Status, Trajectory
+from .base import SLIDING_LADDER, Engine, SceneModel, singular_torque
+from ..grid import TimeGrid
+from ..integrators.base import check_stepper
+from ..integrators.ensemble import integrate_ensemble
+from ...reference import sliding_ladder as ref_ladder
+from ...reference.torques import torque_function
 
 
 class PinocchioSystem:

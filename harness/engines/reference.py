@@ -8,17 +8,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereodyn.harness import integrators
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case
-from stereodyn.harness.trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
-from stereodyn.harness.engines.base import SLIDING_LADDER, Engine, SceneModel, singular_torque
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.integrators import scipy_ivp
-from stereodyn.reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
-from stereodyn.reference import sliding_ladder as ref_ladder
-from stereodyn.reference.formulations import Chart, ChartSingularity, Formulation
-from stereodyn.reference.truth import check_tolerance as truth_tolerance
+from .. import integrators
+from .. import budget
+from ..scenes.cases import Case
+from ..trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
+from .base import SLIDING_LADDER, Engine, SceneModel, singular_torque
+from ..grid import TimeGrid
+from ..integrators import scipy_ivp
+from ...reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
+from ...reference import sliding_ladder as ref_ladder
+from ...reference.formulations import Chart, ChartSingularity, Formulation
+from ...reference.truth import check_tolerance as truth_tolerance
 
 TAYLOR = "taylor"
 # The scipy methods a sweep that names no integrators runs, on the quaternion formulation only (Engine.default_run).

@@ -33,13 +33,13 @@ try:
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
 
-from stereodyn.harness import budget
-from stereodyn.harness.scenes.cases import Case, unphysical_inertia
-from stereodyn.harness.engines.base import FLOAT32, Engine, precession_singular
-from stereodyn.harness.engines.mujoco import scene, torque_mode
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
-from stereodyn.reference.torques import torque_function
+from .. import budget
+from ..scenes.cases import Case, unphysical_inertia
+from .base import FLOAT32, Engine, precession_singular
+from .mujoco import scene, torque_mode
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from ...reference.torques import torque_function
 
 DEVICE = "cpu"
 MODEL_NAME = "stereodyn"  # one name for every case's model (as the MJX adapter's)

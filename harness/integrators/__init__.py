@@ -14,10 +14,10 @@ from __future__ import annotations
 import warnings
 from importlib.metadata import entry_points
 
-from stereodyn.harness.integrators.base import Integrator, LieSystem, check_step_signature
-from stereodyn.harness.integrators.geometric import GEOMETRIC
-from stereodyn.harness.integrators.lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEuler
-from stereodyn.harness.integrators.vector import VectorEuler, VectorRK, VectorRK4, VectorSystem
+from .base import Integrator, LieSystem, check_step_signature
+from .geometric import GEOMETRIC
+from .lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEuler
+from .vector import VectorEuler, VectorRK, VectorRK4, VectorSystem
 
 __all__ = ["ENTRY_POINT_GROUP", "ButcherTableau", "ExplicitRK", "Integrator", "LieSystem", "VectorRK", "VectorSystem",
            "get", "in_default_sweep", "names", "register", "state_spaces"]

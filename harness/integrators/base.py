@@ -19,10 +19,10 @@ from typing import Callable, ClassVar, Protocol
 
 import numpy as np
 
-from stereodyn.harness import budget
-from stereodyn.harness.trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
-                                          sample_good)
-from stereodyn.harness.grid import TimeGrid
+from .. import budget
+from ..trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
+                          sample_good)
+from ..grid import TimeGrid
 
 # step(t, g, v) -> (g, v): one step from the state (g, v) at time t (s).
 Stepper = Callable[[float, object, np.ndarray], tuple[object, np.ndarray]]

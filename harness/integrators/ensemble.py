@@ -11,10 +11,10 @@ from typing import Callable
 
 import numpy as np
 
-from stereodyn.harness.trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
-                                          samples_good)
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.integrators.base import Stepper
+from ..trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
+                          samples_good)
+from ..grid import TimeGrid
+from .base import Stepper
 
 
 def integrate_ensemble(step: Stepper, stages: int, g0: np.ndarray, v0: np.ndarray, grid: TimeGrid,

@@ -23,10 +23,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from stereodyn.harness.integrators.base import Integrator, LieSystem, Stepper, StepperIntegrator
-from stereodyn.harness.integrators.vector import VectorRK, VectorSystem
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact import free_motion
+from .base import Integrator, LieSystem, Stepper, StepperIntegrator
+from .vector import VectorRK, VectorSystem
+from ...reference.body import RigidBody
+from ...reference.exact import free_motion
 
 # Fixed-point iteration: stop when the increment changes by at most this many ulps of its size (round-off); give up
 # after MAX_ITERATIONS (the contraction factor is ~h |∂a/∂v| / 2: well below 1/2 wherever the step resolves the

@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from stereodyn.harness.integrators.base import BatchLieSystem, Integrator, LieSystem, Stepper, StepperIntegrator
+from .base import BatchLieSystem, Integrator, LieSystem, Stepper, StepperIntegrator
 
 
 @dataclass(frozen=True)

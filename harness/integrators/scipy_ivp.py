@@ -24,10 +24,10 @@ import math
 import numpy as np
 from scipy import integrate
 
-from stereodyn.harness import budget
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.integrators.vector import VectorSystem
-from stereodyn.harness.trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from .. import budget
+from ..grid import TimeGrid
+from .vector import VectorSystem
+from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
 
 # Integrator name -> scipy's method (scipy.integrate.solve_ivp's `method`), in report order.
 METHODS = {"scipy_rk45": "RK45", "scipy_dop853": "DOP853", "scipy_radau": "Radau", "scipy_bdf": "BDF",

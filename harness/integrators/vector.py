@@ -12,10 +12,10 @@ from typing import ClassVar, Protocol
 
 import numpy as np
 
-from stereodyn.harness.trajectory import Trajectory
-from stereodyn.harness.grid import TimeGrid
-from stereodyn.harness.integrators.base import Integrator, Stepper
-from stereodyn.harness.integrators.lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
+from ..trajectory import Trajectory
+from ..grid import TimeGrid
+from .base import Integrator, Stepper
+from .lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
 
 
 class VectorSystem(Protocol):

@@ -142,8 +142,8 @@ def cost_ratios(runs: pd.DataFrame, integrator: str, builtin: set[str], targets=
 def own_label(engine: str, integrator: str) -> str:
     """An engine's own integrator is named with its engine ("euler (mujoco)": names repeat across engines and mean
     different methods); a registered integrator by its name."""
-    from stereodyn.harness import integrators as registry
-    from stereodyn.harness.engines import get_engine
+    from .. import integrators as registry
+    from ..engines import get_engine
 
     try:
         space = get_engine(engine).state_space

@@ -1,14 +1,14 @@
-"""The results table (DESIGN §4): its columns, and atomic writes so an interrupted run loses nothing written."""
+"""The results table (DESIGN §4): its columns and row order, written atomically (harness/atomic.py) so an
+interrupted run loses nothing written."""
 from __future__ import annotations
 
 import csv
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import pandas as pd
 
+from ..atomic import write_atomic  # noqa: F401 (imported from here too)
 from ..precision import FLOAT64
 from ..readers import MAX_TABLE_BYTES
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
@@ -22,6 +22,11 @@ COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_
 SORT_KEYS = ("case", "_engine_rank", "_integrator_rank", "_formulation_rank", "_dt_rank", "_precision_rank")
 
 
+def row_order(row: dict) -> tuple:
+    """A row's place in that order (its SORT_KEYS; 0 for a key it lacks)."""
+    return tuple(row.get(key, 0) for key in SORT_KEYS)
+
+
 def frame(rows: list[dict]) -> pd.DataFrame:
     """A DataFrame with exactly COLUMNS (missing values NaN), in the canonical row order."""
     df = pd.DataFrame(rows)
@@ -32,26 +37,6 @@ def frame(rows: list[dict]) -> pd.DataFrame:
         return df[list(COLUMNS)]
     df = df.sort_values([k for k in SORT_KEYS if k in df], kind="stable")
     return df[list(COLUMNS)].reset_index(drop=True)
-
-
-def write_atomic(path: Path, text: str | bytes) -> None:
-    """Write text (or bytes) to path through a temporary file in the same folder and a rename: readers never see a
-    partial file."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, 0o644)  # mkstemp makes the file private (0600); the result is an ordinary file
-        options = {"mode": "wb"} if isinstance(text, bytes) else {"mode": "w", "encoding": "utf-8", "newline": ""}
-        with os.fdopen(fd, **options) as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException as exc:
-        Path(tmp).unlink(missing_ok=True)
-        if isinstance(exc, OSError) and exc.filename is None:  # a full disk: write() and fsync() name no file
-            raise OSError(exc.errno, exc.strerror, str(path)) from exc
-        raise
 
 
 def write_results(df: pd.DataFrame, path: Path) -> None:

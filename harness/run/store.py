@@ -105,7 +105,7 @@ def folder_lock(out_dir: Path, store: bool = False) -> Iterator[None]:
 
 
 def remove_partial_files(out_dir: Path) -> list[Path]:
-    """Delete the temporary files of interrupted atomic writes (harness.run.results.write_atomic's .NAME.*.tmp) in the
+    """Delete the temporary files of interrupted atomic writes (harness.atomic.write_atomic's .NAME.*.tmp) in the
     folders stereodyn writes under DIR (TEMPORARY_FOLDERS)."""
     leftovers = [path for folder in TEMPORARY_FOLDERS for path in (Path(out_dir) / folder).glob(".*.tmp")]
     for path in leftovers:

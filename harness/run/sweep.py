@@ -29,7 +29,7 @@ from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
 from .progress import ProgressBar
-from .results import frame, write_results
+from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
 from .truth import sweep_truths
 
@@ -156,8 +156,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Proc
         def publish() -> None:
             last_publish[0] = time.monotonic()
             write_results(table(), results_path)
-            checks.write_checks([{**stored[keys[id(s)]], **_ranks(s)} for s in specs if keys[id(s)] in stored],
-                                out_dir / checks.CHECKS_FILE)
+            checks.write_checks(sorted(({**stored[keys[id(s)]], **_ranks(s)} for s in specs if keys[id(s)] in stored),
+                                       key=row_order), out_dir / checks.CHECKS_FILE)
             store.write_manifest([keys[id(s)] for s in specs if keys[id(s)] in stored], environment)
             if options.save_trajectories:
                 store.write_trajectory_index([(stored[keys[id(s)]], keys[id(s)]) for s in specs

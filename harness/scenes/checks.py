@@ -26,6 +26,7 @@ from numpy.polynomial import Polynomial
 from scipy.optimize import brentq
 
 from .cases import Case
+from ..atomic import write_atomic
 from ..trajectory import Status, Trajectory
 from ..precision import FLOAT64
 from ...reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
@@ -390,12 +391,10 @@ GRIOLI = Check("grioli", _grioli_theory, _grioli_measured)
 # ------------------------------------------------------------------------------------------------- checks.csv
 
 def table(rows: list[dict]) -> pd.DataFrame:
-    """checks.csv's table from result rows (each with its ROW_KEY list), in the results table's row order."""
-    from ..run.results import SORT_KEYS  # not at import: run.results imports the scenes (a cycle)
-
-    order = sorted(range(len(rows)), key=lambda i: tuple(rows[i].get(key, 0) for key in SORT_KEYS))
-    records = [{**{column: rows[i].get(column) for column in RUN_COLUMNS}, **check}
-               for i in order for check in rows[i].get(ROW_KEY) or ()]
+    """checks.csv's table from result rows (each with its ROW_KEY list), in their order (the sweep gives them in the
+    results table's: harness.run.results.row_order)."""
+    records = [{**{column: row.get(column) for column in RUN_COLUMNS}, **check}
+               for row in rows for check in row.get(ROW_KEY) or ()]
     df = pd.DataFrame(records, columns=list(COLUMNS))
     for column in ("dt", "theory", "measured", "error"):
         df[column] = pd.to_numeric(df[column], errors="coerce")  # the store writes NaN as null
@@ -406,8 +405,6 @@ def table(rows: list[dict]) -> pd.DataFrame:
 
 def write_checks(rows: list[dict], path: Path) -> None:
     """Write checks.csv atomically; full precision, since a period is checked to 1e-10 and more."""
-    from ..run.results import write_atomic
-
     write_atomic(Path(path), table(rows).to_csv(index=False, float_format="%.17g"))
 
 

@@ -17,18 +17,18 @@ from typing import Callable
 
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact import heavy, self_excited
-from stereodyn.reference.exact._util import CONDITION_RTOL
-from stereodyn.reference.exact.euler_poinsot import (SEPARATRIX_TOL, FreeMotion, euler_poinsot_check, euler_poinsot_solve,
-                                           free_motion, montgomery_phase, period, precession_per_period,
-                                           separatrix_check, separatrix_distance, separatrix_omega, solid_angle)
-from stereodyn.reference.exact.heavy import (Setup, grioli_body, grioli_precession, grioli_rate, grioli_vertical,
-                                   hess_frame, hess_grioli, hess_grioli_body, lagrange_precession, lagrange_rates,
-                                   mlodzejowski, mlodzejowski_axis, sleeping_top_threshold, staude_direction,
-                                   staude_rate_squared, staude_rotation)
-from stereodyn.reference.exact.pendulum import PendulumMotion, pendulum
-from stereodyn.reference.exact.stationary import lyapunov_exponent, oscillation_frequencies, unstable_direction
+from ..body import RigidBody
+from . import heavy, self_excited
+from ._util import CONDITION_RTOL
+from .euler_poinsot import (SEPARATRIX_TOL, FreeMotion, euler_poinsot_check, euler_poinsot_solve,
+                            free_motion, montgomery_phase, period, precession_per_period,
+                            separatrix_check, separatrix_distance, separatrix_omega, solid_angle)
+from .heavy import (Setup, grioli_body, grioli_precession, grioli_rate, grioli_vertical,
+                    hess_frame, hess_grioli, hess_grioli_body, lagrange_precession, lagrange_rates,
+                    mlodzejowski, mlodzejowski_axis, sleeping_top_threshold, staude_direction,
+                    staude_rate_squared, staude_rotation)
+from .pendulum import PendulumMotion, pendulum
+from .stationary import lyapunov_exponent, oscillation_frequencies, unstable_direction
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from decimal import Decimal, localcontext
 import numpy as np
 from scipy.special import elliprf, elliprj
 
-from stereodyn.reference.rotations import quat_exp
+from ..rotations import quat_exp
 
 # Tolerance of every oracle condition (relative, see each check). Cases are written with 17 significant digits from
 # the constructors here, so a condition holds to rounding (~1e-16) or the state is on another motion; the deviation

@@ -35,10 +35,10 @@ from decimal import Decimal, localcontext
 import numpy as np
 from scipy.special import ellipkm1
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact._util import (PRECISE_DIGITS, SYMMETRIC_RTOL, axis_angle_quat, continuous_signs, first_kind,
-                                   jacobi, principal_frame_precise, third_kind_complete, third_kind_reduced)
-from stereodyn.reference.rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
+from ..body import RigidBody
+from ._util import (PRECISE_DIGITS, SYMMETRIC_RTOL, axis_angle_quat, continuous_signs, first_kind,
+                    jacobi, principal_frame_precise, third_kind_complete, third_kind_reduced)
+from ..rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
 
 # |δ| below this (see separatrix_distance) is the separatrix: a state built on it in double precision has
 # |δ| ~ 1e-16, and the motion leaves the separatrix like |δ| e^{λ t}, so a looser bound would be another motion.

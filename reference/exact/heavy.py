@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact._util import (CONDITION_RTOL, axis_angle_quat, continuous_signs, orthogonal_unit,
-                                   principal_axes, rotation_taking, unit)
-from stereodyn.reference.exact.pendulum import pendulum
-from stereodyn.reference.rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
+from ..body import RigidBody
+from ._util import (CONDITION_RTOL, axis_angle_quat, continuous_signs, orthogonal_unit,
+                    principal_axes, rotation_taking, unit)
+from .pendulum import pendulum
+from ..rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact._util import CONDITION_RTOL
-from stereodyn.reference.rotations import quat_exp, quat_mul
-from stereodyn.reference.torques import body_torque, principal_frame_for
+from ..body import RigidBody
+from ._util import CONDITION_RTOL
+from ..rotations import quat_exp, quat_mul
+from ..torques import body_torque, principal_frame_for
 
 
 def _only_body_torque(body: RigidBody) -> str | None:

@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from stereodyn.reference.body import RigidBody
-from stereodyn.reference.exact._util import principal_axes
+from ..body import RigidBody
+from ._util import principal_axes
 
 
 def _triaxial_moments(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:

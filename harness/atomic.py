@@ -1,0 +1,27 @@
+"""Atomic file writes: every table, record and report stereodyn writes goes through a temporary file and a rename, so
+that an interrupted run or a reader racing it never sees a partial file."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+
+def write_atomic(path: Path, text: str | bytes) -> None:
+    """Write text (or bytes) to path through a temporary file in the same folder and a rename: readers never see a
+    partial file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.fchmod(fd, 0o644)  # mkstemp makes the file private (0600); the result is an ordinary file
+        options = {"mode": "wb"} if isinstance(text, bytes) else {"mode": "w", "encoding": "utf-8", "newline": ""}
+        with os.fdopen(fd, **options) as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
+        Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.filename is None:  # a full disk: write() and fsync() name no file
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
