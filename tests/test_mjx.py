@@ -1,7 +1,8 @@
 """The MJX engine (harness/engines/mjx.py, the optional extra stereodyn[mjx]): agreement with MuJoCo C, the two
-precisions in one process, its RK4's known deviation, torques, and the message when the extra is missing. Skipped
-where mujoco-mjx is not installed (but the missing-extra test runs). Each compilation costs 5-30 s: the default run
-compiles two rollouts (euler in float64 and float32); the order measurement is marked slow."""
+precisions in one process, its RK4's known deviation, torques, the budget's chunks, and the message when the extra is
+missing. Skipped where mujoco-mjx is not installed (but the missing-extra test runs). Each compilation costs 5-30 s:
+the default run compiles three rollouts (euler in float64 and float32, and float64's chunk); the order measurement is
+marked slow."""
 from __future__ import annotations
 
 import dataclasses
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 from helpers import assert_skipped_without_sdk
 
+from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.grid import time_grid
@@ -51,6 +53,27 @@ def test_float64_euler_is_mujoco_c_euler_and_float32_rounds(mjx):
     assert 1e-9 < diff32 <= 1e-4  # float32 really ran: a float64 run would agree to 1e-12
     _, again = _both(mjx, case, "euler", 0.01, precision="float64")
     assert np.array_equal(again.quat, f64.quat)
+
+
+def test_under_a_budget_a_run_goes_in_chunks_with_the_same_numbers_and_stops_at_its_deadline(mjx):
+    """Under a wall-time budget (the sweep's accuracy runs) the rollout is CHUNK sample intervals a call, the state
+    carried from call to call and the last chunk padded with 0-step intervals; the budget is checked between calls.
+    100 intervals (two chunks, 28 padded): the same numbers as the one-call rollout, bit for bit in this process
+    (measured so on heavy-asymmetric euler, lagrange-top rk4 float64 and free-asymmetric rk4 float32, 20 s, 999
+    intervals). A 1 ms budget stops it after its first chunk."""
+    from stereodyn.harness.engines.mjx import CHUNK
+
+    case = _case("heavy-asymmetric", 5.0)
+    grid = time_grid(case.t_end, 0.01, case.samples)
+    simulation = mjx.prepare(case, "euler", 0.01)
+    whole = simulation.run(grid)
+    with budget.within("run", 600.0):
+        chunked = simulation.run(grid)
+    assert grid.sample_steps.size - 1 > CHUNK  # more than one call
+    assert np.array_equal(chunked.quat, whole.quat) and np.array_equal(chunked.omega, whole.omega)
+    with pytest.raises(budget.BudgetExceeded, match="run budget exceeded"):
+        with budget.within("run", 1e-3):
+            simulation.run(grid)
 
 
 def test_metadata_and_unsupported_torques(mjx):

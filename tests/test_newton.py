@@ -1,7 +1,7 @@
 """The Newton engine (harness/engines/newton.py, the optional extra stereodyn[newton]): its conventions against
-MuJoCo's Euler, the captured step, featherstone's order, a diverged run as a row, and the message when the extra is
-missing. Skipped where newton is not installed (but the missing-extra test runs). A first run compiles Warp kernels for
-a minute or more (then Warp's kernel cache serves)."""
+MuJoCo's Euler, torques, the captured step, featherstone's order, a diverged run as a row, and the message when the
+extra is missing. Skipped where newton is not installed (but the missing-extra test runs). A first run compiles Warp
+kernels for a minute or more (then Warp's kernel cache serves)."""
 from __future__ import annotations
 
 import dataclasses
@@ -44,6 +44,22 @@ def test_featherstone_follows_mujocos_euler_to_its_quaternion_update(newton, nam
     assert np.max(np.abs(ours.omega - theirs.omega)) < 1e-4
 
 
+@pytest.mark.parametrize("name", ["constant-torque-uniform", "self-excited-conic"])
+def test_a_torque_from_the_state_enters_every_step_in_the_world_frame(newton, name):
+    """The case's torque (body components) is evaluated at every step's start from the step's time and state and
+    applied as the body's world-frame moment (body_f = R M): featherstone then follows MuJoCo's euler as on the
+    torque-free cases, 100 steps of 1e-3 s within 3.1e-8 .. 3.4e-8 rad and 3.8e-9 .. 1.1e-7 rad/s (measured). The
+    moment left in body components is 1.1e-5 .. 6.4e-5 rad and 2.7e-4 .. 1.4e-3 rad/s off, no torque 1e-3 rad and
+    2e-2 rad/s."""
+    case = find_case(name)
+    grid = time_grid(0.1, 1e-3, 11)
+    ours = newton.prepare(case, "featherstone", 1e-3).run(grid)
+    theirs = get_engine("mujoco").prepare(case, "euler", 1e-3).run(grid)
+    assert ours.status is Status.OK and ours.info["torque_mode"] == "step"
+    assert np.max(attitude_angle(quat_to_matrix(ours.quat), quat_to_matrix(theirs.quat))) < 1e-6
+    assert np.max(np.abs(ours.omega - theirs.omega)) < 1e-6
+
+
 def test_the_captured_step_restarts_and_featherstone_is_first_order(newton):
     """Two runs of one prepared model agree bit for bit (the reset); the attitude error against the truth halves with
     the step (lagrange-top, 1 s: fitted 1.0 .. 1.1 measured; float32 round-off stays far below at these steps)."""
@@ -75,4 +91,5 @@ def test_the_default_sweep_is_the_general_cases_at_one_coarse_stable_step(newton
     assert newton.default_dts(heavy, "featherstone", heavy.dt) == (1e-2,)  # not 0.3: beyond Euler's stability
     assert newton.default_run(heavy, "ball", "xpbd") and not newton.default_run(heavy, "free", "xpbd")
     assert not newton.default_run(find_case("hess"), "ball", "featherstone")
-    assert "no external torque" in newton.unsupported(torqued)
+    assert newton.unsupported(torqued) is None and newton.torque_mode(torqued) == "step"
+    assert not newton.default_run(torqued, "ball", "featherstone")  # the general cases only

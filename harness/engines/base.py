@@ -1,6 +1,7 @@
 """The engine base class: build a case's model, roll it out with an integrator and a step, return a Trajectory."""
 from __future__ import annotations
 
+import importlib.util
 import math
 from dataclasses import dataclass
 import warnings
@@ -45,6 +46,21 @@ def prepare_keywords(engine: "Engine", formulation: str, integrator: str, precis
     return keywords
 
 
+def require_modules(install: str, *modules: str) -> None:
+    """Raise ImportError naming the install command when a module of an engine's SDK is absent, without importing it
+    (importlib.util.find_spec; a folder an uninstall left behind, a namespace package, counts as absent). An adapter
+    calls it when the registry loads it and imports its SDK on its first prepare, so that loading the adapter (the
+    registry, `stereodyn engines`) costs no SDK import; the registry turns the ImportError into skipped rows whose
+    reason is this message."""
+    for module in modules:
+        try:
+            spec = importlib.util.find_spec(module)
+        except (ImportError, ValueError):  # a dotted name whose parent is absent, or a module set to None
+            spec = None
+        if spec is None or spec.origin is None:
+            raise ImportError(f"No module named {module!r}; install the extra: {install}")
+
+
 class Simulation(Protocol):
     """A model built for one case, integrator and dt; run() steps it from the case's initial state."""
 
@@ -76,6 +92,14 @@ class Engine:
     export_formats: tuple[str, ...] = ()
     # Documented departures of this engine's integrators from their declared behaviour (KnownDeviation).
     known_deviations: tuple[KnownDeviation, ...] = ()
+    # True when the engine's precision is set for its whole process (Genesis's gs.init): building a model of one
+    # precision releases the models of the other, so the timing phases prepare and time its runs one precision at a
+    # time (harness.run.timing.groups).
+    process_global_precision: bool = False
+    # The prepare budget (s) this engine's runs get at least, for an engine whose first preparation in a process
+    # imports and compiles for minutes: a run's prepare budget is the larger of this and the sweep's
+    # (--prepare-budget; harness.run.measure.prepare_budget). None: the sweep's.
+    prepare_budget_s: float | None = None
     _legacy_ladder = False  # set for a 0.2.0 plug-in that still implements the sliding ladder's four hooks
 
     def __init_subclass__(cls, **kwargs):

@@ -13,18 +13,18 @@ Two models, named in the formulation column:
 Integrators under Genesis's names (gs.integrator): `euler` (semi-implicit: velocity first), `implicitfast`,
 `approximate_implicitfast` (Genesis's default). Precision: float64 and float32 (gs.init(precision=...)). Genesis's
 precision is process-global: gs.init once per process. A model of the other precision re-initialises Genesis
-(gs.destroy, gs.init), which releases every model built before: such a model's run() raises (its row, or its timing,
-is then lost, never wrong). The MJCF is loaded with align=False, which keeps the body frame as written (a probe with
+(gs.destroy, gs.init), which releases every model built before: such a model's run() raises (never a wrong number).
+The engine says so (process_global_precision): the timing phases prepare and time its runs one precision at a time. The MJCF is loaded with align=False, which keeps the body frame as written (a probe with
 the default align=True saw a wrong initial energy; with this MJCF 1.4.5 gave the same states either way, measured).
 
 External torques (reference.torques) are evaluated in Python at the start of every step from the step's time and
 state and set as the dofs' control force (torque_mode `step`: exact for the one-stage Euler; the implicit
 integrators see it as a constant over the step). Model building and the first step, which compiles the step's kernels,
-happen in prepare (not timed): a first build compiles for minutes, later ones load the kernel cache.
+happen in prepare (not timed): a first build compiles for minutes, later ones load the kernel cache; the engine's
+prepare budget is longer than the sweep's default (prepare_budget_s).
 """
 from __future__ import annotations
 
-import importlib.util
 import math
 import os
 import tempfile
@@ -32,20 +32,17 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .base import FLOAT32, FLOAT64, Engine, precession_singular, require_modules
+
 INSTALL = "pip install 'stereodyn[genesis]'"
 # Genesis does not declare torch; importing it costs 15-30 s, so the SDK is imported on the first prepare and only
-# its presence is checked here (the registry turns an ImportError into skipped rows whose reason is this message).
-for _module in ("genesis", "torch"):
-    _spec = importlib.util.find_spec(_module)
-    if _spec is None or _spec.origin is None:  # absent, or a folder an uninstall left behind (a namespace package)
-        raise ImportError(f"No module named {_module!r}; install the extra: {INSTALL} (Genesis also needs torch: "
-                          f"the CPU wheel is enough)")
+# its presence is checked here.
+require_modules(f"{INSTALL} (Genesis also needs torch: the CPU wheel is enough)", "genesis", "torch")
 
-from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .base import FLOAT32, FLOAT64, Engine, precession_singular
+from .stepping import run_steps
 from ..grid import TimeGrid
-from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+from ..trajectory import Trajectory
 from ...reference.torques import torque_function
 
 BALL, FREE = "ball", "free"
@@ -130,6 +127,7 @@ class GenesisSimulation:
         self.q0 = np.concatenate([position, np.asarray(case.quat0, dtype=float)])
         self.v0 = np.concatenate([position, np.asarray(case.omega0, dtype=float)])
         self.torque = torque_function(body)
+        self.force = np.zeros(self.entity.n_dofs)
         if self.torque is not None:
             dofs = self.entity.n_dofs
             self.entity.set_dofs_force_range(np.full(dofs, -NO_LIMIT), np.full(dofs, NO_LIMIT))
@@ -147,51 +145,25 @@ class GenesisSimulation:
         if self.torque is not None:
             self.entity.control_dofs_force(np.zeros(self.entity.n_dofs))
 
-    def _state(self) -> tuple[np.ndarray, np.ndarray]:
-        q = self.entity.get_qpos().cpu().numpy().astype(float)
-        v = self.entity.get_dofs_velocity().cpu().numpy().astype(float)
-        return q[self.offset:self.offset + 4], v[self.offset:self.offset + 3]
+    def step(self) -> None:
+        self.scene.step()
+
+    def read(self) -> tuple[tuple, tuple]:
+        """(quaternion wxyz, omega in body components) as floats (harness.engines.stepping)."""
+        q = self.entity.get_qpos().cpu().numpy()
+        v = self.entity.get_dofs_velocity().cpu().numpy()
+        return tuple(q[self.offset:self.offset + 4].tolist()), tuple(v[self.offset:self.offset + 3].tolist())
+
+    def apply(self, moment: tuple) -> None:
+        """The torque (body components) as the dofs' control force of the next step."""
+        self.force[self.offset:self.offset + 3] = moment
+        self.entity.control_dofs_force(self.force)
 
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         self.reset()
-        step, torque, dt, offset = self.scene.step, self.torque, self.dt, self.offset
-        limit2 = divergence_limit2(self.case.omega0)
-        samples = grid.sample_steps.tolist()
-        quat = np.full((len(samples), 4), np.nan)
-        omega = np.full((len(samples), 3), np.nan)
-        quat[0], omega[0] = self.q0[offset:], self.v0[offset:]
-        force = np.zeros(self.entity.n_dofs)
-        bad = None
-        for i in range(1, len(samples)):
-            if torque is None:  # the hot loop: Genesis's steps, one state read a sample
-                for piece in budget.pieces(samples[i - 1], samples[i]):  # the run's wall-time budget
-                    for _ in piece:
-                        step()
-            else:  # every step: the torque from the step's time and state (body components), then the step
-                try:
-                    for k in (k for piece in budget.pieces(samples[i - 1], samples[i]) for k in piece):
-                        q, w = self._state()
-                        force[offset:offset + 3] = torque(k * dt, tuple(q.tolist()), tuple(w.tolist()))
-                        self.entity.control_dofs_force(force)
-                        step()
-                except (ArithmeticError, ValueError):  # a torque of a runaway state (math.cos(inf)): diverged
-                    bad = i
-                    break
-            quat[i], omega[i] = self._state()
-            if not sample_good(quat[i].tolist(), omega[i].tolist(), limit2):  # the divergence rule
-                bad = i
-                break
-        mode = "none" if torque is None else "step"
-        if bad is None:
-            return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, grid.steps,
-                              info={"torque_mode": mode})
-        quat[bad:] = np.nan
-        omega[bad:] = np.nan
-        diverged_at = float(grid.times[bad])
-        return Trajectory(grid.times, quat, omega, Status.DIVERGED, divergence_message(diverged_at), diverged_at,
-                          samples[bad], samples[bad], info={"torque_mode": mode})
+        return run_steps(self, grid, self.case.omega0, self.torque)
 
 
 class GenesisEngine(Engine):
@@ -203,6 +175,11 @@ class GenesisEngine(Engine):
     pass_us = 400.0
     linestyle = "--"
     packages = ("genesis-world", "torch")
+    # gs.init's precision holds for the process: the timing phases time one precision's runs at a time
+    process_global_precision = True
+    # A first prepare in a process imports Genesis (15-30 s) and builds its kernels cold (80-107 s), measured under
+    # load 14 on 2 cores: past the sweep's default 120 s. 600 s keeps ~4x that; later prepares take 0.5-20 s.
+    prepare_budget_s = 600.0
 
     def formulations(self) -> tuple[str, ...]:
         return MODELS

@@ -4,8 +4,10 @@ The model is MuJoCo's own scene of the case (harness.engines.mujoco.scene: one b
 the device with mjx.put_model. qpos is the quaternion (w, x, y, z) body -> world, qvel the body angular velocity, as
 in MuJoCo C. A run is one jitted function of (model, data, steps per sample interval): a lax.scan over the sample
 intervals, each a lax.fori_loop of mjx.step, so the whole rollout is compiled once per integrator, precision and
-sample count in a process and every case reuses it (the model is an argument, not a constant). prepare() compiles
-(never timed); run() waits for the result (jax.block_until_ready) before it returns.
+sample count in a process and every case reuses it (the model is an argument, not a constant). Under a wall-time
+budget (the sweep's accuracy runs) the rollout goes CHUNK sample intervals a call, the budget checked between calls
+(the same numbers, bit for bit). prepare() compiles (never timed); run() waits for the result
+(jax.block_until_ready) before it returns. jax and mujoco.mjx are imported on the first prepare.
 
 Precision: JAX's `jax_enable_x64` is a process-wide flag whose value at trace time fixes every dtype, so each run
 traces, compiles and calls its function inside `jax.enable_x64(precision == "float64")`: float32 and float64 runs
@@ -17,8 +19,10 @@ default sweep and `skipped` with the reason when named.
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -30,24 +34,15 @@ INSTALL = "pip install 'stereodyn[mjx]'"
 _XLA_THREADS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_XLA_THREADS}".strip()
-try:
-    import jax
-    import mujoco
-    from jax import numpy as jnp
-    from mujoco import mjx
-except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
-    raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
+import mujoco
 
-# Compiled rollouts persist on disk (JAX's compilation cache), so a worker loads what another one, or an earlier
-# run, compiled (5-30 s each, one per integrator, precision and model structure) instead of compiling it again. A
-# cache the user chose (JAX_COMPILATION_CACHE_DIR) is kept.
-if not jax.config.jax_compilation_cache_dir:
-    jax.config.update("jax_compilation_cache_dir",
-                      os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "stereodyn",
-                                   "jax"))
+from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular, require_modules
 
+# jax and mujoco.mjx are imported on the first prepare (_sdk: 2-8 s); loading the adapter only checks them
+require_modules(INSTALL, "jax", "mujoco.mjx")
+
+from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular
 from .mujoco import scene, torque_mode
 from ..grid import TimeGrid, time_grid
 from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
@@ -101,6 +96,34 @@ def compiled_model(case: Case, integrator: str, dt: float) -> "mujoco.MjModel":
     return model
 
 
+@functools.cache
+def _sdk() -> SimpleNamespace:
+    """jax, jax.numpy, mujoco.mjx and the jitted rollout, imported on the first prepare. Compiled rollouts persist on
+    disk (JAX's compilation cache), so a worker loads what another one, or an earlier run, compiled (5-30 s each, one
+    per integrator, precision and model structure) instead of compiling it again; a cache the user chose
+    (JAX_COMPILATION_CACHE_DIR) is kept."""
+    import jax
+    from jax import numpy as jnp
+    from mujoco import mjx
+
+    if not jax.config.jax_compilation_cache_dir:
+        jax.config.update("jax_compilation_cache_dir",
+                          os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"),
+                                       "stereodyn", "jax"))
+
+    @jax.jit
+    def rollout(model, data, counts):
+        """The states after each sample interval, and the last: counts (n,) int32 steps per interval -> (data,
+        (qpos (n, 4), qvel (n, 3)))."""
+        def interval(state, steps):
+            state = jax.lax.fori_loop(0, steps, lambda _, d: mjx.step(model, d), state)
+            return state, (state.qpos, state.qvel)
+
+        return jax.lax.scan(interval, data, counts)
+
+    return SimpleNamespace(jax=jax, jnp=jnp, mjx=mjx, rollout=rollout)
+
+
 # Compiled rollouts of this process: (precision, integrator, pytree structure of (model, data), sample intervals) ->
 # jax's Compiled. The structure holds a model's static fields, so one entry serves every case that shares them.
 _COMPILED: dict[tuple, object] = {}
@@ -110,28 +133,25 @@ _COMPILED: dict[tuple, object] = {}
 # tensor<3x3xf32>, provided tensor<3x3xf64>"), in either order (tests/test_mjx.py). The Compiled objects above are
 # kept: clearing jax's caches does not touch them.
 _last_traced: list[str] = []
+# Under a wall-time budget (the sweep's accuracy runs) a run is CHUNK sample intervals per call, the budget checked
+# between calls: one compiled call cannot be stopped inside. Every grid shares the chunk's shape (one compilation per
+# integrator, precision and structure); the last chunk is padded with intervals of 0 steps. A call costs ~0.3 ms of
+# dispatch (MJX's data is a large pytree), so the timed runs, which have no budget, stay one call.
+CHUNK = 64
 
 
-def _compiled(precision: str, integrator: str, model, data, counts):
-    """The Compiled rollout for these arguments: from this process's cache, else traced and compiled (under the
-    precision's jax_enable_x64, already entered by the caller)."""
-    key = (precision, integrator, jax.tree_util.tree_structure((model, data)), counts.shape)
+def _compiled(precision: str, integrator: str, model, data, intervals: int):
+    """The Compiled rollout over `intervals` sample intervals: from this process's cache, else traced and compiled
+    (under the precision's jax_enable_x64, already entered by the caller)."""
+    sdk = _sdk()
+    key = (precision, integrator, sdk.jax.tree_util.tree_structure((model, data)), intervals)
     if key not in _COMPILED:
         if _last_traced and _last_traced[-1] != precision:
-            jax.clear_caches()
+            sdk.jax.clear_caches()
         _last_traced[:] = [precision]
-        _COMPILED[key] = _rollout.lower(model, data, counts).compile()
+        counts = sdk.jnp.zeros(intervals, dtype=sdk.jnp.int32)
+        _COMPILED[key] = sdk.rollout.lower(model, data, counts).compile()
     return _COMPILED[key]
-
-
-@jax.jit
-def _rollout(model, data, counts):
-    """The states after each sample interval: counts (n,) int32 steps per interval -> (qpos (n, 4), qvel (n, 3))."""
-    def interval(state, steps):
-        state = jax.lax.fori_loop(0, steps, lambda _, d: mjx.step(model, d), state)
-        return state, (state.qpos, state.qvel)
-
-    return jax.lax.scan(interval, data, counts)[1]
 
 
 class MjxSimulation:
@@ -150,23 +170,36 @@ class MjxSimulation:
         if self.torque_mode == "qfrc_applied":
             from ...reference.torques import torque_function
             data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
-        with jax.enable_x64(self.x64):
-            self.model = mjx.put_model(model)
-            self.data = mjx.put_data(model, data)
-            # compile now (not timed) for the case's own grid; another grid compiles on its first run
+        sdk = _sdk()
+        with sdk.jax.enable_x64(self.x64):
+            self.model = sdk.mjx.put_model(model)
+            self.data = sdk.mjx.put_data(model, data)
+            # compile now (not timed) the rollout the run will use: under a budget (the sweep's accuracy runs) the
+            # chunk's, else (the timing phases) the case's own grid's; another is compiled on its first run
             grid = time_grid(case.t_end, self.dt, case.samples)
-            _compiled(precision, integrator, self.model, self.data, self._counts(grid))
-
-    def _counts(self, grid: TimeGrid):
-        return jnp.asarray(np.diff(grid.sample_steps), dtype=jnp.int32)
+            intervals = CHUNK if budget.deadline() is not None else grid.sample_steps.size - 1
+            _compiled(precision, integrator, self.model, self.data, intervals)
 
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
-        with jax.enable_x64(self.x64):  # the function is called under the setting it was compiled with
-            counts = self._counts(grid)
-            rollout = _compiled(self.precision, self.integrator, self.model, self.data, counts)
-            qpos, qvel = jax.block_until_ready(rollout(self.model, self.data, counts))
+        sdk = _sdk()
+        counts = np.diff(grid.sample_steps).astype(np.int32)
+        with sdk.jax.enable_x64(self.x64):  # the function is called under the setting it was compiled with
+            if budget.deadline() is None:  # one call
+                rollout = _compiled(self.precision, self.integrator, self.model, self.data, counts.size)
+                qpos, qvel = sdk.jax.block_until_ready(rollout(self.model, self.data, counts)[1])
+            else:  # CHUNK intervals a call, the budget checked between calls
+                rollout = _compiled(self.precision, self.integrator, self.model, self.data, CHUNK)
+                padded = np.zeros(-(-counts.size // CHUNK) * CHUNK, dtype=np.int32)
+                padded[:counts.size] = counts
+                data, parts = self.data, []
+                for start in range(0, padded.size, CHUNK):
+                    data, states = rollout(self.model, data, padded[start:start + CHUNK])
+                    parts.append(sdk.jax.block_until_ready(states))
+                    budget.check()
+                qpos = np.concatenate([q for q, _ in parts])[:counts.size]
+                qvel = np.concatenate([v for _, v in parts])[:counts.size]
         quat = np.empty((grid.times.size, 4))
         omega = np.empty((grid.times.size, 3))
         # the initial state as the device holds it (float32 rounds it: part of that precision's error)

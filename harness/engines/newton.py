@@ -17,32 +17,29 @@ semi_implicit), joints have no armature, damping or friction. A step launched fr
 (~80 kernel launches); prepare compiles the kernels (a minute at first, then Warp's kernel cache serves) and captures
 one step as a Warp graph (CPU capture): a run replays it, 1-30 µs a step.
 
-External torques are not applied (the run is skipped with the reason): Newton takes them as joint or body forces set
-between steps, which the captured step would have to leave every step. Precision: float32 only (Newton's arrays).
+External torques (reference.torques) are evaluated in Python at the start of every step from the step's time and
+state and written, as the world-frame moment R M, into the state's body_f, which the captured step reads on every
+replay (torque_mode `step`, harness.engines.stepping). Precision: float32 only (Newton's arrays).
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from .base import FLOAT32, Engine, precession_singular, require_modules
+
 INSTALL = "pip install 'stereodyn[newton]'"
-try:
-    import newton
-    import warp as wp
-except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
-    raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
+require_modules(INSTALL, "newton", "warp")  # imported on the first prepare (_sdk): 4-8 s
 
-from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .base import FLOAT32, Engine, precession_singular
+from .stepping import run_steps
 from ..grid import TimeGrid
-from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
+from ..trajectory import Trajectory
 from ...reference.rotations import quat_to_matrix
+from ...reference.torques import torque_function
 
-# Warp prints its device table and, at its default log level, a line for every module it loads
-wp.config.quiet = True
-wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
 DEVICE = "cpu"
 BALL, FREE = "ball", "free"
 MODELS = (BALL, FREE)
@@ -57,10 +54,23 @@ DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymm
 COARSE_DT = 1e-2
 
 
+@functools.cache
+def _sdk():
+    """(newton, warp), imported; Warp quiet (its device table and, at its default log level, a line for every module
+    it loads)."""
+    import newton
+    import warp as wp
+
+    wp.config.quiet = True
+    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+    return newton, wp
+
+
 class NewtonSimulation:
     """A case's Newton model and solver with one step captured as a Warp graph; run() resets the state."""
 
     def __init__(self, case: Case, model: str, solver: str, dt: float):
+        newton, wp = self.newton, self.wp = _sdk()
         self.case, self.dt = case, float(dt)
         body = case.body
         builder = newton.ModelBuilder(gravity=(0.0, 0.0, 0.0))
@@ -90,45 +100,52 @@ class NewtonSimulation:
             for name in ("body_q", "body_qd", "joint_q", "joint_qd"):
                 wp.copy(getattr(self.state, name), getattr(self.next, name))
         self.graph = capture.graph
+        # numpy views of the state's arrays (Warp's CPU arrays share their memory): the pose (position, quaternion
+        # xyzw), the twist ((v, omega) world), the external wrench ((f, moment) world) the captured step reads
+        self.pose, self.twist = self.state.body_q.numpy()[0], self.state.body_qd.numpy()[0]
+        self.wrench = self.state.body_f.numpy()[0]
+        self.torque = torque_function(body)
 
     def reset(self) -> None:
-        """The state back at the case's initial joint coordinates and the bodies' poses from them."""
+        """The state back at the case's initial joint coordinates and the bodies' poses from them, no external
+        torque."""
         self.state.joint_q.assign(self.model.joint_q)
         self.state.joint_qd.assign(self.model.joint_qd)
-        newton.eval_fk(self.model, self.model.joint_q, self.model.joint_qd, self.state)
+        self.newton.eval_fk(self.model, self.model.joint_q, self.model.joint_qd, self.state)
+        self.state.body_f.zero_()
+
+    def step(self) -> None:
+        self.wp.capture_launch(self.graph)
+
+    def read(self) -> tuple[tuple, tuple]:
+        """(quaternion wxyz, omega in body components) as floats, from body_q (xyzw) and body_qd's world omega."""
+        self.wp.synchronize_device(DEVICE)
+        x, y, z, w = self.pose[3:7].tolist()
+        quat = (w, x, y, z)
+        return quat, _rotate(quat, self.twist[3:6].tolist(), inverse=True)
+
+    def apply(self, moment: tuple) -> None:
+        """The torque (body components) as the body's external wrench of the next step (body_f: world frame, a pure
+        moment)."""
+        w, x, y, z = self.pose[[6, 3, 4, 5]].tolist()
+        self.wrench[3:6] = _rotate((w, x, y, z), moment)
 
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         self.reset()
-        launch, graph = wp.capture_launch, self.graph
-        body_q, body_qd = self.state.body_q, self.state.body_qd
-        samples = grid.sample_steps.tolist()
-        poses = np.full((len(samples), 7), np.nan)
-        twists = np.full((len(samples), 6), np.nan)
-        poses[0], twists[0] = body_q.numpy()[0], body_qd.numpy()[0]
-        recorded = len(samples)
-        for i in range(1, len(samples)):  # the hot loop: graph replays, one state read a sample
-            for piece in budget.pieces(samples[i - 1], samples[i]):  # the run's wall-time budget
-                for _ in piece:
-                    launch(graph)
-            wp.synchronize_device(DEVICE)
-            poses[i], twists[i] = body_q.numpy()[0], body_qd.numpy()[0]
-            if not (np.isfinite(poses[i]).all() and np.isfinite(twists[i]).all()):
-                recorded = i + 1  # NaN from here on: no need to step further
-                break
-        with np.errstate(invalid="ignore", over="ignore"):
-            quat = poses[:, [6, 3, 4, 5]].astype(float)
-            omega = np.einsum("nji,nj->ni", quat_to_matrix(quat), twists[:, 3:6].astype(float))
-        quat[recorded:], omega[recorded:] = np.nan, np.nan
-        first = first_bad_sample(omega, quat, self.case.omega0)
-        if first is None:
-            return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, grid.steps)
-        quat[first:] = np.nan
-        omega[first:] = np.nan
-        diverged_at = float(grid.times[first])
-        return Trajectory(grid.times, quat, omega, Status.DIVERGED, divergence_message(diverged_at), diverged_at,
-                          samples[first], samples[first])
+        return run_steps(self, grid, self.case.omega0, self.torque)
+
+
+def _rotate(quat: tuple, v, inverse: bool = False) -> tuple:
+    """R v (R^T v with inverse) for the unit quaternion (w, x, y, z), in float arithmetic (a per-step path):
+    v + 2 w (u x v) + 2 u x (u x v), u = (x, y, z) (-u for R^T)."""
+    w, x, y, z = quat
+    if inverse:
+        x, y, z = -x, -y, -z
+    a, b, c = v
+    tx, ty, tz = 2.0 * (y * c - z * b), 2.0 * (z * a - x * c), 2.0 * (x * b - y * a)
+    return (a + w * tx + y * tz - z * ty, b + w * ty + z * tx - x * tz, c + w * tz + x * ty - y * tx)
 
 
 class NewtonEngine(Engine):
@@ -160,10 +177,10 @@ class NewtonEngine(Engine):
         return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
-        if case.body.has_external_torque:
-            return ("newton adapter applies no external torque: Newton takes it as a force set between steps, which "
-                    "the captured step graph would have to leave at every step")
         return unphysical_inertia(case) or precession_singular(case)
+
+    def torque_mode(self, case: Case) -> str:
+        return "step" if case.body.has_external_torque else "none"
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         if formulation == FREE and np.any(np.asarray(case.body.com) != 0.0):

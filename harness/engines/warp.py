@@ -17,25 +17,20 @@ qfrc_applied; a torque that depends on the state or the time is not modelled (no
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
 
-INSTALL = "pip install 'stereodyn[warp]'"
-try:
-    import mujoco
-    import warp as wp
+import mujoco
 
-    # no banner, no line per kernel module on stdout (set before mujoco_warp loads its modules)
-    wp.config.quiet = True
-    wp.config.log_level = wp.LOG_WARNING
-    import mujoco_warp as mjw
-except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
-    raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
+from .base import FLOAT32, Engine, precession_singular, require_modules
+
+INSTALL = "pip install 'stereodyn[warp]'"
+require_modules(INSTALL, "warp", "mujoco_warp")  # imported on the first prepare (_sdk): 5-10 s
 
 from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .base import FLOAT32, Engine, precession_singular
 from .mujoco import scene, torque_mode
 from ..grid import TimeGrid
 from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
@@ -72,9 +67,22 @@ def compiled_model(case: Case, integrator: str, dt: float) -> "mujoco.MjModel":
     return model
 
 
+@functools.cache
+def _sdk():
+    """(warp, mujoco_warp), imported; Warp quiet: no banner, no line per kernel module on stdout (set before
+    mujoco_warp loads its modules)."""
+    import warp as wp
+
+    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
+    import mujoco_warp as mjw
+
+    return wp, mjw
+
+
 def _arrays(data) -> list:
     """Every Warp array of a MuJoCo Warp Data (nested dataclasses included), in field order."""
-    found = []
+    wp, found = _sdk()[0], []
     for field in dataclasses.fields(data):
         value = getattr(data, field.name)
         if isinstance(value, wp.array):
@@ -94,6 +102,7 @@ class WarpSimulation:
     every array of that Data from a pristine copy (the initial state)."""
 
     def __init__(self, case: Case, integrator: str, dt: float):
+        wp, mjw = _sdk()
         self.case, self.dt, self.stages = case, float(dt), INTEGRATORS[integrator]
         self.torque_mode = torque_mode(case)
         mj_model = compiled_model(case, integrator, dt)
@@ -123,6 +132,7 @@ class WarpSimulation:
         samples = grid.sample_steps
         quat = np.full((samples.size, 4), np.nan)
         omega = np.full((samples.size, 3), np.nan)
+        wp = _sdk()[0]
         launch, step, qpos, qvel = wp.capture_launch, self.step_graph, self.data.qpos, self.data.qvel
         with wp.ScopedDevice(DEVICE):
             launch(self.reset_graph)

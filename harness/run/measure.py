@@ -33,15 +33,21 @@ def prepare(run: RunKey):
                                  **precision_keyword(run)), run.grid
 
 
+def prepare_budget(run: RunKey, budgets: budget.Budgets) -> float:
+    """The run's prepare budget, s: the sweep's, or its engine's where that declares a longer one
+    (Engine.prepare_budget_s)."""
+    return max(budgets.prepare_s, get_engine(run.engine).prepare_budget_s or 0.0)
+
+
 def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = False,
             timed: Callable[[object, object], dict] | None = None, budgets: budget.Budgets | None = None) -> dict:
     """One run's row: base columns, the untimed accuracy run, the scene's metrics (against truth: the scene's truth
     on a set of grids that holds the run's, or None for no errors), with full the sweep's extras (checks, series).
     timed(simulation, grid) -> timing columns, when given, times the run after the accuracy run (its warm-up).
     `_accuracy_s` is the prepare-and-run wall time (a budget's measure, not a timing). budgets (default this
-    process's, harness.budget): prepare under its prepare budget, the run with its metrics and checks under its run
-    budget; past one, a failed row naming it (and `_budget`, which the store keeps). Never raises: a run that breaks
-    is a failed row."""
+    process's, harness.budget): prepare under its prepare budget (prepare_budget), the run with its metrics and checks
+    under its run budget; past one, a failed row naming it (and `_budget`, which the store keeps). Never raises: a
+    run that breaks is a failed row."""
     budgets = budgets or budget.configured()
     grid = run.grid
     row = base_row(run, grid)
@@ -49,7 +55,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
     try:
         scene, model = scene_of(run.case), model_of(run)
         sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance,
-                                                    **precision_keyword(run)), budgets.prepare_s)
+                                                    **precision_keyword(run)), prepare_budget(run, budgets))
         with budget.within("run", budgets.run_s):
             traj = sim.run(grid)
             row["_accuracy_s"] = time.perf_counter() - start

@@ -10,6 +10,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from ..engines import get_engine
+from ..precision import FLOAT64
 from ..trajectory import Status
 from .processes import raise_if_interrupted
 
@@ -119,26 +121,43 @@ def _timing(times: list[float]) -> Timing:
 
 def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: int, budget_s: float) -> None:
     """A ladder's timing phase (dt ladders, tolerance ladders): every ok point timed in this process after all the
-    accuracy runs, in rounds over all the points (measure_interleaved). prepare(point) -> (simulation, grid). Sets
-    wall_s (s), us_per_sim_s and us_per_sim_s_spread (µs of stepping per simulated second) on each timed point, in
-    place; a point that fails here is left untimed."""
-    runs, grids, timed = [], [], []
-    for point in points:
-        if point.get("status") != Status.OK.value:
-            continue
+    accuracy runs, in rounds over the points of each timing group (measure_interleaved, groups). prepare(point) ->
+    (simulation, grid). Sets wall_s (s), us_per_sim_s and us_per_sim_s_spread (µs of stepping per simulated second)
+    on each timed point, in place; a point that fails here is left untimed."""
+    ok = [p for p in points if p.get("status") == Status.OK.value]
+    for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok]):
+        runs, grids, timed = [], [], []
+        for point in (ok[i] for i in group):
+            try:
+                sim, grid = prepare(point)
+                sim.run(grid)  # the warm-up
+            except Exception as exc:  # it ran ok untimed: left untimed rather than breaking the phase
+                raise_if_interrupted(exc)
+                continue
+            runs.append(lambda sim=sim, grid=grid: sim.run(grid))
+            grids.append(grid)
+            timed.append(point)
+        for point, grid, measured in zip(timed, grids, measure_interleaved(runs, repeats, budget_s)):
+            if measured is not None:
+                point.update(columns(measured, grid.t_end))
+                if measured.disturbed:
+                    point["message"] = with_disturbed(point.get("message"), measured)
+        runs.clear()  # this group's models go before the next group's are built
+
+
+def groups(keys: list[tuple[str, str]]) -> list[list[int]]:
+    """The timing groups of runs given by (engine, precision): the indices of the runs prepared side by side and
+    timed in rounds together. One group for every engine's runs, except an engine whose precision is process-global
+    (Engine.process_global_precision: building a model of one precision releases the models of the other), whose runs
+    form a group per precision, after the shared one. Empty groups are left out."""
+    found: dict[tuple | None, list[int]] = {None: []}
+    for index, (engine, precision) in enumerate(keys):
         try:
-            sim, grid = prepare(point)
-            sim.run(grid)  # the warm-up
-        except Exception:  # it ran ok untimed: left untimed rather than breaking the phase
-            continue
-        runs.append(lambda sim=sim, grid=grid: sim.run(grid))
-        grids.append(grid)
-        timed.append(point)
-    for point, grid, measured in zip(timed, grids, measure_interleaved(runs, repeats, budget_s)):
-        if measured is not None:
-            point.update(columns(measured, grid.t_end))
-            if measured.disturbed:
-                point["message"] = with_disturbed(point.get("message"), measured)
+            exclusive = bool(get_engine(engine).process_global_precision)
+        except (KeyError, ValueError):  # not an engine of this registry: it shares the group
+            exclusive = False
+        found.setdefault((engine, precision) if exclusive else None, []).append(index)
+    return [indices for indices in found.values() if indices]
 
 
 def with_disturbed(message, measured: Timing) -> str:
@@ -162,22 +181,22 @@ def step_columns(measured: Timing, steps: float) -> dict:
 
 def time_runs(runs: list, steps: list[float], prepare: Callable) -> list[dict]:
     """The sweep's timing phase: the step_columns of finished ok runs, in this process with no other run sharing the
-    cores: each prepared (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over all of them
-    (measure_interleaved). {} for a run that fails here (it ran ok untimed: the row is then left untimed); a timing
-    still disturbed when re-timed carries it as `_disturbed`."""
-    warm = []
-    for run in runs:
-        try:
-            sim, grid = prepare(run)
-            sim.run(grid)  # the warm-up: caches, lazily compiled code
-            warm.append(lambda sim=sim, grid=grid: sim.run(grid))
-        except Exception as exc:
-            raise_if_interrupted(exc)
-            warm.append(None)
-    kept = [i for i, call in enumerate(warm) if call is not None]
-    measured = measure_interleaved([warm[i] for i in kept])
+    cores: each timing group (groups: by engine and precision where an engine's precision is process-global) prepared
+    (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group (measure_interleaved),
+    before the next group is prepared. {} for a run that fails here (it ran ok untimed: the row is then left untimed); a
+    timing still disturbed when re-timed carries it as `_disturbed`."""
     rows: list[dict] = [{} for _ in runs]
-    for i, m in zip(kept, measured):
-        if m is not None:
-            rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
+    for group in groups([(run.engine, run.precision) for run in runs]):
+        warm = {}
+        for i in group:
+            try:
+                sim, grid = prepare(runs[i])
+                sim.run(grid)  # the warm-up: caches, lazily compiled code
+                warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
+            except Exception as exc:
+                raise_if_interrupted(exc)
+        for i, m in zip(warm, measure_interleaved(list(warm.values()))):
+            if m is not None:
+                rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
+        warm.clear()  # this group's models go before the next group's are built
     return rows

@@ -1,0 +1,67 @@
+"""The run of an engine stepped one step at a time from Python (Genesis, Newton): the case's external torque
+evaluated at every step's start from the step's time and state (torque_mode `step`: exact for a one-stage method), the
+state read back at the samples, the divergence rule at each sample, the run's wall-time budget between pieces of
+steps."""
+from __future__ import annotations
+
+import math
+from typing import Callable, Protocol
+
+import numpy as np
+
+from .. import budget
+from ..grid import TimeGrid
+from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
+
+
+class Stepped(Protocol):
+    """An engine's model, reset to the case's initial state, as the loop drives it."""
+
+    def step(self) -> None:
+        """One step of dt."""
+
+    def read(self) -> tuple[tuple, tuple]:
+        """The current (quaternion (w, x, y, z) body -> world, omega (rad/s, body components)), as floats."""
+
+    def apply(self, moment: tuple) -> None:
+        """The external torque (N m, body components) of the next step."""
+
+
+def run_steps(model: Stepped, grid: TimeGrid, omega0, torque: Callable | None) -> Trajectory:
+    """Step the model over the grid (reset by the caller); torque(t, quat, omega) -> body torque, or None for a case
+    without one. Ends `diverged` at the first sample the divergence rule rejects, or where the torque of a runaway
+    state cannot be evaluated (math.cos(inf)); its samples from there on are NaN."""
+    step, read, apply, dt = model.step, model.read, model.apply, grid.dt
+    limit2 = divergence_limit2(omega0)
+    samples = grid.sample_steps.tolist()
+    quat = np.full((len(samples), 4), np.nan)
+    omega = np.full((len(samples), 3), np.nan)
+    quat[0], omega[0] = read()
+    bad = None
+    for i in range(1, len(samples)):
+        pieces = budget.pieces(samples[i - 1], samples[i])  # the run's wall-time budget between pieces
+        if torque is None:  # the hot loop: the engine's steps, one state read a sample
+            for piece in pieces:
+                for _ in piece:
+                    step()
+        else:  # every step: the torque from the step's time and state, then the step
+            try:
+                for piece in pieces:
+                    for k in piece:
+                        apply(torque(k * dt, *read()))
+                        step()
+            except (ArithmeticError, ValueError):  # a torque of a runaway state: diverged
+                bad = i
+                break
+        q, w = read()
+        quat[i], omega[i] = q, w
+        if not sample_good(q, w, limit2):  # the divergence rule
+            bad = i
+            break
+    info = {"torque_mode": "none" if torque is None else "step"}
+    if bad is None:
+        return Trajectory(grid.times, quat, omega, Status.OK, "", math.nan, grid.steps, grid.steps, info=info)
+    quat[bad:], omega[bad:] = np.nan, np.nan
+    diverged_at = float(grid.times[bad])
+    return Trajectory(grid.times, quat, omega, Status.DIVERGED, divergence_message(diverged_at), diverged_at,
+                      samples[bad], samples[bad], info=info)

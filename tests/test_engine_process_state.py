@@ -1,0 +1,130 @@
+"""Engines with process-wide state (issue 23): an engine whose precision is process-global (Genesis's gs.init releases
+the models of the other precision) gets every ok row timed, in the sweep's and the ladders' timing phases
+(Engine.process_global_precision, harness.run.timing.groups); an engine whose first preparation compiles for minutes
+declares a longer prepare budget (Engine.prepare_budget_s, harness.run.measure.prepare_budget). A toy engine stands
+in for Genesis: it keeps one precision per process and wraps MuJoCo's euler."""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import pytest
+
+from stereodyn.harness import budget, engines
+from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine
+from stereodyn.harness.run import measure, sweep, timing
+from stereodyn.harness.run.spec import RunKey
+from stereodyn.harness.scenes.cases import find_case
+
+NAME = "global_precision_toy"
+_PROCESS = {"precision": None, "generation": 0}  # the toy's "process-global" state, as Genesis's _context
+
+
+class ToySimulation:
+    def __init__(self, case, dt, precision):
+        if _PROCESS["precision"] != precision:  # re-initialise: every model built before is released
+            _PROCESS["precision"] = precision
+            _PROCESS["generation"] += 1
+        self.generation = _PROCESS["generation"]
+        self.inner = engines.get_engine("mujoco").prepare(case, "euler", dt)
+        time.sleep(ToyEngine.prepare_s)
+
+    def run(self, grid):
+        if self.generation != _PROCESS["generation"]:
+            raise RuntimeError("released: the process was re-initialised at the other precision")
+        return self.inner.run(grid)
+
+
+class ToyEngine(Engine):
+    name = NAME
+    state_space = "lie"
+    process_global_precision = True
+    prepare_s = 0.0  # how long a prepare sleeps
+
+    def integrators(self):
+        return ("euler",)
+
+    def unsupported(self, case):
+        return None
+
+    def precisions(self, integrator):
+        return (FLOAT64, FLOAT32)
+
+    def prepare(self, case, integrator, dt, precision=FLOAT64):
+        return ToySimulation(case, dt, precision)
+
+
+class _Entry:
+    name, value = NAME, f"{__name__}:ToyEngine"
+
+    def load(self):
+        return ToyEngine
+
+
+@pytest.fixture
+def toy(monkeypatch):
+    registered = engines._entry_points()
+    monkeypatch.setattr(engines, "_entry_points", lambda: {**registered, NAME: _Entry()})
+    engines.get_engine.cache_clear()
+    yield engines.get_engine(NAME)
+    engines.get_engine.cache_clear()
+
+
+CASE = dataclasses.replace(find_case("free-asymmetric"), t_end=0.5, dt=(1e-2, 5e-3), samples=11)
+
+
+@pytest.mark.parametrize("process_global", [True, False])
+def test_every_ok_row_of_an_engine_with_a_process_global_precision_is_timed(toy, tmp_path, monkeypatch,
+                                                                            process_global):
+    """Four runs (2 dts x float64, float32) in one process: grouped by precision, all four are timed; without the
+    declaration the timing phase prepares all four first, and each switch of precision releases the models built
+    before it (their rows untimed: what e2 saw with Genesis, 7 of 8 rows untimed)."""
+    monkeypatch.setattr(ToyEngine, "process_global_precision", process_global)
+    table = sweep.run_sweep([CASE], sweep.SweepOptions([NAME], tmp_path / "out", jobs=1, certify=False))
+    rows = table[table.engine == NAME]
+    assert list(rows.status) == ["ok"] * 4 and set(rows.precision) == {FLOAT64, FLOAT32}
+    timed = {p: int(rows[rows.precision == p].us_per_step.notna().sum()) for p in (FLOAT64, FLOAT32)}
+    if process_global:
+        assert timed == {FLOAT64: 2, FLOAT32: 2}
+        assert (rows.us_per_step > 0).all()
+    else:  # only the runs prepared after the last switch of precision survive (here 1)
+        assert sum(timed.values()) < 4
+
+
+def test_timing_groups_keep_the_other_engines_together(toy):
+    keys = [("mujoco", FLOAT64), (NAME, FLOAT64), ("pinocchio", FLOAT64), (NAME, FLOAT32), (NAME, FLOAT64),
+            ("not-an-engine", FLOAT32)]
+    assert timing.groups(keys) == [[0, 2, 5], [1, 4], [3]]
+    assert timing.groups([(NAME, FLOAT32)]) == [[0]]
+
+
+def test_the_ladders_timing_phase_times_one_precision_at_a_time(toy):
+    grid_of = {dt: RunKey(CASE, NAME, "euler", dt).grid for dt in CASE.dt}
+    points = [{"status": "ok", "engine": NAME, "precision": p, "dt": dt} for dt in CASE.dt for p in (FLOAT64, FLOAT32)]
+    points.append({"status": "failed", "engine": NAME, "precision": FLOAT64, "dt": 1e-2})
+
+    def prepare(point):
+        return ToySimulation(CASE, point["dt"], point["precision"]), grid_of[point["dt"]]
+
+    timing.time_points(points, prepare, 2, 0.0)
+    assert all(p["us_per_sim_s"] > 0 for p in points[:4]) and "us_per_sim_s" not in points[4]
+
+
+@pytest.mark.parametrize("declared, status", [(None, "failed"), (30.0, "ok")])
+def test_an_engine_declares_a_longer_prepare_budget(toy, monkeypatch, declared, status):
+    """A prepare of 0.3 s against the sweep's 0.1 s budget: failed naming the budget, unless the engine declares a
+    longer one (the larger of the two holds); the message names the budget that held."""
+    monkeypatch.setattr(ToyEngine, "prepare_s", 0.3)
+    monkeypatch.setattr(ToyEngine, "prepare_budget_s", declared)
+    budgets = budget.Budgets(prepare_s=0.1)
+    run = RunKey(CASE, NAME, "euler", 1e-2, precision=FLOAT32)
+    assert measure.prepare_budget(run, budgets) == (0.1 if declared is None else declared)
+    assert measure.prepare_budget(RunKey(CASE, "mujoco", "euler", 1e-2), budgets) == 0.1
+    row = measure.measure(run, None, full=False, budgets=budgets)
+    assert row["status"] == status, row.get("message")
+    if status == "failed":
+        assert row["message"].startswith("prepare budget exceeded: stopped after 0.1 s")
+        assert row["_budget"] == {"what": "prepare", "seconds": 0.1}
+    else:
+        assert math.isfinite(row["_accuracy_s"])
