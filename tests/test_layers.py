@@ -1,7 +1,9 @@
 """The layers of the package (DESIGN §1): reference <- harness (scenes, run, engines, integrators) <- analysis <-
 report <- cli. A module imports only from its own layer or those below it, anywhere in its source (static, as
 test_import_cycles reads it): analysis never renders (imports nothing from report), reference never imports harness."""
-from test_import_cycles import graph
+import ast
+
+from test_import_cycles import ROOT, graph, modules
 
 LAYERS = ("reference", "harness", "analysis", "report", "cli")
 # stereodyn.harness.testing keeps its 0.2.0 path (plug-ins import it) but measures and fits: the analysis layer.
@@ -59,3 +61,22 @@ def test_an_upward_import_is_found():
              "stereodyn.reference.truth": {"stereodyn.harness.engines"}}
     assert upward(edges) == ["stereodyn.harness.analysis.fitting (analysis) -> stereodyn.harness.report.markdown "
                              "(report)", "stereodyn.reference.truth (reference) -> stereodyn.harness.engines (harness)"]
+
+
+# 0.2.0's paths of moved modules are built from names there; everything else in the package imports its own modules
+# relatively (DESIGN §1: a plain checkout then reads correctly in an editor or a static tool)
+ABSOLUTE_ALLOWED = ("stereodyn.harness.moved",)
+
+
+def test_the_package_imports_its_own_modules_relatively():
+    absolute = []
+    for name, path in modules().items():
+        if name in ABSOLUTE_ALLOWED or path.parent.name == "stereodyn":  # stereodyn/*.py: harness/ is not below it
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("stereodyn."):
+                absolute.append(f"{path.relative_to(ROOT)}:{node.lineno}: from {node.module} import ...")
+            elif isinstance(node, ast.Import):
+                absolute += [f"{path.relative_to(ROOT)}:{node.lineno}: import {a.name}" for a in node.names
+                             if a.name.startswith("stereodyn.")]
+    assert not absolute, "import these relatively (from .x / from ..x):\n" + "\n".join(absolute)

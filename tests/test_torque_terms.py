@@ -190,3 +190,79 @@ def test_every_module_of_the_folder_registers_its_model():
     from stereodyn.reference import torque_models
     modules = {info.name for info in pkgutil.iter_modules(torque_models.__path__)} - {"base"}
     assert sorted(model.__module__.rsplit(".", 1)[1] for model in models()) == sorted(modules)
+
+
+PLUGIN = '''
+from dataclasses import dataclass
+from stereodyn.reference.torque_models import TorqueModel, register
+
+
+@register
+@dataclass(frozen=True)
+class ConstantWorldTorque(TorqueModel):
+    """M = R^T m, a torque fixed in the world (N m)."""
+    m: tuple
+
+    key = "world_torque"
+    schema = (frozenset({"m"}), frozenset({"m"}))
+    parameter_count = 3
+
+    @classmethod
+    def parse(cls, reader, data):
+        reader.table(data, cls.key, cls.schema)
+        return cls(tuple(reader.vector(data["m"], "world_torque.m", 3).tolist()))
+
+    def parameters(self, frame=None):
+        import numpy as np
+        basis = np.eye(3) if frame is None else np.asarray(frame)
+        return tuple(basis.T @ np.asarray(self.m))
+
+    @staticmethod
+    def components(p, at):
+        return list(at.body([p[0], p[1], p[2]]))
+'''
+
+
+def plugin(monkeypatch, tmp_path, module: str, text: str) -> None:
+    """A distribution's torque model: module (text) named under the entry-point group; the registry is restored."""
+    from importlib.metadata import EntryPoint
+
+    import stereodyn.reference.torque_models as package
+    from stereodyn.reference.torque_models import base
+    (tmp_path / f"{module}.py").write_text(text)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(base, "TORQUES", dict(base.TORQUES))
+    entry = EntryPoint(name="world", value=module, group=package.ENTRY_POINT_GROUP)
+    monkeypatch.setattr(package, "entry_points", lambda group: [entry] if group == package.ENTRY_POINT_GROUP else [])
+
+
+def test_a_torque_model_of_another_distribution_is_loaded_by_its_entry_point(monkeypatch, tmp_path):
+    """A constant world-frame torque m on a sphere at rest: ω(t) = R0ᵀ m t / I while the axis stays fixed (ω ∥ m)."""
+    import sys
+    plugin(monkeypatch, tmp_path, "stereodyn_world_torque", PLUGIN)
+    path = tmp_path / "pushed.toml"
+    path.write_text(CASE.replace("[linear_damping]\nk = 2.0", "[world_torque]\nm = [0.0, 0.2, 0.0]")
+                    .replace("omega = [3.0, -2.0, 10.0]", "omega = [0.0, 0.0, 0.0]"))
+    try:
+        case = load_case(path)
+        assert [term.key for term in case.torques] == ["world_torque"]
+        times = np.linspace(0.0, 2.0, 21)
+        result = truth.truth(case.body, case.quat0, case.omega0, times)
+        # measured 0 (heyoka on a motion about a fixed axis); 1e-13 leaves round-off headroom
+        np.testing.assert_allclose(result.omega, np.outer(times, [0.0, 0.2 / MOMENT, 0.0]), rtol=0, atol=1e-13)
+    finally:
+        sys.modules.pop("stereodyn_world_torque", None)
+
+
+def test_a_broken_torque_plug_in_is_one_line_naming_it(monkeypatch, tmp_path):
+    import sys
+    plugin(monkeypatch, tmp_path, "stereodyn_broken_torque", "raise RuntimeError('no model here')\n")
+    path = tmp_path / "damped.toml"
+    path.write_text(CASE)
+    try:
+        with pytest.raises(CaseError, match=r"damped.toml: -: torque model plug-in world \(stereodyn_broken_torque\) "
+                                            r"does not import: RuntimeError: no model here"):
+            load_case(path)
+        assert cli.main(["run", "--case-file", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    finally:
+        sys.modules.pop("stereodyn_broken_torque", None)

@@ -16,10 +16,10 @@ doubling/halving from a start until the outcome changes, then geometric bisectio
 
 A short ladder (run_short_ladder) is for a family whose sweep dt list has fewer than two points in the asymptotic
 range: it walks from the list, doubling dt while the coarsest point is asymptotic or at round-off and halving it while
-the finest is above the range or failed (unless a coarser run finished: then it failed for its cost), until SHORT_TARGET points are asymptotic, a point leaves the range in the
-walk's direction, dt leaves [t_end / max_steps, t_end / MIN_STEPS] or (halving) SHORT_POINTS points are spent. Its
-points are untimed: they are for the order only. Without an order, its note says where the points lie and why the walk
-stopped.
+the finest is above the range or failed (unless a coarser run finished: then it failed for its cost), until
+SHORT_TARGET points are asymptotic, a point leaves the range in the walk's direction, dt leaves
+[t_end / max_steps, t_end / MIN_STEPS] or (halving) SHORT_POINTS points are spent. Its points are untimed: they are
+for the order only. Without an order, its note says where the points lie and why the walk stopped.
 
 A first part (run_first_part) is for a family whose error over the whole span stays above the asymptotic range down to
 the steps cap (a long horizon): its order is measured by a short ladder over the case's first part, t_end halved until

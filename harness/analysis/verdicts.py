@@ -7,8 +7,9 @@ Per integrator (an engine, formulation, integrator and precision, across the run
 - order: the fitted convergence order of every non-chaotic case (convergence.csv) within ORDER_TOLERANCE of the
   declared one (an order measured over a case's first part only says over what span); a family no case gave an order
   is "not measured" with each case's reason (EXCUSES: exact for this motion, at the precision floor, chaotic, no run
-  ok), or NO_REASON where nothing excuses it, which --strict fails; where the engine declares a known deviation of the order (Engine.known_deviations) and the fit
-  matches it, `known` (not a failure), and `fixed upstream?` where it stopped matching it but meets the declared one;
+  ok), or NO_REASON where nothing excuses it, which --strict fails; where the engine declares a known deviation of
+  the order (Engine.known_deviations) and the fit matches it, `known` (not a failure), and `fixed upstream?` where it
+  stopped matching it but meets the declared one;
 - bounded energy, for a method that declares energy_bounded: its energy error over ENERGY_RATIO times a short run
   grows at most ENERGY_GROWTH times (no secular trend), on a conservative case, both floored at the round-off of the
   long run's steps (harness.testing.energy_noise: a method at round-off never fails it).

@@ -42,10 +42,12 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
                   "have the round-off floor and the largest stable dt over t_end (bisection; stable: finished ok with "
                   f"energy drift <= {STABLE_ENERGY_DRIFT:g}); the others are fitted on the sweep's own dt list, and "
                   f"the {len(short)} whose list gave no order on a short ladder (`source` {SHORT_LADDER}: dt doubled "
-                  "or halved from the list until three points are asymptotic, at most "
-                  f"{dt_ladders.SHORT_POINTS} untimed points of at most {SHORT_MAX_STEPS} steps, or "
-                  f"{SHORT_MAX_EVALS} right-hand-side evaluations where that is more; "
-                  f"{int(np.isfinite(short['order']).sum())} of them fitted).", ""]
+                  f"from the list up to t_end / {dt_ladders.MIN_STEPS}, or halved, at most "
+                  f"{dt_ladders.SHORT_POINTS} points, until three points are asymptotic; untimed points of at most "
+                  f"{SHORT_MAX_STEPS} steps, or {SHORT_MAX_EVALS} right-hand-side evaluations where that is more; "
+                  "a long horizon whose error stays above the range down to that cap is fitted over the case's first "
+                  f"part, its `note` says over what span; {int(np.isfinite(short['order']).sum())} of them "
+                  "fitted).", ""]
         if len(ladders):
             rows = [[r["case"], _name(r), _num(r["declared_order"], ".0f"), _num(r["order"], ".2f"),
                      _num(r["floor_dt"], ".3g"), _num(r["floor_err"]), _num(r["stable_dt_max"], ".4g"),

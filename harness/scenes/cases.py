@@ -14,7 +14,8 @@ from ...reference.body import RigidBody
 from .base import kinds, scene
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
 from ...reference.sliding_ladder import Ladder
-from ...reference.torque_models import BodyTorque, CentralField, PrecessionTorque, TorqueModel, merged, models
+from ...reference.torque_models import (BodyTorque, CentralField, PrecessionTorque, TorqueModel, TorqueModelError,
+                                        load_plugins, merged, models)
 from ...reference.torque_models.precession import MIN_SIN_THETA  # noqa: F401 (0.2.0's name here)
 from ..readers import ReadError, read_toml
 
@@ -159,6 +160,10 @@ def load_case(path: str | Path) -> Case | LadderCase:
     except OSError as exc:
         raise CaseError(path, "-", f"cannot read file ({exc.strerror or exc})") from None
     except ReadError as exc:  # too large (/dev/zero), not UTF-8, not TOML, nested too deep, a 5000-digit integer
+        raise CaseError(path, "-", str(exc)) from None
+    try:
+        load_plugins()  # torque models of other distributions (their tables may be in this file)
+    except TorqueModelError as exc:
         raise CaseError(path, "-", str(exc)) from None
     return _Parser(path).case(data)
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from importlib.metadata import entry_points
 
 from .base import TORQUES, At, TorqueModel, merged, models, ordered, register  # noqa: F401
 from .body_torque import BodyTorque, body_torque_components  # noqa: F401
@@ -25,3 +26,21 @@ from .precession import PrecessionTorque, precession_components  # noqa: F401
 
 for _module in sorted(info.name for info in pkgutil.iter_modules(__path__)):
     importlib.import_module(f"{__name__}.{_module}")  # registers its model
+
+# Torque models of other distributions: a module named under this entry-point group registers its models on import.
+ENTRY_POINT_GROUP = "stereodyn.torque_models"
+
+
+class TorqueModelError(ImportError):
+    """A torque-model plug-in does not import; str() is one line naming it."""
+
+
+def load_plugins() -> None:
+    """Import every module named under ENTRY_POINT_GROUP (each registers its models; importing again is a no-op);
+    TorqueModelError naming the plug-in when one does not import. The case parser calls it before reading a file."""
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            entry.load()
+        except Exception as exc:  # a plug-in's own bug: name it, never a traceback from inside the parser
+            raise TorqueModelError(f"torque model plug-in {entry.name} ({entry.value}) does not import: "
+                                   f"{type(exc).__name__}: {exc}") from None
