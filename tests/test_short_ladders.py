@@ -224,8 +224,8 @@ def test_a_long_horizon_has_its_order_measured_over_its_first_part(monkeypatch):
     at 4 x the part's cap is <= 0.015 (2.5 s: 0.01 at dt 0.01), then a short ladder there: order 2 over 2.5 s."""
     case = with_overrides(find_case("sleeping-top-stable"), t_end=T_END, dt=[0.02, 0.01])
     family = Family(case, "mujoco", "", "rk4")
-    monkeypatch.setattr(fitting, "declared_order", lambda engine, integrator: 2.0)
-    monkeypatch.setattr(dt_ladders, "declared_order", lambda engine, integrator: 2.0)
+    monkeypatch.setattr(fitting, "declared_order", lambda engine, integrator, formulation="": 2.0)
+    monkeypatch.setattr(dt_ladders, "declared_order", lambda engine, integrator, formulation="": 2.0)
     tried = _fake(monkeypatch, _phase)
     known = _known(case, _phase)
     new, row = run_short_ladder(family, known, max_steps=1000)
