@@ -1,6 +1,7 @@
 """The README's plug-in guide is a working package: its blocks (each opening with `# <project>/PATH`) are extracted,
 built, pip-installed into a target folder, listed by `stereodyn integrators`, run by `stereodyn run --integrators
 kutta3`, and its own tests pass."""
+import importlib.metadata
 import re
 import subprocess
 import sys
@@ -28,16 +29,19 @@ def readme_files() -> dict[str, str]:
 
 
 def _can_build_with_setuptools() -> bool:
+    # The version from the distribution's metadata, not `import setuptools`: where an engine SDK has imported the
+    # standard library's distutils first (seen with every extra installed), importing setuptools in this process
+    # fails, while the build itself runs in a fresh process.
     try:
-        import setuptools
-    except ImportError:
+        version = importlib.metadata.version("setuptools")
+    except importlib.metadata.PackageNotFoundError:
         return False
-    major, minor = (int(x) for x in setuptools.__version__.split(".")[:2])
+    major, minor = (int(x) for x in version.split(".")[:2])
     if (major, minor) >= (70, 1):
         return True
     try:
-        import wheel  # noqa: F401
-    except ImportError:
+        importlib.metadata.version("wheel")
+    except importlib.metadata.PackageNotFoundError:
         return False
     return True
 

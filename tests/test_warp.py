@@ -5,6 +5,8 @@ machine compiles its kernels (~40 s, then cached on disk: ~1 s)."""
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -80,3 +82,13 @@ def test_default_sweep_is_euler_and_rk4_at_a_coarse_step_on_the_general_cases(wa
     assert warp.default_dts(heavy, "euler", heavy.dt) == (0.01,)  # 0.3 is beyond Euler's stability
     assert not warp.default_run(turning, "", "euler") and "per-stage callback" in warp.unsupported_run(turning, "",
                                                                                                       "euler")
+
+
+def test_a_sweep_on_a_machine_without_a_gpu_keeps_stderr_empty(warp, tmp_path):
+    """Warp's C code prints "Could not find or load the NVIDIA CUDA driver" to file descriptor 2 at init on a machine
+    without a GPU: the adapter silences it, so `run --quiet` prints nothing (seen in every worker's output before)."""
+    child = subprocess.run([sys.executable, "-m", "stereodyn", "run", "free-asymmetric", "--engines", "warp",
+                            "--integrators", "euler", "--t-end", "0.1", "--dt", "1e-2", "--no-ladder", "--jobs", "1",
+                            "--quiet", "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=300)
+    assert child.returncode == 0, child.stderr
+    assert child.stderr == "", child.stderr

@@ -20,43 +20,20 @@ applyExternalTorque (Bullet clears it after the step): exact for this one-stage 
 """
 from __future__ import annotations
 
-import ctypes
 import math
 import os
 import sys
 import weakref
-from contextlib import contextmanager
 
 import numpy as np
+
+from .quiet import native_output_silenced
 
 INSTALL = "pip install 'stereodyn[bullet]'"
 
 
-@contextmanager
-def _quiet():
-    """pybullet's C code writes "pybullet build time: ..." to the process's stderr (file descriptor 2, past
-    sys.stderr) when it is imported, and into C's stdout buffer at connect() and disconnect(): both land in every
-    worker's output and `run --quiet` is no longer quiet. Descriptors 1 and 2 point at /dev/null meanwhile, and C's
-    buffers are flushed there before they are restored."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            os.dup2(null.fileno(), 2)
-            try:
-                yield
-            finally:
-                ctypes.CDLL(None).fflush(None)
-    finally:
-        for fd, copy in zip((1, 2), saved):
-            os.dup2(copy, fd)
-            os.close(copy)
-
-
 try:
-    with _quiet():
+    with native_output_silenced():  # its import prints "pybullet build time" to fd 2
         import pybullet
 except ImportError as exc:  # the registry turns this into skipped rows whose reason is this message
     raise ImportError(f"{exc}; install the extra: {INSTALL}") from exc
@@ -75,7 +52,7 @@ NO_CAP = 1e30
 
 
 def _disconnect(client: int) -> None:
-    with _quiet():
+    with native_output_silenced():
         pybullet.disconnect(client)
 
 
@@ -95,7 +72,7 @@ class BulletSimulation:
         body = case.body
         moments, self.axes = principal_frame(body.inertia_com)
         self.qi = matrix_to_quat(self.axes)
-        with _quiet():
+        with native_output_silenced():
             self.client = client = pybullet.connect(pybullet.DIRECT)
         self._close = weakref.finalize(self, _disconnect, client)
         pybullet.setGravity(*(body.gravity * np.asarray(body.gravity_direction, dtype=float)).tolist(),

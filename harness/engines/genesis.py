@@ -32,7 +32,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from .base import FLOAT32, FLOAT64, Engine, precession_singular, require_modules
+from .base import FLOAT32, FLOAT64, Engine, singular_torque, require_modules
 
 INSTALL = "pip install 'stereodyn[genesis]'"
 # Genesis does not declare torch; importing it costs 15-30 s, so the SDK is imported on the first prepare and only
@@ -211,7 +211,7 @@ class GenesisEngine(Engine):
 
     def unsupported(self, case: Case) -> str | None:
         # MuJoCo's compiler (Genesis parses MJCF through it) refuses an unphysical inertia
-        return unphysical_inertia(case) or precession_singular(case)
+        return unphysical_inertia(case) or singular_torque(case)
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         if formulation == FREE and np.any(np.asarray(case.body.com) != 0.0):

@@ -36,7 +36,7 @@ if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_XLA_THREADS}".strip()
 import mujoco
 
-from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, precession_singular, require_modules
+from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, singular_torque, require_modules
 
 # jax and mujoco.mjx are imported on the first prepare (_sdk: 2-8 s); loading the adapter only checks them
 require_modules(INSTALL, "jax", "mujoco.mjx")
@@ -242,7 +242,7 @@ class MjxEngine(Engine):
         return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
-        return unphysical_inertia(case) or precession_singular(case)  # MuJoCo's compiler refuses the first
+        return unphysical_inertia(case) or singular_torque(case)  # MuJoCo's compiler refuses the first
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         return _constant_torque_only(case)

@@ -24,7 +24,8 @@ import numpy as np
 
 import mujoco
 
-from .base import FLOAT32, Engine, precession_singular, require_modules
+from .base import FLOAT32, Engine, singular_torque, require_modules
+from .quiet import native_output_silenced
 
 INSTALL = "pip install 'stereodyn[warp]'"
 require_modules(INSTALL, "warp", "mujoco_warp")  # imported on the first prepare (_sdk): 5-10 s
@@ -75,6 +76,8 @@ def _sdk():
 
     wp.config.quiet = True
     wp.config.log_level = wp.LOG_WARNING
+    with native_output_silenced():  # without a GPU, Warp's C code prints a CUDA-driver warning to fd 2 at init
+        wp.init()
     import mujoco_warp as mjw
 
     return wp, mjw
@@ -186,7 +189,7 @@ class WarpEngine(Engine):
         return METHODS.get(integrator, "")
 
     def unsupported(self, case: Case) -> str | None:
-        return unphysical_inertia(case) or precession_singular(case)  # MuJoCo's compiler refuses the first
+        return unphysical_inertia(case) or singular_torque(case)  # MuJoCo's compiler refuses the first
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
         return _constant_torque_only(case)
