@@ -40,7 +40,7 @@ INSTALL = "pip install 'stereodyn[genesis]'"
 require_modules(f"{INSTALL} (Genesis also needs torch: the CPU wheel is enough)", "genesis", "torch")
 
 from ..scenes.cases import Case, unphysical_inertia
-from .stepping import run_steps
+from .stepping import DEFAULT_CASES, coarse_dts, free_body_unsupported, run_steps
 from ..grid import TimeGrid
 from ..trajectory import Trajectory
 from ...reference.torques import torque_function
@@ -58,8 +58,6 @@ METHODS = {"euler": "semi_implicit_euler"}
 MIDPOINT_ON_FREE = ("implicitfast", "approximate_implicitfast")
 # The default sweep: the general cases at their coarsest dt (each step costs 0.3-0.6 ms from Python; a build 0.5-20 s
 # from the kernel cache), Genesis's default integrator and euler, both precisions; the rest with --engines genesis.
-DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
-COARSE_DT = 1e-2
 DEFAULT_SWEEP = ("euler", "approximate_implicitfast")
 # A torque no dof limit may clamp (Genesis's default dofs force range is finite).
 NO_LIMIT = 1e30
@@ -214,10 +212,7 @@ class GenesisEngine(Engine):
         return unphysical_inertia(case) or singular_torque(case)
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        if formulation == FREE and np.any(np.asarray(case.body.com) != 0.0):
-            return ("free: a free body moves as the pinned one only when O is its centre of mass (com = 0); Genesis "
-                    "has no exact pin for it")
-        return None
+        return free_body_unsupported(case.body.com, "Genesis has no exact pin for it") if formulation == FREE else None
 
     def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
         """The general cases only (DEFAULT_CASES), the free model where the scene allows it."""
@@ -226,8 +221,7 @@ class GenesisEngine(Engine):
     def default_dts(self, case: Case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
         """One coarse step in a default sweep: the largest of the case's at most COARSE_DT (heavy-asymmetric's 0.3 is
         beyond every Euler variant's stability limit: a diverged row says nothing more than MuJoCo's does)."""
-        coarse = [dt for dt in dts if dt <= COARSE_DT]
-        return (max(coarse),) if coarse else (min(dts),)
+        return coarse_dts(dts)
 
     def torque_mode(self, case: Case) -> str:
         return "step" if case.body.has_external_torque else "none"

@@ -35,7 +35,7 @@ INSTALL = "pip install 'stereodyn[newton]'"
 require_modules(INSTALL, "newton", "warp")  # imported on the first prepare (_sdk): 4-8 s
 
 from ..scenes.cases import Case, unphysical_inertia
-from .stepping import run_steps
+from .stepping import DEFAULT_CASES, coarse_dts, free_body_unsupported, run_steps
 from ..grid import TimeGrid
 from ..trajectory import Trajectory
 from ...reference.rotations import quat_to_matrix
@@ -57,8 +57,6 @@ METHODS: dict[str, str] = {}
 ORDERS = {"featherstone": 1.0}
 # The default sweep: the general cases at their coarsest dt (the captured step is cheap, but a worker pays Warp's
 # module loading, and float32 needs no fine steps to show its floor); every solver, both models where allowed.
-DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
-COARSE_DT = 1e-2
 
 
 @functools.cache
@@ -192,10 +190,7 @@ class NewtonEngine(Engine):
         return "step" if case.body.has_external_torque else "none"
 
     def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        if formulation == FREE and np.any(np.asarray(case.body.com) != 0.0):
-            return ("free: a free body moves as the pinned one only when O is its centre of mass (com = 0); Newton's "
-                    "free joint has no pin")
-        return None
+        return free_body_unsupported(case.body.com, "Newton's free joint has no pin") if formulation == FREE else None
 
     def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
         """The general cases only (DEFAULT_CASES), the free model where the scene allows it."""
@@ -204,8 +199,7 @@ class NewtonEngine(Engine):
     def default_dts(self, case: Case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
         """One coarse step in a default sweep: the largest of the case's at most COARSE_DT (heavy-asymmetric's 0.3 is
         beyond every Euler variant's stability limit: a diverged row says nothing more than MuJoCo's does)."""
-        coarse = [dt for dt in dts if dt <= COARSE_DT]
-        return (max(coarse),) if coarse else (min(dts),)
+        return coarse_dts(dts)
 
     def prepare(self, case: Case, integrator: str, dt: float | None, formulation: str = BALL,
                 precision: str = FLOAT32, **options) -> NewtonSimulation:

@@ -65,3 +65,24 @@ def run_steps(model: Stepped, grid: TimeGrid, omega0, torque: Callable | None) -
     diverged_at = float(grid.times[bad])
     return Trajectory(grid.times, quat, omega, Status.DIVERGED, divergence_message(diverged_at), diverged_at,
                       samples[bad], samples[bad], info=info)
+
+
+# The default sweep of an engine whose worker pays seconds of import and compilation (Genesis, Newton): the general
+# cases at one coarse step each.
+DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
+COARSE_DT = 1e-2
+
+
+def coarse_dts(dts: tuple[float, ...]) -> tuple[float, ...]:
+    """The largest of dts at most COARSE_DT (heavy-asymmetric's 0.3 is beyond every Euler variant's stability limit: a
+    diverged row says nothing more than MuJoCo's does), else the smallest."""
+    coarse = [dt for dt in dts if dt <= COARSE_DT]
+    return (max(coarse),) if coarse else (min(dts),)
+
+
+def free_body_unsupported(com, why: str) -> str | None:
+    """The reason a free-joint model cannot run a body whose centre of mass com (3,) m is not O (why: the engine's
+    words), or None."""
+    if np.any(np.asarray(com) != 0.0):
+        return f"free: a free body moves as the pinned one only when O is its centre of mass (com = 0); {why}"
+    return None
