@@ -15,7 +15,7 @@ compilation (`Engine.prepare`) have their own budget (`prepared`), checked when 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -96,10 +96,20 @@ def check() -> None:
         raise BudgetExceeded(active[1], active[2])
 
 
-def pieces(start: int, stop: int) -> Iterator[range]:
+def pieces(start: int, stop: int) -> Iterable[range]:
     """range(start, stop) in pieces of CHECK_EVERY, the budget checked before each: a Python step loop's way to stop
     in time (`for piece in pieces(done, target): for k in piece: ...`)."""
     active = _ACTIVE.get()
+    if stop - start <= CHECK_EVERY:
+        # the usual span between two samples: one piece, no generator (a fixed-step run with a sample every step
+        # calls this once a step; the generator cost ~0.4 µs a call, 1.5% of a profiled reference sweep)
+        if active is not None and time.monotonic() > active[0]:
+            raise BudgetExceeded(active[1], active[2])
+        return (range(start, stop),)
+    return _pieces(start, stop, active)
+
+
+def _pieces(start: int, stop: int, active: tuple[float, str, float] | None) -> Iterator[range]:
     for first in range(start, stop, CHECK_EVERY):
         if active is not None and time.monotonic() > active[0]:
             raise BudgetExceeded(active[1], active[2])

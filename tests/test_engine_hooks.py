@@ -16,6 +16,7 @@ from stereodyn.harness import budget, engines
 from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine
 from stereodyn.harness.run import measure, sweep, timing
 from stereodyn.harness.run.spec import RunKey
+from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case
 
 NAME = "global_precision_toy"
@@ -151,3 +152,50 @@ def test_an_integrator_declares_its_order_on_each_model(toy, tmp_path):
     declared = {(row["formulation"], row["precision"]): row["declared_order"]
                 for row in fitting.sweep_orders(table[table.engine == NAME], set())}
     assert declared == {("ball", FLOAT64): 1.0, ("ball", FLOAT32): 1.0, ("free", FLOAT64): 2.0, ("free", FLOAT32): 2.0}
+
+
+class _Recorder:
+    """A simulation that records the grids it is run on."""
+
+    def __init__(self):
+        self.grids = []
+
+    def run(self, grid):
+        self.grids.append(grid)
+
+
+@pytest.mark.parametrize("short", [False, True])
+def test_a_run_is_warmed_up_whole_unless_its_engine_declares_a_short_warm_up(toy, monkeypatch, short):
+    monkeypatch.setattr(ToyEngine, "short_warm_up", short)
+    grid = time_grid(1.0, 1e-4, 101)  # 10000 steps, a sample every 100
+    sim = _Recorder()
+    timing.warm_up(sim, grid, NAME)
+    (warm,) = sim.grids
+    if not short:
+        assert warm is grid
+        return
+    # to the first sample at or past WARM_UP_STEPS (256): step 300, same dt and sample times
+    assert (warm.dt, warm.steps, warm.sample_steps.tolist()) == (grid.dt, 300, [0, 100, 200, 300])
+    assert warm.times.tolist() == grid.times[:4].tolist()
+    # a grid shorter than the warm-up is warmed up whole, and a sparse one on its first sample
+    assert timing.first_steps(time_grid(0.01, 1e-4, 11), timing.WARM_UP_STEPS).steps == 100
+    assert timing.first_steps(time_grid(1.0, 1e-4, 3), timing.WARM_UP_STEPS).sample_steps.tolist() == [0, 5000]
+
+
+# The built-in engines that declare a short warm-up run every kind of their runs on a grid's first steps.
+SHORT = [("free-asymmetric", "reference", "quaternion", "rk4"), ("free-asymmetric", "reference", "gibbs", "taylor"),
+         ("free-asymmetric", "reference", "quaternion", "scipy_rk45"), ("heavy-asymmetric", "pinocchio", "", "rk4"),
+         ("central-field-turning", "reference", "euler_zxz", "rk4"), ("sliding-ladder", "pinocchio", "bilateral", "rk4"),
+         ("sliding-ladder", "reference", "theta", "taylor")]
+
+
+@pytest.mark.parametrize("name, engine, formulation, integrator", SHORT)
+def test_a_short_warm_up_runs_the_first_steps_of_the_run(name, engine, formulation, integrator):
+    assert engines.get_engine(engine).short_warm_up
+    case = find_case(name)
+    run = RunKey(case, engine, integrator, 1e-3 if integrator in ("rk4",) else None, formulation=formulation)
+    sim, grid = measure.prepare(run)
+    part = timing.first_steps(grid, timing.WARM_UP_STEPS)
+    trajectory = sim.run(part)
+    assert trajectory.status.value == "ok" and 0 < part.t_end <= grid.t_end  # the theta equation's 160 steps: whole
+    assert trajectory.times.tolist() == part.times.tolist()

@@ -150,7 +150,7 @@ def default_tolerance_families(cases: list[Case], engines: list[str],
 def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: list[str],
             integrators: list[str] | None, ladder: str = "default", max_steps: int | None = None,
             pool: ProcessPoolExecutor | None = None,
-            progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+            progress: Callable[[str], None] | None = None, write_pareto: bool = True) -> dict[str, Path]:
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
     DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
@@ -158,7 +158,8 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     named cases) or "off". Writes ladder.csv, convergence.csv,
     tolerance.csv, tolerance_fit.csv, pareto.csv and appends the orders to checks.csv; returns the paths written.
     pool: the sweep's worker pool (harness.run.sweep.worker_pool)
-    the ladders run on; None runs them here."""
+    the ladders run on; None runs them here. write_pareto False leaves pareto.csv to the caller (`stereodyn run` writes
+    it once, after the verdicts: rewrite_pareto; the table takes seconds in the default run)."""
     out_dir = Path(out_dir)
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained
     # sliding ladder, whose MuJoCo model has soft constraints) keep their Pareto rows only.
@@ -217,7 +218,8 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     _write(convergence, paths["convergence"])
     _write(tolerance_df, paths["tolerance"])
     _write(tolerance_fits(tolerance_df), paths["tolerance_fit"])
-    _write(pareto(results, ladder_df, tolerance=tolerance_df), paths["pareto"])
+    if write_pareto:
+        _write(pareto(results, ladder_df, tolerance=tolerance_df), paths["pareto"])
     if ladder != "off":
         paths["advice"] = out_dir / ADVICE_FILE
         _write(_advice(results, chosen, adaptive, ladder, ladder_df, tolerance_df, convergence,

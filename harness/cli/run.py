@@ -63,8 +63,8 @@ def _quiet_engines(out: Path) -> None:
 
 
 def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -> None:
-    """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, pareto.csv and the orders in checks.csv
-    (analysis.workprecision). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
+    """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, advice.csv and the orders in checks.csv
+    (analysis.workprecision; pareto.csv is main()'s, after the verdicts). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
     named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
     (without --strict none); --dt-ladder every family's; --no-ladder none."""
     from ..analysis import workprecision
@@ -86,4 +86,4 @@ def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -
                        f"work–precision: {mode} dt and tolerance ladders"
                        + (" and short ladders" if mode == "default" else ""))
     workprecision.analyse(options.out_dir, df, chosen, list(options.engines), options.integrators, ladder=mode,
-                          max_steps=args.ladder_max_steps, pool=pool)
+                          max_steps=args.ladder_max_steps, pool=pool, write_pareto=False)  # main() writes it

@@ -96,6 +96,10 @@ class Engine:
     # precision releases the models of the other, so the timing phases prepare and time its runs one precision at a
     # time (harness.run.timing.groups).
     process_global_precision: bool = False
+    # True when a run's first steps pay every first-call cost of the whole run (nothing is compiled or allocated per
+    # grid length): the timing phases then warm a run up on its first few hundred steps instead of the whole run
+    # (harness.run.timing.warm_up). False (the default) warms up on the whole run, which any engine is safe with.
+    short_warm_up: bool = False
     # The prepare budget (s) this engine's runs get at least, for an engine whose first preparation in a process
     # imports and compiles for minutes: a run's prepare budget is the larger of this and the sweep's
     # (--prepare-budget; harness.run.measure.prepare_budget). None: the sweep's.

@@ -225,6 +225,7 @@ class PinocchioEngine(Engine):
     pass_us = 2.6
     linestyle = "--"
     packages = ("pin",)
+    short_warm_up = True  # Python step loops over compiled right-hand sides: nothing is built per grid length
     export_formats = ("urdf",)
 
     def export(self, case: Case, fmt: str, integrator: str | None, dt: float | None) -> str:

@@ -156,6 +156,7 @@ class ReferenceEngine(Engine):
     pass_us = 6.5
     linestyle = ":"
     packages = ("heyoka",)
+    short_warm_up = True  # Python step loops over compiled right-hand sides: nothing is built per grid length
 
     def models(self) -> dict:
         return {**super().models(), SLIDING_LADDER: LadderEquationModel()}

@@ -11,6 +11,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..engines import get_engine
+from ..grid import TimeGrid
 from ..precision import FLOAT64
 from ..trajectory import Status
 from .processes import raise_if_interrupted
@@ -18,6 +19,9 @@ from .processes import raise_if_interrupted
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
 BUDGET_S = 2.0       # stop repeating once the timed runs have taken this long (after MIN_REPEATS)
+# The short warm-up's length (Engine.short_warm_up), steps: a few ms of a Python-stepped run. The full warm-up was a
+# quarter of the default run's timing phase (54 of 205 s of its main process, sampled), most of it Python-stepped runs.
+WARM_UP_STEPS = 256
 # A timing whose spread is larger than its best time measured the machine, not the run: re-timed once, and if still so,
 # its row's message says DISTURBED and the Pareto table names it nowhere (issue 21: a spread of 2030 µs/s on a best of
 # 1690 made scipy_rk45 "tie" with runs six times faster).
@@ -130,7 +134,7 @@ def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: i
         for point in (ok[i] for i in group):
             try:
                 sim, grid = prepare(point)
-                sim.run(grid)  # the warm-up
+                warm_up(sim, grid, point["engine"])
             except Exception as exc:  # it ran ok untimed: left untimed rather than breaking the phase
                 raise_if_interrupted(exc)
                 continue
@@ -143,6 +147,24 @@ def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: i
                 if measured.disturbed:
                     point["message"] = with_disturbed(point.get("message"), measured)
         runs.clear()  # this group's models go before the next group's are built
+
+
+def warm_up(sim, grid: TimeGrid, engine: str) -> None:
+    """Run sim once, untimed, before it is timed: its caches, lazily compiled code, first-call costs. The whole grid,
+    or for an engine that declares Engine.short_warm_up only the grid's first WARM_UP_STEPS steps (to the first sample
+    at or past them): the timed repeats of a run lie a whole round apart (measure_interleaved), so a warm-up leaves
+    no cache warm for them anyway; only its first-call costs matter, and a few hundred steps pay them."""
+    try:
+        short = bool(get_engine(engine).short_warm_up)
+    except (KeyError, ValueError):  # not an engine of this registry: the whole run
+        short = False
+    sim.run(first_steps(grid, WARM_UP_STEPS) if short else grid)
+
+
+def first_steps(grid: TimeGrid, steps: int) -> TimeGrid:
+    """grid up to its first sample at or past `steps` steps (the whole grid when it is shorter), same dt."""
+    last = min(int(np.searchsorted(grid.sample_steps, max(1, steps))), grid.sample_steps.size - 1)
+    return TimeGrid(grid.dt, int(grid.sample_steps[last]), grid.sample_steps[:last + 1], grid.times[:last + 1])
 
 
 def groups(keys: list[tuple[str, str]]) -> list[list[int]]:
@@ -191,7 +213,7 @@ def time_runs(runs: list, steps: list[float], prepare: Callable) -> list[dict]:
         for i in group:
             try:
                 sim, grid = prepare(runs[i])
-                sim.run(grid)  # the warm-up: caches, lazily compiled code
+                warm_up(sim, grid, runs[i].engine)
                 warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
             except Exception as exc:
                 raise_if_interrupted(exc)
