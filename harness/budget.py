@@ -1,11 +1,11 @@
 """Wall-time budgets: every run, its preparation and every truth end in bounded time.
 
-A budget is a deadline on time.monotonic(), held in a context variable while a run, a preparation or a truth is
-computed (`within`). The loops stereodyn drives check it: the harness's integrators every CHECK_EVERY steps, scipy's
-methods every step, MuJoCo between rollout chunks and in its Python step loops, Pinocchio's ladder loop, Drake through
-its simulator's monitor, heyoka through its step callback (reference.* take the deadline as an argument, since
-`reference/` never imports the harness). Past the deadline they raise BudgetExceeded (reference.*: OutOfTime), which
-the sweep turns into a `failed` row whose message names the budget and the flag that raises it (`failed_row`); the
+A budget is a deadline on time.monotonic(), held in a context variable while a run, a preparation or a truth is computed
+(`within`). The loops stereodyn drives check it: the harness's integrators every CHECK_EVERY steps, scipy's methods
+every step, MuJoCo between rollout chunks and in its Python step loops, Pinocchio's ladder loop, Drake between samples
+or through its simulator's monitor, heyoka through its step callback (reference.* take the deadline as an argument,
+since `reference/` never imports the harness). Past the deadline they raise BudgetExceeded (reference.*: OutOfTime),
+which the sweep turns into a `failed` row whose message names the budget and the flag that raises it (`failed_row`); the
 store keeps which budget it was, so `--resume` redoes the run only when that budget was raised (`still_holds`).
 Outside `within` there is no deadline, and a check costs one context-variable read.
 

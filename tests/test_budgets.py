@@ -73,7 +73,7 @@ def test_every_engine_loop_stops_at_the_run_budget(name, engine, formulation, in
 @pytest.mark.parametrize("spacing", [1, budget.CHECK_EVERY, budget.CHECK_EVERY + 1])
 def test_drake_stops_at_the_run_budget_with_dense_and_sparse_samples(spacing):
     # Drake's fixed-step runs are checked between samples up to CHECK_EVERY steps apart, and by the simulator's
-    # monitor beyond (engines/drake.py, _watch): both sides of the switch stop
+    # monitor beyond (harness/engines/drake.py, _watch): both sides of the switch stop
     case = with_overrides(find_case("free-asymmetric"), t_end=LONG, dt=1e-4)
     sim = installed_engine("drake").prepare(case, "runge_kutta2", 1e-4, formulation="rpy_ball")
     spans = 400_000 // spacing

@@ -185,7 +185,8 @@ def test_a_run_is_warmed_up_whole_unless_its_engine_declares_a_short_warm_up(toy
 # The built-in engines that declare a short warm-up run every kind of their runs on a grid's first steps.
 SHORT = [("free-asymmetric", "reference", "quaternion", "rk4"), ("free-asymmetric", "reference", "gibbs", "taylor"),
          ("free-asymmetric", "reference", "quaternion", "scipy_rk45"), ("heavy-asymmetric", "pinocchio", "", "rk4"),
-         ("central-field-turning", "reference", "euler_zxz", "rk4"), ("sliding-ladder", "pinocchio", "bilateral", "rk4"),
+         ("central-field-turning", "reference", "euler_zxz", "rk4"), ("sliding-ladder", "pinocchio", "bilateral",
+         "rk4"),
          ("sliding-ladder", "reference", "theta", "taylor")]
 
 

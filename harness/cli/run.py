@@ -64,7 +64,8 @@ def _quiet_engines(out: Path) -> None:
 
 def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -> None:
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, advice.csv and the orders in checks.csv
-    (analysis.workprecision; pareto.csv is main()'s, after the verdicts). The default suite (no CASE, no --case-file, no --dt) gets the small default ladders;
+    (analysis.workprecision; pareto.csv is main()'s, after the verdicts). The default suite (no CASE, no --case-file,
+    no --dt) gets the small default ladders;
     named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
     (without --strict none); --dt-ladder every family's; --no-ladder none."""
     from ..analysis import workprecision
