@@ -257,8 +257,9 @@ class TorqueSimulation(MujocoSimulation):
         omega = np.full((samples.size, 3), np.nan)
         quat[0], omega[0] = data.qpos, data.qvel
         done = 0
+        unbudgeted = budget.deadline() is None  # the timing phase's runs: plain ranges (as Integrator._run)
         for index, target in enumerate(samples[1:].tolist(), start=1):
-            for piece in budget.pieces(done, target):
+            for piece in (range(done, target),) if unbudgeted else budget.pieces(done, target):
                 for _ in piece:
                     step(model, data)
             done = target
