@@ -65,9 +65,9 @@ def _quiet_engines(out: Path) -> None:
 def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -> None:
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, advice.csv and the orders in checks.csv
     (analysis.workprecision; pareto.csv is main()'s, after the verdicts). The default suite (no CASE, no --case-file,
-    no --dt) gets the small default ladders;
-    named cases or steps with --strict only the short ladders of the integrators no case's dt list gives an order
-    (without --strict none); --dt-ladder every family's; --no-ladder none."""
+    no --dt) gets the small default ladders; named cases or steps with --strict only the short ladders of the
+    integrators no case's dt list gives an order (without --strict none); --dt-ladder every family's; --no-ladder
+    none."""
     from ..analysis import workprecision
 
     if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
