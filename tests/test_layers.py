@@ -80,3 +80,33 @@ def test_the_package_imports_its_own_modules_relatively():
                 absolute += [f"{path.relative_to(ROOT)}:{node.lineno}: import {a.name}" for a in node.names
                              if a.name.startswith("stereodyn.")]
     assert not absolute, "import these relatively (from .x / from ..x):\n" + "\n".join(absolute)
+
+
+# Each engine SDK is imported by its adapter only (DESIGN §1, "Boundaries"); MuJoCo's back-ends import their own SDK
+# (mujoco.mjx, mujoco_warp) and get MuJoCo's model from harness/engines/mujoco.py (scene_state).
+SDK_ADAPTERS = {"mujoco": {"harness/engines/mujoco.py"}, "pinocchio": {"harness/engines/pinocchio.py"},
+                "pydrake": {"harness/engines/drake.py"}}
+SDK_SUBMODULES_ELSEWHERE = {"mujoco.mjx": {"harness/engines/mjx.py"}}
+
+
+def sdk_imports(path) -> set[str]:
+    """The absolute names a file imports (`import a.b`: a.b; `from a import b`: a.b)."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found |= {f"{node.module}.{alias.name}" for alias in node.names}
+    return found
+
+
+def test_each_engine_sdk_is_imported_by_its_adapter_only():
+    wrong = []
+    for path in sorted((ROOT / "harness").rglob("*.py")):
+        relative = str(path.relative_to(ROOT))
+        for name in sdk_imports(path):
+            top = name.split(".")[0]
+            if top in SDK_ADAPTERS and relative not in SDK_ADAPTERS[top] \
+                    and relative not in SDK_SUBMODULES_ELSEWHERE.get(name, ()):
+                wrong.append(f"{relative}: {name}")
+    assert not wrong, "an engine SDK imported outside its adapter:\n" + "\n".join(wrong)

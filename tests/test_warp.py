@@ -65,14 +65,9 @@ def test_the_captured_graph_steps_as_plain_stepping_and_runs_restart(warp):
 
 
 def _host(case):
-    import mujoco
-
     from stereodyn.harness.engines.warp import compiled_model
 
-    model = compiled_model(case, "euler", 0.01)
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:] = case.quat0, case.omega0
-    return model, data
+    return compiled_model(case, "euler", 0.01)
 
 
 def test_default_sweep_is_euler_and_rk4_at_a_coarse_step_on_the_general_cases(warp):

@@ -34,8 +34,6 @@ INSTALL = "pip install 'stereodyn[mjx]'"
 _XLA_THREADS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_XLA_THREADS}".strip()
-import mujoco
-
 from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, singular_torque, require_modules
 
 # jax and mujoco.mjx are imported on the first prepare (_sdk: 2-8 s); loading the adapter only checks them
@@ -43,11 +41,11 @@ require_modules(INSTALL, "jax", "mujoco.mjx")
 
 from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .mujoco import scene, torque_mode
+from .mujoco import scene_state, torque_mode
 from ..grid import TimeGrid, time_grid
 from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
 
-# harness name (MuJoCo's, lower case) -> dynamics evaluations per step. MJX's `implicit` raises NotImplementedError.
+# harness name (MuJoCo's, lower case) -> dynamics evaluations per step. MJX has no `implicit` integrator.
 INTEGRATORS: dict[str, int] = {"euler": 1, "rk4": 4, "implicitfast": 1}
 # The orders MuJoCo documents (the same as MuJoCo C's, harness.engines.mujoco.ORDERS): what the fit compares against.
 ORDERS = {"euler": 1.0, "rk4": 4.0, "implicitfast": 1.0}
@@ -86,14 +84,12 @@ def _constant_torque_only(case: Case) -> str | None:
             "rk4 first order")
 
 
-def compiled_model(case: Case, integrator: str, dt: float) -> "mujoco.MjModel":
-    """MuJoCo's scene of the case, with what MJX cannot run switched off (the energy flag)."""
+def compiled_model(case: Case, integrator: str, dt: float) -> tuple:
+    """(MjModel, MjData at the initial state) of MuJoCo's scene of the case, with what MJX cannot run switched off
+    (the energy flag): harness.engines.mujoco.scene_state."""
     if integrator not in INTEGRATORS:
         raise KeyError(f"unknown MJX integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
-    model = mujoco.MjModel.from_xml_string(scene(case, integrator, dt, model_name=MODEL_NAME))
-    # MJX raises on the energy flag; energies are computed from the states by the shared code anyway
-    model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    return model
+    return scene_state(case, integrator, dt, MODEL_NAME, energy=False)
 
 
 @functools.cache
@@ -163,13 +159,7 @@ class MjxSimulation:
         self.x64 = precision == FLOAT64
         self.stages = INTEGRATORS[integrator]
         self.torque_mode = torque_mode(case)
-        model = compiled_model(case, integrator, dt)
-        data = mujoco.MjData(model)
-        data.qpos[:] = case.quat0
-        data.qvel[:] = case.omega0
-        if self.torque_mode == "qfrc_applied":
-            from ...reference.torques import torque_function
-            data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
+        model, data = compiled_model(case, integrator, dt)
         sdk = _sdk()
         with sdk.jax.enable_x64(self.x64):
             self.model = sdk.mjx.put_model(model)

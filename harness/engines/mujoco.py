@@ -139,6 +139,25 @@ def scene(case: Case, integrator: str, dt: float, model_name: str | None = None)
 """
 
 
+def scene_state(case: Case, integrator: str, dt: float, model_name: str, energy: bool = True,
+                autoreset: bool = True) -> tuple["mujoco.MjModel", "mujoco.MjData"]:
+    """scene() compiled, and its data at the case's initial state (a constant torque in qfrc_applied): what MuJoCo's
+    back-ends (MJX, MuJoCo Warp) put on their device, so that no other adapter imports mujoco. energy False clears
+    the energy flag (MJX refuses it; the energies come from the states anyway); autoreset False clears the
+    autoreset-disable flag (MuJoCo Warp has no autoreset and refuses it)."""
+    model = mujoco.MjModel.from_xml_string(scene(case, integrator, dt, model_name=model_name))
+    if not energy:
+        model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+    if not autoreset:
+        model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+    data = mujoco.MjData(model)
+    data.qpos[:] = case.quat0
+    data.qvel[:] = case.omega0
+    if torque_mode(case) == "qfrc_applied":
+        data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
+    return model, data
+
+
 class MujocoSimulation:
     """A compiled scene; run() rolls it out from the case's initial state (every call starts afresh)."""
 

@@ -22,8 +22,6 @@ import math
 
 import numpy as np
 
-import mujoco
-
 from .base import FLOAT32, Engine, singular_torque, require_modules
 from .quiet import native_output_silenced
 
@@ -32,10 +30,9 @@ require_modules(INSTALL, "warp", "mujoco_warp")  # imported on the first prepare
 
 from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .mujoco import scene, torque_mode
+from .mujoco import scene_state, torque_mode
 from ..grid import TimeGrid
 from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
-from ...reference.torques import torque_function
 
 DEVICE = "cpu"
 MODEL_NAME = "stereodyn"  # one name for every case's model (as the MJX adapter's)
@@ -59,13 +56,12 @@ def _constant_torque_only(case: Case) -> str | None:
             "stage; MuJoCo Warp has no per-stage callback (mjcb_passive)")
 
 
-def compiled_model(case: Case, integrator: str, dt: float) -> "mujoco.MjModel":
-    """MuJoCo's scene of the case, with the autoreset flag cleared (MuJoCo Warp has no autoreset and refuses it)."""
+def compiled_model(case: Case, integrator: str, dt: float) -> tuple:
+    """(MjModel, MjData at the initial state) of MuJoCo's scene of the case, with the autoreset flag cleared (MuJoCo
+    Warp has no autoreset and refuses it): harness.engines.mujoco.scene_state."""
     if integrator not in INTEGRATORS:
         raise KeyError(f"unknown MuJoCo Warp integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
-    model = mujoco.MjModel.from_xml_string(scene(case, integrator, dt, model_name=MODEL_NAME))
-    model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-    return model
+    return scene_state(case, integrator, dt, MODEL_NAME, autoreset=False)
 
 
 @functools.cache
@@ -108,12 +104,7 @@ class WarpSimulation:
         wp, mjw = _sdk()
         self.case, self.dt, self.stages = case, float(dt), INTEGRATORS[integrator]
         self.torque_mode = torque_mode(case)
-        mj_model = compiled_model(case, integrator, dt)
-        mj_data = mujoco.MjData(mj_model)
-        mj_data.qpos[:] = case.quat0
-        mj_data.qvel[:] = case.omega0
-        if self.torque_mode == "qfrc_applied":
-            mj_data.qfrc_applied[:] = torque_function(case.body)(0.0, tuple(case.quat0), tuple(case.omega0))
+        mj_model, mj_data = compiled_model(case, integrator, dt)
         self.limit2 = divergence_limit2(case.omega0)
         with wp.ScopedDevice(DEVICE):
             self.model = mjw.put_model(mj_model)
