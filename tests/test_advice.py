@@ -177,3 +177,15 @@ def test_a_missed_target_prints_with_the_digits_that_show_it_missed():
     from stereodyn.harness.cli.advise import _above
 
     assert _above(1.00386e-06, 1e-6) == "1.00386e-06" and _above(2.34e-06, 1e-6) == "2.34e-06"
+
+
+@pytest.mark.parametrize("estimate", [1e-9, math.nan])  # the model says below the cap; no model
+def test_a_known_point_below_the_step_cap_is_never_advised(estimate):
+    """Advice never names a dt below the step cap, even one a ladder already ran and found reaching the target: a
+    target the cap does not reach reads "beyond the step cap". Break-check: bracketing on every known point (no
+    `lo <= s <= hi` filter) advises dt = 1e-6, below the cap 1e-4, with no note."""
+    error_at, calls = _law(1.0, 1.0)  # error = dt: 1e-9 needs dt = 1e-9
+    known = {1e-6: 1e-6 * 1e-4, 1e-2: 1e-2}  # a point below the cap, made to reach the target (a ladder's luck)
+    advice = search(error_at, 1e-8, estimate, lo=1e-4, hi=1.0, known=known, cap="t_end / 40000")
+    assert math.isnan(advice.setting) and advice.note.startswith("beyond the step cap"), advice
+    assert "t_end / 40000" in advice.note and all(dt >= 1e-4 for dt in calls), (advice, calls)

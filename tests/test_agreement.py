@@ -73,6 +73,9 @@ def _convergence(orders, engine="fake", integrator="rk4", declared=4.0):
     ([2.0, 2.01, 1.98], verdicts.KNOWN),    # matches the declared deviation: known, not failed
     ([4.0, 3.98, 4.02], verdicts.FIXED),    # meets the declared order instead: the declaration is stale
     ([3.0, 3.1, 2.9], verdicts.FAIL),       # neither
+    # the median matches, one case falls more than 1 away from the deviation: failed, not hidden as `known`
+    # (break-check: without `off.empty` in verdicts.order_verdicts this reads known and --strict passes)
+    ([2.0, 2.01, 1.98, 2.02, 0.6], verdicts.FAIL),
 ])
 def test_a_known_deviation_reads_known_and_fixed_upstream_when_it_stops_matching(monkeypatch, orders, status):
     deviation = KnownDeviation("rk4", "order", 2.0, 0.3, "upstream issue 123")
@@ -89,3 +92,28 @@ def test_without_a_deviation_the_same_fit_fails(monkeypatch):
     monkeypatch.setattr(verdicts, "_known_deviation", lambda engine, integrator: None)
     (verdict,) = verdicts.order_verdicts(_convergence([2.0, 2.01, 1.98]))
     assert verdict.status == verdicts.FAIL
+
+
+@pytest.mark.parametrize("differs", ["omega", "attitude"])
+def test_a_difference_in_either_attitude_or_omega_is_the_pairs_difference(differs):
+    """state_diff is the larger of the attitude and ω differences: two engines whose attitudes agree exactly but
+    whose ω differs by 1e-3 rad/s do not "agree to round-off" (and the other way round). Break-check: min() in place
+    of max() in agreement.table reads 0 for both and the headline says 0."""
+    times = np.linspace(0.0, 1.0, 11)
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (11, 1))
+    omega = np.tile([0.0, 0.0, 1.0], (11, 1))
+    a = {"times": times, "quat": quat, "omega": omega}
+    if differs == "omega":
+        b = {**a, "omega": omega + [1e-3, 0.0, 0.0]}
+    else:  # a rotation of 1e-3 rad about x at every sample, the same ω
+        half = 0.5e-3
+        b = {**a, "quat": np.tile([np.cos(half), np.sin(half), 0.0, 0.0], (11, 1))}
+
+    def entry(engine, rank, states):
+        return {"case": "c", "method": "rk4", "dt": 0.1, "engine": engine, "formulation": "", "integrator": "rk4",
+                "precision": FLOAT64, "rank": rank, "horizon": None, **states}
+
+    df = agreement.table([entry("mujoco", 0, a), entry("pinocchio", 1, b)])
+    (row,) = df.itertuples()
+    assert row.state_diff == pytest.approx(1e-3, rel=1e-3), df.T
+    assert agreement.headline(df) == ["pinocchio rk4 against mujoco rk4: 0.001 on c dt=0.1"]

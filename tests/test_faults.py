@@ -100,7 +100,10 @@ def test_a_run_broken_by_an_interrupt_is_no_row(monkeypatch):
         processes.raise_if_interrupted(RuntimeError("an SDK's wrapping of the interrupt"))
     monkeypatch.setattr(processes, "_interrupts", [])
     processes.raise_if_interrupted(RuntimeError("a real failure"))  # no interrupt: data, nothing raised
-    assert measure.raise_if_interrupted is processes.raise_if_interrupted
+    assert measure.raise_unless_data is processes.raise_unless_data  # which asks raise_if_interrupted first
+    monkeypatch.setattr(processes, "_interrupts", [0.0])
+    with pytest.raises(KeyboardInterrupt):
+        processes.raise_unless_data(RuntimeError("an SDK's wrapping of the interrupt"))
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")

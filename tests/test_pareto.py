@@ -182,3 +182,21 @@ def test_the_report_shows_each_engines_table_before_any(tmp_path):
     assert row[1] == "rk4 dt=0.01 (400 µs/s)" and row[6] == "rk4 dt=0.01 (400 µs/s)" and row[7] == "-"
     every = section.split("### any engine")[1]
     assert "| c | reference taylor dt=0.01 (50 µs/s) |" in every
+
+
+def test_an_engine_whose_rows_are_all_skipped_gets_no_scope_and_no_terminal_line(tmp_path):
+    """pareto() builds its scopes from the engines that ran: an uninstalled optional engine (every row `skipped`) gets
+    no "What to use" table of "none reached it", and the terminal does not say it reached nothing, as if it had run
+    and failed. Break-check: scopes from every engine of results.csv (`engines=list(results["engine"])`) fail this."""
+    def row(engine, status, err, wall):
+        return {"case": "c", "engine": engine, "formulation": "", "integrator": "rk4", "dt": 0.01, "t_end": 1.0,
+                "steps": 100, "status": status, "attitude_err": err, "wall_s": wall, "us_per_step_spread": 0.01}
+
+    results = pd.DataFrame([row("mujoco", "ok", 1e-7, 4e-4), row("bullet", "skipped", np.nan, np.nan),
+                            row("pinocchio", "ok", 1e-7, 9e-4), row("bullet", "skipped", np.nan, np.nan)])
+    table = pareto_module.pareto(results, pd.DataFrame())
+    assert list(dict.fromkeys(table["scope"])) == [ANY, "mujoco", "pinocchio"]
+    assert _cell(table, ANY).engine == "mujoco" and _cell(table, "pinocchio").engine == "pinocchio"
+    table.to_csv(tmp_path / "pareto.csv", index=False)
+    lines = summary.cheapest_lines(tmp_path)
+    assert lines and not any("bullet" in line for line in lines), lines

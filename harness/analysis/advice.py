@@ -16,6 +16,7 @@ from . import dt_ladders, tolerance_ladders
 from .dt_ladders import MIN_STEPS, Family
 from .step_advice import ADVICE_COLUMNS, error_model, rounded, search
 from ..precision import FLOAT64
+from ..run.processes import raise_unless_data
 from ..run.results import with_precision
 from ..trajectory import Status
 
@@ -43,12 +44,10 @@ def advise_family(family: Family, adaptive: bool, known: list[dict], order: floa
     model = error_model(frame, order, what)
     if adaptive:
         lo, hi, cap = TOLERANCE_LO, TOLERANCE_HI, "the tolerance ladders' tightest"
-        from ...reference import truth as reference_truth
-
         try:
-            truth = reference_truth.truth(case.body, case.quat0, case.omega0,
-                                          tolerance_ladders._grid(case).times)
-        except Exception as exc:  # the family's rows say why
+            truth = tolerance_ladders.family_truth(family)
+        except Exception as exc:  # the family's rows say why (our own bug says it louder: harness.errors)
+            raise_unless_data(exc)
             return [_row(family, target, what, note=f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0])
                     for target in targets], []
         measure = lambda s: tolerance_ladders.measure(family, s, truth)  # noqa: E731
@@ -109,6 +108,7 @@ def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tup
             try:
                 results[index] = future.result()
             except Exception as exc:  # a worker that died: the family's rows say why
+                raise_unless_data(exc)
                 what = "tolerance" if tasks[index][1] else "dt"
                 results[index] = ([_row(family, t, what, note=f"worker failed: {type(exc).__name__}: {exc}"
                                         .splitlines()[0]) for t in sorted(targets, reverse=True)], [])

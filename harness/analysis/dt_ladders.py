@@ -44,7 +44,7 @@ from ..scenes.cases import CHAOTIC_TAGS, Case, with_overrides
 from ..scenes.rigid_body import state_err
 from ..trajectory import Status
 from ..run import timing
-from ..run.processes import raise_if_interrupted
+from ..run.processes import raise_unless_data
 from ..run.measure import measure as run_measure, prepare as prepare_run, rate
 from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
 from ..engines.base import EPS
@@ -79,7 +79,7 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
     except budget.BudgetExceeded as exc:
         return {**base_row(run, run.grid), "source": LADDER, "status": Status.FAILED.value, "message": str(exc)}
     except Exception as exc:  # a point that breaks is data, as in the sweep
-        raise_if_interrupted(exc)
+        raise_unless_data(exc)
         return {**base_row(run, run.grid), "source": LADDER, "status": Status.FAILED.value,
                 "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]}
     row = run_measure(run, truth, full=False, timed=_timed if timed else None)
@@ -372,6 +372,7 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor 
             try:
                 results[index] = future.result()
             except Exception as exc:  # a worker that died: the family's row says so
+                raise_unless_data(exc)
                 results[index] = _failed_family(tasks[index][1], exc, tasks[index][3])
             if progress:
                 progress(tasks[index][1].label)

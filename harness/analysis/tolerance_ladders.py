@@ -32,7 +32,7 @@ from ..scenes.rigid_body import state_err
 from ..trajectory import Status
 from ..run import timing
 from ..run.measure import measure as run_measure, prepare as prepare_run, rate
-from ..run.processes import raise_if_interrupted
+from ..run.processes import raise_unless_data
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family, case_truth_on
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "tolerance", "t_end", "steps", "rhs_evals",
@@ -91,7 +91,7 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
     except budget.BudgetExceeded as exc:  # the ladder stops here (run_ladder: the point took longer than its budget)
         return {**_failed_point(family, tolerance, str(exc)), "_accuracy_s": math.inf}
     except Exception as exc:
-        raise_if_interrupted(exc)
+        raise_unless_data(exc)
         return {**_failed_point(family, tolerance, f"truth failed: {type(exc).__name__}: {exc}"), "_accuracy_s": 0.0}
     measured = run_measure(run, truth, full=False)
     row.update({k: v for k, v in measured.items() if k in TOLERANCE_COLUMNS or k == "_accuracy_s"})
@@ -105,16 +105,21 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
     return row
 
 
+def family_truth(family: AdaptiveFamily):
+    """The case's truth on the family's grid (every tolerance of a family runs on one grid), under the truth budget."""
+    with budget.within("truth", budget.configured().truth_s):
+        return case_truth_on(family.run(tolerance=max(TOLERANCES)))
+
+
 def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCES,
                budget_s: float = POINT_BUDGET_S) -> list[dict]:
     """The accuracy runs of one family's ladder, loose to tight, stopping early (module docstring). Never raises."""
     try:
-        with budget.within("truth", budget.configured().truth_s):
-            truth = case_truth_on(family.run(tolerance=tolerances[0]))
+        truth = family_truth(family)
     except budget.BudgetExceeded as exc:
         return [_failed_point(family, tolerances[0], f"truth failed: {exc}")]
     except Exception as exc:
-        raise_if_interrupted(exc)
+        raise_unless_data(exc)
         return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
     points = []
     for tolerance in sorted(tolerances, reverse=True):
@@ -149,24 +154,25 @@ def _ladder_cost(family: AdaptiveFamily) -> float:
 
 def run_ladders(chosen: list[AdaptiveFamily], pool: ProcessPoolExecutor | None = None,
                 progress: Callable[[str], None] | None = None,
-                tolerances: tuple[float, ...] = TOLERANCES) -> list[dict]:
+                tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S) -> list[dict]:
     """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
     timed here (time_points). Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose
-    to tight."""
+    to tight. budget_s: run_ladder's point budget."""
     results: dict[int, list[dict]] = {}
     order = sorted(range(len(chosen)), key=lambda i: _ladder_cost(chosen[i]), reverse=True)
     if pool is None or len(chosen) <= 1:
         for index in order:
-            results[index] = run_ladder(chosen[index], tolerances)
+            results[index] = run_ladder(chosen[index], tolerances, budget_s)
             if progress:
                 progress(chosen[index].label)
     else:
-        futures = {pool.submit(run_ladder, chosen[index], tolerances): index for index in order}
+        futures = {pool.submit(run_ladder, chosen[index], tolerances, budget_s): index for index in order}
         for future in as_completed(futures):
             index = futures[future]
             try:
                 results[index] = future.result()
             except Exception as exc:  # a worker that died: one failed point says why
+                raise_unless_data(exc)
                 results[index] = [_failed_point(chosen[index], max(tolerances),
                                                 f"worker failed: {type(exc).__name__}: {exc}")]
             if progress:

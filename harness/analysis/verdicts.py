@@ -33,6 +33,7 @@ from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
 from .fitting import FIRST_PART, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
 from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import with_precision, write_atomic
+from ..run.processes import raise_unless_data
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
 from ..engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
                                       engine_for_state_space, get_engine)
@@ -250,6 +251,7 @@ def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
                 long = testing.energy_error(cls, ENERGY_CASE, ENERGY_DT, ENERGY_STEPS * ENERGY_RATIO, space,
                                             formulation or None)
             except Exception as exc:  # a run that breaks is a failed claim, with its reason
+                raise_unless_data(exc)
                 out.append(Verdict("energy_bounded", **base, status=FAIL,
                                    detail=f"declares a bounded energy error; the check run failed: {exc}"))
                 continue

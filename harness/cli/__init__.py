@@ -1,4 +1,5 @@
-"""The command line (DESIGN §5). Exit codes: 0 done (failed runs are data), 1 check failed, 2 bad input, 130 stopped.
+"""The command line (DESIGN §5). Exit codes: 0 done (failed runs are data), 1 check failed, 2 bad input, 3 a bug in
+stereodyn (harness/errors.py), 130 stopped.
 
 This module holds the parser, the checks commands share and the dispatch; each command is a module of this package
 (run.py, check.py, ...) with a `main(args) -> int`.
@@ -356,6 +357,7 @@ def main(argv: list[str] | None = None) -> int:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
     from ..run import processes
+    from ..errors import InternalError, report as report_internal
 
     processes.forget_interrupts()
     if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
@@ -375,6 +377,12 @@ def main(argv: list[str] | None = None) -> int:
         code = _error(f"{where}{exc.strerror or exc}")
     except KeyboardInterrupt:
         code = 130
+    except InternalError as exc:  # a bug of ours met where failures are data (harness/errors.py): never a row
+        if processes.interrupted():
+            code = 130
+        else:
+            report_internal(exc)
+            return 3
     if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Callable, Sequence
 
+from ..errors import raise_if_internal
+
 CONNECT_TIMEOUT_S = 10
 
 
@@ -73,6 +75,7 @@ def run_on_cluster(address: str, specs: Sequence, truths: dict, execute: Callabl
                 try:
                     row = future.result()
                 except Exception as exc:  # the task was lost: its worker died, or the cluster went away
+                    raise_if_internal(exc)  # ... but a bug of ours raised in the task is no row
                     row = worker_failed(spec, exc)
                 finished(spec, row)
         except BaseException:

@@ -12,7 +12,7 @@ from ..engines import get_engine
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status
-from .processes import raise_if_interrupted
+from .processes import raise_unless_data
 from .spec import RunKey, base_row
 
 
@@ -72,7 +72,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
     except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
         row = {**base_row(run, grid), **budget.failed_row(exc), "_accuracy_s": time.perf_counter() - start}
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
-        raise_if_interrupted(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
+        raise_unless_data(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     return row

@@ -16,7 +16,7 @@ from ..engines import get_engine
 from ..trajectory import Status
 from . import timing
 from .measure import measure
-from .processes import exit_with_parent, starting_workers
+from .processes import exit_with_parent, raise_unless_data, starting_workers
 from .spec import RunSpec, base_row
 
 # The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
@@ -125,6 +125,7 @@ def run_local(specs: list[RunSpec], truths: dict, pool: ProcessPoolExecutor | No
         spec = futures[future]
         try:
             row = future.result()
-        except Exception as exc:
+        except Exception as exc:  # the worker died or the task was lost; a bug of ours raised there is no row
+            raise_unless_data(exc)
             row = worker_failed_row(spec, exc)
         finished(spec, row)

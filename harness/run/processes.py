@@ -27,6 +27,8 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from ..errors import raise_if_internal
+
 PARENT_POLL_S = 0.5   # the thread's poll: a killed sweep's workers are gone ~0.5 s later at the latest
 PARENT_ENV = "STEREODYN_POOL_PARENT"  # the pid of the process that starts workers (set by starting_workers)
 # The multiprocessing resource tracker, when its clients were killed, warns about the semaphores they left (it cleans
@@ -146,3 +148,10 @@ def raise_if_interrupted(exc: BaseException) -> None:
     """In an `except Exception` that records a failure as data: a failure the interrupt caused is no data."""
     if interrupted():
         raise KeyboardInterrupt from exc
+
+
+def raise_unless_data(exc: BaseException) -> None:
+    """In an `except Exception` that records a failure as data: neither a failure the interrupt caused nor a bug in
+    stereodyn's own code (harness.errors) is data."""
+    raise_if_interrupted(exc)
+    raise_if_internal(exc)

@@ -14,7 +14,7 @@ from ..engines import get_engine
 from ..grid import TimeGrid
 from ..precision import FLOAT64
 from ..trajectory import Status
-from .processes import raise_if_interrupted
+from .processes import raise_unless_data
 
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
@@ -108,7 +108,8 @@ def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min
                 start = time.perf_counter()
                 try:
                     run()
-                except Exception:  # it ran ok before: left untimed rather than breaking the phase
+                except Exception as exc:  # it ran ok before: left untimed rather than breaking the phase
+                    raise_unless_data(exc)
                     times[i] = None
                     continue
                 ts.append(time.perf_counter() - start)
@@ -136,7 +137,7 @@ def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: i
                 sim, grid = prepare(point)
                 warm_up(sim, grid, point["engine"])
             except Exception as exc:  # it ran ok untimed: left untimed rather than breaking the phase
-                raise_if_interrupted(exc)
+                raise_unless_data(exc)
                 continue
             runs.append(lambda sim=sim, grid=grid: sim.run(grid))
             grids.append(grid)
@@ -216,7 +217,7 @@ def time_runs(runs: list, steps: list[float], prepare: Callable) -> list[dict]:
                 warm_up(sim, grid, runs[i].engine)
                 warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
             except Exception as exc:
-                raise_if_interrupted(exc)
+                raise_unless_data(exc)
         for i, m in zip(warm, measure_interleaved(list(warm.values()))):
             if m is not None:
                 rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})

@@ -7,7 +7,7 @@ from .. import budget
 from ..grid import TimeGrid, time_grid
 from ..scenes import scene_of
 from ..trajectory import Status
-from .processes import raise_if_interrupted
+from .processes import raise_unless_data
 from .spec import RunKey
 
 
@@ -40,7 +40,7 @@ def sweep_truths(cases: list, needed: Callable[[object], bool], certify: bool, p
         except budget.BudgetExceeded as exc:
             failed(case, {**budget.failed_row(exc), "message": f"truth failed: {exc}"})
         except Exception as exc:
-            raise_if_interrupted(exc)
+            raise_unless_data(exc)
             failed(case, {"status": Status.FAILED.value,
                           "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]})
     return truths

@@ -27,6 +27,7 @@ from scipy.optimize import brentq
 
 from .cases import Case
 from ..atomic import write_atomic
+from ..errors import raise_if_internal
 from ..trajectory import Status, Trajectory
 from ..precision import FLOAT64
 from ...reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
@@ -250,7 +251,8 @@ def _rerun(rerun: Rerun, case: Case) -> Trajectory | None:
     """The rerun's trajectory, or None if it did not finish ok (its failure is the engine's, not the check's)."""
     try:
         nearby = rerun(case)
-    except Exception:  # an engine that cannot redo the run leaves the measurement NaN, as a failed run would
+    except Exception as exc:  # an engine that cannot redo the run leaves the measurement NaN, as a failed run would
+        raise_if_internal(exc)
         return None
     return nearby if nearby.status is Status.OK else None
 
