@@ -260,8 +260,8 @@ def test_a_broken_torque_plug_in_is_one_line_naming_it(monkeypatch, tmp_path):
     path = tmp_path / "damped.toml"
     path.write_text(CASE)
     try:
-        with pytest.raises(CaseError, match=r"damped.toml: -: torque model plug-in world \(stereodyn_broken_torque\) "
-                                            r"does not import: RuntimeError: no model here"):
+        with pytest.raises(CaseError, match=r"damped.toml: -: torque model plug-in 'world' \(stereodyn_broken_torque\) "
+                                            r"does not load: RuntimeError: no model here"):
             load_case(path)
         assert cli.main(["run", "--case-file", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     finally:
