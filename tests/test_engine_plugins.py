@@ -259,6 +259,7 @@ def test_a_plugin_claiming_a_builtin_name_stops_no_command(hostile, tmp_path):
     `cases` included. Now the built-in keeps its name and the third party's is refused, one line naming both."""
     cases = _run(hostile, "-m", "stereodyn", "cases", cwd=tmp_path)
     assert cases.returncode == 0 and "free-asymmetric" in cases.stdout, cases.stderr[-3000:]
+    assert cases.stderr == ""  # listing the cases loads no engine: not even the warning
     listing = _run(hostile, "-m", "stereodyn", "engines", cwd=tmp_path)
     assert listing.returncode == 0, listing.stderr[-3000:]
     assert "mujoco: built in; installed" in listing.stdout
