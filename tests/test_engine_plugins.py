@@ -243,8 +243,7 @@ def hostile(tmp_path_factory) -> Path:
         f"{HOSTILE}/exits.py": "import sys\n\nsys.exit(3)\n"})
 
 
-QUICK = ("free-asymmetric", "--integrators", "rk4", "--t-end", "0.2", "--dt", "1e-2", "--no-ladder", "--quiet",
-         "--jobs", "1")
+QUICK = ("free-asymmetric", "--t-end", "0.2", "--dt", "1e-2", "--no-ladder", "--quiet", "--jobs", "1")
 
 
 def _warnings(stderr: str) -> list[str]:
@@ -282,8 +281,8 @@ def test_plugins_that_exit_at_import_are_unavailable_not_the_exit_code(hostile, 
     assert [line for line in _warnings(listed.stderr) if "hostile_exit_rk" in line] == [
         f"stereodyn: warning: integrator plug-in 'hostile_exit_rk' ({HOSTILE}.exits:RK, distribution {HOSTILE_DIST}) "
         "not loaded: SystemExit: 3"]
-    run = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--engines", "reference", "--out", str(tmp_path / "out"),
-               cwd=tmp_path)
+    run = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--integrators", "rk4", "--engines", "reference", "--out",
+               str(tmp_path / "out"), cwd=tmp_path)
     assert run.returncode == 0, run.stderr[-3000:]
     _warnings(run.stderr)
     named = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--engines", "hostile_exit", "--out",
@@ -311,7 +310,7 @@ def test_an_engine_without_integrators_is_refused_at_load(hostile, tmp_path):
         error = result.stderr.splitlines()[-1]
         assert error.startswith(f"stereodyn: error: {why}") and "Traceback" not in result.stderr, result.stderr
     assert not out.exists()  # refused before the folder (and its lock) was made
-    default = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--out", str(out), cwd=tmp_path)
+    default = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--integrators", "rk4", "--out", str(out), cwd=tmp_path)
     assert default.returncode == 0, default.stderr[-3000:]
     left_out = [line for line in _warnings(default.stderr) if "its runs are left out" in line]
     assert len(left_out) == 2 and any(why in line for line in left_out), default.stderr
