@@ -317,3 +317,35 @@ def test_an_engine_without_integrators_is_refused_at_load(hostile, tmp_path):
     engines_run = set(pd.read_csv(out / "results.csv")["engine"])
     assert {"mujoco", "pinocchio", "reference"} <= engines_run and not engines_run & {"hostile_exit",
                                                                                      "hostile_nointeg"}
+
+
+# ------------------------------------------------------------------------------------------------ the guard itself
+
+def _wrapped_interrupt():
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as exc:
+        raise ImportError("initialization failed") from exc  # as pybind11 reports Ctrl-C in a module's init
+
+
+@pytest.mark.parametrize("fault", [lambda: (_ for _ in ()).throw(KeyboardInterrupt()), _wrapped_interrupt])
+def test_the_plugin_guard_lets_ctrl_c_through(fault):
+    """Ctrl-C while a plug-in loads stays Ctrl-C (exit 130 in the command), never a plug-in's failure."""
+    from stereodyn.reference import plugins
+
+    with pytest.raises(KeyboardInterrupt):
+        with plugins.guard("engine plug-in 'x' (x:X) does not load"):
+            fault()
+
+
+@pytest.mark.parametrize("fault, expected", [
+    (SystemExit(3), "SystemExit: 3"), (SystemExit(), "SystemExit"), (ZeroDivisionError("division by zero"),
+                                                                      "ZeroDivisionError: division by zero"),
+    (RuntimeError("two\nlines"), "RuntimeError: two")])
+def test_the_plugin_guard_names_the_plugin_and_the_error_on_one_line(fault, expected):
+    from stereodyn.reference import plugins
+
+    with pytest.raises(plugins.PluginError) as caught:
+        with plugins.guard("engine plug-in 'x' (x:X) does not load"):
+            raise fault
+    assert str(caught.value) == f"engine plug-in 'x' (x:X) does not load: {expected}"
