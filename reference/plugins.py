@@ -67,7 +67,7 @@ def describe(entry: Any, what: str) -> str:
     if dist is not None:
         name = dist.metadata["Name"] or ""
         origin = f", distribution {name} {dist.version or ''}".rstrip() if name else ""
-    return f"{what} {entry.name!r} ({entry.value}{origin})"
+    return f"{what} {getattr(entry, 'name', '?')!r} ({getattr(entry, 'value', '?')}{origin})"
 
 
 def own(obj: Any) -> bool:
