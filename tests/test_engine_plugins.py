@@ -200,3 +200,152 @@ def test_the_engine_name_scan_finds_a_spelled_name(tmp_path):
     planted = tmp_path / "planted.py"
     planted.write_text('"""Docstrings may name mujoco."""\nCOST = {"mujoco": 1.5}\n')
     assert _engine_name_literals(planted) == [(2, "mujoco")]
+
+
+# ------------------------------------------------------------------------------------------------ hostile plug-ins
+
+HOSTILE = "stereodyn_hostile_plugins"
+HOSTILE_DIST = "stereodyn-hostile-plugins 0.1.0"
+HOSTILE_MODULE = '''
+"""Plug-ins that break the rules: an engine without integrators(), one that claims the built-in name mujoco."""
+from stereodyn.harness.engines.base import Engine
+
+
+class NoIntegrators(Engine):
+    name = "hostile_nointeg"
+    state_space = "lie"
+
+    def unsupported(self, case):
+        return None
+
+    def prepare(self, case, integrator, dt):
+        raise RuntimeError("never prepared")
+
+
+class ClaimsMujoco(Engine):
+    name = "mujoco"
+
+    def integrators(self):
+        return ("rk4",)
+'''
+
+
+@pytest.fixture(scope="module")
+def hostile(tmp_path_factory) -> Path:
+    """One distribution with an engine and an integrator that call sys.exit(3) at import, an engine without
+    integrators() and an engine entry point named mujoco."""
+    return plugin_packages.install(tmp_path_factory.mktemp("hostile_plugins"), {
+        "pyproject.toml": plugin_packages.pyproject(HOSTILE, {
+            "stereodyn.engines": {"hostile_exit": f"{HOSTILE}.exits:Engine",
+                                  "hostile_nointeg": f"{HOSTILE}:NoIntegrators", "mujoco": f"{HOSTILE}:ClaimsMujoco"},
+            "stereodyn.integrators": {"hostile_exit_rk": f"{HOSTILE}.exits:RK"}}),
+        f"{HOSTILE}/__init__.py": textwrap.dedent(HOSTILE_MODULE),
+        f"{HOSTILE}/exits.py": "import sys\n\nsys.exit(3)\n"})
+
+
+QUICK = ("free-asymmetric", "--t-end", "0.2", "--dt", "1e-2", "--no-ladder", "--quiet", "--jobs", "1")
+
+
+def _warnings(stderr: str) -> list[str]:
+    assert "Traceback" not in stderr, stderr
+    lines = stderr.splitlines()
+    assert all(line.startswith("stereodyn: warning: ") for line in lines), stderr
+    return lines
+
+
+def test_a_plugin_claiming_a_builtin_name_stops_no_command(hostile, tmp_path):
+    """T1: the --engines default was computed while the parser was built, so the clash killed every command,
+    `cases` included. Now the built-in keeps its name and the third party's is refused, one line naming both."""
+    cases = _run(hostile, "-m", "stereodyn", "cases", cwd=tmp_path)
+    assert cases.returncode == 0 and "free-asymmetric" in cases.stdout, cases.stderr[-3000:]
+    assert cases.stderr == ""  # listing the cases loads no engine: not even the warning
+    listing = _run(hostile, "-m", "stereodyn", "engines", cwd=tmp_path)
+    assert listing.returncode == 0, listing.stderr[-3000:]
+    assert "mujoco: built in; installed" in listing.stdout
+    clash = [line for line in _warnings(listing.stderr) if "'mujoco'" in line]
+    assert len(clash) == 1, listing.stderr
+    assert f"{HOSTILE}:ClaimsMujoco, distribution {HOSTILE_DIST}" in clash[0], clash
+    assert "stereodyn.harness.engines.mujoco:MujocoEngine, distribution stereodyn" in clash[0], clash
+
+
+def test_plugins_that_exit_at_import_are_unavailable_not_the_exit_code(hostile, tmp_path):
+    """W1: sys.exit(3) in a plug-in's module made `engines`, `integrators` and `run` exit 3 with nothing said; it is
+    that plug-in's unavailability, with a reason naming it, its distribution and the error."""
+    listing = _run(hostile, "-m", "stereodyn", "engines", cwd=tmp_path)
+    assert listing.returncode == 0, listing.stderr[-3000:]
+    exiting = [line for line in listing.stdout.splitlines() if line.startswith("hostile_exit:")]
+    assert exiting == [f"hostile_exit: plug-in from {HOSTILE_DIST}; not usable: engine plug-in 'hostile_exit' "
+                       f"({HOSTILE}.exits:Engine, distribution {HOSTILE_DIST}) does not load: SystemExit: 3"]
+    listed = _run(hostile, "-m", "stereodyn", "integrators", cwd=tmp_path)
+    assert listed.returncode == 0 and "rk4" in listed.stdout, listed.stderr[-3000:]
+    assert [line for line in _warnings(listed.stderr) if "hostile_exit_rk" in line] == [
+        f"stereodyn: warning: integrator plug-in 'hostile_exit_rk' ({HOSTILE}.exits:RK, distribution {HOSTILE_DIST}) "
+        "not loaded: SystemExit: 3"]
+    run = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--integrators", "rk4", "--engines", "reference", "--out",
+               str(tmp_path / "out"), cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-3000:]
+    _warnings(run.stderr)
+    named = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--engines", "hostile_exit", "--out",
+                 str(tmp_path / "named"), cwd=tmp_path)
+    assert named.returncode == 2 and named.stderr.splitlines()[-1] == (
+        f"stereodyn: error: engine plug-in 'hostile_exit' ({HOSTILE}.exits:Engine, distribution {HOSTILE_DIST}) "
+        "does not load: SystemExit: 3"), named.stderr
+    assert not (tmp_path / "named").exists()
+
+
+def test_an_engine_without_integrators_is_refused_at_load(hostile, tmp_path):
+    """T2: an Engine subclass without integrators() gave a NotImplementedError traceback from `engines`, `advise`
+    and `run`, the run's after it had taken the folder's lock. It is refused when it loads: `engines` says why, a
+    command naming it exits 2 with one line before it writes anything, and a default run leaves it out, saying so."""
+    why = (f"engine plug-in 'hostile_nointeg' ({HOSTILE}:NoIntegrators, distribution {HOSTILE_DIST}): does not "
+           "implement integrators()")
+    listing = _run(hostile, "-m", "stereodyn", "engines", cwd=tmp_path)
+    assert listing.returncode == 0, listing.stderr[-3000:]
+    assert f"hostile_nointeg: plug-in from {HOSTILE_DIST}; not usable: {why}" in listing.stdout
+    out = tmp_path / "out"
+    for argv in (["run", *QUICK, "--engines", "hostile_nointeg,reference", "--out", str(out)],
+                 ["advise", "free-asymmetric", "--engine", "hostile_nointeg"]):
+        result = _run(hostile, "-m", "stereodyn", *argv, cwd=tmp_path)
+        assert result.returncode == 2, result.stderr[-3000:]
+        error = result.stderr.splitlines()[-1]
+        assert error.startswith(f"stereodyn: error: {why}") and "Traceback" not in result.stderr, result.stderr
+    assert not out.exists()  # refused before the folder (and its lock) was made
+    default = _run(hostile, "-m", "stereodyn", "run", *QUICK, "--integrators", "rk4", "--out", str(out), cwd=tmp_path)
+    assert default.returncode == 0, default.stderr[-3000:]
+    left_out = [line for line in _warnings(default.stderr) if "its runs are left out" in line]
+    assert len(left_out) == 2 and any(why in line for line in left_out), default.stderr
+    engines_run = set(pd.read_csv(out / "results.csv")["engine"])
+    assert {"mujoco", "pinocchio", "reference"} <= engines_run and not engines_run & {"hostile_exit",
+                                                                                     "hostile_nointeg"}
+
+
+# ------------------------------------------------------------------------------------------------ the guard itself
+
+def _wrapped_interrupt():
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as exc:
+        raise ImportError("initialization failed") from exc  # as pybind11 reports Ctrl-C in a module's init
+
+
+@pytest.mark.parametrize("fault", [lambda: (_ for _ in ()).throw(KeyboardInterrupt()), _wrapped_interrupt])
+def test_the_plugin_guard_lets_ctrl_c_through(fault):
+    """Ctrl-C while a plug-in loads stays Ctrl-C (exit 130 in the command), never a plug-in's failure."""
+    from stereodyn.reference import plugins
+
+    with pytest.raises(KeyboardInterrupt):
+        with plugins.guard("engine plug-in 'x' (x:X) does not load"):
+            fault()
+
+
+@pytest.mark.parametrize("fault, expected", [
+    (SystemExit(3), "SystemExit: 3"), (SystemExit(), "SystemExit"), (ZeroDivisionError("division by zero"),
+                                                                      "ZeroDivisionError: division by zero"),
+    (RuntimeError("two\nlines"), "RuntimeError: two")])
+def test_the_plugin_guard_names_the_plugin_and_the_error_on_one_line(fault, expected):
+    from stereodyn.reference import plugins
+
+    with pytest.raises(plugins.PluginError) as caught:
+        with plugins.guard("engine plug-in 'x' (x:X) does not load"):
+            raise fault
+    assert str(caught.value) == f"engine plug-in 'x' (x:X) does not load: {expected}"

@@ -261,6 +261,66 @@ def test_a_run_interrupted_before_its_end_leaves_the_folder_unfinished(good, tmp
     assert cli.main(["check", str(out), "--baseline", str(good[1])]) == 0
 
 
+def test_an_unfinished_folder_stays_unfinished_when_its_runs_json_is_lost(good, tmp_path, monkeypatch, capsys):
+    """W3: a killed sweep's folder whose runs.json was then deleted, cut or garbled was read with one warning ("no
+    completion mark") and exit 0: the mark rested on one file. Its witness, DIR/store/unfinished, keeps it refused."""
+    import shutil
+
+    from stereodyn.harness.report import build
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    killed = tmp_path / "killed"
+    monkeypatch.setattr(build, "write_reports", interrupted)  # stopped before its end, as a SIGKILL would
+    assert cli.main(["run", "--case-file", str(good[2]), "--out", str(killed), *FAST]) == 130
+    monkeypatch.undo()
+    for damage, edit in (("deleted", lambda path: path.unlink()),
+                         ("truncated", lambda path: path.write_text(path.read_text()[:40])),
+                         ("garbled", lambda path: path.write_text('{"format": 1, "complete": "yes"}'))):
+        folder = tmp_path / damage
+        shutil.copytree(killed, folder)
+        edit(folder / "runs.json")
+        (tmp_path / "new.json").unlink(missing_ok=True)
+        capsys.readouterr()
+        for argv in _reads(folder, good[1], good[0], tmp_path):
+            one_line_error(cli.main(argv), capsys, str(folder), "unfinished", "--allow-partial")
+        assert not (tmp_path / "new.json").exists()
+        for argv in _reads(folder, good[1], good[0], tmp_path, "--allow-partial"):
+            assert cli.main(argv) == 0, (damage, argv)
+            err = capsys.readouterr().err
+            assert err.startswith("stereodyn: warning:") and err.count("\n") == 1 and "unfinished" in err, err
+    # --resume finishes it: read again, and the witness is gone
+    assert cli.main(["run", "--case-file", str(good[2]), "--out", str(tmp_path / "deleted"), "--resume", *FAST]) == 0
+    assert cli.main(["check", str(tmp_path / "deleted"), "--baseline", str(good[1])]) == 0
+
+
+def test_two_readers_share_a_folder_and_a_writer_waits_for_both(good, tmp_path, capsys):
+    """Two CI jobs running `check` on one folder must not refuse each other: reading() holds DIR/store's lock shared.
+    The first reader is another process (flock's locks belong to open files: a second descriptor in this process
+    would conflict the same way); while it reads, `check` and `baseline` here read too, and a writer is refused."""
+    from stereodyn.harness.run.store import StoreBusy, folder_lock
+
+    folder = _copy(good[0], tmp_path / "shared")
+    code = ("import sys\nfrom stereodyn.harness.run.store import reading\nwith reading(sys.argv[1]):\n"
+            "    print('reading', flush=True)\n    sys.stdin.readline()\n")
+    reader = subprocess.Popen([sys.executable, "-c", code, str(folder)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert reader.stdout.readline() == "reading\n"
+        capsys.readouterr()
+        assert cli.main(["check", str(folder), "--baseline", str(good[1])]) == 0, capsys.readouterr().err
+        assert cli.main(["baseline", str(folder), "--out", str(tmp_path / "b.json")]) == 0, capsys.readouterr().err
+        with pytest.raises(StoreBusy):
+            with folder_lock(folder):
+                pass
+    finally:
+        reader.communicate("\n", timeout=120)
+    assert reader.returncode == 0
+    with folder_lock(folder):  # both readers gone: the writer takes it
+        pass
+
+
 # --- one validation of a results table: what check refuses, baseline refuses first
 
 def _rewrite(path: Path, edit) -> None:

@@ -105,5 +105,5 @@ def test_a_broken_section_plugin_is_one_line_naming_it(folder, tmp_path):
     result = subprocess.run([sys.executable, "-m", "stereodyn", "report", str(copy)], capture_output=True, text=True,
                             env=_installed(tmp_path, "raise RuntimeError('broken on purpose')\n"), cwd=tmp_path)
     assert result.returncode == 2
-    assert result.stderr.strip() == (f"stereodyn: error: report section plug-in mine ({PLUGIN}) does not import: "
-                                     "RuntimeError: broken on purpose")
+    assert result.stderr.strip() == (f"stereodyn: error: report section plug-in 'mine' ({PLUGIN}, distribution "
+                                     f"{PLUGIN.replace('_', '-')} 0.1.0) does not load: RuntimeError: broken on purpose")

@@ -260,9 +260,91 @@ def test_a_broken_torque_plug_in_is_one_line_naming_it(monkeypatch, tmp_path):
     path = tmp_path / "damped.toml"
     path.write_text(CASE)
     try:
-        with pytest.raises(CaseError, match=r"damped.toml: -: torque model plug-in world \(stereodyn_broken_torque\) "
-                                            r"does not import: RuntimeError: no model here"):
+        with pytest.raises(CaseError, match=r"damped.toml: -: torque model plug-in 'world' \(stereodyn_broken_torque\) "
+                                            r"does not load: RuntimeError: no model here"):
             load_case(path)
         assert cli.main(["run", "--case-file", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     finally:
         sys.modules.pop("stereodyn_broken_torque", None)
+
+
+HOSTILE = '''
+import sys
+from dataclasses import dataclass
+from stereodyn.reference.torque_models import TorqueModel, register
+
+
+@register
+@dataclass(frozen=True)
+class HostileTorque(TorqueModel):
+    """Its table's `fault` says how parse (or check) fails."""
+    fault: str
+
+    key = "hostile_torque"
+    schema = (frozenset({"fault"}), frozenset({"fault"}))
+    parameter_count = 1
+
+    @classmethod
+    def parse(cls, reader, data):
+        fault = data["fault"]
+        if fault == "zero":
+            return 1 / 0
+        if fault == "type":
+            return len(None)
+        if fault == "exit":
+            sys.exit(4)
+        if fault == "rule":  # a plug-in's own refusal, through the parser: as it says
+            raise reader.fail("hostile_torque.fault", "must be a known fault")
+        return cls(fault)
+
+    def check(self, reader, tables, inertia, com):
+        if self.fault == "check_exit":
+            raise SystemExit("check gave up")
+
+    def parameters(self, frame=None):
+        return (0.0,)
+
+    @staticmethod
+    def components(p, at):
+        return [0.0 * p[0], 0.0 * p[0], 0.0 * p[0]]
+'''
+
+
+@pytest.mark.parametrize("fault, error", [("zero", "ZeroDivisionError: division by zero"),
+                                          ("type", "TypeError: object of type 'NoneType' has no len()"),
+                                          ("exit", "SystemExit: 4"), ("check_exit", "SystemExit: check gave up")])
+def test_a_torque_plug_in_whose_parse_fails_refuses_the_case_file(monkeypatch, tmp_path, capsys, fault, error):
+    """T3, W2: parse() raising gave a traceback, SystemExit exit 1 with a bare message, from `run` and `advise`. The
+    case file is refused: exit 2, one line naming the file, the torque's table, the plug-in and the error."""
+    import sys
+    plugin(monkeypatch, tmp_path, "stereodyn_hostile_torque", HOSTILE)
+    path = tmp_path / "hostile.toml"
+    path.write_text(CASE.replace("[linear_damping]\nk = 2.0", f'[hostile_torque]\nfault = "{fault}"'))
+    expected = (f"stereodyn: error: {path}: hostile_torque: torque model plug-in 'hostile_torque' "
+                f"(stereodyn_hostile_torque.HostileTorque) failed: {error}\n")
+    try:
+        for argv in (["run", "--case-file", str(path), "--engines", "reference", "--out", str(tmp_path / "out"),
+                      "--quiet"], ["advise", str(path), "--engine", "reference"]):
+            capsys.readouterr()
+            assert cli.main(argv) == 2, argv
+            assert capsys.readouterr().err == expected
+        assert not (tmp_path / "out").exists()
+        # the plug-in's own refusal (reader.fail) is the case file's error as it wrote it
+        path.write_text(CASE.replace("[linear_damping]\nk = 2.0", '[hostile_torque]\nfault = "rule"'))
+        with pytest.raises(CaseError, match=r"hostile.toml: hostile_torque.fault: must be a known fault$"):
+            load_case(path)
+    finally:
+        sys.modules.pop("stereodyn_hostile_torque", None)
+
+
+def test_a_torque_plug_in_that_exits_at_import_is_one_line_naming_it(monkeypatch, tmp_path, capsys):
+    """W2: SystemExit while the plug-in's module imports made `cases` exit with the plug-in's code."""
+    import sys
+    plugin(monkeypatch, tmp_path, "stereodyn_exiting_torque", "import sys\nsys.exit(5)\n")
+    try:
+        assert cli.main(["cases"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.endswith(": -: torque model plug-in 'world' (stereodyn_exiting_torque) does "
+                                                     "not load: SystemExit: 5\n"), err
+    finally:
+        sys.modules.pop("stereodyn_exiting_torque", None)

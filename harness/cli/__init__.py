@@ -142,8 +142,11 @@ def _parser() -> argparse.ArgumentParser:
     run = commands.add_parser("run", help="run cases on engines; write results.csv, report.md and report.html")
     run.add_argument("cases", nargs="*", metavar="CASE", help="suite case names or .toml paths (default: the suite)")
     run.add_argument("--case-file", action="append", default=[], metavar="F.toml", help="a case outside the suite")
-    run.add_argument("--engines", type=_list, default=list(engine_names()),
-                     help=f"comma-separated, default {','.join(engine_names())}")
+    # The default is resolved by check_names, not here: building the parser loads no plug-in (one that is broken or
+    # claims a built-in's name must not stop every command, `stereodyn cases` included)
+    run.add_argument("--engines", type=_list, default=None,
+                     help="comma-separated (default: every registered engine, `stereodyn engines`, a broken plug-in "
+                          "left out with a warning)")
     run.add_argument("--integrators", type=_list, default=None, help="comma-separated (default: each engine's all)")
     run.add_argument("--dt", type=_floats, default=None, help="comma-separated steps, replacing each case's list")
     run.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing each case's t_end")
@@ -300,13 +303,20 @@ def output_file(path: Path, option: str) -> Path:
 
 
 def check_names(args) -> None:
-    from ..engines import UnavailableEngine, get_engine
+    """The run's engines and integrators, checked before anything is written. --engines given: every engine named
+    loads (a broken plug-in is EngineError, exit 2, naming it); not given: every registered engine, a broken plug-in
+    left out with one warning line naming it and why."""
+    from ..engines import BrokenEngine, UnavailableEngine, get_engine, loaded
 
+    if args.engines is None:
+        every = [loaded(name) for name in engine_names()]
+        warn([f"{engine.reason}; its runs are left out" for engine in every if isinstance(engine, BrokenEngine)])
+        args.engines = [engine.name for engine in every if not isinstance(engine, BrokenEngine)]
     unknown = [e for e in args.engines if e not in engine_names()]
     if unknown:
         raise BadInput(f"--engines: unknown engine {', '.join(unknown)}; valid: {', '.join(engine_names())}")
+    engines = [get_engine(e) for e in args.engines]  # EngineError for a broken plug-in, before the folder is touched
     if args.integrators:
-        engines = [get_engine(e) for e in args.engines]
         known = {i for engine in engines for i in engine.integrators()}
         missing = [i for i in args.integrators if i not in known]
         # an engine whose SDK is missing lists no integrators: a name may be its, so the message says how to get it
@@ -360,6 +370,7 @@ def main(argv: list[str] | None = None) -> int:
     from ..errors import InternalError, report as report_internal
 
     processes.forget_interrupts()
+    _plugin_warnings_on_one_line()
     if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
         signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
@@ -387,6 +398,25 @@ def main(argv: list[str] | None = None) -> int:
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
     return code
+
+
+def _plugin_warnings_on_one_line() -> None:
+    """A plug-in left out (reference.plugins.PluginWarning) is one `stereodyn: warning:` line, as the command's own
+    warnings; every other warning as Python shows it."""
+    from ...reference.plugins import PluginWarning
+
+    shown = warnings.showwarning
+    if getattr(shown, "plugin_lines", False):
+        return
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, PluginWarning):
+            warn([str(message)])
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    show.plugin_lines = True
+    warnings.showwarning = show
 
 
 def _error(message: str) -> int:

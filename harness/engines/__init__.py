@@ -1,13 +1,17 @@
 """Engine registry: engines are plug-ins of the entry-point group `stereodyn.engines` (name = "module:Class", the
 class a subclass of harness.engines.base.Engine); the built-ins register there in pyproject.toml exactly as a third
-party would. Entry points are listed without importing anything and loaded on first use, so a missing SDK only makes its
-own runs `skipped`; a broken or old-style plug-in raises EngineError naming it."""
+party would. Entry points are listed without importing anything and loaded on first use, behind the plug-in guard
+(reference.plugins: any Exception or SystemExit, never Ctrl-C), so a missing SDK only makes its own runs `skipped`; a
+broken or old-style plug-in (it does not load, exits, is no Engine subclass, lacks a required method) raises EngineError
+naming it where it is asked for, and is left out of every listing of all engines. A third party's entry point that
+claims a built-in's name is refused with a warning; the built-in keeps it."""
 from __future__ import annotations
 
 from functools import cache
 from importlib.metadata import EntryPoint, entry_points
 
-from .base import Engine
+from ...reference import plugins
+from .base import Engine, RigidBodyModel
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
 # The truth of every case: this engine's formulation and adaptive integrator (the one spelling of its engine's name
@@ -19,20 +23,38 @@ class EngineError(ValueError):
     """A plug-in that cannot be used: its entry point does not load, or it is not an Engine subclass."""
 
 
+def _own(entry: EntryPoint) -> bool:
+    """Whether stereodyn registers the entry point itself (a built-in engine, or one of its optional extras)."""
+    return entry.value.startswith(__name__ + ".")
+
+
 @cache
 def _entry_points() -> dict[str, EntryPoint]:
-    """name -> entry point of every registered engine, in the built-ins' order first, then by name."""
-    found: dict[str, EntryPoint] = {}
+    """name -> entry point of every registered engine, in the built-ins' order first, then by name. Two entry points
+    claiming one name (the same one installed twice aside): stereodyn's own keeps it and the other is refused; two
+    third parties' are both refused; each refusal a PluginWarning naming both (never an error: this runs in every
+    command that lists engines)."""
+    claims: dict[str, list[EntryPoint]] = {}
     for entry in entry_points(group=ENTRY_POINT_GROUP):
-        if entry.name in found and found[entry.name].value != entry.value:
-            raise EngineError(f"engine plug-in {entry.name!r}: two entry points claim the name "
-                              f"({found[entry.name].value} and {entry.value})")
-        found[entry.name] = entry
+        if all(other.value != entry.value for other in claims.get(entry.name, [])):
+            claims.setdefault(entry.name, []).append(entry)
+    found: dict[str, EntryPoint] = {}
+    for name, entries in claims.items():
+        own = [entry for entry in entries if _own(entry)]
+        if len(entries) == 1 or len(own) == 1:
+            found[name] = own[0] if own else entries[0]
+        kept = found.get(name)
+        for entry in entries:
+            if entry is not kept:
+                others = [plugins.describe(other, "engine") for other in entries if other is not entry]
+                plugins.warn(f"{plugins.describe(entry, 'engine plug-in')} is not loaded: the name is "
+                             + (f"stereodyn's own, {others[0]}" if kept is not None else
+                                f"claimed by {'; '.join(others)} too, and neither is loaded")
+                             + "; rename the plug-in's entry point")
     builtin = ("mujoco", "pinocchio", TRUTH_ENGINE)
 
     def rank(name: str) -> tuple:  # the built-ins, then stereodyn's optional extras, then third parties, by name
-        own = found[name].value.startswith(__name__ + ".")
-        return (name not in builtin, not own, builtin.index(name) if name in builtin else 0, name)
+        return (name not in builtin, not _own(found[name]), builtin.index(name) if name in builtin else 0, name)
 
     return {name: found[name] for name in sorted(found, key=rank)}
 
@@ -60,37 +82,53 @@ class UnavailableEngine(Engine):
         raise RuntimeError(self.reason)
 
 
-def _interrupted(exc: BaseException) -> bool:
-    """Whether a KeyboardInterrupt is among the causes of exc (an extension module's init wraps it in ImportError)."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
-
-
 def _load(name: str, entry: EntryPoint) -> Engine:
-    where = f"engine plug-in {name!r} ({entry.value})"
+    """The engine of an entry point, checked (_check); UnavailableEngine when a module it imports is missing (its SDK
+    not installed: its runs are skipped), EngineError naming it when the plug-in is broken. Behind the plug-in guard:
+    a SystemExit is a broken plug-in, Ctrl-C stays Ctrl-C."""
+    where = plugins.describe(entry, "engine plug-in")
     try:
-        cls = entry.load()
-    except ImportError as exc:  # its SDK (or the plug-in's own module) is missing: its runs are skipped
-        if _interrupted(exc):  # not missing: Ctrl-C while it loaded (pybind11 reports it as "initialization failed")
-            raise KeyboardInterrupt from exc
-        return UnavailableEngine(name, f"{name} engine unavailable: {exc}")
-    except Exception as exc:
-        raise EngineError(f"{where}: does not load: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
+        cls = plugins.load(entry, "engine plug-in")
+    except plugins.PluginError as exc:
+        if exc.missing:  # its SDK (or the plug-in's own module) is missing: its runs are skipped
+            return UnavailableEngine(name, f"{name} engine unavailable: {exc.error}")
+        raise EngineError(str(exc)) from exc
     if not (isinstance(cls, type) and issubclass(cls, Engine)):
         raise EngineError(f"{where}: {cls!r} is not a subclass of stereodyn.harness.engines.base.Engine (engines "
                           "written against the old Engine protocol must subclass it since 0.2.0)")
     try:
-        engine = cls()
-    except Exception as exc:
-        raise EngineError(f"{where}: constructing it failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
-    if engine.name != name:
-        raise EngineError(f"{where}: its name attribute is {engine.name!r}, not the entry point's name {name!r}")
+        with plugins.guard(f"{where}: constructing it failed"):
+            engine = cls()
+        if engine.name != name:
+            raise EngineError(f"{where}: its name attribute is {engine.name!r}, not the entry point's name {name!r}")
+        _check(engine, where)
+    except plugins.PluginError as exc:
+        raise EngineError(str(exc)) from exc
     return engine
+
+
+# Engine's methods a plug-in must implement (base.py raises NotImplementedError): integrators() always, the other two
+# when the engine models the rigid body through the base class's hooks (Engine.models' default).
+_REQUIRED, _RIGID_BODY_HOOKS = ("integrators",), ("unsupported", "prepare")
+
+
+def _check(engine: Engine, where: str) -> None:
+    """Refuse, at load, an engine a sweep would fail on later with a traceback: a required method not implemented,
+    integrators() or models() that raise or return the wrong type (PluginError or EngineError naming it)."""
+    with plugins.guard(f"{where}: integrators() failed"):
+        names = engine.integrators() if type(engine).integrators is not Engine.integrators else None
+    with plugins.guard(f"{where}: models() failed"):
+        models = engine.models()
+    required = _REQUIRED + (_RIGID_BODY_HOOKS if isinstance(models, dict) and any(
+        type(model) is RigidBodyModel for model in models.values()) else ())
+    missing = [method for method in required if getattr(type(engine), method) is getattr(Engine, method)]
+    if missing:
+        raise EngineError(f"{where}: does not implement {', '.join(m + '()' for m in missing)} (required of an "
+                          "Engine, harness/engines/base.py)")
+    if not (isinstance(names, (tuple, list)) and all(isinstance(n, str) for n in names)):
+        raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
+    if not isinstance(models, dict):
+        raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
 
 
 @cache
@@ -103,8 +141,21 @@ def get_engine(name: str) -> Engine:
 
 
 def engines() -> list[Engine]:
-    """Every registered engine, loaded (unavailable ones as UnavailableEngine)."""
-    return [get_engine(name) for name in engine_names()]
+    """Every registered engine, loaded (unavailable ones, and broken plug-ins, as UnavailableEngine with the reason)."""
+    return [loaded(name) for name in engine_names()]
+
+
+class BrokenEngine(UnavailableEngine):
+    """Stands in for a broken plug-in (EngineError, the reason) where every engine is listed."""
+
+
+def loaded(name: str) -> Engine:
+    """get_engine(name), or a broken plug-in as a BrokenEngine: for what lists every engine (`stereodyn engines`, a
+    sweep's default engines), where one broken plug-in must not stop the rest."""
+    try:
+        return get_engine(name)
+    except EngineError as exc:
+        return BrokenEngine(name, str(exc))
 
 
 def engine_for_state_space(state_space: str) -> Engine:

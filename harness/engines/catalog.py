@@ -3,7 +3,7 @@
 origin: `built in` (stereodyn's own, its SDK a base dependency), `built in, extra stereodyn[X]` (stereodyn's own, its
 SDK an optional extra) or `plug-in from DIST VERSION` (the distribution whose entry point registers it). Loading an
 engine imports its adapter (and most adapters their SDK): a missing SDK shows as `not installed` with the adapter's
-reason, which names the install command.
+reason, which names the install command; a broken plug-in shows as `not usable` with what is wrong with it.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import PackageNotFoundError, distribution, version
 
-from . import UnavailableEngine, _entry_points, get_engine
+from . import BrokenEngine, UnavailableEngine, _entry_points, loaded
 
 OWN_DISTRIBUTION = "stereodyn"
 
@@ -87,9 +87,10 @@ def rows() -> list[EngineRow]:
     """Every registered engine, in the registry's order."""
     table = []
     for name in _entry_points():
-        engine = get_engine(name)
+        engine = loaded(name)
         if isinstance(engine, UnavailableEngine):
-            table.append(EngineRow(name, origin(name), f"not installed: {engine.reason}", (), (), ()))
+            status = "not usable" if isinstance(engine, BrokenEngine) else "not installed"
+            table.append(EngineRow(name, origin(name), f"{status}: {engine.reason}", (), (), ()))
             continue
         integrators = engine.integrators()
         packages = ", ".join(f"{p} {_version(p)}" for p in engine.packages)

@@ -7,12 +7,15 @@ asks for the ones of the space it works in.
 A plug-in is an Integrator subclass advertised in the entry-point group "stereodyn.integrators", e.g. in its
 pyproject.toml: [project.entry-points."stereodyn.integrators"] my_rk = "my_package.module:MyRK" (the object may also be
 a list or tuple of classes: one method in both state spaces, "lie" and "vector"). Plug-ins are loaded
-the first time the registry is consulted; one that fails to load is skipped with a warning, never breaking a sweep.
+the first time the registry is consulted, behind the plug-in guard (reference.plugins: any Exception or SystemExit,
+never Ctrl-C); one that fails to load, or offers a class the registry refuses, is skipped with a PluginWarning naming
+it, never breaking a sweep.
 """
 from __future__ import annotations
 
-import warnings
 from importlib.metadata import entry_points
+
+from ...reference import plugins
 
 from .base import Integrator, LieSystem, check_step_signature
 from .geometric import GEOMETRIC
@@ -88,11 +91,12 @@ def _load_plugins() -> None:
     _plugins_loaded = True
     for entry in entry_points(group=ENTRY_POINT_GROUP):
         try:
-            loaded = entry.load()
-            for cls in (loaded if isinstance(loaded, (list, tuple)) else (loaded,)):
-                register(cls)
-        except Exception as exc:  # a broken plug-in must not take the built-ins down with it
-            warnings.warn(f"integrator plug-in {entry.name!r} ({entry.value}) not loaded: {exc}", stacklevel=3)
+            with plugins.guard(f"{plugins.describe(entry, 'integrator plug-in')} not loaded"):
+                loaded = entry.load()
+                for cls in (loaded if isinstance(loaded, (list, tuple)) else (loaded,)):
+                    register(cls)  # TypeError, ValueError: a class the registry refuses
+        except plugins.PluginError as exc:  # a broken plug-in must not take the built-ins down with it
+            plugins.warn(str(exc))
 
 
 def in_default_sweep(name: str) -> bool:

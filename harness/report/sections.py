@@ -12,6 +12,8 @@ from typing import Callable
 
 import pandas as pd
 
+from ...reference import plugins
+
 
 @dataclass(frozen=True)
 class Context:
@@ -60,13 +62,12 @@ def unregister(name: str) -> None:
 
 def load_plugins() -> None:
     """Import every module named under ENTRY_POINT_GROUP (each registers its sections); SectionError naming the
-    plug-in when one does not import."""
+    plug-in when one does not import (reference.plugins' guard: any Exception or SystemExit)."""
     for entry in entry_points(group=ENTRY_POINT_GROUP):
         try:
-            entry.load()
-        except Exception as exc:  # a plug-in's own bug: name it, never a traceback from inside the report
-            raise SectionError(f"report section plug-in {entry.name} ({entry.value}) does not import: "
-                               f"{type(exc).__name__}: {exc}") from None
+            plugins.load(entry, "report section plug-in")
+        except plugins.PluginError as exc:  # a plug-in's own bug: name it, never a traceback from inside the report
+            raise SectionError(str(exc)) from None
 
 
 def registered() -> list[Section]:

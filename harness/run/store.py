@@ -46,6 +46,10 @@ STATE_ARRAYS = ("times", "quat", "omega", "truth_quat", "truth_omega")
 MANIFEST = "runs.json"
 FORMAT = 1
 COMPLETE = "complete"  # runs.json: false while a sweep writes the folder, true once its command ended (mark_complete)
+# The completion mark's second witness: DIR/store/unfinished exists from the moment a sweep opens the store until
+# mark_complete, so a killed sweep's folder stays unfinished when its runs.json is then lost, cut or garbled
+# (completeness). A folder of 0.2.0, or of a finished sweep, has none.
+UNFINISHED = "unfinished"
 
 try:
     import fcntl
@@ -254,6 +258,12 @@ class Store:
     def __enter__(self) -> "Store":
         self._lock = folder_lock(self.out_dir, store=True)
         self._lock.__enter__()
+        try:  # before any table is rewritten: the folder is unfinished until its command's mark_complete
+            write_atomic(self.root / UNFINISHED, "a sweep writes this folder, or was stopped before its end: finish it "
+                                                 "with stereodyn run ... --resume (runs.json: complete)\n")
+        except BaseException:
+            self._lock.__exit__(None, None, None)
+            raise
         return self
 
     def __exit__(self, *exc) -> None:
@@ -371,6 +381,8 @@ def mark_complete(out_dir: Path) -> None:
     manifest = read_manifest(out_dir)
     if manifest is not None:
         write_atomic(Path(out_dir) / MANIFEST, json.dumps({**manifest, COMPLETE: True}, indent=1) + "\n")
+        # after the mark: killed between the two, the folder reads as unfinished, and --resume ends it
+        (Path(out_dir) / STORE_DIR / UNFINISHED).unlink(missing_ok=True)
 
 
 class FolderNotReady(ValueError):
@@ -378,11 +390,14 @@ class FolderNotReady(ValueError):
 
 
 def completeness(out_dir: Path, allow_partial: bool = False) -> list[str]:
-    """Whether a command may read DIR, by its completion mark (runs.json "complete"): FolderNotReady for an unfinished
-    one (unless allow_partial); the warnings to print (one line each) for a partial or an unmarked one (a folder of
-    stereodyn 0.2.0, which wrote no mark, or tables from elsewhere)."""
+    """Whether a command may read DIR, by its completion mark (runs.json "complete") and its witness (DIR/store/
+    unfinished, UNFINISHED): FolderNotReady for an unfinished one, by either (unless allow_partial); the warnings to
+    print (one line each) for a partial or an unmarked one (a folder of stereodyn 0.2.0, which wrote no mark, or
+    tables from elsewhere)."""
     manifest = read_manifest(out_dir)
     mark = None if manifest is None else manifest.get(COMPLETE)
+    if (Path(out_dir) / STORE_DIR / UNFINISHED).exists():  # runs.json lost, cut or garbled after a kill
+        mark = False
     if mark is True:
         return []
     if mark is False:

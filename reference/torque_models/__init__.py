@@ -19,6 +19,7 @@ import importlib
 import pkgutil
 from importlib.metadata import entry_points
 
+from .. import plugins
 from .base import TORQUES, At, TorqueModel, merged, models, ordered, register  # noqa: F401
 from .body_torque import BodyTorque, body_torque_components  # noqa: F401
 from .central_field import CentralField, gravity_gradient_components  # noqa: F401
@@ -37,10 +38,10 @@ class TorqueModelError(ImportError):
 
 def load_plugins() -> None:
     """Import every module named under ENTRY_POINT_GROUP (each registers its models; importing again is a no-op);
-    TorqueModelError naming the plug-in when one does not import. The case parser calls it before reading a file."""
+    TorqueModelError naming the plug-in when one does not import (reference.plugins' guard: any Exception or
+    SystemExit). The case parser calls it before reading a file."""
     for entry in entry_points(group=ENTRY_POINT_GROUP):
         try:
-            entry.load()
-        except Exception as exc:  # a plug-in's own bug: name it, never a traceback from inside the parser
-            raise TorqueModelError(f"torque model plug-in {entry.name} ({entry.value}) does not import: "
-                                   f"{type(exc).__name__}: {exc}") from None
+            plugins.load(entry, "torque model plug-in")
+        except plugins.PluginError as exc:  # a plug-in's own bug: name it, never a traceback from inside the parser
+            raise TorqueModelError(str(exc)) from None

@@ -1,0 +1,99 @@
+"""The one guard around another distribution's code (DESIGN §7): loading a plug-in's entry point (engines,
+integrators, torque models, report sections) or calling one of its hooks (a torque model's parse, an engine's
+integrators()).
+
+Whatever the plug-in raises, any Exception and SystemExit too (a plug-in calling sys.exit(3) at import must not end
+the command with code 3 and nothing said), becomes PluginError: one line naming the plug-in (its entry point and
+distribution) and the error; each registry turns it into that plug-in's unavailability, or bad input. KeyboardInterrupt
+is never caught, nor an ImportError an extension module's init raised from one: Ctrl-C stays Ctrl-C. Here, in the bottom
+layer, because reference/ (torque models) may not import harness/ and harness/ imports reference/.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import warnings
+from contextlib import contextmanager
+from typing import Any, Iterator
+
+
+class PluginError(Exception):
+    """A plug-in's code failed. str(): `WHERE: TYPE: MESSAGE`, one line; error: what it raised."""
+
+    def __init__(self, where: str, error: BaseException):
+        self.where, self.error = where, error
+        text = str(error).strip().splitlines()
+        super().__init__(f"{where}: {type(error).__name__}" + (f": {text[0]}" if text else ""))
+
+    @property
+    def missing(self) -> bool:
+        """Whether it is an ImportError: a module (an SDK) that is not installed, not a broken plug-in."""
+        return isinstance(self.error, ImportError)
+
+
+class PluginWarning(UserWarning):
+    """A plug-in left out (it does not load, or claims a name already taken); the command line prints it as one
+    line."""
+
+
+def interrupted(exc: BaseException | None) -> bool:
+    """Whether a KeyboardInterrupt is among the causes of exc (an extension module's init wraps it in ImportError)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+@contextmanager
+def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
+    """Run a plug-in's code: PluginError(where, error) for any Exception or SystemExit it raises, except the types in
+    `passing` (a hook's own way to refuse input, e.g. a case file's error), which go through unchanged."""
+    try:
+        yield
+    except passing:
+        raise
+    except (Exception, SystemExit) as exc:
+        if interrupted(exc):  # not the plug-in's failure: Ctrl-C while it loaded
+            raise KeyboardInterrupt from exc
+        raise PluginError(where, exc) from exc
+
+
+def describe(entry: Any, what: str) -> str:
+    """`WHAT 'NAME' (VALUE, distribution DIST VERSION)` for an entry point (the distribution where it has one)."""
+    dist = getattr(entry, "dist", None)
+    origin = ""
+    if dist is not None:
+        name = dist.metadata["Name"] or ""
+        origin = f", distribution {name} {dist.version or ''}".rstrip() if name else ""
+    return f"{what} {getattr(entry, 'name', '?')!r} ({getattr(entry, 'value', '?')}{origin})"
+
+
+def own(obj: Any) -> bool:
+    """Whether a class (or function) is stereodyn's own: its bugs are ours, a traceback, never a plug-in's failure."""
+    return getattr(obj, "__module__", "").split(".")[0] == "stereodyn"
+
+
+def describe_class(cls: type, what: str) -> str:
+    """`WHAT (MODULE.CLASS, distribution DIST)` for a class a plug-in registered (its distribution where the installed
+    ones name its top-level module)."""
+    from importlib.metadata import packages_distributions
+
+    module = getattr(cls, "__module__", "?")
+    dists = packages_distributions().get(module.split(".")[0], [])
+    return f"{what} ({module}.{getattr(cls, '__qualname__', '?')}" + (
+        f", distribution {', '.join(dict.fromkeys(dists))})" if dists else ")")
+
+
+def load(entry: Any, what: str) -> Any:
+    """entry.load() behind the guard: PluginError `WHAT 'NAME' (VALUE, distribution ...) does not load: ...`."""
+    with guard(f"{describe(entry, what)} does not load"):
+        return entry.load()
+
+
+def warn(message: str) -> None:
+    """A PluginWarning, said once by the command: a pool's worker process (which loads the same plug-ins) stays
+    quiet."""
+    if multiprocessing.parent_process() is None:
+        warnings.warn(message, PluginWarning, stacklevel=2)
