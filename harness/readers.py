@@ -2,11 +2,14 @@
 baselines (JSON). Whatever a file holds, reading it ends in its value or in a ReadError (one line, the rule): a file
 larger than its limit (/dev/zero as a case file read without end), nesting deeper than the parser's stack (a
 runs.json of 100,000 brackets: RecursionError), an integer longer than Python converts (5,000 digits: ValueError)
-are all ReadErrors, never a traceback. Callers name the file (docs/limits.md, "Files stereodyn reads back").
+are all ReadErrors, never a traceback. Only a regular file is read: a FIFO would block its reader until a writer
+came, a device read without end. Callers name the file (docs/limits.md, "Files stereodyn reads back").
 """
 from __future__ import annotations
 
 import json
+import os
+import stat
 import sys
 import tomllib
 from pathlib import Path
@@ -24,9 +27,33 @@ class ReadError(ValueError):
     """A file that cannot be read as what it should be; str() is the rule, without the file's name."""
 
 
+def kind(mode: int) -> str:
+    """What a file of this st_mode is, in words ("a regular file", "a FIFO", ...)."""
+    for test, name in ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symbolic link")):
+        if test(mode):
+            return name
+    return "a special file"
+
+
+def must_be_regular(path: str | Path) -> None:
+    """ReadError unless path is a regular file (or a link to one): checked before opening, since opening a FIFO
+    blocks until a writer opens it. OSError (FileNotFoundError, ...) when it cannot be looked up."""
+    mode = os.stat(path).st_mode
+    if not stat.S_ISREG(mode):
+        raise ReadError(f"not a regular file ({kind(mode)})")
+
+
 def read_bytes(path: str | Path, limit: int) -> bytes:
-    """The file's bytes, reading at most limit + 1 of them (a device or a growing file never reads without end)."""
-    with open(path, "rb") as handle:
+    """The bytes of a regular file (ReadError for a FIFO, a device, a folder), reading at most limit + 1 of them (a
+    growing file never reads without end)."""
+    must_be_regular(path)
+    # Non-blocking: a path swapped for a FIFO after the check still opens at once, and fstat refuses it.
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    with open(fd, "rb") as handle:
+        if not stat.S_ISREG(mode := os.fstat(fd).st_mode):
+            raise ReadError(f"not a regular file ({kind(mode)})")
         raw = handle.read(limit + 1)
     if len(raw) > limit:
         raise ReadError(f"larger than {limit} bytes (docs/limits.md)")

@@ -342,11 +342,22 @@ def _cell(lines, row: int, column: str, value: str):
     (lambda lines: _cell(lines, 1, "attitude_err", "inf"), ("row 1, column attitude_err", "finite")),
     (lambda lines: _cell(lines, 1, "us_per_step", "-inf"), ("row 1, column us_per_step", "finite")),
     (lambda lines: _cell(lines, 1, "case", ""), ("row 1, column case", "empty")),
+    # issue 28: a step that is not finite, a row naming no engine, a row twice, a negative number
+    (lambda lines: _cell(lines, 1, "dt", "inf"), ("row 1, column dt", "'inf': must be finite")),
+    (lambda lines: _cell(lines, 1, "dt", "-inf"), ("row 1, column dt", "'-inf': must be finite")),
+    (lambda lines: _cell(lines, 1, "dt", "0"), ("row 1, column dt", "must be > 0")),
+    (lambda lines: _cell(lines, 1, "engine", ""), ("row 1, column engine", "empty")),
+    (lambda lines: lines + [lines[1]], ("duplicate key case=", "(also row 1)", "one row per key")),
+    (lambda lines: _cell(lines, 1, "energy_drift", "-1"), ("row 1, column energy_drift", "'-1': must be >= 0")),
+    # wall_s -1 drew matplotlib's UserWarning five times in `report`; a negative timing is bad input
+    (lambda lines: _cell(lines, 1, "wall_s", "-1"), ("row 1, column wall_s", "must be >= 0")),
+    (lambda lines: _cell(lines, 1, "steps", "-3"), ("row 1, column steps", "must be >= 0")),
     (lambda lines: lines[:1] + [lines[1].rstrip("\n") + ",extra\n"] + lines[1:], ("row 1:", "the header has")),
     (lambda lines: lines + [lines[1][: len(lines[1]) // 2] + "\n"], ("row 2:", "truncated")),
     (lambda lines: lines[:1], ("no rows",)),
 ])
 def test_a_malformed_results_table_is_refused_by_every_reader(good, tmp_path, capsys, edit, expected):
+    """check, baseline, compare and report each exit 2 with one line (report's stderr no warning either)."""
     folder = _copy(good[0], tmp_path / "bad")
     _rewrite(folder / "results.csv", edit)
     capsys.readouterr()
@@ -399,9 +410,9 @@ def test_hostile_case_and_tolerance_files_are_one_line(good, tmp_path, capsys):
     nested.write_text(BASE + "x = " + "[" * 100_000 + "]" * 100_000 + "\n")
     one_line_error(cli.main(["run", "--case-file", str(nested), "--out", str(tmp_path / "o"), *FAST]), capsys,
               str(nested), "nested too deep")
-    if Path("/dev/zero").exists():  # read without end in 0.2.0 (MemoryError)
+    if Path("/dev/zero").exists():  # read without end in 0.2.0 (MemoryError); not a regular file (issue 28)
         one_line_error(cli.main(["run", "--case-file", "/dev/zero", "--out", str(tmp_path / "o"), *FAST]), capsys,
-                  "/dev/zero", "larger than")
+                  "/dev/zero", "not a regular file (a character device)")
     tolerances = tmp_path / "tolerances.toml"
     tolerances.write_text(f"[default]\nfactor = {huge}\n")
     one_line_error(cli.main(["check", str(good[0]), "--baseline", str(good[1]), "--tolerances", str(tolerances)]),
@@ -572,3 +583,202 @@ def test_the_gate_races_a_sweep(good, tmp_path):
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
     assert cli.main(["baseline", str(out), "--out", str(tmp_path / "b.json")]) == 0
+
+
+# --- inputs read strictly, outputs written safely (issue 28)
+
+def _baseline_edited(good, tmp_path: Path, edit) -> Path:
+    import json
+
+    data = json.loads(good[1].read_text())
+    edit(data)
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+def _set(key: str, value):
+    return lambda data: data["rows"][0].__setitem__(key, value)
+
+
+ORDER = {"case": "base", "engine": "mujoco", "formulation": "", "integrator": "rk4", "precision": "float64",
+         "fitted": 4.0, "declared": 4.0}
+
+
+@pytest.mark.parametrize("edit, expected", [
+    # S1: 0.2.0's check passed these ("check passed: 19 baseline rows, none worse") against rows that all failed
+    (_set("status", "OK"), ("rows[0].status", "'OK' is not a status (ok, diverged, failed, skipped)")),
+    (_set("status", "ok "), ("rows[0].status", "'ok ' is not a status")),
+    (_set("status", "bogus"), ("rows[0].status", "'bogus' is not a status")),
+    # S3: a row twice (the baseline of a table with a row twice held 20 rows for 19 keys)
+    (lambda data: data["rows"].append(dict(data["rows"][0])), ("rows[1]: duplicate key case=base engine=mujoco",
+                                                               "(also rows[0])", "one row per key")),
+    (lambda data: data.__setitem__("orders", [ORDER, dict(ORDER)]), ("orders[1]: duplicate key case=base",
+                                                                     "(also orders[0])")),
+    # W4: energy_drift -1 was reported as a regression "up to inf"
+    (_set("energy_drift", -1), ("rows[0].energy_drift", "must be >= 0, got -1")),
+    (_set("attitude_err", -1e-9), ("rows[0].attitude_err", "must be >= 0")),
+    (_set("us_per_step", -2.0), ("rows[0].us_per_step", "must be >= 0")),
+    (_set("dt", -0.01), ("rows[0].dt", "must be > 0")),
+    # metric names: one the results table does not have
+    (_set("nosuch_err", 1e-3), ("rows[0].nosuch_err", "not a metric of the results table", "attitude_err")),
+    (_set("colour", "red"), ("rows[0].colour", "unknown key")),
+    (_set("engine", ""), ("rows[0].engine", "empty")),
+])
+def test_a_baseline_is_read_as_strictly_as_a_results_table(good, tmp_path, capsys, edit, expected):
+    path = _baseline_edited(good, tmp_path, edit)
+    capsys.readouterr()
+    one_line_error(cli.main(["check", str(good[0]), "--baseline", str(path)]), capsys, str(path), *expected)
+    one_line_error(cli.main(["compare", str(path), str(good[0]), "--out", str(tmp_path / "cmp")]), capsys, str(path),
+                   *expected)
+
+
+def test_a_baseline_whose_statuses_are_not_exact_never_passes_a_failed_folder(good, tmp_path, capsys):
+    """S1 as the attack found it: every row went from ok to failed, and the baseline spells ok "OK"."""
+    folder = _copy(good[0], tmp_path / "failed")
+    _rewrite(folder / "results.csv", lambda lines: [lines[0]] + [_cell([lines[0], line], 1, "status", "failed")[1]
+                                                                  for line in lines[1:]])
+    assert cli.main(["check", str(folder), "--baseline", str(good[1])]) == 1  # the exact baseline: check fails
+    capsys.readouterr()
+    spelled = _baseline_edited(good, tmp_path, lambda data: [row.__setitem__("status", "OK") for row in data["rows"]])
+    one_line_error(cli.main(["check", str(folder), "--baseline", str(spelled)]), capsys, str(spelled), "status")
+
+
+def _cut_mid_row(path: Path, rows: str | None = None) -> None:
+    """The table (or a header and rows from elsewhere) with its last row cut in its middle, as a full disk or a copy
+    interrupted leaves it."""
+    text = path.read_text() if rows is None else rows
+    lines = text.splitlines(keepends=True)
+    assert len(lines) >= 2, path
+    path.write_text("".join(lines[:-1]) + lines[-1][: len(lines[-1]) // 2])
+
+
+@pytest.mark.parametrize("name", ["pareto.csv", "checks.csv", "convergence.csv", "advice.csv", "ladder.csv",
+                                  "tolerance_fit.csv", "agreement.csv"])
+def test_a_table_cut_mid_row_is_refused_by_report(good, tmp_path, capsys, name):
+    """S4: a pareto.csv cut mid-row made `report` drop MuJoCo's "What to use" table and exit 0. Tables the small
+    sweep writes without rows get the default report's header and first rows, cut."""
+    folder = _copy(good[0], tmp_path / "cut")
+    own = (folder / name).read_text() if (folder / name).exists() else ""
+    if own.count("\n") >= 2:
+        _cut_mid_row(folder / name)
+    else:
+        _cut_mid_row(folder / name, "".join((REPORTS / "default" / name).read_text().splitlines(keepends=True)[:3]))
+    capsys.readouterr()
+    one_line_error(cli.main(["report", str(folder)]), capsys, str(folder / name), "row")
+
+
+def test_a_convergence_table_cut_mid_row_is_refused_by_check(good, tmp_path, capsys):
+    folder = _copy(good[0], tmp_path / "cut")
+    _cut_mid_row(folder / "convergence.csv",
+                 "".join((REPORTS / "default" / "convergence.csv").read_text().splitlines(keepends=True)[:3]))
+    with_orders = _baseline_edited(good, tmp_path, lambda data: data.__setitem__("orders", [ORDER]))
+    capsys.readouterr()
+    one_line_error(cli.main(["check", str(folder), "--baseline", str(with_orders)]), capsys,
+                   str(folder / "convergence.csv"), "row 2")
+
+
+def _no_writes(monkeypatch) -> list:
+    """Every atomic write recorded and refused: a test of a refusal never replaces what it points at (as root,
+    0.2.0 replaced /dev/null by a regular file)."""
+    from stereodyn.harness import atomic
+    from stereodyn.harness.analysis import gate
+    from stereodyn.harness.run import results
+
+    written = []
+
+    def refuse(path, text):
+        written.append(path)
+        raise AssertionError(f"wrote {path}")
+    for module in (atomic, results, gate):
+        monkeypatch.setattr(module, "write_atomic", refuse)
+    return written
+
+
+def _special_paths(tmp_path: Path) -> list[Path]:
+    """A FIFO, a symbolic link to a regular file, a dangling one, and a character device (/dev/null)."""
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "target").write_text("kept")
+    (tmp_path / "link").symlink_to(tmp_path / "target")
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    return [tmp_path / "fifo", tmp_path / "link", tmp_path / "dangling"] + \
+        ([Path("/dev/null")] if Path("/dev/null").exists() else [])
+
+
+def test_out_refuses_anything_but_a_regular_file_or_a_new_path(good, tmp_path, monkeypatch, capsys):
+    """S2: `baseline --out` and `export --out` at a device, a FIFO or a symbolic link replaced it and said "wrote";
+    now exit 2 with one line, before any write."""
+    special = _special_paths(tmp_path)
+    modes = {path: os.lstat(path).st_mode for path in special}
+    written = _no_writes(monkeypatch)
+    capsys.readouterr()
+    for path in special:
+        for argv in (["export", str(good[2]), "--format", "mjcf", "--out", str(path)],
+                     ["baseline", str(good[0]), "--out", str(path)]):
+            one_line_error(cli.main(argv), capsys, "--out", str(path), "not a regular file")
+        assert os.lstat(path).st_mode == modes[path], path
+    assert written == [] and (tmp_path / "target").read_text() == "kept"
+
+
+def test_out_writes_a_regular_file_or_a_new_path(good, tmp_path, capsys):
+    existing = tmp_path / "model.xml"
+    existing.write_text("old")
+    for path in (existing, tmp_path / "new.xml"):
+        assert cli.main(["export", str(good[2]), "--format", "mjcf", "--out", str(path)]) == 0
+        assert path.read_text().lstrip().startswith("<mujoco")
+    assert cli.main(["baseline", str(good[0]), "--out", str(existing)]) == 0
+    assert '"format": "stereodyn-baseline/1"' in existing.read_text()
+
+
+class _Unblocking:
+    """While a command runs: should anything open the FIFO to read it (0.2.0 did, and waited for a writer forever),
+    open it for writing and close it at once, so the reader reads an empty file and the test fails on its message
+    instead of hanging. A FIFO no one reads is never touched (opening it for writing fails: no reader)."""
+
+    def __init__(self, fifo: Path):
+        import threading
+
+        self.fifo, self.done = fifo, threading.Event()
+        self.thread = threading.Thread(target=self._watch, daemon=True)
+
+    def _watch(self) -> None:
+        while not self.done.is_set():
+            try:
+                fd = os.open(self.fifo, os.O_WRONLY | os.O_NONBLOCK)
+            except OSError:  # no reader
+                self.done.wait(0.05)
+                continue
+            os.close(fd)
+
+    def __enter__(self):
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.done.set()
+        self.thread.join()
+
+
+def test_a_fifo_given_as_an_input_is_refused_without_blocking(good, tmp_path, capsys):
+    """H1: a FIFO as a case file, baseline, tolerance file or export input blocked forever; now one line naming it."""
+    fifo = tmp_path / "input.toml"
+    os.mkfifo(fifo)
+    capsys.readouterr()
+    for argv in (["run", "--case-file", str(fifo), "--out", str(tmp_path / "o"), *FAST],
+                 ["export", str(fifo), "--format", "mjcf"],
+                 ["check", str(good[0]), "--baseline", str(fifo)],
+                 ["check", str(good[0]), "--baseline", str(good[1]), "--tolerances", str(fifo)]):
+        with _Unblocking(fifo):
+            one_line_error(cli.main(argv), capsys, str(fifo), "not a regular file (a FIFO)")
+
+
+@pytest.mark.parametrize("name", ["results.csv", "pareto.csv"])
+def test_a_fifo_in_a_result_folder_is_refused_without_blocking(good, tmp_path, capsys, name):
+    folder = _copy(good[0], tmp_path / "fifo")
+    (folder / name).unlink()
+    os.mkfifo(folder / name)
+    capsys.readouterr()
+    commands = _reads(folder, good[1], good[0], tmp_path) if name == "results.csv" else [["report", str(folder)]]
+    for argv in commands:
+        with _Unblocking(folder / name):
+            one_line_error(cli.main(argv), capsys, str(folder / name), "not a regular file (a FIFO)")

@@ -140,6 +140,9 @@ def test_the_floor_absorbs_round_off_and_the_factor_is_configurable(baseline, tm
 @pytest.mark.parametrize("text, expected", [
     ("[default]\nfactor = 0.5\n", "default.factor"),
     ("[metric.wall_s]\nfactor = 3.0\n", "metric.wall_s"),
+    # S5 (issue 28): a table for a metric that does not exist was applied to nothing
+    ("[metric.nosuch_err]\nfactor = 3.0\n", "metric.nosuch_err: not a metric of the results table (valid: "
+                                              "energy_drift, "),
     ("[limits]\n", "limits: unknown key"),
     ("[default\n", "invalid TOML"),
 ])

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..engines.base import FLOAT64
-from ..run.results import write_atomic
+from ..run.results import read_csv_table, write_atomic
 from ..scenes.metrics import errors
 from ..trajectory import Trajectory
 
@@ -59,10 +59,10 @@ def write(out_dir: Path, entries: list[dict]) -> Path:
 def read(out_dir: Path) -> pd.DataFrame | None:
     """DIR/agreement.csv, or None where the run wrote none."""
     path = Path(out_dir) / AGREEMENT_FILE
-    if not path.is_file():
+    if not path.exists():
         return None
     text = {f"{c}_{s}": str for c in RUN for s in "ab"}
-    df = pd.read_csv(path, dtype={**text, "case": str, "method": str}, keep_default_na=True)
+    df = read_csv_table(path, dtype={**text, "case": str, "method": str}, keep_default_na=True)
     return df.fillna({c: FLOAT64 if c.startswith("precision") else "" for c in text})
 
 

@@ -26,10 +26,11 @@ import pandas as pd
 
 from ..engines.base import FLOAT64
 from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
-from ..run.results import METRIC_SUFFIXES, TableError, read_results, with_precision, write_atomic
+from ..run.results import (KEY, METRIC_SUFFIXES, NAMED, STATUSES, TableError, describe_key, dt_key, duplicate,
+                           metric_names, read_csv_table, read_results, sign_rule, with_precision, write_atomic)
 
-# precision: a baseline or table of stereodyn 0.2.0 has none, and its runs were float64.
-KEY = ("case", "engine", "formulation", "integrator", "precision", "dt")
+# KEY: (case, engine, formulation, integrator, precision, dt); precision: a baseline or table of stereodyn 0.2.0 has
+# none, and its runs were float64.
 STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
 BASELINE_FORMAT = "stereodyn-baseline/1"  # "orders" (the fitted convergence orders) is optional: older files lack it
 CONVERGENCE_FILE = "convergence.csv"  # written by harness.analysis.workprecision
@@ -93,12 +94,7 @@ def metric_columns(columns) -> list[str]:
     return [c for c in columns if c.endswith(METRIC_SUFFIXES)]
 
 
-def _dt_key(value) -> str:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        return ""
-    return "" if math.isnan(value) else f"{value:.10g}"
+_dt_key = dt_key
 
 
 def _key(row: dict) -> tuple:
@@ -128,7 +124,7 @@ def read_table(results_dir: Path, required: tuple = (*KEY, "status")) -> pd.Data
     """DIR/results.csv; GateError (one line naming the file) when it is absent, empty, undecodable, has no rows or
     lacks one of the required columns."""
     path = Path(results_dir) / "results.csv"
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a device exists: read_results refuses it, naming what it is
         raise GateError(f"{path}: file not found")
     try:
         df = read_results(path)
@@ -151,16 +147,12 @@ def read_table(results_dir: Path, required: tuple = (*KEY, "status")) -> pd.Data
 def read_orders(results_dir: Path) -> pd.DataFrame | None:
     """DIR/convergence.csv (the fitted orders), or None when the run wrote none."""
     path = Path(results_dir) / CONVERGENCE_FILE
-    if not path.is_file():
+    if not path.exists():
         return None
-    try:
-        df = pd.read_csv(path, keep_default_na=True, dtype={"formulation": str, "integrator": str})
-    except pd.errors.EmptyDataError:
-        raise GateError(f"{path}: empty file (not a convergence table)") from None
-    except UnicodeDecodeError as exc:
-        raise GateError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise GateError(f"{path}: not a convergence table ({' '.join(str(exc).split())})") from None
+    try:  # a file cut mid-row, a FIFO, garbage: one line naming it
+        df = read_csv_table(path, keep_default_na=True, dtype={"formulation": str, "integrator": str})
+    except TableError as exc:
+        raise GateError(str(exc)) from None
     missing = [column for column in (*ORDER_KEY, "order") if column not in df.columns and column != "precision"]
     if missing:
         raise GateError(f"{path}: missing columns {', '.join(missing)} (not a stereodyn convergence table)")
@@ -234,8 +226,36 @@ def _validate_rows(path: Path, name: str, rows, required: tuple, text: tuple, nu
                 raise GateError(f"{where}.{key}: must be finite, got {value}")
 
 
+def _check_rows(path: Path, rows: list[dict]) -> None:
+    """What read_results asks of a results table, asked of a baseline's rows: a case and an engine named, a status of
+    STATUSES exactly, no metric (nor timing) negative and a dt > 0, only the keys write_baseline writes (a metric the
+    table has), one row per KEY."""
+    metrics = metric_names()
+    allowed = (*KEY, "status", "us_per_step")
+    for index, row in enumerate(rows):
+        where = f"{path}: rows[{index}]"
+        for key, value in row.items():
+            if key.endswith(METRIC_SUFFIXES) and key not in metrics:
+                raise GateError(f"{where}.{key}: not a metric of the results table (valid: {', '.join(metrics)})")
+            if not key.endswith(METRIC_SUFFIXES) and key not in allowed:
+                raise GateError(f"{where}.{key}: unknown key (allowed: {', '.join(allowed)} and the metrics)")
+            rule = None if value is None or isinstance(value, str) else sign_rule(key, value)
+            if rule:
+                raise GateError(f"{where}.{key}: {rule}, got {value}")
+        for key in NAMED:
+            if not row[key].strip():
+                raise GateError(f"{where}.{key}: empty")
+        if row["status"] not in STATUSES:
+            raise GateError(f"{where}.status: {row['status'][:40]!r} is not a status ({', '.join(STATUSES)})")
+    twice = duplicate([_key(row) for row in rows])
+    if twice:
+        raise GateError(f"{path}: rows[{twice[1]}]: duplicate key {describe_key(_key(rows[twice[1]]))} (also "
+                        f"rows[{twice[0]}]): one row per key")
+
+
 def read_baseline_file(path: Path) -> Baseline:
-    """A baseline file, validated: GateError (one line naming the file, the entry and the rule) on anything else."""
+    """A baseline file, validated as strictly as read_results reads a results table: GateError (one line naming the
+    file, the entry and the rule) on anything else."""
     try:
         data = read_json(path, MAX_BASELINE_BYTES)
     except FileNotFoundError:
@@ -252,10 +272,15 @@ def read_baseline_file(path: Path) -> Baseline:
     _validate_rows(path, "rows", rows, ("case", "engine", "integrator", "status"),
                    ("case", "engine", "formulation", "integrator", "precision", "status"),
                    lambda key: key.endswith(METRIC_SUFFIXES) or key in ("dt", "us_per_step"))
+    _check_rows(path, rows)
     if not isinstance(orders, list):
         raise GateError(f"{path}: orders: must be a list")
     _validate_rows(path, "orders", orders, (*ORDER_KEY[:4], "fitted"), ORDER_KEY,
                    lambda key: key in ("fitted", "declared"))
+    twice = duplicate([_order_key(row) for row in orders])
+    if twice:
+        raise GateError(f"{path}: orders[{twice[1]}]: duplicate key {describe_key(_order_key(orders[twice[1]]))} "
+                        f"(also orders[{twice[0]}]): one fitted order per run family")
     if not isinstance(environment, dict):
         raise GateError(f"{path}: environment: must be an object")
     return Baseline(rows, environment, orders)
@@ -297,8 +322,9 @@ def read_tolerances(path: Path, base: Tolerances = Tolerances()) -> Tolerances:
         raise GateError(f"{path}: metric: must be a table of tables")
     per_metric = dict(base.per_metric)
     for name, table in metrics.items():
-        if not name.endswith(METRIC_SUFFIXES):
-            raise GateError(f"{path}: metric.{name}: not a drift or error column (*_drift, *_err, *_err_end)")
+        if name not in metric_names():  # a table for no metric would be applied to nothing
+            raise GateError(f"{path}: metric.{name}: not a metric of the results table (valid: "
+                            f"{', '.join(metric_names())})")
         per_metric[name] = tolerance(table, f"metric.{name}", default)
     time_factor = base.time_factor
     if "time" in data:

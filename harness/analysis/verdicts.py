@@ -32,7 +32,7 @@ import pandas as pd
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
 from .fitting import FIRST_PART, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
 from ..scenes.metrics import DRIFT_COLUMNS
-from ..run.results import with_precision, write_atomic
+from ..run.results import read_csv_table, with_precision, write_atomic
 from ..run.processes import raise_unless_data
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
 from ..engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
@@ -351,9 +351,9 @@ def write(verdicts: list[Verdict], path: Path) -> None:
 
 def read(out_dir: Path) -> list[Verdict] | None:
     path = Path(out_dir) / VERDICTS_FILE
-    if not path.is_file():
+    if not path.exists():
         return None
-    df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    df = read_csv_table(path, dtype=str, keep_default_na=False)
     return [Verdict(**{c: row.get(c, "") for c in COLUMNS}) for _, row in df.iterrows()]  # 0.2.0: no precision
 
 

@@ -31,7 +31,7 @@ from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, decla
                       pareto_table, sweep_orders, tolerance_fits, with_state_err)
 from ..engines.base import FLOAT64
 from ..run.plan import Selection
-from ..run.results import with_precision, write_atomic
+from ..run.results import read_csv_table, with_precision, write_atomic
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -249,7 +249,9 @@ def _advice(results: pd.DataFrame, chosen: list[Family], adaptive: list[Family],
 # ------------------------------------------------------------------------------------------------ the report
 
 def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) -> pd.DataFrame | None:
-    if not Path(path).is_file():
+    """A table this module wrote, or None where the run wrote none; TableError (one line naming the file) for one cut
+    mid-row, not a regular file or not CSV: never a table silently short of rows."""
+    if not Path(path).exists():
         return None
-    df = pd.read_csv(path, dtype={c: str for c in text_columns}, keep_default_na=True)
+    df = read_csv_table(path, dtype={c: str for c in text_columns}, keep_default_na=True)
     return df.fillna({c: "" for c in text_columns if c in df})

@@ -288,10 +288,22 @@ def output_folder(path: Path, option: str) -> Path:
 
 
 def output_file(path: Path, option: str) -> Path:
-    """A file to write: its folder must exist and be writable, and the path not be a folder."""
+    """A file to write: a regular file or a new path (the write replaces the path by a rename: a device node, a FIFO
+    or a symbolic link would be replaced, not written through), in a folder that exists and is writable. Checked
+    before anything is written, even a probe."""
+    import stat
+
+    from ..readers import kind
+
     folder = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
         raise BadInput(f"{option} {path}: is a folder, not a file")
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:  # absent (a new path), or its folder is not one: said below
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
+        raise BadInput(f"{option} {path}: is {kind(mode)}, not a regular file (give a regular file or a new path)")
     if not folder.is_dir():
         raise BadInput(f"{option} {path}: folder {folder} does not exist")
     try:

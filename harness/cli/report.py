@@ -11,7 +11,7 @@ def main(args) -> int:
     from ..run.store import completeness, folder_lock
 
     results = args.dir / "results.csv"
-    if not results.is_file():
+    if not results.exists():  # a FIFO or a device is refused by read_results, naming what it is
         raise BadInput(f"{results}: file not found")
     output_folder(args.dir, "report DIR")
     with folder_lock(args.dir):

@@ -25,7 +25,7 @@ from . import sections
 from . import agreement, method, verdicts, workprecision as work_precision_sections  # noqa: F401
 from .markdown import markdown_table as _md_table, number as _num
 from ..run.processes import exit_with_parent
-from ..run.results import read_results, write_atomic
+from ..run.results import read_csv_table, read_results, write_atomic
 from ..run.store import read_manifest, read_records
 
 FIGURES_DIR = "figures"
@@ -182,7 +182,7 @@ def checks_lines(df: pd.DataFrame, out_dir: Path) -> list[str]:
     lines = ["## Oracle and theory checks", ""]
     checks_path = Path(out_dir) / "checks.csv"
     if checks_path.is_file():
-        checks = pd.read_csv(checks_path, dtype={"formulation": str}, keep_default_na=True)
+        checks = read_csv_table(checks_path, dtype={"formulation": str}, keep_default_na=True)
         missing = [c for c in CHECKS_COLUMNS if c not in checks]
         if not missing and checks.empty:
             lines += ["checks.csv has no rows: no case of this sweep has a check against theory.", ""]

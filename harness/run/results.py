@@ -2,7 +2,6 @@
 interrupted run loses nothing written."""
 from __future__ import annotations
 
-import csv
 import math
 from pathlib import Path
 
@@ -10,7 +9,7 @@ import pandas as pd
 
 from ..atomic import write_atomic  # noqa: F401 (imported from here too)
 from ..precision import FLOAT64
-from ..readers import MAX_TABLE_BYTES
+from ..tables import TableError, read_csv_table  # noqa: F401 (imported from here too)
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
@@ -43,28 +42,7 @@ def write_results(df: pd.DataFrame, path: Path) -> None:
     write_atomic(path, df.to_csv(index=False, float_format="%.10g"))
 
 
-class TableError(ValueError):
-    """A table file that is not what stereodyn writes (empty, not CSV, columns missing): one line, exit 2."""
-
-
 REQUIRED_COLUMNS = ("case", "engine", "integrator", "status")
-
-
-def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.DataFrame:
-    """pd.read_csv, with every way a file can be malformed (empty, garbage, a required column missing) a TableError
-    naming the file."""
-    try:
-        df = pd.read_csv(path, **options)
-    except pd.errors.EmptyDataError:
-        raise TableError(f"{path}: empty file (not a table)") from None
-    except UnicodeDecodeError as exc:
-        raise TableError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except (pd.errors.ParserError, ValueError) as exc:
-        raise TableError(f"{path}: malformed table: {' '.join(str(exc).split())[:200]}") from None
-    missing = [c for c in required if c not in df.columns]
-    if missing:
-        raise TableError(f"{path}: missing columns {', '.join(missing)} (not a stereodyn table)")
-    return df
 
 
 def with_precision(df: pd.DataFrame) -> pd.DataFrame:
@@ -80,25 +58,62 @@ NAMED = ("case", "engine")  # never empty (the integrator is, on a skipped row o
 # and the step of a row's key: finite or empty. Elsewhere a number may be inf (as the store writes it).
 METRIC_SUFFIXES = ("_drift", "_err", "_err_end")
 FINITE = ("dt", "us_per_step")
+# Numbers that are sizes, counts or durations (every metric is a max of norms or absolute values): never negative, a
+# step never 0 either. A negative one is a hand-edited or foreign table (wall_s -1 drew matplotlib warnings).
+NON_NEGATIVE = ("t_end", "steps", "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s",
+                "chart_changes")
+POSITIVE = ("dt",)
 STATUSES = ("ok", "diverged", "failed", "skipped")  # trajectory.Status
+# A row's identity (the gate's, compare's and the store's): one row per key in a table or a baseline.
+KEY = ("case", "engine", "formulation", "integrator", "precision", "dt")
+
+
+def metric_names() -> list[str]:
+    """The drift and error columns of the results table: the names a baseline or a tolerance file may use."""
+    return [c for c in COLUMNS if c.endswith(METRIC_SUFFIXES)]
+
+
+def dt_key(value) -> str:
+    """A step as a key compares it: 10 significant digits; "" for an adaptive row (no dt)."""
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return ""
+    return "" if math.isnan(value) else f"{value:.10g}"
+
+
+def sign_rule(column: str, value: float) -> str | None:
+    """Why value cannot be in column (negative, or a step of 0), or None."""
+    if column in POSITIVE and value <= 0:
+        return "must be > 0"
+    if (column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES)) and value < 0:
+        return "must be >= 0"
+    return None
+
+
+def duplicate(keys: list[tuple]) -> tuple[int, int] | None:
+    """(first, again): the indices of the first key seen twice, or None."""
+    seen: dict[tuple, int] = {}
+    for index, key in enumerate(keys):
+        if key in seen:
+            return seen[key], index
+        seen[key] = index
+    return None
+
+
+def describe_key(key: tuple) -> str:
+    return " ".join(f"{name}={value}" for name, value in zip(KEY, key))
 
 
 def read_results(path: Path) -> pd.DataFrame:
     """A results.csv, validated: the one reading of the table that `check`, `baseline`, `compare` and `report` share,
     so what one of them refuses the others refuse too. TableError (one line naming the file, and the row and column
-    where there is one: row N counts data rows from 1, the header not counted) when the file is too large, empty, not
-    CSV, has a row of another length than the header (ragged or truncated), lacks case, engine, integrator or status,
-    has no rows, an empty case or engine, a status that is not one of STATUSES, text in a number column, or a
-    non-finite metric, timing or dt. Text columns read as text ("" where empty), the others as numbers (NaN where
-    empty)."""
+    where there is one: row N counts data rows from 1, the header not counted) when the file is not a regular file,
+    too large, empty, not CSV, has a row of another length than the header (ragged or truncated), lacks case, engine,
+    integrator or status, has no rows, an empty case or engine, a status that is not one of STATUSES, text in a
+    number column, a non-finite metric, timing or dt, a negative metric, count or timing (a dt <= 0), or two rows of
+    one KEY. Text columns read as text ("" where empty), the others as numbers (NaN where empty)."""
     path = Path(path)
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise TableError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    if size > MAX_TABLE_BYTES:
-        raise TableError(f"{path}: larger than {MAX_TABLE_BYTES} bytes (docs/limits.md)")
-    _same_length_rows(path)
     df = read_csv_table(path, REQUIRED_COLUMNS, dtype=str, keep_default_na=False, skip_blank_lines=True)
     if df.empty:
         raise TableError(f"{path}: no rows (a header only)")
@@ -124,22 +139,17 @@ def read_results(path: Path) -> pd.DataFrame:
             if len(bad):
                 raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]]!r}: must be finite "
                                  "or empty")
+        if column in POSITIVE or column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES):
+            bad = df.index[values.map(lambda value: sign_rule(column, value) is not None)]
+            if len(bad):
+                raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]][:40]!r}: "
+                                 f"{sign_rule(column, values[bad[0]])}")
         df[column] = values
-    return with_precision(df)  # a results.csv of 0.2.0 has none: float64
-
-
-def _same_length_rows(path: Path) -> None:
-    """Every record has the header's number of fields: pandas fills a short (truncated) row with NaN silently, and
-    names a long one by its line, not its row."""
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            records = (record for record in csv.reader(handle) if record)
-            header = next(records, None)
-            for number, record in enumerate(records, 1):
-                if len(record) != len(header):
-                    raise TableError(f"{path}: row {number}: {len(record)} fields, the header has {len(header)} (a "
-                                     "ragged or truncated row)")
-    except UnicodeDecodeError as exc:
-        raise TableError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except csv.Error as exc:  # a NUL byte, a field larger than csv's limit
-        raise TableError(f"{path}: malformed table: {' '.join(str(exc).split())[:200]}") from None
+    df = with_precision(df)  # a results.csv of 0.2.0 has none: float64
+    dts = df["dt"] if "dt" in df else pd.Series(math.nan, index=df.index)
+    keys = list(zip(df["case"], df["engine"], df["formulation"], df["integrator"], df["precision"], dts.map(dt_key)))
+    twice = duplicate(keys)
+    if twice:
+        raise TableError(f"{path}: row {twice[1] + 1}: duplicate key {describe_key(keys[twice[1]])} (also row "
+                         f"{twice[0] + 1}): one row per key")
+    return df

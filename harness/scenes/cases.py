@@ -188,9 +188,10 @@ def load_suite(directory: str | Path | None = None) -> list[Case]:
 
 
 def find_case(name_or_path: str | Path, suite: Sequence[Case] | None = None) -> Case:
-    """A suite case by name, or the case file at a path (anything ending in .toml, or an existing file)."""
+    """A suite case by name, or the case file at a path (anything ending in .toml, or anything but a folder there: a
+    FIFO is refused by load_case, not taken for a name)."""
     candidate = Path(name_or_path)
-    if candidate.suffix == ".toml" or candidate.is_file():
+    if candidate.suffix == ".toml" or (candidate.exists() and not candidate.is_dir()):
         return load_case(candidate)
     suite = load_suite() if suite is None else suite
     for case in suite:

@@ -28,6 +28,7 @@ from scipy.optimize import brentq
 from .cases import Case
 from ..atomic import write_atomic
 from ..errors import raise_if_internal
+from ..tables import read_csv_table
 from ..trajectory import Status, Trajectory
 from ..precision import FLOAT64
 from ...reference.exact import ORACLES, free_motion, lagrange_rates, lyapunov_exponent
@@ -411,7 +412,7 @@ def write_checks(rows: list[dict], path: Path) -> None:
 
 
 def read_checks(path: Path) -> pd.DataFrame:
-    df = pd.read_csv(path, dtype={"formulation": str, "precision": str}, keep_default_na=True)
+    df = read_csv_table(path, dtype={"formulation": str, "precision": str}, keep_default_na=True)
     if "precision" not in df:  # a checks.csv of 0.2.0: float64 runs
         df["precision"] = FLOAT64
     return df.fillna({"formulation": "", "precision": FLOAT64})
