@@ -19,6 +19,7 @@ not a time.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import threading
 import time
 from collections import deque
@@ -239,7 +240,10 @@ def _serve(conn, initializer, initargs) -> None:
 
     def send(message) -> None:
         with sending:
-            conn.send(message)
+            try:
+                conn.send(message)
+            except OSError:  # the parent closed its end (the pool was shut down, or it died): nobody listens
+                os._exit(0)
 
     budget.watch(lambda left: send(("deadline", left)))
     send(("ready",))
@@ -248,6 +252,9 @@ def _serve(conn, initializer, initargs) -> None:
             task = conn.recv()
         except (EOFError, OSError):
             return
+        except Exception as exc:  # a task that does not unpickle here (its function's module is not importable)
+            send(("done", False, exc))
+            continue
         if task is None:
             return
         fn, args = task
