@@ -39,9 +39,10 @@ CHECK_EVERY = 256
 
 FLAGS = {"run": "--run-budget", "prepare": "--prepare-budget", "truth": "--truth-budget"}
 # How long past its deadline a pool worker still runs before its parent ends it (grace): a loop that checks stops within
-# milliseconds of the deadline (a look every CHECK_EVERY steps, MuJoCo's 10 000-step chunks), so only a run that does
-# not check meets the grace; what it costs is a new worker (~3 s of imports), never a different row (a run stopped by
-# the parent fails with its budget's message, as one that stopped itself).
+# milliseconds of the deadline (a look every CHECK_EVERY steps, MuJoCo's 10 000-step chunks; ~8x that on a loaded
+# machine), so only a run that does not check meets the grace. Ending one too early would cost a new worker (~3 s of
+# imports), not a different sweep row: a run ended by the parent fails with its budget's message, as one that stopped
+# itself. The 10 % keeps long budgets (a 600 s compilation) from being ended for a second's lateness.
 GRACE_MIN_S, GRACE_FRACTION = 2.0, 0.1
 
 

@@ -216,14 +216,14 @@ class WatchedPool:
 
     def _remove(self, worker: _Worker, failure: BaseException) -> None:
         """A dead (or killed) worker: its task fails with `failure`; _hand_out starts another when tasks wait. One
-        that died before it was ready (its start-up fails) fails the queued tasks too, rather than be replaced
-        forever."""
+        that died before it was ready (its start-up fails) while no other is ready fails the queued tasks too, rather
+        than be replaced forever."""
         worker.process.join()
         worker.conn.close()
         self._workers.remove(worker)
         if worker.future is not None and not worker.future.done():
             worker.future.set_exception(failure)
-        if not worker.ready:
+        if not worker.ready and not any(w.ready for w in self._workers):
             with self._lock:
                 queued, self._queue = [future for future, _, _ in self._queue], deque()
             for future in queued:
