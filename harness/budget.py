@@ -9,13 +9,17 @@ which the sweep turns into a `failed` row whose message names the budget and the
 store keeps which budget it was, so `--resume` redoes the run only when that budget was raised (`still_holds`).
 Outside `within` there is no deadline, and a check costs one context-variable read.
 
+The checks are cooperative; what makes them a guarantee is the pool (harness/run/workers.py): a worker tells its parent
+each deadline it enters (`watch`), and the parent ends a worker still running a budget's grace after its deadline
+(`grace`), whatever it is doing (a plug-in's loop that never checks, a sleep, one long compiled call).
+
 A plug-in engine whose own loop runs long calls `check()` (or compares `deadline()`) in it; model building and
 compilation (`Engine.prepare`) have their own budget (`prepared`), checked when prepare returns.
 """
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -34,6 +38,12 @@ MIN_BUDGET_S, MAX_BUDGET_S = 1e-3, 1e6
 CHECK_EVERY = 256
 
 FLAGS = {"run": "--run-budget", "prepare": "--prepare-budget", "truth": "--truth-budget"}
+# How long past its deadline a pool worker still runs before its parent ends it (grace): a loop that checks stops within
+# milliseconds of the deadline (a look every CHECK_EVERY steps, MuJoCo's 10 000-step chunks; ~8x that on a loaded
+# machine), so only a run that does not check meets the grace. Ending one too early would cost a new worker (~3 s of
+# imports), not a different sweep row: a run ended by the parent fails with its budget's message, as one that stopped
+# itself. The 10 % keeps long budgets (a 600 s compilation) from being ended for a second's lateness.
+GRACE_MIN_S, GRACE_FRACTION = 2.0, 0.1
 
 
 @dataclass(frozen=True)
@@ -63,7 +73,27 @@ def message(what: str, seconds: float) -> str:
     return f"{what} budget exceeded: stopped after {seconds:g} s of wall time ({FLAGS[what]} raises it)"
 
 
+def grace(seconds: float) -> float:
+    """How long past a budget of `seconds` a pool worker may still run before its parent ends it, s: 10 % of the
+    budget, at least 2 s."""
+    return max(GRACE_MIN_S, GRACE_FRACTION * seconds)
+
+
 _ACTIVE: ContextVar[tuple[float, str, float] | None] = ContextVar("stereodyn_budget", default=None)
+# Who hears of each change of this process's deadline (a pool worker's parent: watch), or None.
+_WATCHER: list[Callable[[tuple[float, str, float] | None], None] | None] = [None]
+
+
+def watch(report: Callable[[tuple[float, str, float] | None], None] | None) -> None:
+    """Call report((seconds left, what, budget seconds)) whenever a deadline starts to hold, report(None) when none
+    holds any more (a pool worker's initializer: harness/run/workers.py); None stops reporting."""
+    _WATCHER[0] = report
+
+
+def _tell(active: tuple[float, str, float] | None) -> None:
+    report = _WATCHER[0]
+    if report is not None:
+        report(None if active is None else (active[0] - time.monotonic(), active[1], active[2]))
 
 
 @contextmanager
@@ -73,6 +103,8 @@ def within(what: str, seconds: float) -> Iterator[None]:
     outer = _ACTIVE.get()
     active = (deadline, what, seconds) if outer is None or deadline < outer[0] else outer
     token = _ACTIVE.set(active)
+    if active is not outer:
+        _tell(active)
     try:
         yield
     except OutOfTime as exc:
@@ -81,6 +113,8 @@ def within(what: str, seconds: float) -> Iterator[None]:
         raise BudgetExceeded(active[1], active[2]) from None
     finally:
         _ACTIVE.reset(token)
+        if active is not outer:
+            _tell(outer)
 
 
 def deadline() -> float | None:

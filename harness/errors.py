@@ -70,13 +70,18 @@ def is_internal(exc: BaseException) -> bool:
     return False
 
 
+def as_internal(exc: BaseException) -> BaseException:
+    """exc, or the InternalError it is (a pool worker's answer: the traceback is here, not in the parent)."""
+    if is_internal(exc) and not isinstance(exc, InternalError):
+        return InternalError(f"{type(exc).__name__}: {exc}".splitlines()[0], "".join(traceback.format_exception(exc)))
+    return exc
+
+
 def raise_if_internal(exc: BaseException) -> None:
     """In an `except Exception` that records a failure as data: our own bug is no data (module docstring)."""
-    if isinstance(exc, InternalError):
-        raise exc
-    if is_internal(exc):
-        details = "".join(traceback.format_exception(exc))
-        raise InternalError(f"{type(exc).__name__}: {exc}".splitlines()[0], details) from exc
+    internal = as_internal(exc)
+    if isinstance(internal, InternalError):
+        raise internal from (None if internal is exc else exc)
 
 
 def report(exc: InternalError, stream=None) -> None:

@@ -125,13 +125,13 @@ def test_bad_options_exit_2_with_one_line(argv, expected, capsys, tmp_path):
 
 def test_jobs_are_capped_at_the_number_of_runs(tmp_path, monkeypatch):
     seen = []
-    original = run_pool.ProcessPoolExecutor
+    original = run_pool.WatchedPool
 
-    def pool(*args, **kwargs):
-        seen.append(kwargs["max_workers"])
-        return original(*args, **kwargs)
+    def pool(jobs, *args, **kwargs):
+        seen.append(jobs)
+        return original(jobs, *args, **kwargs)
 
-    monkeypatch.setattr(run_pool, "ProcessPoolExecutor", pool)
+    monkeypatch.setattr(run_pool, "WatchedPool", pool)
     path = case_file(tmp_path, BASE.replace("dt = [1e-2]", "dt = [1e-2, 5e-3]"))
     assert cli.main(["run", "--case-file", str(path), "--engines", "mujoco", "--integrators", "rk4", "--jobs", "16",
                      "--quiet", "--out", str(tmp_path / "out")]) == 0

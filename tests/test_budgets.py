@@ -84,6 +84,28 @@ def test_drake_stops_at_the_run_budget_with_dense_and_sparse_samples(spacing):
             sim.run(grid)
 
 
+# Samples every step, or every few steps: each span between two samples is <= CHECK_EVERY steps, so the loops take
+# budget.pieces()'s fast path (one range, no generator), which must look at the clock too. The grids above have
+# thousands of steps between samples and take the other path.
+DENSE = [("free-asymmetric", "pinocchio", "", "rk4"), ("free-asymmetric", "reference", "quaternion", "rk4"),
+         ("self-excited-conic", "mujoco", "", "rk4"), ("free-asymmetric", "bullet", "", "semi_implicit_euler")]
+
+
+@pytest.mark.parametrize("spacing", [1, 7, budget.CHECK_EVERY])
+@pytest.mark.parametrize("name, engine, formulation, integrator", DENSE)
+def test_a_python_step_loop_with_a_sample_every_few_steps_stops_at_the_run_budget(name, engine, formulation,
+                                                                                   integrator, spacing):
+    case = with_overrides(find_case(name), t_end=LONG, dt=1e-4)
+    extra = {"formulation": formulation} if formulation else {}
+    sim = installed_engine(engine).prepare(case, integrator, 1e-4, **extra)
+    spans = 100_000 // spacing
+    grid = time_grid(spans * spacing * 1e-4, 1e-4, spans + 1)  # ~1e5 steps: about a second or more, 20x the budget
+    assert int(max(grid.sample_steps[1:] - grid.sample_steps[:-1])) == spacing <= budget.CHECK_EVERY
+    with pytest.raises(budget.BudgetExceeded, match="run budget exceeded"):
+        with budget.within("run", 0.05):
+            sim.run(grid)
+
+
 @pytest.mark.parametrize("engine, model, integrator, dt", [("reference", "theta", "taylor", None),
                                                            ("mujoco", "bilateral", "rk4", 1e-5),
                                                            ("pinocchio", "bilateral", "rk4", 1e-5)])

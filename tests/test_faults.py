@@ -119,7 +119,7 @@ def test_workers_die_with_a_parent_killed_before_they_finished_starting(tmp_path
         if __name__ == "__main__":
             context = worker_pool(2, ())  # held: a collected context manager would end the pool
             pool = context.__enter__()
-            print(" ".join(str(pid) for pid in pool._processes), flush=True)
+            print(" ".join(str(pid) for pid in pool.pids), flush=True)
             time.sleep({after_s})
             os.kill(os.getpid(), signal.SIGKILL)
     """))
@@ -142,7 +142,7 @@ def test_a_worker_ignores_ctrl_c_from_its_first_moment():
     from stereodyn.harness.run.sweep import worker_pool
 
     with worker_pool(2, ()) as pool:
-        workers = list(pool._processes)
+        workers = list(pool.pids)
         for pid in workers:
             os.kill(pid, signal.SIGINT)
         handlers = {pool.submit(signal.getsignal, signal.SIGINT).result(timeout=120) for _ in range(4)}

@@ -6,10 +6,8 @@ from __future__ import annotations
 import csv
 import math
 import re
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-import multiprocessing
 import pytest
 
 from stereodyn.harness import errors
@@ -51,14 +49,15 @@ def test_an_internal_error_crosses_the_pool_and_is_no_row():
     row). The spec is broken on purpose, so base_row (our code) raises before measure's own handler."""
     from types import SimpleNamespace
 
-    from stereodyn.harness.run.pool import run_local
+    from stereodyn.harness.run.pool import local_pool, run_local
 
     broken = SimpleNamespace(case=SimpleNamespace(name="x"))  # no grid, no engine: measure() breaks on it
     rows = []
-    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
-        with pytest.raises(errors.InternalError, match="AttributeError") as raised:
+    with pytest.raises(errors.InternalError, match="AttributeError") as raised:
+        with local_pool(2, 2, ()) as pool:  # the sweep's watched pool
             run_local([broken], {}, pool, lambda spec, row: rows.append(row))
-    assert rows == [] and "Traceback" in raised.value.details
+    # the traceback is the worker's, where the error was raised
+    assert rows == [] and "harness/run/measure.py" in raised.value.details, raised.value.details
 
 
 @pytest.mark.parametrize("where", ["advice", "tolerance_ladders"])

@@ -51,14 +51,14 @@ def test_an_interrupt_during_the_ladders_ends_the_workers_at_once(tmp_path):
             workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full",
                                   max_steps=20_000, pool=pool, progress=interrupt)
     assert len(done) == 1 and len(workers) == 2 and ended(workers)
-    assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGTERM), not left to finish their ladders
+    assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGKILL), not left to finish their ladders
 
 
 def test_only_the_runner_starts_a_process_pool_for_runs():
     """The sweep's and the ladders' pool is the runner's; the report's figures (harness.report.build, also run alone by
-    `stereodyn report`) draw on a pool of their own."""
+    `stereodyn report`) draw on a pool of their own (the runs' is watched: harness.run.workers)."""
     starts = sorted(path.relative_to(ROOT) for path in (ROOT / "harness").rglob("*.py")
-                    if "ProcessPoolExecutor(" in path.read_text())
+                    if "ProcessPoolExecutor(" in path.read_text() or "WatchedPool(" in path.read_text())
     assert starts == [Path("harness/report/build.py"), Path("harness/run/pool.py")]
 
 

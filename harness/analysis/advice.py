@@ -7,7 +7,7 @@ timed alone in the parent (the ladders' timing phase). Used by `stereodyn run` (
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from typing import Callable
 
 import pandas as pd
@@ -19,6 +19,7 @@ from ..precision import FLOAT64
 from ..run.processes import raise_unless_data
 from ..run.results import with_precision
 from ..trajectory import Status
+from ..run.workers import WatchedPool
 
 # The tolerances an advice may name: the tolerance ladders' range (harness.analysis.tolerance_ladders.TOLERANCES).
 TOLERANCE_LO, TOLERANCE_HI = min(tolerance_ladders.TOLERANCES), max(tolerance_ladders.TOLERANCES)
@@ -88,13 +89,13 @@ def _row(family: Family, target: float, what: str, setting: float = math.nan, **
 
 
 def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tuple[float, ...], max_steps: int,
-               pool: ProcessPoolExecutor | None = None,
+               pool: WatchedPool | None = None,
                progress: Callable[[str], None] | None = None) -> pd.DataFrame:
     """advice.csv's table for tasks (family, adaptive, known points, order): the searches in this process (pool
     None) or on the sweep's pool, one task per family, then the advised runs not yet timed timed here, alone, in
     rounds (the ladders' timing phase)."""
     results: dict[int, tuple[list[dict], list[dict]]] = {}
-    if pool is None or len(tasks) <= 1:
+    if pool is None:
         for index, (family, adaptive, known, order) in enumerate(tasks):
             results[index] = advise_family(family, adaptive, known, order, targets, max_steps)
             if progress:

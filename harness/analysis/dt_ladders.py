@@ -30,7 +30,7 @@ The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from typing import Callable
 
 import numpy as np
@@ -48,6 +48,7 @@ from ..run.processes import raise_unless_data
 from ..run.measure import measure as run_measure, prepare as prepare_run, rate
 from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
 from ..engines.base import EPS
+from ..run.workers import WatchedPool
 
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "rhs_evals",
                   "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
@@ -346,7 +347,7 @@ def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> 
                 "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
-def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor | None = None,
+def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None = None,
                 progress: Callable[[str], None] | None = None,
                 short: list[tuple[Family, list[dict], int]] = (),
                 first_parts: list[tuple[Family, list[dict], int, dict]] = ()) -> tuple[list[dict], list[dict]]:
@@ -360,7 +361,7 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: ProcessPoolExecutor 
     tasks += [(run_first_part, family, (family, known, steps, row), SHORT_LADDER)
               for family, known, steps, row in first_parts]
     results: dict[int, tuple[list[dict], dict]] = {}
-    if pool is None or len(tasks) <= 1:
+    if pool is None:
         for index, (function, family, args, _) in enumerate(tasks):
             results[index] = function(*args)
             if progress:

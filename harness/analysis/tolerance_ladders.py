@@ -21,7 +21,7 @@ The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from typing import Callable
 
 from .. import budget
@@ -33,6 +33,7 @@ from ..trajectory import Status
 from ..run import timing
 from ..run.measure import measure as run_measure, prepare as prepare_run, rate
 from ..run.processes import raise_unless_data
+from ..run.workers import WatchedPool
 from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family, case_truth_on
 
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "tolerance", "t_end", "steps", "rhs_evals",
@@ -152,7 +153,7 @@ def _ladder_cost(family: AdaptiveFamily) -> float:
     return get_engine(family.engine).pass_us
 
 
-def run_ladders(chosen: list[AdaptiveFamily], pool: ProcessPoolExecutor | None = None,
+def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 progress: Callable[[str], None] | None = None,
                 tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S) -> list[dict]:
     """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
@@ -160,7 +161,7 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: ProcessPoolExecutor | None =
     to tight. budget_s: run_ladder's point budget."""
     results: dict[int, list[dict]] = {}
     order = sorted(range(len(chosen)), key=lambda i: _ladder_cost(chosen[i]), reverse=True)
-    if pool is None or len(chosen) <= 1:
+    if pool is None:
         for index in order:
             results[index] = run_ladder(chosen[index], tolerances, budget_s)
             if progress:

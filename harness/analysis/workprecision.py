@@ -12,7 +12,6 @@ and the orders as rows of checks.csv (quantity convergence_order, theory = the d
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable
 
@@ -32,6 +31,7 @@ from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, decla
 from ..engines.base import FLOAT64
 from ..run.plan import Selection
 from ..run.results import read_csv_table, with_precision, write_atomic
+from ..run.workers import WatchedPool
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -149,7 +149,7 @@ def default_tolerance_families(cases: list[Case], engines: list[str],
 
 def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: list[str],
             integrators: list[str] | None, ladder: str = "default", max_steps: int | None = None,
-            pool: ProcessPoolExecutor | None = None,
+            pool: WatchedPool | None = None,
             progress: Callable[[str], None] | None = None, write_pareto: bool = True) -> dict[str, Path]:
     """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
     tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,

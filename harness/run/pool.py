@@ -3,11 +3,10 @@ model that starts the longest runs first."""
 from __future__ import annotations
 
 import math
-import multiprocessing
 import os
 import signal
 from collections.abc import Iterator
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import Future, as_completed
 from contextlib import contextmanager
 from typing import Callable
 
@@ -16,8 +15,9 @@ from ..engines import get_engine
 from ..trajectory import Status
 from . import timing
 from .measure import measure
-from .processes import exit_with_parent, raise_unless_data, starting_workers
+from .processes import exit_with_parent, raise_unless_data
 from .spec import RunSpec, base_row
+from .workers import WatchedPool
 
 # The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
 # Measured on the suite's four general cases (t_end 5 and 20, every engine, 2-core AMD EPYC): one simulation pass
@@ -66,44 +66,41 @@ def _init_worker(engines: tuple[str, ...], budgets: budget.Budgets | None = None
             pass
 
 
+IN_PROCESS_ENV = "STEREODYN_IN_PROCESS"  # "1": --jobs 1 runs in the command's own process (in_process)
+
+
+def in_process(jobs: int) -> bool:
+    """Whether runs go in this process rather than to watched workers: only --jobs 1 with STEREODYN_IN_PROCESS=1, for
+    a debugger or a profiler (and the tests, which patch this process); the budgets are then only cooperative."""
+    return jobs == 1 and os.environ.get(IN_PROCESS_ENV) == "1"
+
+
 def worker_pool(jobs: int | None, engines: tuple[str, ...]):
     """The local process pool of `stereodyn run`, shared by the sweep (run_sweep(pool=...)) and the dt ladders
-    (harness.workprecision.analyse(pool=...)); None when jobs is 1. A context manager: Ctrl-C inside it ends the
-    workers at once."""
+    (harness.workprecision.analyse(pool=...)); None when the runs go in this process (in_process). A context
+    manager: Ctrl-C inside it ends the workers at once."""
     return local_pool(jobs or os.cpu_count() or 1, 2, engines)
 
 
 @contextmanager
-def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[ProcessPoolExecutor | None]:
-    """The process pool of a local sweep (None when it runs in this process), its workers started at once so that
-    they spawn and import (~1 s) while the parent computes the truths. On an exception (Ctrl-C) the queued runs are
-    dropped and the running ones ended now rather than waited for."""
-    if jobs == 1 or runs <= 1:
+def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[WatchedPool | None]:
+    """The process pool of a local sweep (None when there is no run, or they go in this process: in_process), its
+    workers started at once so that they spawn and import (~1 s) while the parent computes the truths. Even one job
+    is a worker: the parent ends one that runs past its budget (harness.run.workers). On an exception (Ctrl-C) the
+    queued runs are dropped and the running ones ended now rather than waited for."""
+    if runs == 0 or in_process(jobs):
         yield None
         return
     jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
-    # spawn, not fork: the parent holds heyoka's LLVM state and threads, which fork does not copy safely.
-    pool = None
+    pool = WatchedPool(jobs, _init_worker, (engines, budget.configured()))
     try:
-        with starting_workers():  # tied to this process, deaf to Ctrl-C, from their first moment (harness.processes)
-            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                                       initializer=_init_worker, initargs=(engines, budget.configured()))
-            for _ in range(jobs):  # the pool starts a worker per task submitted while none is idle: start them all
-                pool.submit(int)
         yield pool
     except BaseException:
-        # Python < 3.14 has no public way to end a pool's workers, hence the private process table, read before
-        # shutdown() empties it.
-        if pool is None:
-            raise
-        processes = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for process in processes:
-            process.terminate()
+        pool.kill()
         raise
     # Every run is done and stored: let the idle workers exit on their own rather than wait here for their interpreter
     # teardown (0.2-0.5 s with the SDKs loaded, ~3% of a short sweep). Python joins them at exit at the latest.
-    pool.shutdown(wait=False)
+    pool.shutdown()
 
 
 def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> dict:
@@ -112,7 +109,7 @@ def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> di
     return measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, budgets=budgets)
 
 
-def run_local(specs: list[RunSpec], truths: dict, pool: ProcessPoolExecutor | None,
+def run_local(specs: list[RunSpec], truths: dict, pool: WatchedPool | None,
               finished: Callable[[RunSpec, dict], None], budgets: budget.Budgets | None = None) -> None:
     """Run the specs in this process (pool None) or on the pool, in the order given; finished(spec, row) as each
     completes."""
@@ -125,6 +122,8 @@ def run_local(specs: list[RunSpec], truths: dict, pool: ProcessPoolExecutor | No
         spec = futures[future]
         try:
             row = future.result()
+        except budget.BudgetExceeded as exc:  # its worker ended past its budget (harness.run.workers)
+            row = {**base_row(spec, spec.grid), **budget.failed_row(exc)}
         except Exception as exc:  # the worker died or the task was lost; a bug of ours raised there is no row
             raise_unless_data(exc)
             row = worker_failed_row(spec, exc)

@@ -9,7 +9,6 @@ import math
 import os
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ from .distributed import run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
+from .workers import WatchedPool
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
@@ -84,7 +84,7 @@ _cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # 
 
 
 def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar | None = None,
-              pool: ProcessPoolExecutor | None = None, agreement: list | None = None, final: bool = True,
+              pool: WatchedPool | None = None, agreement: list | None = None, final: bool = True,
               **legacy_options) -> pd.DataFrame:
     """Run every case as `options` says and return the table.
 
@@ -122,7 +122,7 @@ def _legacy_options(engines, integrators, out_dir, jobs=None, certify=True, *, r
     return SweepOptions(engines, out_dir, integrators, jobs, certify, resume, scheduler, save_trajectories)
 
 
-def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: ProcessPoolExecutor | None, final: bool,
+def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: WatchedPool | None, final: bool,
            agreement: list | None = None) -> pd.DataFrame:
     out_dir, engines = options.out_dir, options.engines
     out_dir.mkdir(parents=True, exist_ok=True)
