@@ -712,7 +712,7 @@ def test_a_fifo_given_as_an_input_is_refused_without_blocking(good, tmp_path, ca
             one_line_error(cli.main(argv), capsys, str(fifo), "not a regular file (a FIFO)")
 
 
-@pytest.mark.parametrize("name", ["results.csv", "pareto.csv"])
+@pytest.mark.parametrize("name", ["results.csv", "pareto.csv", "checks.csv"])
 def test_a_fifo_in_a_result_folder_is_refused_without_blocking(good, tmp_path, capsys, name):
     folder = _copy(good[0], tmp_path / "fifo")
     (folder / name).unlink()
