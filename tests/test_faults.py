@@ -355,7 +355,9 @@ def _cell(lines, row: int, column: str, value: str):
     (lambda lines: lines[:1] + [lines[1].rstrip("\n") + ",extra\n"] + lines[1:], ("row 1:", "the header has")),
     (lambda lines: lines + [lines[1][: len(lines[1]) // 2] + "\n"], ("row 2:", "truncated")),
     (lambda lines: lines[:1], ("no rows",)),
-])
+], ids=["text metric", "unknown status", "metric inf", "timing -inf", "no case", "dt inf", "dt -inf", "dt 0",
+        "no engine", "row twice", "negative drift", "negative wall_s", "negative steps", "long row", "cut row",
+        "header only"])
 def test_a_malformed_results_table_is_refused_by_every_reader(good, tmp_path, capsys, edit, expected):
     """check, baseline, compare and report each exit 2 with one line (report's stderr no warning either)."""
     folder = _copy(good[0], tmp_path / "bad")
@@ -624,7 +626,8 @@ ORDER = {"case": "base", "engine": "mujoco", "formulation": "", "integrator": "r
     (_set("nosuch_err", 1e-3), ("rows[0].nosuch_err", "not a metric of the results table", "attitude_err")),
     (_set("colour", "red"), ("rows[0].colour", "unknown key")),
     (_set("engine", ""), ("rows[0].engine", "empty")),
-])
+], ids=["status OK", "status ok-space", "status bogus", "row twice", "order twice", "negative drift",
+        "negative error", "negative timing", "negative dt", "unknown metric", "unknown key", "no engine"])
 def test_a_baseline_is_read_as_strictly_as_a_results_table(good, tmp_path, capsys, edit, expected):
     path = _baseline_edited(good, tmp_path, edit)
     capsys.readouterr()
@@ -772,7 +775,7 @@ def test_a_fifo_given_as_an_input_is_refused_without_blocking(good, tmp_path, ca
             one_line_error(cli.main(argv), capsys, str(fifo), "not a regular file (a FIFO)")
 
 
-@pytest.mark.parametrize("name", ["results.csv", "pareto.csv"])
+@pytest.mark.parametrize("name", ["results.csv", "pareto.csv", "checks.csv"])
 def test_a_fifo_in_a_result_folder_is_refused_without_blocking(good, tmp_path, capsys, name):
     folder = _copy(good[0], tmp_path / "fifo")
     (folder / name).unlink()

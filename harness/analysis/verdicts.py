@@ -339,7 +339,7 @@ def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy:
     if energy:
         verdicts += energy_verdicts(results)
     checks_path = out_dir / checks.CHECKS_FILE
-    verdicts += truth_verdicts(results, checks.read_checks(checks_path) if checks_path.is_file() else None)
+    verdicts += truth_verdicts(results, checks.read_checks(checks_path) if checks_path.exists() else None)
     write(verdicts, out_dir / VERDICTS_FILE)
     return verdicts
 

@@ -181,7 +181,7 @@ def checks_lines(df: pd.DataFrame, out_dir: Path) -> list[str]:
     """Oracle and theory checks: checks.csv when present, and the truth against the exact solutions."""
     lines = ["## Oracle and theory checks", ""]
     checks_path = Path(out_dir) / "checks.csv"
-    if checks_path.is_file():
+    if checks_path.exists():  # a FIFO is refused by read_csv_table, not skipped
         checks = read_csv_table(checks_path, dtype={"formulation": str}, keep_default_na=True)
         missing = [c for c in CHECKS_COLUMNS if c not in checks]
         if not missing and checks.empty:

@@ -64,7 +64,7 @@ NON_NEGATIVE = ("t_end", "steps", "diverged_at", "wall_s", "us_per_step", "us_pe
                 "chart_changes")
 POSITIVE = ("dt",)
 STATUSES = ("ok", "diverged", "failed", "skipped")  # trajectory.Status
-# A row's identity (the gate's, compare's and the store's): one row per key in a table or a baseline.
+# A row's identity (the gate's and compare's): one row per key in a table or a baseline.
 KEY = ("case", "engine", "formulation", "integrator", "precision", "dt")
 
 
