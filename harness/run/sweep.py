@@ -195,7 +195,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         publish()
         pending = [s for s in specs if keys[id(s)] not in stored]
         local_jobs = 1 if options.scheduler else options.jobs or os.cpu_count() or 1
-        own_pool = nullcontext(pool) if pool is not None and not options.scheduler else \
+        # a cluster runs the runs itself (no local worker); else the given pool, or one of the sweep's own
+        own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
             local_pool(local_jobs, len(pending), tuple(engines))
         with own_pool as pool:
             progress.stage(f"truths of {len(cases)} cases, then {len(pending)} runs on {local_jobs} workers")
