@@ -197,6 +197,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"refusing to mutate files with uncommitted changes: {', '.join(changed)}", file=sys.stderr)
         return 2
     signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _run(root, modules, argued, args)
+    except KeyboardInterrupt:
+        print("interrupted: every mutated file was put back", file=sys.stderr)
+        return 130
+
+
+def _run(root: Path, modules: list[Module], argued: dict, args: argparse.Namespace) -> int:
     started = time.monotonic()
     totals: dict[str, int] = {}
     survivors = []
