@@ -1,5 +1,6 @@
 """The mutation check (tools/mutants.py, docs/mutants.md): its declared list still applies to the source, and the tool
-kills, keeps, counts and restores as it says, on a toy project (the real run edits the checkout: pytest -m slow)."""
+kills, keeps, counts and restores as it says, on a toy project (pytest -m slow; so is the real run, which edits the
+checkout)."""
 import importlib.util
 import os
 import subprocess
@@ -88,6 +89,7 @@ def toy(tmp_path):
     return tmp_path
 
 
+@pytest.mark.slow  # ~12 s: five pytest runs
 def test_the_tool_kills_keeps_counts_the_equivalent_and_restores(toy):
     result = run_tool("--threshold", "90", root=toy)
     assert result.returncode == 1, result.stdout + result.stderr  # 2 of 3 detected: under 90 %
