@@ -13,6 +13,7 @@ engine SDK's, a plug-in's or a test's frame there makes it data.
 """
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 import sysconfig
@@ -24,9 +25,10 @@ from pathlib import Path
 # RuntimeError, LinAlgError, ImportError, NotImplementedError, MemoryError: engines and numerics raise those on data.
 PROGRAMMING_ERRORS = (AttributeError, NameError, TypeError, KeyError, IndexError, AssertionError)
 
-_HERE = Path(__file__).resolve().parent                     # harness/
-_OURS = tuple(str(p) + os.sep for p in (_HERE, _HERE.parent / "reference", _HERE.parent / "cases",
-                                        _HERE.parent / "stereodyn"))
+# stereodyn's folders: the package and its subpackages, wherever setuptools' package-dir put them (not imported here)
+_OURS = tuple(str(Path(folder).resolve()) + os.sep for name in ("stereodyn", "stereodyn.harness",
+                                                                  "stereodyn.reference", "stereodyn.cases")
+              for folder in importlib.util.find_spec(name).submodule_search_locations)
 _TOOLS = tuple(str(Path(p).resolve()) + os.sep for p in {sysconfig.get_paths()["stdlib"],
                                                           sysconfig.get_paths()["platstdlib"]})
 _TOOL_PACKAGES = ("numpy", "scipy", "pandas")

@@ -57,7 +57,7 @@ def test_an_internal_error_crosses_the_pool_and_is_no_row():
         with local_pool(2, 2, ()) as pool:  # the sweep's watched pool
             run_local([broken], {}, pool, lambda spec, row: rows.append(row))
     # the traceback is the worker's, where the error was raised
-    assert rows == [] and "harness/run/measure.py" in raised.value.details, raised.value.details
+    assert rows == [] and "harness/run/pool.py" in raised.value.details, raised.value.details
 
 
 @pytest.mark.parametrize("where", ["advice", "tolerance_ladders"])
