@@ -75,8 +75,8 @@ def test_strict_fails_an_integrator_whose_declared_order_is_wrong(plugins, tmp_p
     assert all(abs(order - 2.0) <= 0.1 for order in fitted), line
     assert len([x for x in err.splitlines() if x.startswith("verdict failed:")]) == 1, err  # rk4 passes
     pareto = pd.read_csv(tmp_path / "out" / "pareto.csv", keep_default_na=False)
-    assert "heun_claims_4" not in set(pareto["integrator"])  # never recommended ...
-    assert pareto["not_recommended"].str.contains("heun_claims_4").any()  # ... but named where it was cheaper
+    assert "heun_claims_4" not in set(pareto["integrator"])  # never recommended (named where it was cheaper:
+    # test_pareto.py's made-up costs; here that rests on timings, and at load ~8 Heun once timed dearer than rk4)
     report = (tmp_path / "out" / "report.md").read_text()
     assert report.index("## Verdicts") < report.index("## Summary") and "**FAIL**" in report
 
