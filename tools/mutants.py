@@ -122,7 +122,7 @@ def _drop_bytecode(path: Path) -> None:
 def run_tests(root: Path, tests: tuple[str, ...], timeout: float) -> tuple[str, float, str]:
     """(KILLED | SURVIVED | TIMEOUT | ERROR, seconds, the output's tail) of pytest on the mapped tests."""
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
-    command = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-p", "no:randomly", *tests]
+    command = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-p", "no:randomly", "-n", "0", *tests]
     start = time.monotonic()
     process = subprocess.Popen(command, cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                text=True, start_new_session=True)  # its own group: a timeout ends its workers too
