@@ -54,3 +54,12 @@ def test_rows_are_ordered_by_engine_before_integrator():
     df = frame(rows)
     assert list(zip(df["engine"], df["integrator"])) == [("mujoco", "euler"), ("mujoco", "rk4"),
                                                           ("pinocchio", "euler")]
+
+
+def test_steps_that_differ_in_the_fourth_digit_are_two_rows_not_a_duplicate(tmp_path):
+    """A key compares dt to 10 significant digits (results.dt_key): dt = 0.001 and 0.001001 are two runs, and one key
+    twice is refused. Break-check (tools/mutants.py results-10): 3 digits read the pair as a duplicate."""
+    df = _read(tmp_path, GOOD.replace("0.01", "0.001", 1), GOOD.replace("0.01", "0.001001", 1))
+    assert sorted(df["dt"]) == [0.001, 0.001001]
+    with pytest.raises(TableError, match="duplicate key"):
+        _read(tmp_path, GOOD, GOOD)
