@@ -34,7 +34,10 @@ def test_a_programming_error_in_our_code_is_internal_and_one_from_elsewhere_is_d
     ours = _raised(lambda: base_row(None, None))                       # AttributeError in harness/run/spec.py
     assert errors.is_internal(ours), ours
     assert not errors.is_internal(_raised(lambda: None.case))           # the same error, raised in this file
-    assert not errors.is_internal(_raised(lambda: float("x")))          # ValueError: data wherever it is raised
+    assert not errors.is_internal(_raised(lambda: float("x")))          # ValueError: data wherever it is raised,
+    from stereodyn.harness.readers import parse_json
+
+    assert not errors.is_internal(_raised(lambda: parse_json(b"{")))   # in our own code too (a refusal of input)
     # numpy's frames are left out: the innermost frame that counts is the caller's
     import numpy as np
 
