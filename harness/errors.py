@@ -13,7 +13,6 @@ engine SDK's, a plug-in's or a test's frame there makes it data.
 """
 from __future__ import annotations
 
-import importlib.util
 import os
 import sys
 import sysconfig
@@ -25,10 +24,8 @@ from pathlib import Path
 # RuntimeError, LinAlgError, ImportError, NotImplementedError, MemoryError: engines and numerics raise those on data.
 PROGRAMMING_ERRORS = (AttributeError, NameError, TypeError, KeyError, IndexError, AssertionError)
 
-# stereodyn's folders: the package and its subpackages, wherever setuptools' package-dir put them (not imported here)
-_OURS = tuple(str(Path(folder).resolve()) + os.sep for name in ("stereodyn", "stereodyn.harness",
-                                                                  "stereodyn.reference", "stereodyn.cases")
-              for folder in importlib.util.find_spec(name).submodule_search_locations)
+# stereodyn's packages, wherever setuptools' package-dir put their folders (_ours)
+_PACKAGES = ("stereodyn", "stereodyn.harness", "stereodyn.reference", "stereodyn.cases")
 _TOOLS = tuple(str(Path(p).resolve()) + os.sep for p in {sysconfig.get_paths()["stdlib"],
                                                           sysconfig.get_paths()["platstdlib"]})
 _TOOL_PACKAGES = ("numpy", "scipy", "pandas")
@@ -55,8 +52,14 @@ def _is_tool(filename: str) -> bool:
     return path.startswith(_TOOLS) and "site-packages" not in path
 
 
+def _ours() -> tuple[str, ...]:
+    """The folders of stereodyn's packages loaded now: a frame of a package not yet imported cannot exist."""
+    return tuple(str(Path(folder).resolve()) + os.sep for name in _PACKAGES
+                 if (package := sys.modules.get(name)) is not None for folder in getattr(package, "__path__", ()))
+
+
 def _is_ours(filename: str) -> bool:
-    return os.path.realpath(filename).startswith(_OURS)
+    return os.path.realpath(filename).startswith(_ours())
 
 
 def is_internal(exc: BaseException) -> bool:

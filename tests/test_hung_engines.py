@@ -180,11 +180,3 @@ def test_hung_engine_plugins_are_ended_at_their_budget_plus_grace(plugin, tmp_pa
         assert again.returncode == 0, again.stderr[-3000:]
         assert store_mtimes(tmp_path / "out") == before and left == []
 
-
-def test_the_sweeps_pool_has_as_many_workers_as_jobs():
-    """`stereodyn run --jobs 3` gets three workers (worker_pool once passed runs=2 to local_pool, which capped every
-    run at two whatever --jobs said; found while building the watched pool)."""
-    from stereodyn.harness.run.pool import worker_pool
-
-    with worker_pool(3, ()) as pool:
-        assert len(pool.pids) == 3

@@ -36,7 +36,7 @@ def test_a_row_every_reader_must_refuse_is_one_line_naming_it(tmp_path, row, wor
 
 
 def test_a_table_larger_than_the_limit_is_refused(tmp_path, monkeypatch):
-    from stereodyn.harness import tables  # the reader of every table (issue 28 moved it out of run/results.py)
+    from stereodyn.harness import tables  # the reader of every table (issue 28 moved it out of harness/run/results.py)
 
     monkeypatch.setattr(tables, "MAX_TABLE_BYTES", 100)
     with pytest.raises(TableError, match="larger than 100 bytes"):

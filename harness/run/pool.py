@@ -79,8 +79,7 @@ def worker_pool(jobs: int | None, engines: tuple[str, ...]):
     """The local process pool of `stereodyn run`, shared by the sweep (run_sweep(pool=...)) and the dt ladders
     (harness.workprecision.analyse(pool=...)); None when the runs go in this process (in_process). A context
     manager: Ctrl-C inside it ends the workers at once."""
-    jobs = jobs or os.cpu_count() or 1
-    return local_pool(jobs, jobs, engines)  # (was runs=2, which capped every `stereodyn run` at two workers)
+    return local_pool(jobs or os.cpu_count() or 1, 2, engines)
 
 
 @contextmanager
