@@ -4,7 +4,16 @@
 
 σ is the inertia about O (any symmetric positive definite matrix, not necessarily diagonal), c the vector O -> G,
 d the world unit downward direction, H Grioli's downward vertical in body components. ω is in body components.
-quat (..., 4) and omega (..., 3) broadcast against each other; a non-unit quaternion is normalised before R is built.
+quat (..., 4) and omega (..., 3) broadcast against each other.
+
+Two forms of R(q) for a quaternion off the unit sphere (a fixed-step run's, whose |q| drifts: casimir_drift). Here R
+is built from the normalised quaternion (rotations.quat_to_matrix): the invariants of a recorded state use this. The
+reference engine's right-hand side, what its fixed-step integrators step and the truth integrates, is the compiled
+one of reference/truth.py: the homogeneous R~(q) = (w² - v·v) I + 2 v vᵀ + 2 w [v]× = |q|² R(q/|q|), a polynomial,
+with no division by |q|². The two agree on |q| = 1; off it a torque that depends on
+the attitude differs (gravity's by the factor |q|²).
+An engine that reproduces the reference's quaternion rk4 to round-off uses the homogeneous form (1e-15 on
+lagrange-top; with the normalised form 1e-6: tests/test_quaternion_rhs.py, docs/ENGINE_PLUGIN.md).
 """
 from __future__ import annotations
 

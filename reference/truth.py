@@ -9,7 +9,10 @@ in the module (per set of registered models); each call resets its time, state a
 
 The attitude matrix inside the right-hand side is the homogeneous quadratic form of q (no division by |q|²): the
 kinematics q̇ = ½ q ⊗ (0, ω) conserve |q| exactly, so this is R(q) to the integrator's tolerance and keeps the
-right-hand side polynomial.
+right-hand side polynomial. The compiled right-hand side of the quaternion formulation (reference.formulations,
+what the reference engine's fixed-step integrators step) is these equations too: off the unit sphere it is not
+reference.euler_poisson's numpy form, which normalises q (the difference is documented there and pinned by
+tests/test_quaternion_rhs.py).
 
 An integrator holds mutable state: each process compiles its own, and a lock serialises threads within one.
 """
