@@ -80,6 +80,11 @@ PRE_ASYMPTOTIC, PRE_ASYMPTOTIC_GAP = "pre-asymptotic", 0.5
 # declared + 2 (rk4_naive, declared 2, fits 4 where the angular velocity keeps its direction: the stages commute).
 STEEP = 1.0
 SUPERCONVERGENT = "superconvergent on this motion"
+# The evidence an order verdict needs (analysis.verdicts): MIN_POINTS asymptotic points on one non-chaotic case, or
+# MIN_CASES cases with a fitted order. Less may be a pre-asymptotic pair: a user's body run at `advise`'s dt for 1e-6
+# and 2.5 times it fitted MuJoCo's rk4 3.40 on one case, which the suite measures at 3.99-4.08 on 14 cases. A fit
+# more than a whole order off still fails on any evidence (Heun declared 4 fits 2.0 on two points).
+MIN_POINTS, MIN_CASES = 3, 3
 # The note of a float32 family whose round-off leaves no asymptotic range: a named reason, not a failure.
 NOT_MEASURABLE = "not measurable in"
 # A short ladder's point that did not run ok (a run budget) where the others are at round-off: its words in the note.

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
-from .fitting import FIRST_PART, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
+from .fitting import FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
 from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import read_csv_table, with_precision, write_atomic
 from ..run.processes import raise_unless_data
@@ -57,6 +57,9 @@ EXCUSES = (("exact for this motion", "exact for this motion"),
 # passes it), listed in the report with its upstream reference. FIXED: the measurement stopped matching the deviation
 # and meets the declared value instead: the deviation's declaration is stale (upstream fixed it?). Neither fails.
 KNOWN, FIXED = "known", "fixed upstream?"
+# A miss of the order tolerance found on too little evidence (fitting.MIN_POINTS, MIN_CASES) is NOT_ENOUGH, not a
+# failure; `run --strict` measures such a claim first (short ladders) and fails what is still NOT_ENOUGH after that.
+NOT_ENOUGH = "not enough evidence"
 
 # The median of a family's fitted orders over the cases must be within ORDER_TOLERANCE of the declared order, and no
 # single case more than ORDER_CASE_TOLERANCE off. The suite's fits (reports/default/convergence.csv, 134 families) lie
@@ -128,7 +131,8 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
     out = []
     df = with_precision(convergence).fillna({"formulation": ""})
     rule = (f"|median fitted - declared| <= {ORDER_TOLERANCE:g} over the non-chaotic cases, and <= "
-            f"{ORDER_CASE_TOLERANCE:g} on each")
+            f"{ORDER_CASE_TOLERANCE:g} on each; a miss of the first on < {MIN_POINTS} asymptotic points a case and "
+            f"< {MIN_CASES} cases is {NOT_ENOUGH} (--strict fails it after measuring more)")
     for (engine, formulation, integrator, precision), group in df.groupby(
             ["engine", "formulation", "integrator", "precision"], sort=False):
         declared = float(group["declared_order"].iloc[0])
@@ -154,8 +158,13 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
             if "note" in fitted else pd.Series(False, index=fitted.index)
         bad = fitted[((orders - declared).abs() > ORDER_CASE_TOLERANCE) & ~special]
         failed_ = abs(median - declared) > ORDER_TOLERANCE or len(bad) > 0
+        points = pd.to_numeric(fitted["points"], errors="coerce") if "points" in fitted else pd.Series(dtype=float)
+        counted = len(points) == len(fitted) and bool(np.isfinite(points).all())  # a table of 0.2.0 may lack them
+        enough = not counted or points.max() >= MIN_POINTS or len(fitted) >= MIN_CASES
         detail = (f"declares order {declared:g}, fitted {span} on {len(fitted)} case{'s' * (len(fitted) != 1)}"
-                  + (f" (median {median:.2f})" if len(fitted) > 2 else ""))
+                  + (f" (median {median:.2f})" if len(fitted) > 2 else "")
+                  + (f" from {int(points.sum())} asymptotic points (at most {int(points.max())} on a case)"
+                     if counted else ""))
         if special.any():
             detail += f" ({SUPERCONVERGENT}: " + ", ".join(fitted.loc[special, "case"].astype(str).tolist()) + ")"
         # an order measured over a case's first part only (a long horizon): over what span, in the note's words
@@ -179,6 +188,11 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
                                            f"{deviation.expected:g}| <= {deviation.tolerance:g}"},
                                status=status, detail=detail))
             continue
+        if failed_ and bad.empty and not enough:
+            out.append(Verdict("order", **base, status=NOT_ENOUGH, detail=detail + (
+                f"; {NOT_ENOUGH} to fail it: fewer than {MIN_POINTS} asymptotic points on every case and fewer than "
+                f"{MIN_CASES} cases (--strict measures more first)")))
+            continue
         out.append(Verdict("order", **base, status=FAIL if failed_ else PASS, detail=detail))
     return out
 
@@ -191,6 +205,12 @@ def excuse(row, excluded: set[str]) -> str | None:
     words = next(((marker, words) for marker, words in EXCUSES if marker in note), None)
     if words is None:
         return None
+    if words[0] == "no run ok":  # skipped (not run: the engine cannot model the case) is not failed (ran, broke)
+        statuses = re.search(r"no run ok: ([a-z, ]+)", note)
+        statuses = statuses.group(1).split(", ") if statuses else []
+        if statuses == ["skipped"]:
+            return "every run skipped (not run, no evidence either way)"
+        return "no run finished ok" + (f" ({', '.join(statuses)})" if statuses else "")
     # points that did not run ok beside the ones at round-off (a run budget): the reason rests on those that ran
     unrun = re.search(r"\(dt = [^()]*" + re.escape(NO_EVIDENCE) + r"[^()]*\)", note)
     return words[1] + (f" {unrun.group(0)}" if unrun else "")
@@ -363,7 +383,7 @@ def failed(verdicts: Iterable[Verdict]) -> list[Verdict]:
 
 def strict_failures(verdicts: Iterable[Verdict]) -> list[Verdict]:
     """What `run --strict` fails on: a failed verdict, and a claim nothing measured and no reason excuses."""
-    return [v for v in verdicts if v.status in (FAIL, NO_REASON)]
+    return [v for v in verdicts if v.status in (FAIL, NO_REASON, NOT_ENOUGH)]
 
 
 def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]:
@@ -381,12 +401,16 @@ def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]
 def summary_lines(verdicts: list[Verdict]) -> list[str]:
     """The terminal's verdict block: the counts, then one line per failed verdict, per claim nothing measured and
     no reason excuses, per known deviation and per deviation that stopped matching."""
-    counts = {s: sum(v.status == s for v in verdicts) for s in (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED)}
+    counts = {s: sum(v.status == s for v in verdicts)
+              for s in (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED, NOT_ENOUGH)}
     head = (f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED] + counts[NO_REASON]} not "
             f"measured" + (f" ({counts[NO_REASON]} with no reason: --strict fails them)" if counts[NO_REASON] else ""))
+    head += f", {counts[NOT_ENOUGH]} with {NOT_ENOUGH} (--strict measures more, then fails them)" \
+        if counts[NOT_ENOUGH] else ""
     head += f", {counts[KNOWN]} known deviations" if counts[KNOWN] else ""
     head += f", {counts[FIXED]} {FIXED}" if counts[FIXED] else ""
     lines = [head]
-    lines += [f"verdict {'failed' if v.status == FAIL else 'not measured'}: {v.line}" for v in strict_failures(verdicts)]
+    words = {FAIL: "failed", NO_REASON: "not measured", NOT_ENOUGH: NOT_ENOUGH}
+    lines += [f"verdict {words[v.status]}: {v.line}" for v in strict_failures(verdicts)]
     lines += [f"verdict {v.status}: {v.line}" for v in verdicts if v.status in (KNOWN, FIXED)]
     return lines

@@ -26,8 +26,8 @@ from . import tolerance_ladders
 from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
 from ..engines import get_engine
 from .pareto import ACCURACY_TARGETS
-from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
-                      pareto_table, sweep_orders, tolerance_fits, with_state_err)
+from .fitting import (FAMILY, MIN_CASES, MIN_POINTS, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order,
+                      order_checks, pareto, pareto_table, sweep_orders, tolerance_fits, with_state_err)
 from ..engines.base import FLOAT64
 from ..run.plan import Selection
 from ..run.results import read_csv_table, with_precision, write_atomic
@@ -84,12 +84,17 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 
 
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
-                          sweep_rows: list[dict], laddered: set[tuple]) -> list[tuple[Family, list[dict], int]]:
+                          sweep_rows: list[dict], laddered: set[tuple],
+                          remeasure: set[tuple] = frozenset()) -> list[tuple[Family, list[dict], int]]:
     """The families that get a short ladder (analysis.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
-    gives no order, and with a run that was not failed or skipped (those keep their sweep row and its reason)."""
-    fitted = {tuple(r[c] for c in FAMILY) for r in sweep_rows if math.isfinite(r["order"])}
+    gives no order (or, for a claim (engine, formulation, integrator) in remeasure, whose order rests on too few
+    points: weak_claims; its non-chaotic cases), and with a run that was not failed or skipped (those keep their sweep
+    row and its reason)."""
+    chaotic = {c.name for c in cases if set(c.tags) & set(CHAOTIC_TAGS)}
+    fitted = {tuple(r[c] for c in FAMILY) for r in sweep_rows if math.isfinite(r["order"])
+              and not ((r["engine"], r["formulation"], r["integrator"]) in remeasure and r["case"] not in chaotic)}
     runs = with_state_err(with_precision(results[results["dt"].notna()]).fillna({"formulation": ""}))
     by_family = {key: group for key, group in runs.groupby(list(FAMILY), sort=False)}
     out = []
@@ -109,6 +114,17 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
         max_steps = max(SHORT_MAX_STEPS, int(SHORT_MAX_EVALS / evals) if evals >= 1 else 0)
         out.append((family, group[["dt", "steps", "status", "state_err"]].to_dict("records"), max_steps))
     return out
+
+
+def weak_claims(sweep_rows: list[dict], chaotic: set[str]) -> set[tuple]:
+    """The claims (engine, formulation, integrator) whose orders the dt lists measured on too little evidence for
+    the order verdict (analysis.verdicts: fewer than MIN_POINTS asymptotic points on every non-chaotic case and fewer
+    than MIN_CASES such cases)."""
+    evidence: dict[tuple, list[int]] = {}
+    for r in sweep_rows:
+        if math.isfinite(r["order"]) and r["case"] not in chaotic:
+            evidence.setdefault((r["engine"], r["formulation"], r["integrator"]), []).append(int(r["points"]))
+    return {claim for claim, points in evidence.items() if max(points) < MIN_POINTS and len(points) < MIN_CASES}
 
 
 def first_part_families(short: list[tuple[Family, list[dict], int]], points: list[dict], ladder_rows: list[dict],
@@ -190,8 +206,12 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         chaotic = {c.name for c in rigid if set(c.tags) & set(CHAOTIC_TAGS)}
         measured = {(r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
                     if math.isfinite(r["order"]) and r["case"] not in chaotic}
-        short = [item for item in short
-                 if (item[0].engine, item[0].formulation, item[0].integrator) not in measured]
+        # and those measured on too few points to judge (verdicts.NOT_ENOUGH): measured more before they are judged
+        weak = weak_claims(sweep_rows, chaotic)
+        if weak:
+            short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered, weak)
+        short = [item for item in short if (item[0].engine, item[0].formulation, item[0].integrator) not in measured
+                 or (item[0].engine, item[0].formulation, item[0].integrator) in weak]
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
     points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
         if chosen or short else ([], [])

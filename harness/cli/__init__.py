@@ -175,7 +175,8 @@ def _parser() -> argparse.ArgumentParser:
                           "every case x engine x formulation x integrator, and a tolerance ladder (1e-3 ... 1e-13) "
                           "for every adaptive one; default: only the default suite's few representative ladders")
     run.add_argument("--no-ladder", action="store_true",
-                     help="no dt ladder and no tolerance ladder at all (orders from the dt lists only)")
+                     help="no dt ladder and no tolerance ladder (orders from the dt lists; with --strict the short "
+                          "ladders its verdicts need still run)")
     run.add_argument("--ladder-max-steps", type=_count, default=None, metavar="N",
                      help="smallest ladder dt = t_end / N (default 200000 with --dt-ladder, 40000 otherwise)")
     run.add_argument("--strict", action="store_true",
@@ -323,7 +324,13 @@ def check_names(args) -> None:
     if args.engines is None:
         every = [loaded(name) for name in engine_names()]
         warn([f"{engine.reason}; its runs are left out" for engine in every if isinstance(engine, BrokenEngine)])
-        args.engines = [engine.name for engine in every if not isinstance(engine, BrokenEngine)]
+        # integrators named: the default engines are those that offer one of them (an engine not installed offers
+        # nothing it could run: no skipped rows for it); none named: every engine, its missing SDK a skipped row
+        absent = [engine.reason for engine in every if type(engine) is UnavailableEngine]
+        args.engines = [engine.name for engine in every if not isinstance(engine, BrokenEngine)
+                        and (not args.integrators or not isinstance(engine, UnavailableEngine))]
+    else:
+        absent = []
     unknown = [e for e in args.engines if e not in engine_names()]
     if unknown:
         raise BadInput(f"--engines: unknown engine {', '.join(unknown)}; valid: {', '.join(engine_names())}")
@@ -332,7 +339,12 @@ def check_names(args) -> None:
         known = {i for engine in engines for i in engine.integrators()}
         missing = [i for i in args.integrators if i not in known]
         # an engine whose SDK is missing lists no integrators: a name may be its, so the message says how to get it
-        absent = [e.reason for e in engines if isinstance(e, UnavailableEngine)]
+        absent = list(dict.fromkeys(absent + [e.reason for e in engines if isinstance(e, UnavailableEngine)]))
+        from .. import integrators as registry
+
+        broken = [f"{name}: {registry.failed_plugin(name)}" for name in missing if registry.failed_plugin(name)]
+        if broken:  # a plug-in that did not load is named with its error, never "unknown"
+            raise BadInput(f"--integrators: {broken[0]}")
         if missing:
             raise BadInput(f"--integrators: unknown integrator {', '.join(missing)} for engines "
                            f"{','.join(args.engines)}; valid: {', '.join(sorted(known))}"

@@ -66,19 +66,19 @@ def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, advice.csv and the orders in checks.csv
     (analysis.workprecision; pareto.csv is main()'s, after the verdicts). The default suite (no CASE, no --case-file,
     no --dt) gets the small default ladders; named cases or steps with --strict only the short ladders of the
-    integrators no case's dt list gives an order (without --strict none); --dt-ladder every family's; --no-ladder
-    none."""
+    integrators no case's dt list gives an order, or gives one on too few points (without --strict none); --dt-ladder
+    every family's; --no-ladder none, or with --strict the short ladders only."""
     from ..analysis import workprecision
 
     if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
         raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}")
     if args.dt_ladder:
         mode = "full"
-    elif args.no_ladder:
-        mode = "off"
-    elif args.cases or args.case_file or args.dt is not None:
-        # --strict judges: a declared order no case's dt list measured is measured (short ladders) before it is
-        # judged; without it such a claim is reported "not measured, no reason"
+    elif args.no_ladder or args.cases or args.case_file or args.dt is not None:
+        # --strict judges: a declared order no case's dt list measured, or measured on too few points
+        # (verdicts.NOT_ENOUGH), is measured (short ladders) before it is judged, --no-ladder or not (it then means no
+        # dt or tolerance ladder); without --strict such a claim is reported "not measured, no reason" or "not enough
+        # evidence"
         mode = "short" if args.strict else "off"
     else:
         mode = "default"

@@ -23,12 +23,14 @@ from .lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEul
 from .vector import VectorEuler, VectorRK, VectorRK4, VectorSystem
 
 __all__ = ["ENTRY_POINT_GROUP", "ButcherTableau", "ExplicitRK", "Integrator", "LieSystem", "VectorRK", "VectorSystem",
-           "get", "in_default_sweep", "names", "register", "state_spaces"]
+           "failed_plugin", "get", "in_default_sweep", "joins_default_sweep", "names", "register", "state_spaces"]
 
 ENTRY_POINT_GROUP = "stereodyn.integrators"
 
 _registry: dict[tuple[str, str], type[Integrator]] = {}  # (state_space, name) -> class, in registration order
 _plugins_loaded = False
+_from_entry_points: set[type] = set()  # the classes an entry point registered: plug-ins (joins_default_sweep)
+_failed: dict[str, str] = {}  # a name a plug-in that did not load offers -> its one line (failed_plugin)
 
 
 def register(cls: type[Integrator]) -> type[Integrator]:
@@ -55,6 +57,8 @@ def get(name_or_class: str | type[Integrator], state_space: str = "lie") -> type
     try:
         return _registry[(state_space, name_or_class)]
     except KeyError:
+        if name_or_class in _failed:
+            raise KeyError(f"integrator {name_or_class!r}: {_failed[name_or_class]}") from None
         raise KeyError(f"unknown integrator {name_or_class!r} for state space {state_space!r}; "
                        f"valid: {', '.join(names(state_space))}") from None
 
@@ -90,21 +94,45 @@ def _load_plugins() -> None:
         return
     _plugins_loaded = True
     for entry in entry_points(group=ENTRY_POINT_GROUP):
+        offered = [entry.name]  # the names a user may ask for: the entry point's, and each class's it got to
         try:
             with plugins.guard(f"{plugins.describe(entry, 'integrator plug-in')} not loaded"):
                 loaded = entry.load()
                 for cls in (loaded if isinstance(loaded, (list, tuple)) else (loaded,)):
+                    offered.append(getattr(cls, "name", None))
                     register(cls)  # TypeError, ValueError: a class the registry refuses
+                    _from_entry_points.add(cls)
         except plugins.PluginError as exc:  # a broken plug-in must not take the built-ins down with it
             plugins.warn(str(exc))
+            for name in offered:
+                if isinstance(name, str) and name not in names(None):
+                    _failed.setdefault(name, str(exc))
+
+
+def failed_plugin(name: str) -> str | None:
+    """The one line (plug-in, distribution, error) of the integrator plug-in that offered `name` and did not load;
+    None where no such plug-in failed (`--integrators NAME` then says so instead of "unknown")."""
+    _load_plugins()
+    return _failed.get(name)
 
 
 def in_default_sweep(name: str) -> bool:
-    """Whether a sweep that names no integrators runs `name`: False only when every class registered under it says
-    default_sweep = False (the slow geometric methods); a name the registry does not hold (an engine's own) is run."""
+    """Whether a sweep that names no integrators runs `name`: False only when no class registered under it joins the
+    default sweep (joins_default_sweep: the slow geometric methods, and plug-ins that do not opt in); a name the
+    registry does not hold (an engine's own) is run."""
     _load_plugins()
     classes = [cls for (_, n), cls in _registry.items() if n == name]
-    return not classes or any(getattr(cls, "default_sweep", True) for cls in classes)
+    return not classes or any(joins_default_sweep(cls) for cls in classes)
+
+
+def joins_default_sweep(cls: type[Integrator]) -> bool:
+    """Whether a sweep that names no integrators runs the class. A class registered in Python (stereodyn's, a
+    script's): its default_sweep (default True). An entry-point plug-in runs only when named, unless its package opts
+    in by declaring `default_sweep = True` in a class of its own (inherited from stereodyn's base classes it does not
+    count): an installed plug-in, and any false claim it makes, then stays out of other packages' default sweeps."""
+    if cls not in _from_entry_points:
+        return bool(getattr(cls, "default_sweep", True))
+    return any(vars(k).get("default_sweep") is True for k in cls.__mro__ if not plugins.own(k))
 
 
 for _cls in (Euler, SymplecticEuler, RK4, RK4Naive, VectorEuler, VectorRK4, *GEOMETRIC):

@@ -27,14 +27,24 @@ class ButcherTableau:
     c: tuple[float, ...]
 
     def __post_init__(self) -> None:
+        # Each refusal names the row (counted from 1, as printed tableaux are) and the condition it breaks: the
+        # registry's one line about a plug-in that does not load quotes it.
         s = len(self.b)
         if len(self.c) != s or len(self.a) != s or any(len(row) != s for row in self.a):
             raise ValueError(f"tableau shapes disagree: a {[len(r) for r in self.a]}, b {s}, c {len(self.c)}")
-        if any(self.a[i][j] != 0.0 for i in range(s) for j in range(i, s)):
-            raise ValueError("tableau is not explicit: a must be strictly lower triangular")
+        upper = next(((i, j) for i in range(s) for j in range(i, s) if self.a[i][j] != 0.0), None)
+        if upper is not None:
+            i, j = upper
+            raise ValueError(f"tableau is not explicit: row {i + 1}: a[{i + 1}][{j + 1}] = {float(self.a[i][j])!r} "
+                             "on or above the diagonal (a must be strictly lower triangular)")
         # Consistency (c_i = sum_j a_ij, sum_i b_i = 1), to round-off in the decimal coefficients.
-        if abs(sum(self.b) - 1.0) > 1e-14 or any(abs(sum(row) - ci) > 1e-14 for row, ci in zip(self.a, self.c)):
-            raise ValueError("tableau is not consistent: need sum(b) = 1 and c_i = sum_j a_ij")
+        for i, (row, ci) in enumerate(zip(self.a, self.c)):
+            if abs(sum(row) - ci) > 1e-14:
+                raise ValueError(f"tableau is not consistent: row {i + 1}: c_{i + 1} = {float(ci)!r} but the row of "
+                                 f"a sums to {float(sum(row))!r} (need c_i = sum_j a_ij)")
+        if abs(sum(self.b) - 1.0) > 1e-14:
+            raise ValueError(f"tableau is not consistent: the weights b sum to {float(sum(self.b))!r} (need "
+                             "sum_i b_i = 1)")
 
     @property
     def stages(self) -> int:

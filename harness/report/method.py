@@ -50,7 +50,7 @@ def integrator_rows() -> list[dict]:
             rows.append({"name": name, "state_space": space, "order": cls.order, "stages": cls.stages,
                          "symplectic": cls.symplectic, "geometric": cls.geometric,
                          "energy_bounded": getattr(cls, "energy_bounded", False),
-                         "default_sweep": getattr(cls, "default_sweep", True), "origin": origin(cls),
+                         "default_sweep": registry.joins_default_sweep(cls), "origin": origin(cls),
                          "description": cls.description})
     from ..engines.catalog import origin as engine_origin
     from ..analysis.fitting import declared_order

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
-from ..engines import get_engine
+from ..engines import UnavailableEngine, get_engine
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
@@ -37,12 +37,16 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
     once per dt of the case; each runs every variant of the model (SceneModel.variants: the rigid body's
     formulations, Engine.formulations; "" for a model without), except the pairs the model leaves out of a sweep
     that names no integrators (SceneModel.default_run, the rigid body's Engine.default_run). integrators: the names
-    asked for, None for each engine's default sweep (Selection, resolved here once per engine).
+    asked for, None for each engine's default sweep (Selection, resolved here once per engine). With integrators
+    named, an engine that offers none of them has no rows at all (an engine whose SDK is missing, whose offer is
+    unknown, keeps its skipped rows with the reason; `stereodyn run` leaves it out unless --engines names it).
     """
     specs, skipped = [], []
     for engine_rank, name in enumerate(engines):
         engine = get_engine(name)
         selection = Selection.of(engine, integrators)
+        if not selection.default and not selection.integrators and not isinstance(engine, UnavailableEngine):
+            continue  # it offers none of the integrators named: no rows, not a skipped row per case
         models = engine.models()
         for case in cases:
             scene = scene_of(case)
