@@ -124,18 +124,22 @@ def test_strict_passes_a_true_third_order_claim_at_the_cases_own_steps(plugins, 
 
 
 def test_strict_never_passes_a_claim_nothing_measured(plugins, tmp_path, capsys):
-    """--no-ladder: no short ladder, the dt list gives one asymptotic point: not measured and nothing excuses it."""
+    """The dt list gives one asymptotic point. --strict with --no-ladder (issue 30 item 5: contradictory before, it
+    exited 1 with "no short ladder ran: --strict runs them") still runs the short ladder its verdict needs, --no-ladder
+    meaning no dt or tolerance ladder: the false claim is measured and fails."""
     assert _acceptance_run(tmp_path / "out", "rk4_claims_6", ["--no-ladder"]) == 1
     err = capsys.readouterr().err
-    line = next(x for x in err.splitlines() if x.startswith("verdict not measured:"))
-    assert "rk4_claims_6 declares order 6; not measured, and no reason excuses it" in line
-    assert "no short ladder ran" in line
-    # without --strict no short ladder runs: the same verdict, exit 0, and the claim (not disproved) keeps its runs
-    # in "What to use"
+    line = next(x for x in err.splitlines() if x.startswith("verdict failed:"))
+    assert "rk4_claims_6 declares order 6, fitted 4.0" in line, err  # measured 4.00, as without --no-ladder
+    convergence = pd.read_csv(tmp_path / "out" / "convergence.csv")
+    assert list(convergence.source) == [dt_ladders.SHORT_LADDER]
+    # without --strict no short ladder runs: not measured, nothing excuses it, exit 0, and the claim (not disproved)
+    # keeps its runs in "What to use"
     assert cli.main(["run", "free-asymmetric", "--t-end", "2", "--engines", "pinocchio", "--integrators",
                      "rk4_claims_6", "--jobs", "1", "--quiet", "--out", str(tmp_path / "b")]) == 0
     table = pd.read_csv(tmp_path / "b" / "verdicts.csv", keep_default_na=False)
     assert list(table[table.verdict == "order"].status) == [verdicts.NO_REASON]
+    assert "no short ladder ran: --strict runs them" in table[table.verdict == "order"].detail.iloc[0]
     pareto = pd.read_csv(tmp_path / "b" / "pareto.csv", keep_default_na=False)
     assert "rk4_claims_6" in set(pareto.integrator)
 

@@ -1,0 +1,112 @@
+"""Order verdicts that weigh their evidence (issue 30, item 5): how many asymptotic points and cases a verdict rests
+on; a miss found on too little evidence is "not enough evidence", not a failure, unless a fit is a whole order off;
+`run --strict` measures such a claim first (a short ladder, with --no-ladder too), then judges. And the "not
+measured" reasons tell skipped runs from failed ones (item 4)."""
+import math
+
+import pandas as pd
+import pytest
+
+from stereodyn.harness import cli
+from stereodyn.harness.analysis import dt_ladders, verdicts, workprecision
+
+
+def _convergence(rows) -> pd.DataFrame:
+    """convergence.csv rows of one claim (mujoco rk4, declared 4): (case, order, points, note)."""
+    return pd.DataFrame([dict(case=case, engine="mujoco", formulation="", integrator="rk4", precision="float64",
+                              order=order, declared_order=4.0, points=points, source="dt_list", note=note)
+                         for case, order, points, note in rows])
+
+
+def _verdict(rows) -> verdicts.Verdict:
+    (verdict,) = verdicts.order_verdicts(_convergence(rows))
+    return verdict
+
+
+def test_a_miss_on_one_pre_asymptotic_pair_is_not_enough_evidence():
+    """Issue 30's user body: MuJoCo's rk4 at advise's dt and 2.5 times it fitted 3.40 on one case."""
+    verdict = _verdict([("mybody", 3.40, 2, "")])
+    assert verdict.status == verdicts.NOT_ENOUGH
+    assert "fitted 3.40 on 1 case from 2 asymptotic points" in verdict.detail
+    assert f"fewer than {verdicts.MIN_POINTS} asymptotic points" in verdict.detail and "--strict" in verdict.rule
+    assert verdicts.failed_integrators([verdict]) == set()  # "What to use" still recommends its runs
+    assert verdicts.strict_failures([verdict]) == [verdict]  # --strict fails it if measuring more did not help
+    assert verdicts.summary_lines([verdict])[1].startswith("verdict not enough evidence: integrator mujoco rk4")
+
+
+@pytest.mark.parametrize("rows, why", [
+    ([("mybody", 2.0, 2, "")], "a whole order off fails on any evidence: Heun declared 4"),
+    ([("mybody", 3.40, 3, "")], "three asymptotic points on one case are enough"),
+    ([("a", 3.5, 2, ""), ("b", 3.6, 2, ""), ("c", 3.4, 2, "")], "three cases are enough"),
+])
+def test_enough_evidence_or_a_gross_miss_still_fails(rows, why):
+    verdict = _verdict(rows)
+    assert verdict.status == verdicts.FAIL, why
+    assert f"from {sum(r[2] for r in rows)} asymptotic points (at most {max(r[2] for r in rows)} on a case)" \
+        in verdict.detail
+
+
+def test_a_pass_states_its_evidence_and_old_tables_without_points_judge_as_before():
+    assert _verdict([("mybody", 3.95, 2, "")]).status == verdicts.PASS
+    old = _convergence([("mybody", 3.40, 2, "")]).drop(columns="points")  # a convergence.csv of 0.2.0
+    (verdict,) = verdicts.order_verdicts(old)
+    assert verdict.status == verdicts.FAIL and "asymptotic points" not in verdict.detail
+
+
+def test_weak_claims_are_those_a_strict_run_measures_more():
+    def row(case, integrator, points, order=4.0):
+        return dict(case=case, engine="pinocchio", formulation="", integrator=integrator, order=order, points=points)
+
+    rows = [row("a", "weak", 2), row("b", "weak", 2), row("chaos", "weak", 5),  # the chaotic case does not count
+            row("a", "strong", 3), row("a", "many", 2), row("b", "many", 2), row("c", "many", 2),
+            row("a", "unfitted", 1, math.nan)]
+    assert workprecision.weak_claims(rows, {"chaos"}) == {("pinocchio", "", "weak")}
+
+
+@pytest.mark.parametrize("note, reason", [
+    ("0 point(s) in the asymptotic range (...): no run ok: skipped", "every run skipped"),
+    ("0 point(s) in the asymptotic range (...): no run ok: failed, skipped", "no run finished ok (failed, skipped)"),
+    ("0 point(s) in the asymptotic range (...): no run ok: diverged", "no run finished ok (diverged)"),
+])
+def test_not_measured_reasons_tell_skipped_from_failed(note, reason):
+    (verdict,) = verdicts.order_verdicts(_convergence([("mybody", math.nan, 0, note)]))
+    assert verdict.status == verdicts.UNMEASURED
+    assert f"mybody {reason}" in verdict.detail
+
+
+BODY = """
+description = "a heavy top of a user's own, outside the suite"
+[body]
+mass = 0.8
+com = [0.02, 0.0, 0.15]
+principal_moments = [1.2, 1.0, 0.5]
+[gravity]
+g = 9.81
+[initial]
+attitude = { euler_zxz = [0.0, 0.4, 0.0] }
+omega = [0.2, 0.1, 8.0]
+[run]
+t_end = 5.0
+dt = [1e-2]
+samples = 500
+"""
+# `stereodyn advise F --engine mujoco --integrator rk4 --target 1e-6` on BODY: dt = 0.01186 s (error 6.4e-7)
+ADVISED = 0.01186
+
+
+def test_strict_no_ladder_measures_a_claim_of_two_points_first_then_passes(tmp_path):
+    """Issue 30's acceptance command on a body outside the suite: --dt D,2.5D --no-ladder --strict. Two points on one
+    case are too few to judge: the short ladder adds one (doubling from 2.5 D) and the fit of three passes (measured
+    3.97; 4.00 on the pair alone)."""
+    case = tmp_path / "mybody.toml"
+    case.write_text(BODY)
+    out = tmp_path / "out"
+    assert cli.main(["run", "--case-file", str(case), "--engines", "mujoco", "--integrators", "rk4", "--dt",
+                     f"{ADVISED},{2.5 * ADVISED:.5g}", "--no-ladder", "--strict", "--no-certify", "--jobs", "1",
+                     "--quiet", "--out", str(out)]) == 0
+    convergence = pd.read_csv(out / "convergence.csv")
+    assert list(convergence.source) == [dt_ladders.SHORT_LADDER] and list(convergence.points) == [3]
+    assert abs(convergence.order.iloc[0] - 4.0) <= 0.15
+    table = pd.read_csv(out / "verdicts.csv", keep_default_na=False)
+    order = table[table.verdict == "order"]
+    assert list(order.status) == [verdicts.PASS] and "from 3 asymptotic points" in order.detail.iloc[0]
