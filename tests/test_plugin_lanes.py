@@ -2,10 +2,13 @@
 with its distribution and error, a tableau refusal with its row and condition, and `--integrators NAME` for it says
 so (exit 2), not "unknown"; a plug-in joins a sweep when named or when its package opts in (default_sweep = True);
 a sweep naming integrators has rows only from the engines that offer them."""
+import subprocess
 import sys
 import textwrap
 from argparse import Namespace
 from importlib.metadata import EntryPoint
+
+import pandas as pd
 
 import pytest
 
@@ -138,3 +141,31 @@ def test_named_integrators_have_rows_only_from_engines_that_offer_them(tmp_path)
     default = Namespace(engines=None, integrators=["rk4"], dt_ladder=False, no_ladder=True, ladder_max_steps=None)
     cli.check_names(default)
     assert default.engines and not any(isinstance(get_engine(e), UnavailableEngine) for e in default.engines)
+
+
+# slow: a sweep on the default engines in a subprocess, ~13 s of CPU (2-core machine, load ~3)
+@pytest.mark.slow
+def test_an_installed_package_stays_in_its_lane(tmp_path):
+    """Issue 30's acceptance, the package pip-installed as a user would: `--integrators lanes_heun,rk4 --strict` on
+    the default engines has rows only from the engines that offer them (no skipped rows for the engines not
+    installed), the two broken entries are one warning line each naming the distribution, and the installed
+    lanes_liar (Heun declared fourth order) neither runs nor changes the exit."""
+    import plugin_packages
+
+    site = plugin_packages.install(tmp_path / "package", {
+        "pyproject.toml": plugin_packages.pyproject(PACKAGE, {"stereodyn.integrators": ENTRIES}),
+        **{path: textwrap.dedent(text) for path, text in FILES.items()}})
+    out = tmp_path / "out"
+    result = subprocess.run([sys.executable, "-m", "stereodyn", "run", "free-asymmetric", "--integrators",
+                             "lanes_heun,rk4", "--t-end", "1", "--dt", "0.04,0.02,0.01", "--strict", "--no-certify",
+                             "--jobs", "1", "--quiet", "--out", str(out)],
+                            capture_output=True, text=True, env=plugin_packages.env_with(site), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("stereodyn: warning:")]
+    assert len(warnings) == 2 and all(f"distribution {DIST}) not loaded: " in line for line in warnings), warnings
+    assert any(line.endswith(ROW_2) for line in warnings), warnings
+    rows = pd.read_csv(out / "results.csv", keep_default_na=False)
+    rows = rows[rows.integrator != "taylor"]
+    assert set(rows.engine) == {"mujoco", "pinocchio", "reference"} and set(rows.status) == {"ok"}
+    assert set(rows.integrator) == {"lanes_heun", "rk4"}
+    assert set(rows[rows.integrator == "lanes_heun"].engine) == {"pinocchio"}
