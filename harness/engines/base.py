@@ -147,7 +147,8 @@ class Engine:
 
     def in_default_sweep(self, integrator: str) -> bool:
         """Whether a sweep that names no integrators runs this one on this engine. Default: the registry's
-        in_default_sweep (False only for classes declaring default_sweep = False; an engine's own name is run)."""
+        in_default_sweep (False for classes declaring default_sweep = False, and for entry-point plug-ins that do not
+        opt in with default_sweep = True; an engine's own name is run)."""
         from .. import integrators
 
         return integrators.in_default_sweep(integrator)

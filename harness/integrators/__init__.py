@@ -9,7 +9,8 @@ pyproject.toml: [project.entry-points."stereodyn.integrators"] my_rk = "my_packa
 a list or tuple of classes: one method in both state spaces, "lie" and "vector"). Plug-ins are loaded
 the first time the registry is consulted, behind the plug-in guard (reference.plugins: any Exception or SystemExit,
 never Ctrl-C); one that fails to load, or offers a class the registry refuses, is skipped with a PluginWarning naming
-it, never breaking a sweep.
+it, never breaking a sweep; `--integrators NAME` for it is refused with that line (failed_plugin). A plug-in runs
+where it is named, and in default sweeps only when its package opts in (joins_default_sweep).
 """
 from __future__ import annotations
 
