@@ -2,11 +2,13 @@
 with its distribution and error, a tableau refusal with its row and condition, and `--integrators NAME` for it says
 so (exit 2), not "unknown"; a plug-in joins a sweep when named or when its package opts in (default_sweep = True);
 a sweep naming integrators has rows only from the engines that offer them."""
+import os
 import subprocess
 import sys
 import textwrap
 from argparse import Namespace
 from importlib.metadata import EntryPoint
+from pathlib import Path
 
 import pandas as pd
 
@@ -70,6 +72,39 @@ def plugged(monkeypatch, tmp_path):
         monkeypatch.delitem(sys.modules, module)
     with pytest.warns(UserWarning):  # the two broken entries, one PluginWarning each
         integrators.names()
+
+
+@pytest.fixture
+def site(tmp_path) -> Path:
+    """The package as an installed distribution (its files and a .dist-info folder written by hand: no pip)."""
+    for path, text in FILES.items():
+        (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / path).write_text(textwrap.dedent(text))
+    info = tmp_path / "stereodyn_lanes_plugin-0.1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: stereodyn-lanes-plugin\nVersion: 0.1.0\n")
+    (info / "entry_points.txt").write_text(f"[{integrators.ENTRY_POINT_GROUP}]\n"
+                                           + "".join(f"{k} = {v}\n" for k, v in ENTRIES.items()))
+    return tmp_path
+
+
+def test_a_plugin_that_does_not_load_is_one_line_naming_its_distribution(site, tmp_path):
+    """From Python (a plug-in's CI) and from the command line alike: one line per broken entry point, with its
+    distribution and error; Python's warning no longer points at a line of stereodyn's source."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
+    library = subprocess.run([sys.executable, "-c", "from stereodyn.harness import integrators; integrators.names()"],
+                             capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert library.returncode == 0, library.stderr
+    lines = library.stderr.splitlines()
+    assert len(lines) == 2 and all(line.startswith("stereodyn:0: PluginWarning: integrator plug-in 'lanes_")
+                                   and f"distribution {DIST}) not loaded: " in line for line in lines), lines
+    assert lines[0].endswith(ROW_2), lines
+    named = subprocess.run([sys.executable, "-m", "stereodyn", "run", "free-asymmetric", "--engines", "pinocchio",
+                            "--integrators", "lanes_bad", "--out", str(tmp_path / "out")],
+                           capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert named.returncode == 2 and named.stderr.splitlines()[-1] == (
+        f"stereodyn: error: --integrators: lanes_bad: integrator plug-in 'lanes_bad' ({PACKAGE}.bad:Bad, "
+        f"distribution {DIST}) not loaded: ValueError: {ROW_2}"), named.stderr
 
 
 @pytest.mark.parametrize("kwargs, words", [
