@@ -102,7 +102,8 @@ def _load_plugins() -> None:
                 for cls in (loaded if isinstance(loaded, (list, tuple)) else (loaded,)):
                     offered.append(getattr(cls, "name", None))
                     register(cls)  # TypeError, ValueError: a class the registry refuses
-                    _from_entry_points.add(cls)
+                    if not plugins.own(cls):  # stereodyn's own class offered again keeps its default_sweep
+                        _from_entry_points.add(cls)
         except plugins.PluginError as exc:  # a broken plug-in must not take the built-ins down with it
             plugins.warn(str(exc))
             for name in offered:
