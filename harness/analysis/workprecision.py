@@ -26,8 +26,8 @@ from . import tolerance_ladders
 from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
 from ..engines import get_engine
 from .pareto import ACCURACY_TARGETS
-from .fitting import (FAMILY, MIN_CASES, MIN_POINTS, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order,
-                      order_checks, pareto, pareto_table, sweep_orders, tolerance_fits, with_state_err)
+from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
+                      pareto_table, sweep_orders, tolerance_fits, with_state_err)
 from ..engines.base import FLOAT64
 from ..run.plan import Selection
 from ..run.results import read_csv_table, with_precision, write_atomic
@@ -117,14 +117,14 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
 
 
 def weak_claims(sweep_rows: list[dict], chaotic: set[str]) -> set[tuple]:
-    """The claims (engine, formulation, integrator) whose orders the dt lists measured on too little evidence for
-    the order verdict (analysis.verdicts: fewer than MIN_POINTS asymptotic points on every non-chaotic case and fewer
-    than MIN_CASES such cases)."""
-    evidence: dict[tuple, list[int]] = {}
-    for r in sweep_rows:
-        if math.isfinite(r["order"]) and r["case"] not in chaotic:
-            evidence.setdefault((r["engine"], r["formulation"], r["integrator"]), []).append(int(r["points"]))
-    return {claim for claim, points in evidence.items() if max(points) < MIN_POINTS and len(points) < MIN_CASES}
+    """The claims (engine, formulation, integrator) whose dt lists miss the order rule on too little evidence to
+    judge (analysis.verdicts.NOT_ENOUGH: fewer than MIN_POINTS asymptotic points on every non-chaotic case and fewer
+    than MIN_CASES such cases): a --strict run measures them more before it judges. A claim that meets the rule on
+    little evidence is judged as it is (its verdict states the evidence), so --strict costs nothing more there."""
+    from .verdicts import NOT_ENOUGH, order_verdicts
+
+    return {(v.engine, v.formulation, v.integrator) for v in order_verdicts(convergence_table(sweep_rows), chaotic)
+            if v.status == NOT_ENOUGH} if sweep_rows else set()
 
 
 def first_part_families(short: list[tuple[Family, list[dict], int]], points: list[dict], ladder_rows: list[dict],
@@ -206,7 +206,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         chaotic = {c.name for c in rigid if set(c.tags) & set(CHAOTIC_TAGS)}
         measured = {(r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
                     if math.isfinite(r["order"]) and r["case"] not in chaotic}
-        # and those measured on too few points to judge (verdicts.NOT_ENOUGH): measured more before they are judged
+        # and those whose dt lists miss the rule on too few points to judge (verdicts.NOT_ENOUGH): measured more
         weak = weak_claims(sweep_rows, chaotic)
         if weak:
             short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered, weak)
