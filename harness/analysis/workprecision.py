@@ -89,9 +89,9 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
     """The families that get a short ladder (analysis.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
-    gives no order (or, for a claim (engine, formulation, integrator) in remeasure, whose order rests on too few
-    points: weak_claims; its non-chaotic cases), and with a run that was not failed or skipped (those keep their sweep
-    row and its reason)."""
+    gives no order (or, for a claim (engine, formulation, integrator) in remeasure, whose order misses the rule on
+    too few points: weak_claims; its non-chaotic cases), and with a run that was not failed or skipped (those keep
+    their sweep row and its reason)."""
     chaotic = {c.name for c in cases if set(c.tags) & set(CHAOTIC_TAGS)}
     fitted = {tuple(r[c] for c in FAMILY) for r in sweep_rows if math.isfinite(r["order"])
               and not ((r["engine"], r["formulation"], r["integrator"]) in remeasure and r["case"] not in chaotic)}

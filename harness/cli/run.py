@@ -66,8 +66,8 @@ def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -
     """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv, advice.csv and the orders in checks.csv
     (analysis.workprecision; pareto.csv is main()'s, after the verdicts). The default suite (no CASE, no --case-file,
     no --dt) gets the small default ladders; named cases or steps with --strict only the short ladders of the
-    integrators no case's dt list gives an order, or gives one on too few points (without --strict none); --dt-ladder
-    every family's; --no-ladder none, or with --strict the short ladders only."""
+    integrators no case's dt list gives an order, or whose orders miss on too few points (without --strict none);
+    --dt-ladder every family's; --no-ladder none, or with --strict the short ladders only."""
     from ..analysis import workprecision
 
     if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
@@ -75,7 +75,7 @@ def _work_precision(args, options, chosen: list, df, pool=None, progress=None) -
     if args.dt_ladder:
         mode = "full"
     elif args.no_ladder or args.cases or args.case_file or args.dt is not None:
-        # --strict judges: a declared order no case's dt list measured, or measured on too few points
+        # --strict judges: a declared order no case's dt list measured, or missed on too few points
         # (verdicts.NOT_ENOUGH), is measured (short ladders) before it is judged, --no-ladder or not (it then means no
         # dt or tolerance ladder); without --strict such a claim is reported "not measured, no reason" or "not enough
         # evidence"
