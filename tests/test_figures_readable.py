@@ -63,7 +63,7 @@ def report(tmp_path_factory):
     """A report with every kind of figure and many panels: three engines, four reference formulations (six panels:
     a wrapped work-precision and invariants figure), the tolerance ladders (their figure) of a short --dt-ladder."""
     out = tmp_path_factory.mktemp("figures") / "out"
-    assert cli.main(["run", "free-asymmetric", "--engines", "mujoco,pinocchio,reference", "--integrators",
+    assert cli.main(["run", "--figures", "free-asymmetric", "--engines", "mujoco,pinocchio,reference", "--integrators",
                      "rk4,euler,scipy_rk45,taylor", "--t-end", "1", "--dt", "1e-2,3e-3", "--dt-ladder",
                      "--ladder-max-steps", "100", "--no-certify", "--jobs", "2", "--quiet", "--out", str(out)]) == 0
     return out
@@ -96,7 +96,7 @@ def test_every_figure_is_readable_at_100_percent(report, tmp_path):
 
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed (apt-get install -y chromium)")
 def test_the_self_contained_page_too(report, tmp_path):
-    assert cli.main(["report", str(report), "--self-contained"]) == 0
+    assert cli.main(["report", str(report), "--self-contained", "--figures"]) == 0
     page = report / "report.html"
     assert check_page(page, tmp_path) == ["embedded"]
     assert 'src="figures/' not in page.read_text(encoding="utf-8")  # nothing left to fetch

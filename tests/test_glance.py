@@ -34,7 +34,7 @@ def ran(tmp_path_factory):
     """A small sweep with a divergence (Euler at dt = 0.3 on heavy-asymmetric), progress on (stderr is no TTY)."""
     out = tmp_path_factory.mktemp("glance") / "out"
     code, stdout, stderr = _main(["run", *CASES, "--engines", "mujoco,pinocchio", "--integrators", "euler,rk4",
-                                  "--t-end", "20", "--dt", "0.3,1e-2", "--jobs", "2", "--out", str(out)])
+                                  "--t-end", "20", "--dt", "0.3,1e-2", "--jobs", "2", "--figures", "--out", str(out)])
     assert code == 0, stderr
     return out, stdout, stderr
 

@@ -52,12 +52,12 @@ class Page(HTMLParser):
 def reported(tmp_path_factory):
     """A sweep with a diverged run (heavy-asymmetric, Euler at dt = 0.3), then checks.csv, then `report`."""
     out = tmp_path_factory.mktemp("report")
-    assert cli.main(["run", *CASES, "--engines", "mujoco,pinocchio", "--integrators", "euler,rk4", "--t-end", "20",
+    assert cli.main(["run", "--figures", *CASES, "--engines", "mujoco,pinocchio", "--integrators", "euler,rk4", "--t-end", "20",
                      "--dt", "0.3,1e-2", "--jobs", "2", "--quiet", "--out", str(out)]) == 0
     assert (out / "report.md").is_file() and (out / "report.html").is_file()  # run writes both
     CHECKS.to_csv(out / "checks.csv", index=False)
     # the one-file page (report.html links figures/ by default; tests/test_figures_readable.py checks that page)
-    assert cli.main(["report", str(out), "--self-contained"]) == 0
+    assert cli.main(["report", str(out), "--self-contained", "--figures"]) == 0
     return out
 
 
@@ -101,7 +101,7 @@ def test_every_figure_is_a_non_empty_image(reported):
 
 def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):
     shutil.copy(reported / "results.csv", tmp_path / "results.csv")
-    assert cli.main(["report", str(tmp_path)]) == 0
+    assert cli.main(["report", str(tmp_path), "--figures"]) == 0
     text = (tmp_path / "report.md").read_text()
     assert all(heading + "\n" in text for heading in SECTIONS.values())
     assert "No invariants figure: no stored series in this folder" in text and "No checks.csv" in text
@@ -113,6 +113,20 @@ def test_figures_drawn_in_parallel_are_the_same(reported, tmp_path, monkeypatch)
     build.write_reports(tmp_path / "copy")
     for png in (reported / "figures").glob("*.png"):
         assert (tmp_path / "copy" / "figures" / png.name).read_bytes() == png.read_bytes()
+
+
+def test_no_figures_writes_the_tables_and_says_where_the_figures_are(reported, tmp_path, monkeypatch):
+    """--no-figures (and STEREODYN_FIGURES=0, tests/conftest.py) draws nothing, removes the figures of an earlier
+    render and says so in each case's section; --figures draws them again."""
+    shutil.copytree(reported, tmp_path / "copy")
+    assert cli.main(["report", str(tmp_path / "copy"), "--no-figures"]) == 0
+    text = (tmp_path / "copy" / "report.md").read_text()
+    assert not list((tmp_path / "copy" / "figures").glob("*.png")) and ".png" not in text
+    assert text.count(build.NOT_DRAWN) == len(CASES) and "| engine |" in text
+    monkeypatch.delenv("STEREODYN_FIGURES")
+    assert cli.main(["report", str(tmp_path / "copy")]) == 0  # the default without the variable: figures
+    assert len(list((tmp_path / "copy" / "figures").glob("*.png"))) == 2 * len(CASES)
+    assert build.NOT_DRAWN not in (tmp_path / "copy" / "report.md").read_text()
 
 
 def test_markdown_subset_rendering():

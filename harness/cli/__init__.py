@@ -40,6 +40,7 @@ COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "
 _commands: dict = {}
 
 DEFAULT_OUT = "out"
+FIGURES_ENV = "STEREODYN_FIGURES"  # "0": --no-figures by default (a test suite, a CI gate)
 
 
 class BadInput(Exception):
@@ -164,6 +165,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--self-contained", action="store_true",
                      help="embed the figures in report.html (one file to send; larger) instead of linking "
                           "DIR/figures/")
+    _figures(run)
     run.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per phase otherwise, on stderr)")
     run.add_argument("--verbose", action="store_true", help="also print every case's drift table")
@@ -196,6 +198,7 @@ def _parser() -> argparse.ArgumentParser:
     _allow_partial(report)
     report.add_argument("--self-contained", action="store_true",
                         help="embed the figures in report.html (one file to send; larger) instead of linking them")
+    _figures(report)
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
     baseline.add_argument("dir", type=_path)
     baseline.add_argument("--out", type=_path, required=True, metavar="FILE", help="baseline file to write (JSON)")
@@ -242,6 +245,14 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("--integrator", default=None, help="MJCF only: MuJoCo integrator (default rk4)")
     export.add_argument("--dt", type=_scale, default=None, help="MJCF only: timestep (default: the case's first dt)")
     return parser
+
+
+def _figures(parser) -> None:
+    """--figures / --no-figures; STEREODYN_FIGURES=0 in the environment makes --no-figures the default (a test suite
+    or a CI gate reads only the tables, and drawing is most of a small run's report)."""
+    parser.add_argument("--figures", action=argparse.BooleanOptionalAction, default=os.environ.get(FIGURES_ENV) != "0",
+                        help="draw the figures of report.md and report.html (default; --no-figures: the tables only, "
+                             f"faster, and the default when the environment sets {FIGURES_ENV}=0)")
 
 
 def _allow_partial(parser) -> None:

@@ -17,7 +17,8 @@ def main(args) -> int:
     with folder_lock(args.dir):
         warnings = completeness(args.dir, args.allow_partial)  # an unfinished folder: refused
         try:
-            markdown, html = write_reports(args.dir, self_contained=args.self_contained)
+            markdown, html = write_reports(args.dir, self_contained=args.self_contained,
+                                           figures=args.figures)
         except (KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
             if isinstance(exc, TableError):
                 raise

@@ -45,8 +45,8 @@ def main(args) -> int:
         workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
         if args.verbose:
             print(drift_table_text(df))
-        progress.stage("report: report.md, figures, report.html")
-        markdown, html = write_reports(args.out, df, self_contained=args.self_contained)
+        progress.stage("report: report.md, figures, report.html" if args.figures else "report: report.md, report.html")
+        markdown, html = write_reports(args.out, df, self_contained=args.self_contained, figures=args.figures)
         mark_complete(args.out)  # the last write: check, baseline, compare and report read the folder from now on
         print("\n".join(summary.terminal_lines(df, found, args.out, html)))
     print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")

@@ -34,6 +34,8 @@ CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity
 SUMMARY_ACCURACY = 1e-6
 # Figures per extra process when drawing in parallel: a process costs ~1 s to start, a figure ~0.5 s to draw.
 PARALLEL_FIGURES = 8
+NOT_DRAWN = ("Figures not drawn (--no-figures, or STEREODYN_FIGURES=0 in the environment): "
+             "`stereodyn report DIR --figures` draws them.")
 
 
 def _run_name(row) -> str:
@@ -82,12 +84,14 @@ def _checks(context: sections.Context) -> list[str]:
 
 
 def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool,
-                    ladder: pd.DataFrame | None = None,
-                    tolerance: pd.DataFrame | None = None) -> tuple[dict[str, list[str]], dict]:
+                    ladder: pd.DataFrame | None = None, tolerance: pd.DataFrame | None = None,
+                    draw: bool = True) -> tuple[dict[str, list[str]], dict]:
     """Each case's figures as report lines {case: lines} (work–precision, then invariants against time), and the
     figures {relative path: PNG bytes}; the points of the dt ladders (ladder.csv) and of the tolerance ladders
     (tolerance.csv, harness.analysis.workprecision) join their case's work–precision plot. The tolerance figures are
-    tolerance_figures'."""
+    tolerance_figures'. With draw False (--no-figures) each case gets one line saying so."""
+    if not draw:
+        return {case: [NOT_DRAWN, ""] for case in dict.fromkeys(df["case"])}, {}
     images: dict[str, bytes] = {}
     tasks = []
     for case, group in df.groupby("case", sort=False):
@@ -128,10 +132,10 @@ def _render(task: tuple) -> bytes | None:
     return figures.work_precision(group, case) if kind == "work-precision" else figures.invariants(group, series, case)
 
 
-def tolerance_figures(tolerance: pd.DataFrame | None) -> tuple[dict[str, str], dict[str, bytes]]:
+def tolerance_figures(tolerance: pd.DataFrame | None, draw: bool = True) -> tuple[dict[str, str], dict[str, bytes]]:
     """The tolerance-against-error figure of each case with tolerance ladders (tolerance.csv): ({case: relative
     path}, {relative path: PNG bytes})."""
-    if tolerance is None or tolerance.empty:
+    if tolerance is None or tolerance.empty or not draw:
         return {}, {}
     cases = list(dict.fromkeys(tolerance["case"]))
     paths, images = {}, {}
@@ -232,18 +236,21 @@ def _series_index(out_dir: Path) -> dict[tuple, dict]:
     return index
 
 
-def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained: bool = False) -> tuple[Path, Path]:
+def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained: bool = False,
+                  figures: bool = True) -> tuple[Path, Path]:
     """Write DIR/report.md, DIR/figures/*.png and DIR/report.html from the folder's results; return the two pages.
     report.html links the figures in DIR/figures/ (readable at 96 dpi, the ~55 figures of the default run would make a
-    self-contained page of over 3 MB); self_contained embeds them instead (one file to send)."""
+    self-contained page of over 3 MB); self_contained embeds them instead (one file to send). figures False
+    (--no-figures) draws none: the tables only, and no figure of an earlier render is left behind."""
     out_dir = Path(out_dir)
     df = read_results(out_dir / "results.csv") if df is None else df
     manifest = read_manifest(out_dir)
     series = _series_index(out_dir)
     tolerance = workprecision.read_optional(out_dir / workprecision.TOLERANCE_FILE, workprecision.TEXT_COLUMNS)
     case_extras, images = figure_sections(df, series, manifest is not None,
-                                          workprecision.read_optional(out_dir / workprecision.LADDER_FILE), tolerance)
-    tolerance_paths, tolerance_images = tolerance_figures(tolerance)
+                                          workprecision.read_optional(out_dir / workprecision.LADDER_FILE), tolerance,
+                                          draw=figures)
+    tolerance_paths, tolerance_images = tolerance_figures(tolerance, draw=figures)
     images.update(tolerance_images)
     env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
     if env is not None:
