@@ -12,7 +12,9 @@ Per integrator (an engine, formulation, integrator and precision, across the run
   stopped matching it but meets the declared one;
 - bounded energy, for a method that declares energy_bounded: its energy error over ENERGY_RATIO times a short run
   grows at most ENERGY_GROWTH times (no secular trend), on a conservative case, both floored at the round-off of the
-  long run's steps (harness.testing.energy_noise: a method at round-off never fails it).
+  long run's steps (harness.testing.energy_noise: a method at round-off never fails it);
+- symplectic, symmetric, stages, geometric, casimir_preserving: each declared property (and the stages, always) by
+  the rule of harness.analysis.claims, measured on a few short steps of one or two bodies.
 Per case, of the truth (the reference's quaternion Taylor row):
 - its conserved invariants (the drift columns) within TRUTH_DRIFT_MAX;
 - its distance to the case's exact solution (oracle_err) within TRUTH_ORACLE_MAX;
@@ -90,11 +92,13 @@ TRUTH_CHECK_TOLERANCE = {
     "detachment_angle": 1e-10,       # [1.3e-16, sliding ladder]
 }
 TRUTH = (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR)
+# The verdicts on a claim of the method itself, checked apart from the runs (harness.analysis.claims.CLAIMS too).
+METHOD_CLAIMS = ("energy_bounded", "symplectic", "symmetric", "stages", "geometric", "casimir_preserving")
 
 
 @dataclass(frozen=True)
 class Verdict:
-    verdict: str          # "order", "energy_bounded", "truth_invariants", "truth_oracle", "truth_checks"
+    verdict: str          # "order", METHOD_CLAIMS, "truth_invariants", "truth_oracle", "truth_checks"
     engine: str = ""
     formulation: str = ""
     integrator: str = ""
@@ -264,6 +268,34 @@ def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
     return out
 
 
+def property_verdicts(results: pd.DataFrame) -> list[Verdict]:
+    """For each registered integrator that ran ok: every property it declares and its stages (harness.analysis.claims:
+    measured on a few short steps of one or two bodies, not on the runs), one verdict each, named by the claim."""
+    from .. import integrators as registry
+    from . import claims
+
+    ran = set(results.loc[results["status"] == "ok", "integrator"].astype(str))
+    out = []
+    for space in registry.state_spaces():
+        for name in registry.names(space):
+            if name not in ran:
+                continue
+            cls = registry.get(name, space)
+            runner_engine = engine_for_state_space(space)
+            base = dict(engine=runner_engine.name, formulation=runner_engine.default_formulation, integrator=name)
+            for claim in claims.claimed(cls):
+                try:
+                    found = claims.check(cls, claim)
+                except Exception as exc:  # a check run that breaks is a failed claim, with its reason
+                    raise_unless_data(exc)
+                    out.append(Verdict(claim, **base, status=FAIL, rule=f"the {claim} check runs",
+                                       detail=f"declares {claim}; the check run failed: {type(exc).__name__}: {exc}"))
+                    continue
+                out.append(Verdict(claim, **base, case=found.case, status=PASS if found.passed else FAIL,
+                                   detail=found.detail, rule=found.rule))
+    return out
+
+
 def _truth_rows(results: pd.DataFrame) -> pd.DataFrame:
     df = results.fillna({"formulation": ""})
     return df[(df["engine"] == TRUTH[0]) & (df["formulation"] == TRUTH[1]) & (df["integrator"] == TRUTH[2])]
@@ -338,6 +370,7 @@ def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy:
         verdicts += order_verdicts(convergence, excluded)
     if energy:
         verdicts += energy_verdicts(results)
+        verdicts += property_verdicts(results)
     checks_path = out_dir / checks.CHECKS_FILE
     verdicts += truth_verdicts(results, checks.read_checks(checks_path) if checks_path.exists() else None)
     write(verdicts, out_dir / VERDICTS_FILE)
@@ -367,11 +400,12 @@ def strict_failures(verdicts: Iterable[Verdict]) -> list[Verdict]:
 
 
 def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]:
-    """(engine, formulation, integrator) of the integrator verdicts that failed. An energy_bounded failure names the
-    method itself, so it stands for every engine and formulation that ran it ("*")."""
+    """(engine, formulation, integrator) of the integrator verdicts that failed. A failed claim of the method itself
+    (energy_bounded, and the properties of harness.analysis.claims) stands for every engine and formulation that ran
+    it ("*")."""
     out = set()
     for v in failed(verdicts):
-        if v.verdict == "energy_bounded":
+        if v.verdict in METHOD_CLAIMS:
             out.add(("*", "*", v.integrator))
         elif v.integrator:
             out.add((v.engine, v.formulation, v.integrator))
