@@ -173,8 +173,8 @@ class ExplicitRK(StepperIntegrator):
                 k = accel(t + offset, retract(g, theta), u)
                 if munthe_kaas:  # T = dexp^-1_theta(u) = u + 1/2 theta x u + c theta x (theta x u), closed form
                     c1 = cross(theta, u)
-                    k = dexp_coefficients(np.einsum("ij,ij->i", theta, theta))
-                    u = u + 0.5 * c1 + k[:, None] * cross(theta, c1)
+                    coefficient = dexp_coefficients(np.einsum("ij,ij->i", theta, theta))
+                    u = u + 0.5 * c1 + coefficient[:, None] * cross(theta, c1)
                 slopes.append((u, k))
             raise AssertionError("a tableau's plan ends with its update")
 

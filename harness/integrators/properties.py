@@ -175,11 +175,8 @@ def _system_and_start(cls: type[Integrator], body: RigidBody, quat0, omega0, for
             (lambda s: (np.asarray(s[0], dtype=float), np.asarray(s[1], dtype=float)))
     system = FormulationSystem(formulation, body)
     chart, y = system.formulation.start(np.asarray(quat0, dtype=float), np.asarray(omega0, dtype=float))
-    raw = formulation == GROUP_FORMULATION
 
-    def observe(s):
-        if raw:  # the coordinates themselves, not the normalised attitude observe_one gives the other charts
-            return np.asarray(s[1][:4], dtype=float), np.asarray(s[1][4:], dtype=float)
+    def observe(s):  # the quaternion formulation's observe gives its coordinates as they are, never normalised
         quat, omega = system.observe(*s)
         return np.array(quat, dtype=float), np.array(omega, dtype=float)
 
