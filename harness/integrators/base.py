@@ -53,20 +53,31 @@ class Counted:
     """A system whose right-hand side (`method`: "accel" on the group, "rhs" in state space "vector") counts its calls
     in `calls`: a run's rhs_evals are counted, not computed (an iterative method reports what it used). The other
     methods of the protocols are bound as they are (no lookup a call); any other attribute is the wrapped system's.
-    The count costs one Python call a evaluation (~0.1 µs against a Pinocchio RK4 step's ~20 µs)."""
+    The count costs one Python call a evaluation: +155 ns a call measured (timeit, the 2-core machine at load 10;
+    a list cell and the protocol's own arguments: *args and an attribute cost +260 ns), against a Pinocchio RK4
+    step's ~20 µs of 4 calls."""
 
     def __init__(self, system, method: str):
-        self._system, self.calls = system, 0
-        inner = getattr(system, method)
-
-        def counted(*args):
-            self.calls += 1
-            return inner(*args)
+        self._system, self._count = system, [0]
+        inner, count = getattr(system, method), self._count
+        if method == "accel":
+            def counted(t, g, v):
+                count[0] += 1
+                return inner(t, g, v)
+        else:
+            def counted(t, chart, y):
+                count[0] += 1
+                return inner(t, chart, y)
 
         setattr(self, method, counted)
         for name in ("retract", "rechart", "observe", "chart_changes"):
             if name != method and hasattr(system, name):
                 setattr(self, name, getattr(system, name))
+
+    @property
+    def calls(self) -> int:
+        """Right-hand-side evaluations so far."""
+        return self._count[0]
 
     def __getattr__(self, name: str):
         return getattr(self._system, name)
