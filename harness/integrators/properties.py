@@ -51,16 +51,34 @@ class QuaternionSystem:
         self.body = body
         self.sigma = np.array(body.inertia, dtype=float)
         self.sigma_inv = np.linalg.inv(self.sigma)
-        self.weight = np.array(body.weight_moment, dtype=float)
-        self.down = np.array(body.gravity_direction, dtype=float)
+        self._rows = self.sigma.tolist(), self.sigma_inv.tolist()
+        self._weight = tuple(np.array(body.weight_moment, dtype=float).tolist())
+        self._down = tuple(np.array(body.gravity_direction, dtype=float).tolist())
 
     def accel(self, t: float, g: np.ndarray, v: np.ndarray) -> np.ndarray:
-        g, v = np.asarray(g, dtype=float), np.asarray(v, dtype=float)
         if self.body.has_external_torque:  # the torque models' sums: reference.euler_poisson (~10x slower)
-            return np.array(euler_poisson.omega_dot(self.body, g, v, t), dtype=float)
-        # Euler's equations with gravity, sigma v' = sigma v x v + m g (O -> G) x R^T d, R of the normalised g
-        down = quat_to_matrix(g / math.sqrt(float(g @ g))).T @ self.down
-        return self.sigma_inv @ (np.cross(self.sigma @ v, v) + np.cross(self.weight, down))
+            return np.array(euler_poisson.omega_dot(self.body, np.asarray(g, dtype=float),
+                                                    np.asarray(v, dtype=float), t), dtype=float)
+        # Euler's equations with gravity, sigma v' = sigma v x v + m g (O -> G) x R^T d, R of the normalised g; in
+        # floats (numpy's per-call cost on 3-vectors is ten times the arithmetic)
+        w, x, y, z = np.asarray(g, dtype=float).tolist()
+        v0, v1, v2 = np.asarray(v, dtype=float).tolist()
+        (s0, s1, s2), (i0, i1, i2) = self._rows
+        d0, d1, d2 = self._down
+        n = w * w + x * x + y * y + z * z
+        c0, c1, c2 = y * d2 - z * d1, z * d0 - x * d2, x * d1 - y * d0  # u x d, u = (x, y, z)
+        e0, e1, e2 = y * c2 - z * c1, z * c0 - x * c2, x * c1 - y * c0  # u x (u x d)
+        h0, h1, h2 = (d0 + 2.0 * (e0 - w * c0) / n, d1 + 2.0 * (e1 - w * c1) / n,
+                      d2 + 2.0 * (e2 - w * c2) / n)  # R^T d
+        m0 = s0[0] * v0 + s0[1] * v1 + s0[2] * v2
+        m1 = s1[0] * v0 + s1[1] * v1 + s1[2] * v2
+        m2 = s2[0] * v0 + s2[1] * v1 + s2[2] * v2
+        a0, a1, a2 = self._weight
+        r0 = m1 * v2 - m2 * v1 + a1 * h2 - a2 * h1
+        r1 = m2 * v0 - m0 * v2 + a2 * h0 - a0 * h2
+        r2 = m0 * v1 - m1 * v0 + a0 * h1 - a1 * h0
+        return np.array((i0[0] * r0 + i0[1] * r1 + i0[2] * r2, i1[0] * r0 + i1[1] * r1 + i1[2] * r2,
+                         i2[0] * r0 + i2[1] * r1 + i2[2] * r2))
 
     def retract(self, g: np.ndarray, theta: np.ndarray) -> np.ndarray:
         return quat_mul(np.asarray(g, dtype=float), quat_exp(np.asarray(theta, dtype=float)))
