@@ -227,3 +227,22 @@ def test_rhs_evals_are_counted_in_runs():
                                     ("pinocchio", "moser_veselov", 0, 0)):
         traj = get_engine(engine).prepare(case, name, 0.01).run(grid)
         assert traj.steps == 50 and low * 50 <= traj.rhs_evals <= high * 50, (engine, name, traj.rhs_evals)
+
+
+def test_property_verdicts_rows_and_a_check_that_breaks(monkeypatch):
+    """verdicts.csv's rows: one per claim of each registered integrator that ran ok (none for one that did not run),
+    named by the claim; a check that raises in a plug-in's (here the test's) code fails the claim with its reason, and
+    the failure excludes the method on every engine ("*"), as a failed energy_bounded claim does."""
+    df = pd.DataFrame({"integrator": ["rk4_naive", "euler", "taylor"], "status": ["ok", "failed", "ok"]})
+    rows = verdicts.property_verdicts(df)
+    assert {(v.verdict, v.engine, v.integrator, v.status) for v in rows} == {
+        ("stages", "pinocchio", "rk4_naive", "pass"), ("geometric", "pinocchio", "rk4_naive", "pass")}
+
+    def broken(cls, claim):
+        raise ValueError("no such body")
+
+    monkeypatch.setattr(claims, "check", broken)
+    rows = verdicts.property_verdicts(df)
+    assert {v.status for v in rows} == {verdicts.FAIL}
+    assert rows[0].line == "integrator pinocchio rk4_naive declares stages; the check run failed: ValueError: no such body"
+    assert ("*", "*", "rk4_naive") in verdicts.failed_integrators(rows)
