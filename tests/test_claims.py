@@ -169,7 +169,8 @@ def test_false_claims_fail_naming_claim_and_figure():
 def test_butcher6_reaches_order_6_on_the_group():
     """dexp^-1 in closed form (the tableau defined here; installed as a plug-in below, -m slow): order 6 on
     free-asymmetric, measured 6.00; with dexp^-1 cut after the 1/12 term it fits 5.00."""
-    order = testing.measured_order(_plugin_classes()["butcher6_plugin"], "free-asymmetric", dts=[0.2 / 2 ** k for k in range(5)])
+    order = testing.measured_order(_plugin_classes()["butcher6_plugin"], "free-asymmetric",
+                                   dts=[0.2 / 2 ** k for k in range(5)])
     assert abs(order - 6.0) <= 0.3, order
 
 
@@ -207,9 +208,10 @@ def test_false_claims_fail_run_strict(installed, tmp_path):
     assert set(zip(claimed.loc[claimed["status"] == "fail", "verdict"],
                    claimed.loc[claimed["status"] == "fail", "integrator"])) == FALSE
     # the true claims of the same methods pass
+    passed = claimed[claimed["status"] == "pass"]
     assert {("stages", "rk4_symplectic_claim"), ("geometric", "rk4_symplectic_claim"),
             ("stages", "euler_symmetric_claim"), ("stages", "quat_euler_geometric_claim")} <= set(
-        zip(claimed.loc[claimed["status"] == "pass", "verdict"], claimed.loc[claimed["status"] == "pass", "integrator"]))
+        zip(passed["verdict"], passed["integrator"]))
     # rhs_evals measured: RK4 declaring 2 stages still reports its 4 evaluations a step (computed, it would be 2)
     results = pd.read_csv(tmp_path / "out" / "results.csv")
     rows = results[(results["integrator"] == "rk4_two_stages_claim") & (results["status"] == "ok")]
@@ -223,7 +225,8 @@ def test_rhs_evals_are_counted_in_runs():
     from stereodyn.harness.grid import time_grid
     case, grid = find_case("free-asymmetric"), time_grid(0.5, 0.01, 6)
     for engine, name, low, high in (("pinocchio", "rk4", 4, 4), ("reference", "rk4", 4, 4),
-                                    ("pinocchio", "implicit_midpoint", 3, 20), ("reference", "implicit_midpoint", 3, 20),
+                                    ("pinocchio", "implicit_midpoint", 3, 20),
+                                    ("reference", "implicit_midpoint", 3, 20),
                                     ("pinocchio", "moser_veselov", 0, 0)):
         traj = get_engine(engine).prepare(case, name, 0.01).run(grid)
         assert traj.steps == 50 and low * 50 <= traj.rhs_evals <= high * 50, (engine, name, traj.rhs_evals)
@@ -244,5 +247,6 @@ def test_property_verdicts_rows_and_a_check_that_breaks(monkeypatch):
     monkeypatch.setattr(claims, "check", broken)
     rows = verdicts.property_verdicts(df)
     assert {v.status for v in rows} == {verdicts.FAIL}
-    assert rows[0].line == "integrator pinocchio rk4_naive declares stages; the check run failed: ValueError: no such body"
+    assert rows[0].line == ("integrator pinocchio rk4_naive declares stages; the check run failed: ValueError: "
+                            "no such body")
     assert verdicts.failed_integrators(rows[:1]) == {("*", "*", "rk4_naive")}  # the stages verdict alone

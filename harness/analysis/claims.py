@@ -1,14 +1,15 @@
 """The rules that judge an integrator's declared properties (issue 30), each on the figure that
-harness.integrators.properties measures in a few short steps: the verdicts of `stereodyn run` (harness.analysis.verdicts)
-and harness.testing's assert_claims apply the same check.
+harness.integrators.properties measures in a few short steps: the verdicts of `stereodyn run`
+(harness.analysis.verdicts) and harness.testing's assert_claims apply the same check.
 
-| claim | measured | passes when |
-|---|---|---|
-| symplectic | ‖JᵀΩJ − Ω‖_max of one step in canonical coordinates, at each h of SYMPLECTIC_STEPS | every defect <= SYMPLECTIC_DEFECT_MAX |
-| symmetric | a step of h then −h: attitude angle and relative ω error to the start, at each h of REVERSAL_STEPS | every error <= REVERSAL_MAX |
-| stages | right-hand-side calls over STAGE_STEPS steps of STAGE_STEP, counted by a wrapper | exactly `stages` a step; at least, for an `iterative` method |
-| geometric | max ‖q‖² − 1 of the raw attitude quaternion over GROUP_STEPS steps of GROUP_STEP | <= GROUP_DRIFT_MAX |
-| casimir_preserving | max |σv|²/|σv0|² − 1 over GROUP_STEPS steps on FREE_CASE | <= CASIMIR_DRIFT_MAX |
+- symplectic: ‖JᵀΩJ − Ω‖_max of one step in canonical coordinates at each h of SYMPLECTIC_STEPS; passes when every
+  defect is <= SYMPLECTIC_DEFECT_MAX.
+- symmetric: a step of h then −h, the attitude angle and relative ω error to the start at each h of REVERSAL_STEPS;
+  passes when every error is <= REVERSAL_MAX.
+- stages: right-hand-side calls over STAGE_STEPS steps of STAGE_STEP, counted by a wrapper; passes with exactly
+  `stages` a step, or at least that many for an `iterative` method.
+- geometric: max ‖q‖² − 1 of the raw attitude quaternion over GROUP_STEPS steps of GROUP_STEP; <= GROUP_DRIFT_MAX.
+- casimir_preserving: max |σv|²/|σv0|² − 1 over GROUP_STEPS steps on FREE_CASE; <= CASIMIR_DRIFT_MAX.
 
 Symplectic or not: a symplectic step's defect is the central differences' error, flat in h (strang_free_flow and
 moser_veselov: 2.0e-11 to 2.5e-11 at every h; the vector implicit midpoint on gibbs_hamiltonian <= 1.8e-12); a
@@ -107,7 +108,8 @@ def check(cls: type[Integrator], claim: str) -> Finding:
         return Finding(claim, worst <= SYMPLECTIC_DEFECT_MAX, worst,
                        f"declares symplectic: defect |J^T Omega J - Omega| {_list(defects)} at h = "
                        f"{', '.join(f'{h:g}' for h in hs)} s on {case} ({coordinates})"
-                       + (f", slope {slope:.1f} in h" if worst > SYMPLECTIC_DEFECT_MAX and math.isfinite(slope) else ""),
+                       + (f", slope {slope:.1f} in h" if worst > SYMPLECTIC_DEFECT_MAX and math.isfinite(slope)
+                          else ""),
                        f"defect <= {SYMPLECTIC_DEFECT_MAX:g} at every h (round-off, flat in h); a non-symplectic "
                        f"method of order p shows C h^(p+1)", case)
     if claim == "symmetric":

@@ -27,7 +27,7 @@ DEXP_SERIES_BELOW = 1e-2
 
 
 def dexp_coefficient(phi2: float) -> float:
-    """c(phi) of dexp^-1_theta(u) = u + 1/2 theta x u + c theta x (theta x u) on SO(3), from phi2 = |theta|^2 (rad^2)."""
+    """c(phi) of dexp^-1_theta(u) = u + 1/2 theta x u + c theta x (theta x u) on SO(3); phi2 = |theta|^2 (rad^2)."""
     if phi2 < DEXP_SERIES_BELOW:
         return 1.0 / 12.0 + phi2 * (1.0 / 720.0 + phi2 * (1.0 / 30240.0 + phi2 / 1209600.0))
     half = 0.5 * math.sqrt(phi2)

@@ -7,7 +7,9 @@ numbers that harness.analysis.claims judges (the verdicts of `stereodyn run` and
   form, which symplecticity does not see), so the defect is dimensionless. State space "vector": the formulation
   gibbs_hamiltonian, whose (q, p) are canonical (Ferrarese's Hamiltonian), p divided by |p0|. J is a fourth-order
   central difference, (8 (f(x+δ) − f(x−δ)) − (f(x+2δ) − f(x−2δ))) / 12δ with δ = FD_STEP: its truncation error is
-  δ⁴ f⁽⁵⁾/30 ~ 1e-13 and its rounding ~ eps |f| / δ ~ 3e-13 for a step map of unit-size derivatives.
+  δ⁴ f⁽⁵⁾/30 ~ 1e-13 and its rounding ~ eps |f| / δ ~ 3e-13 for a step map of unit-size derivatives; measured, the
+  defect of the symplectic built-ins is 2.0e-11 to 2.5e-11 on the group (the chart's maps add theirs), 1.8e-12 on
+  gibbs_hamiltonian, at every h.
 - reversal_error: a step of h from (g0, v0) at t = 0, then a step of −h from t = h; the larger of the attitude angle
   (rad) and the relative velocity difference to the start.
 - rhs_evals_per_step: the system's right-hand-side calls (accel, or rhs in state space "vector"), counted by a wrapper
@@ -17,8 +19,9 @@ numbers that harness.analysis.claims judges (the verdicts of `stereodyn run` and
 - casimir_drift: max | |σ v|² / |σ v0|² − 1 | over a run, for a torque-free body.
 
 The "lie" methods run on QuaternionSystem (g a unit quaternion (w, x, y, z), retract the quaternion product with
-exp(θ/2), never renormalised; accel Euler's equations with the body's torques: reference.euler_poisson): the method's
-own arithmetic, not an engine's. The "vector" methods run on reference.formulations' right-hand sides (numpy).
+exp(θ/2), never renormalised; accel Euler's equations with gravity in floats, or reference.euler_poisson's with the
+body's other torques): the method's own arithmetic, not an engine's. The "vector" methods run on
+reference.formulations' right-hand sides (numpy).
 A method that refuses a body (Moser–Veselov refuses gravity) raises from its stepper: the caller picks another body.
 """
 from __future__ import annotations
@@ -31,11 +34,11 @@ import numpy as np
 from ...reference import euler_poisson
 from ...reference import formulations as ref_formulations
 from ...reference.body import RigidBody
-from ...reference.rotations import quat_conj, quat_exp, quat_log, quat_mul, quat_to_matrix
+from ...reference.rotations import quat_conj, quat_exp, quat_log, quat_mul
 from .base import Counted, Integrator
 
 # The central differences' step in the canonical coordinates (rad for ξ, the scaled momenta are ~1): the module
-# docstring derives their error, ~1e-13, well under the defect of any non-symplectic step worth the name.
+# docstring derives their error, ~1e-13 (2.5e-11 measured), far under a non-symplectic step's defect.
 FD_STEP = 1e-3
 OMEGA_CANONICAL = np.block([[np.zeros((3, 3)), np.eye(3)], [-np.eye(3), np.zeros((3, 3))]])
 SYMPLECTIC_FORMULATION = "gibbs_hamiltonian"  # canonical coordinates of the "vector" state space
