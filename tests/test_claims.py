@@ -250,3 +250,17 @@ def test_property_verdicts_rows_and_a_check_that_breaks(monkeypatch):
     assert rows[0].line == ("integrator pinocchio rk4_naive declares stages; the check run failed: ValueError: "
                             "no such body")
     assert verdicts.failed_integrators(rows[:1]) == {("*", "*", "rk4_naive")}  # the stages verdict alone
+
+
+def test_timed_runs_do_not_count():
+    """The count is bookkeeping, off while a run is timed (harness.run.timing; its ~0.15 µs a call was 3-8% of a
+    Pinocchio step): there rhs_evals falls back to stages x steps, the count of 0.2.0."""
+    from stereodyn.harness.engines import get_engine
+    from stereodyn.harness.grid import time_grid
+    from stereodyn.harness.run import timing
+    sim = get_engine("pinocchio").prepare(find_case("free-asymmetric"), "implicit_midpoint", 0.01)
+    grid, seen = time_grid(0.5, 0.01, 6), []
+    assert sim.run(grid).rhs_evals > 3 * 50  # counted: the iterations
+    timing.measure(lambda: seen.append(sim.run(grid).rhs_evals), repeats=2, budget_s=0.0)
+    timing.measure_interleaved([lambda: seen.append(sim.run(grid).rhs_evals)], repeats=2, budget_s=0.0)
+    assert seen == [50] * 4  # stages (1) x steps, computed

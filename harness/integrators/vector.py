@@ -14,7 +14,7 @@ import numpy as np
 
 from ..trajectory import Trajectory
 from ..grid import TimeGrid
-from .base import Counted, Integrator, Stepper
+from .base import Integrator, Stepper, counting
 from .lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
 
 
@@ -74,9 +74,9 @@ class VectorRK(Integrator):
         """grid.steps steps of grid.dt from (chart0, y0), recorded at grid.sample_steps through system.observe; the
         divergence rule and the step of divergence as in Integrator.integrate. chart_changes: the system's count at
         the last state reached; rhs_evals: the rhs calls counted (Counted)."""
-        counted = Counted(system, "rhs")
-        trajectory, chart = self._run(self.stepper(counted, grid.dt), chart0, np.array(y0, dtype=float), grid,
-                                      system.observe, lambda: counted.calls)
+        stepped, calls = counting(system, "rhs")
+        trajectory, chart = self._run(self.stepper(stepped, grid.dt), chart0, np.array(y0, dtype=float), grid,
+                                      system.observe, calls)
         return dataclasses.replace(trajectory, chart_changes=system.chart_changes(chart))
 
 
