@@ -233,13 +233,19 @@ def test_rhs_evals_are_counted_in_runs():
 
 
 def test_property_verdicts_rows_and_a_check_that_breaks(monkeypatch):
-    """verdicts.csv's rows: one per claim of each registered integrator that ran ok (none for one that did not run),
-    named by the claim; a check that raises in a plug-in's (here the test's) code fails the claim with its reason, and
-    the failure excludes the method on every engine ("*"), as a failed energy_bounded claim does."""
-    df = pd.DataFrame({"integrator": ["rk4_naive", "euler", "taylor"], "status": ["ok", "failed", "ok"]})
+    """verdicts.csv's rows: one per claim of each registered integrator that ran ok on an engine of its state space
+    (none for one that did not run, nor for MuJoCo's own rk4), named by the claim; a check that raises in a plug-in's
+    (here the test's) code fails the claim with its reason, and the failure excludes the method on every engine ("*"),
+    as a failed energy_bounded claim does."""
+    df = pd.DataFrame({"engine": ["pinocchio", "pinocchio", "mujoco", "reference"],
+                       "integrator": ["rk4_naive", "euler", "rk4", "taylor"], "status": ["ok", "failed", "ok", "ok"]})
     rows = verdicts.property_verdicts(df)
     assert {(v.verdict, v.engine, v.integrator, v.status) for v in rows} == {
         ("stages", "pinocchio", "rk4_naive", "pass"), ("geometric", "pinocchio", "rk4_naive", "pass")}
+    # a table without engines: every state space that has the name
+    assert {(v.verdict, v.engine, v.integrator) for v in verdicts.property_verdicts(df.drop(columns="engine"))} == {
+        ("stages", "pinocchio", "rk4_naive"), ("geometric", "pinocchio", "rk4_naive"), ("stages", "pinocchio", "rk4"),
+        ("geometric", "pinocchio", "rk4"), ("stages", "reference", "rk4")}
 
     def broken(cls, claim):
         raise ValueError("no such body")

@@ -269,16 +269,26 @@ def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
 
 
 def property_verdicts(results: pd.DataFrame) -> list[Verdict]:
-    """For each registered integrator that ran ok: every property it declares and its stages (harness.analysis.claims:
-    measured on a few short steps of one or two bodies, not on the runs), one verdict each, named by the claim."""
+    """For each registered integrator that ran ok on an engine of its state space (any engine, for a table without an
+    engine column): every property it declares and its stages (harness.analysis.claims: measured on a few short steps
+    of one or two bodies, not on the runs), one verdict each, named by the claim. MuJoCo's own rk4 is no run of the
+    registry's."""
     from .. import integrators as registry
     from . import claims
 
-    ran = set(results.loc[results["status"] == "ok", "integrator"].astype(str))
+    ok = results[results["status"] == "ok"]
+    spaces = {}
+    for engine in (ok["engine"].astype(str).unique() if "engine" in ok else ()):
+        try:
+            spaces[engine] = get_engine(engine).state_space
+        except (KeyError, ValueError):  # an engine no longer registered: its rows are no run of ours
+            spaces[engine] = None
+    ran = ({(spaces[e], i) for e, i in zip(ok["engine"].astype(str), ok["integrator"].astype(str))} if "engine" in ok
+           else {(space, i) for space in registry.state_spaces() for i in ok["integrator"].astype(str)})
     out = []
     for space in registry.state_spaces():
         for name in registry.names(space):
-            if name not in ran:
+            if (space, name) not in ran:
                 continue
             cls = registry.get(name, space)
             runner_engine = engine_for_state_space(space)
