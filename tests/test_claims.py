@@ -269,4 +269,5 @@ def test_timed_runs_do_not_count():
     assert sim.run(grid).rhs_evals > 3 * 50  # counted: the iterations
     timing.measure(lambda: seen.append(sim.run(grid).rhs_evals), repeats=2, budget_s=0.0)
     timing.measure_interleaved([lambda: seen.append(sim.run(grid).rhs_evals)], repeats=2, budget_s=0.0)
-    assert seen == [50] * 4  # stages (1) x steps, computed
+    # stages (1) x steps, computed; a disturbed timing is re-timed once, so 4 entries or more
+    assert len(seen) >= 4 and set(seen) == {50}, seen
