@@ -45,6 +45,15 @@ def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.
     return df
 
 
+def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) -> pd.DataFrame | None:
+    """A derived table (convergence.csv, ladder.csv, ...), or None where the run wrote none; text columns read as text
+    with "" for empty cells; TableError for one that is malformed, never a table silently short of rows."""
+    if not Path(path).exists():
+        return None
+    df = read_csv_table(path, dtype={c: str for c in text_columns}, keep_default_na=True)
+    return df.fillna({c: "" for c in text_columns if c in df})
+
+
 def _same_length_rows(path: Path) -> None:
     """Every record has the header's number of fields, and the last ends its line: pandas fills a short (truncated)
     row with NaN silently, and names a long one by its line, not its row; a file cut inside its last field has every

@@ -1,12 +1,16 @@
-"""pytest helpers for checking an integrator in your own CI: its declared order, and its bounded energy error.
+"""pytest helpers for checking an integrator in your own CI: its declared order, its bounded energy error, and its
+declared properties (symplectic, symmetric, stages, geometric, casimir_preserving).
 
-    from stereodyn.harness.testing import assert_order, assert_bounded_energy
+    from stereodyn.harness.testing import assert_order, assert_bounded_energy, assert_claims
 
     def test_my_integrator_order():
         assert_order(MyIntegrator, cases=["free-asymmetric", "lagrange-top"])
 
     def test_my_integrator_energy():
         assert_bounded_energy(MyIntegrator)          # only if MyIntegrator.energy_bounded is True
+
+    def test_my_integrator_claims():
+        assert_claims(MyIntegrator)                  # every property it declares True, and its stages
 
 The integrator is a registered name or an Integrator class (harness.integrators); it runs on the Pinocchio engine
 (state space "lie") or on the reference engine's formulation (state space "vector"). With engine="NAME" it is any
@@ -15,7 +19,8 @@ integrator that engine runs (its own names included: an engine plug-in's CI), on
 
     assert_order("semi_implicit_euler", engine="bullet")
 
-Both helpers raise AssertionError with the measured numbers, so pytest shows why.
+The helpers raise AssertionError with the measured numbers, so pytest shows why. assert_claims applies the rules of
+harness.analysis.claims, those of `stereodyn run`'s verdicts (DESIGN §5), on a few short steps (about a second).
 """
 from __future__ import annotations
 
@@ -30,6 +35,7 @@ from . import integrators as registry
 from .scenes import metrics
 from .scenes.cases import Case, find_case, with_overrides
 from .engines import engine_for_state_space, get_engine
+from .analysis import claims as claim_rules
 from .analysis.fitting import order_slope
 from .trajectory import Status
 from .grid import time_grid
@@ -192,3 +198,16 @@ def assert_bounded_energy(integrator: str | type[Integrator], case: str | Case =
         f"{cls.name}: energy error {long:.3e} after {steps * ratio} steps against {short:.3e} after {steps}: "
         f"grows more than {growth}x over round-off's {energy_noise(steps * ratio):.2e} (secular drift)")
     return short, long
+
+
+def assert_claims(integrator: str | type[Integrator], state_space: str = "lie",
+                  only: Iterable[str] | None = None) -> dict[str, float]:
+    """Assert every property the integrator declares True (symplectic, symmetric, geometric, casimir_preserving) and
+    its stages, by the rules of harness.analysis.claims (`only`: a subset of claims.CLAIMS, checked whatever is
+    declared). Returns {claim: the measured figure}; the AssertionError names each failed claim, its figure and rule."""
+    cls = _resolve(integrator, state_space)
+    chosen = claim_rules.claimed(cls) if only is None else tuple(only)
+    found = [claim_rules.check(cls, claim) for claim in chosen]
+    failed = [f for f in found if not f.passed]
+    assert not failed, f"{cls.name}: " + "; ".join(f"{f.detail} (rule: {f.rule})" for f in failed)
+    return {f.claim: f.figure for f in found}

@@ -31,6 +31,8 @@ from .pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWE
                      SOURCE_TOLERANCE, TIE_RTOL, is_failed, pareto, pareto_candidates, pareto_table,
                      run_name as _name, setting)
 
+CONVERGENCE_FILE = "convergence.csv"  # the fitted orders of a run folder (DESIGN §4)
+
 CONVERGENCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "order", "floor_dt", "floor_err",
                        "stable_dt_max", "declared_order", "points", "source", "note")
 ORDER_QUANTITY = "convergence_order"

@@ -12,7 +12,9 @@ Per integrator (an engine, formulation, integrator and precision, across the run
   stopped matching it but meets the declared one;
 - bounded energy, for a method that declares energy_bounded: its energy error over ENERGY_RATIO times a short run
   grows at most ENERGY_GROWTH times (no secular trend), on a conservative case, both floored at the round-off of the
-  long run's steps (harness.testing.energy_noise: a method at round-off never fails it).
+  long run's steps (harness.testing.energy_noise: a method at round-off never fails it);
+- symplectic, symmetric, stages, geometric, casimir_preserving: each declared property (and the stages, always) by
+  the rule of harness.analysis.claims, measured on a few short steps of one or two bodies.
 Per case, of the truth (the reference's quaternion Taylor row):
 - its conserved invariants (the drift columns) within TRUTH_DRIFT_MAX;
 - its distance to the case's exact solution (oracle_err) within TRUTH_ORACLE_MAX;
@@ -30,7 +32,8 @@ import numpy as np
 import pandas as pd
 
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
-from .fitting import FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
+from ..tables import read_optional
+from .fitting import CONVERGENCE_FILE, FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
 from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import read_csv_table, with_precision, write_atomic
 from ..run.processes import raise_unless_data
@@ -93,11 +96,13 @@ TRUTH_CHECK_TOLERANCE = {
     "detachment_angle": 1e-10,       # [1.3e-16, sliding ladder]
 }
 TRUTH = (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR)
+# The verdicts on a claim of the method itself, checked apart from the runs (harness.analysis.claims.CLAIMS too).
+METHOD_CLAIMS = ("energy_bounded", "symplectic", "symmetric", "stages", "geometric", "casimir_preserving")
 
 
 @dataclass(frozen=True)
 class Verdict:
-    verdict: str          # "order", "energy_bounded", "truth_invariants", "truth_oracle", "truth_checks"
+    verdict: str          # "order", METHOD_CLAIMS, "truth_invariants", "truth_oracle", "truth_checks"
     engine: str = ""
     formulation: str = ""
     integrator: str = ""
@@ -284,6 +289,44 @@ def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
     return out
 
 
+def property_verdicts(results: pd.DataFrame) -> list[Verdict]:
+    """For each registered integrator that ran ok on an engine of its state space (any engine, for a table without an
+    engine column): every property it declares and its stages (harness.analysis.claims: measured on a few short steps
+    of one or two bodies, not on the runs), one verdict each, named by the claim. MuJoCo's own rk4 is no run of the
+    registry's."""
+    from .. import integrators as registry
+    from . import claims
+
+    ok = results[results["status"] == "ok"]
+    spaces = {}
+    for engine in (ok["engine"].astype(str).unique() if "engine" in ok else ()):
+        try:
+            spaces[engine] = get_engine(engine).state_space
+        except (KeyError, ValueError):  # an engine no longer registered: its rows are no run of ours
+            spaces[engine] = None
+    ran = ({(spaces[e], i) for e, i in zip(ok["engine"].astype(str), ok["integrator"].astype(str))} if "engine" in ok
+           else {(space, i) for space in registry.state_spaces() for i in ok["integrator"].astype(str)})
+    out = []
+    for space in registry.state_spaces():
+        for name in registry.names(space):
+            if (space, name) not in ran:
+                continue
+            cls = registry.get(name, space)
+            runner_engine = engine_for_state_space(space)
+            base = dict(engine=runner_engine.name, formulation=runner_engine.default_formulation, integrator=name)
+            for claim in claims.claimed(cls):
+                try:
+                    found = claims.check(cls, claim)
+                except Exception as exc:  # a check run that breaks is a failed claim, with its reason
+                    raise_unless_data(exc)
+                    out.append(Verdict(claim, **base, status=FAIL, rule=f"the {claim} check runs",
+                                       detail=f"declares {claim}; the check run failed: {type(exc).__name__}: {exc}"))
+                    continue
+                out.append(Verdict(claim, **base, case=found.case, status=PASS if found.passed else FAIL,
+                                   detail=found.detail, rule=found.rule))
+    return out
+
+
 def _truth_rows(results: pd.DataFrame) -> pd.DataFrame:
     df = results.fillna({"formulation": ""})
     return df[(df["engine"] == TRUTH[0]) & (df["formulation"] == TRUTH[1]) & (df["integrator"] == TRUTH[2])]
@@ -347,17 +390,17 @@ def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy:
     """Every verdict of a run folder (convergence.csv and checks.csv when present) and its results table; cases: the
     run's Case objects, whose tags say which are chaotic. Writes DIR/verdicts.csv."""
     from ..scenes import checks
-    from . import workprecision
 
     out_dir = Path(out_dir)
     excluded = [c.name for c in cases if set(getattr(c, "tags", ())) & set(CHAOTIC_TAGS)]
     verdicts: list[Verdict] = []
-    convergence = workprecision.read_optional(out_dir / workprecision.CONVERGENCE_FILE,
-                                              ("formulation", "note", "source", "engine", "integrator", "case"))
+    convergence = read_optional(out_dir / CONVERGENCE_FILE,
+                                ("formulation", "note", "source", "engine", "integrator", "case"))
     if convergence is not None and len(convergence):
         verdicts += order_verdicts(convergence, excluded)
     if energy:
         verdicts += energy_verdicts(results)
+        verdicts += property_verdicts(results)
     checks_path = out_dir / checks.CHECKS_FILE
     verdicts += truth_verdicts(results, checks.read_checks(checks_path) if checks_path.exists() else None)
     write(verdicts, out_dir / VERDICTS_FILE)
@@ -387,11 +430,12 @@ def strict_failures(verdicts: Iterable[Verdict]) -> list[Verdict]:
 
 
 def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]:
-    """(engine, formulation, integrator) of the integrator verdicts that failed. An energy_bounded failure names the
-    method itself, so it stands for every engine and formulation that ran it ("*")."""
+    """(engine, formulation, integrator) of the integrator verdicts that failed. A failed claim of the method itself
+    (energy_bounded, and the properties of harness.analysis.claims) stands for every engine and formulation that ran
+    it ("*")."""
     out = set()
     for v in failed(verdicts):
-        if v.verdict == "energy_bounded":
+        if v.verdict in METHOD_CLAIMS:
             out.add(("*", "*", v.integrator))
         elif v.integrator:
             out.add((v.engine, v.formulation, v.integrator))

@@ -26,17 +26,18 @@ from . import tolerance_ladders
 from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
 from ..engines import get_engine
 from .pareto import ACCURACY_TARGETS
-from .fitting import (FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
+from .fitting import (CONVERGENCE_FILE, FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
                       pareto_table, sweep_orders, tolerance_fits, with_state_err)
 from ..engines.base import FLOAT64
 from ..run.plan import Selection
 from ..run.results import read_csv_table, with_precision, write_atomic
+from ..tables import read_optional  # noqa: F401 (part of this module's API since 0.2.0)
 from ..run.workers import WatchedPool
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
 
-LADDER_FILE, CONVERGENCE_FILE, PARETO_FILE = "ladder.csv", "convergence.csv", "pareto.csv"
+LADDER_FILE, PARETO_FILE = "ladder.csv", "pareto.csv"
 ADVICE_FILE = "advice.csv"
 # The default run's checked advice: the laddered families (DEFAULT_LADDER's 28 with an order or slope) at 1e-3 and
 # 1e-6 rad; every laddered family at every Pareto target with --dt-ladder. Measured on the committed default run's
@@ -268,10 +269,3 @@ def _advice(results: pd.DataFrame, chosen: list[Family], adaptive: list[Family],
 
 # ------------------------------------------------------------------------------------------------ the report
 
-def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) -> pd.DataFrame | None:
-    """A table this module wrote, or None where the run wrote none; TableError (one line naming the file) for one cut
-    mid-row, not a regular file or not CSV: never a table silently short of rows."""
-    if not Path(path).exists():
-        return None
-    df = read_csv_table(path, dtype={c: str for c in text_columns}, keep_default_na=True)
-    return df.fillna({c: "" for c in text_columns if c in df})

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..trajectory import Trajectory
 from ..grid import TimeGrid
-from .base import Integrator, Stepper
+from .base import Integrator, Stepper, counting
 from .lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
 
 
@@ -73,9 +73,10 @@ class VectorRK(Integrator):
     def integrate(self, system: VectorSystem, chart0: object, y0: np.ndarray, grid: TimeGrid) -> Trajectory:
         """grid.steps steps of grid.dt from (chart0, y0), recorded at grid.sample_steps through system.observe; the
         divergence rule and the step of divergence as in Integrator.integrate. chart_changes: the system's count at
-        the last state reached."""
-        trajectory, chart = self._run(self.stepper(system, grid.dt), chart0, np.array(y0, dtype=float), grid,
-                                      system.observe)
+        the last state reached; rhs_evals: the rhs calls counted (Counted)."""
+        stepped, calls = counting(system, "rhs")
+        trajectory, chart = self._run(self.stepper(stepped, grid.dt), chart0, np.array(y0, dtype=float), grid,
+                                      system.observe, calls)
         return dataclasses.replace(trajectory, chart_changes=system.chart_changes(chart))
 
 

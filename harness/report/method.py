@@ -50,6 +50,8 @@ def integrator_rows() -> list[dict]:
             rows.append({"name": name, "state_space": space, "order": cls.order, "stages": cls.stages,
                          "symplectic": cls.symplectic, "geometric": cls.geometric,
                          "energy_bounded": getattr(cls, "energy_bounded", False),
+                         "symmetric": getattr(cls, "symmetric", False),
+                         "casimir_preserving": getattr(cls, "casimir_preserving", False),
                          "default_sweep": registry.joins_default_sweep(cls), "origin": origin(cls),
                          "description": cls.description})
     from ..engines.catalog import origin as engine_origin
@@ -69,6 +71,7 @@ def integrator_rows() -> list[dict]:
             if name not in registered:
                 rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
                              "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
+                             "symmetric": "", "casimir_preserving": "",
                              "default_sweep": adapter.in_default_sweep(name),
                              "origin": f"{engine_origin(engine)} ({engine})",
                              "description": "adaptive (error-controlled)" if adapter.adaptive(name) else ""})
@@ -77,8 +80,8 @@ def integrator_rows() -> list[dict]:
 
 def listing(rows: list[dict]) -> str:
     """The text of `stereodyn integrators`: a fixed-width table."""
-    columns = ("name", "state_space", "order", "stages", "symplectic", "geometric", "energy_bounded", "default_sweep",
-               "origin", "description")
+    columns = ("name", "state_space", "order", "stages", "symplectic", "geometric", "energy_bounded", "symmetric",
+               "casimir_preserving", "default_sweep", "origin", "description")
     cells = [list(columns)] + [[_text(row[c]) for c in columns] for row in rows]
     widths = [max(len(r[i]) for r in cells) for i in range(len(columns) - 1)]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1] for r in cells)
