@@ -425,6 +425,32 @@ def compare_orders(current: pd.DataFrame | None, orders: list[dict]) -> list[Fin
     return findings
 
 
+def code_environment(manifest: dict | None, own: bool = False) -> dict:
+    """runs.json's "code" as environment entries: 'plug-in engine NAME' and 'plug-in integrator NAME' ->
+    'DIST VERSION, source HASH' for every class a plug-in provides (a plug-in's changed source shows even when its
+    version did not change), and with own 'stereodyn source' (its fingerprint: it changes with every commit, so the
+    gate leaves it out). Entries of an unexpected shape are left out (runs.json's code is informative)."""
+    code = (manifest or {}).get("code")
+    if not isinstance(code, dict):
+        return {}
+    entries = {}
+    if own and isinstance(code.get("stereodyn source"), str):
+        entries["stereodyn source"] = code["stereodyn source"]
+    for kind, table in (("engine", code.get("engines")), ("integrator", code.get("integrators"))):
+        for name, origins in (table.items() if isinstance(table, dict) else ()):
+            for origin in (origins if isinstance(origins, list) else [origins]):
+                if isinstance(origin, dict) and origin.get("distribution") not in (None, "stereodyn"):
+                    entries[f"plug-in {kind} {name}"] = (f"{origin.get('distribution')} {origin.get('version', '')}, "
+                                                         f"source {origin.get('source', '?')}")
+    return entries
+
+
+def recorded_environment(manifest: dict | None) -> dict:
+    """The environment a baseline keeps and check compares: runs.json's environment and its plug-ins' code."""
+    environment = (manifest or {}).get("environment")
+    return {**(environment if isinstance(environment, dict) else {}), **code_environment(manifest)}
+
+
 def environment_changes(baseline: dict, current: dict | None) -> list[str]:
     """'name old -> new' for every environment entry (library versions, CPU, platform) that differs between the
     baseline and the run; the date and the git commit are left out (they differ every time)."""
@@ -504,7 +530,8 @@ def mode_line(mode: str, source: str, tolerances: Tolerances, changes: list[str]
         line += f", other bounds for {', '.join(name for name, _ in tolerances.per_metric)}"
     if tolerances.time_factor is not None:
         line += f"; us_per_step to {tolerances.time_factor:g} x baseline"
-    if mode == SAME_MACHINE and any(not c.startswith(("run environment unknown", "platform ")) for c in changes):
+    if mode == SAME_MACHINE and any(not c.startswith(("run environment unknown", "platform ", "plug-in "))
+                                    for c in changes):
         line += f" (the environment differs: on another machine or versions, --mode {CROSS_MACHINE})"
     return line
 

@@ -43,7 +43,8 @@ def main(args) -> int:
     with reading(args.dir, args.allow_partial) as warnings:  # never a folder a command is writing, nor unfinished
         current = gate.read_table(args.dir)
         orders = gate.read_orders(args.dir) if base.orders else None
-        environment = (read_manifest(args.dir) or {}).get("environment")
+        manifest = read_manifest(args.dir)
+        environment = gate.recorded_environment(manifest) if manifest else None
     used = sorted({m for row in baseline for m in gate.metric_columns(row) if row.get(m) is not None})
     missing = [m for m in used if m not in current.columns]
     if missing:  # else every row would read as NaN, i.e. worse
