@@ -132,10 +132,17 @@ def test_a_closed_pipe_keeps_checks_status_and_prints_no_broken_pipe(tmp_path):
         assert "Broken pipe" not in result.stderr and "Exception ignored" not in result.stderr, result.stderr
 
 
-def test_run_quiet_prints_nothing_on_a_passing_run(tmp_path, capsys):
-    out = tmp_path / "out"
+def test_run_quiet_prints_nothing_and_a_rerun_compares_identical_in_one_line(tmp_path, capsys):
+    """A passing `run --quiet` prints nothing (FAST has --quiet); its rerun is bit-identical on one machine, and
+    `compare --format pr` says so in one line, the same as compare-pr.md."""
     case = case_file(tmp_path, tiny_case())
-    assert cli.main(["run", "--case-file", str(case), *FAST, "--no-ladder", "--no-certify", "--out", str(out)]) == 0
-    captured = capsys.readouterr()
-    assert (captured.out, captured.err) == ("", "")
-    assert len(pd.read_csv(out / "results.csv")) > 0
+    for name in ("a", "b"):
+        assert cli.main(["run", "--case-file", str(case), *FAST, "--no-ladder", "--no-certify", "--out",
+                         str(tmp_path / name)]) == 0
+        captured = capsys.readouterr()
+        assert (captured.out, captured.err) == ("", "")
+    assert len(pd.read_csv(tmp_path / "a" / "results.csv")) > 0
+    assert cli.main(["compare", str(tmp_path / "a"), str(tmp_path / "b"), "--format", "pr"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("\n") == 1 and "is identical to" in printed, printed
+    assert (tmp_path / "b" / "compare-pr.md").read_text() == printed
