@@ -242,7 +242,10 @@ def test_the_environment_difference_comes_first(baseline, tmp_path, capsys):
     manifest["environment"]["mujoco"] = "3.17.0"
     (run / "runs.json").write_text(json.dumps(manifest))
     assert check(run, path) == 0
-    assert capsys.readouterr().out.splitlines()[0] == f"environment: mujoco {old} -> 3.17.0"
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0] == f"environment: mujoco {old} -> 3.17.0"
+    # a same-machine baseline checked with other versions: the mode line says how to widen it
+    assert printed[1].startswith("gate: same-machine mode") and printed[1].endswith("--mode cross-machine)")
     (run / "runs.json").unlink()
     assert check(run, path) == 0
     assert capsys.readouterr().out.startswith("environment: run environment unknown")
