@@ -15,8 +15,6 @@ from stereodyn.harness import cli
 
 from helpers import FAST, case_file, tiny_case
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
-
 
 def _table(rows: int) -> pd.DataFrame:
     """`rows` ok rows of one integrator on one case, one per dt, with two metrics."""
