@@ -215,6 +215,9 @@ def identical(a: pd.DataFrame, b: pd.DataFrame) -> bool:
         return False
     index = lambda df: {gate._key(row): [row.get(m) for m in metrics] for row in df.to_dict("records")}  # noqa: E731
     rows_a, rows_b = index(a), index(b)
-    same = lambda x, y: x == y or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y))  # noqa: E731,E501
+
+    def same(x, y) -> bool:
+        return x == y or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y))
+
     return rows_a.keys() == rows_b.keys() and all(all(same(x, y) for x, y in zip(rows_a[k], rows_b[k]))
                                                    for k in rows_a)
