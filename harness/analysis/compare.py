@@ -29,6 +29,13 @@ EXPECTED = ("date", "report rendered")
 TIMING = "us_per_step"
 DIFFERS = "DIFFERS"
 LISTED = 40      # rows listed per group (the output folder's compare.csv holds every row)
+# --format pr: a metric changed when B / A leaves [1 / PR_RATIO, PR_RATIO] (the same-machine gate's factor), a fitted
+# order when it moved by more than ORDER_CHANGE (fits are deterministic to < 0.01 on one machine: gate.ORDER_DROP).
+PR_RATIO = 1.05
+ORDER_CHANGE = 0.1
+# Verdict statuses from best to worst (harness.analysis.verdicts): a change is better or worse by this rank.
+VERDICT_RANK = {"pass": 0, "known": 0, "fixed upstream?": 0, "not measured": 1, "not measured, no reason": 2,
+                "fail": 3}
 FIGURE_ROWS = 20
 
 
@@ -51,7 +58,9 @@ def load(path: Path) -> tuple[pd.DataFrame, dict]:
 def _load(path: Path) -> tuple[pd.DataFrame, dict]:
     try:
         if path.is_dir():  # a runs.json of the wrong shape counts as absent (harness.run.store.read_manifest)
-            return gate.read_table(path), (read_manifest(path) or {}).get("environment") or {}
+            manifest = read_manifest(path)  # the environment with the code: a plug-in's changed source differs
+            return gate.read_table(path), {**gate.recorded_environment(manifest),
+                                           **gate.code_environment(manifest, own=True)}
         if path.is_file():
             baseline = gate.read_baseline_file(path)
             return pd.DataFrame(baseline.rows), baseline.environment
@@ -120,3 +129,95 @@ def label(row) -> str:
     precision = row.get("precision") if row.get("precision") != FLOAT64 else ""
     return " ".join(str(x) for x in (row["case"], row["engine"], row["formulation"], row["integrator"], precision)
                     if x) + f" dt={dt}"
+
+
+def load_orders(path: Path) -> dict[tuple, dict]:
+    """The fitted orders of a result directory (convergence.csv) or a baseline file, by run family (gate.ORDER_KEY):
+    {"fitted", "declared"} (None where not fitted)."""
+    path = Path(path)
+    try:
+        rows = (gate._order_rows(gate.read_orders(path)) if path.is_dir()
+                else gate.read_baseline_file(path).orders)
+    except gate.GateError as exc:
+        raise CompareError(str(exc)) from None
+    return {gate._order_key(row): row for row in rows}
+
+
+def order_changes(a: dict[tuple, dict], b: dict[tuple, dict]) -> list[dict]:
+    """The run families whose fitted order moved by more than ORDER_CHANGE, appeared, or went (NaN counts as none):
+    {key, declared, a, b, sign}; sign: better when B is nearer the declared order, worse when farther (or gone), new
+    when only B has one, changed without a declared order. Worst first."""
+    out = []
+    for key in dict.fromkeys([*a, *b]):
+        x, y = (gate._number((side.get(key) or {}).get("fitted")) for side in (a, b))
+        declared = gate._number((b.get(key) or a.get(key) or {}).get("declared"))
+        if math.isnan(x) and math.isnan(y) or abs(y - x) <= ORDER_CHANGE:
+            continue
+        if math.isnan(y) or math.isnan(x):  # gone is worse (the gate fails it); a new fit has no direction
+            sign = "worse" if math.isnan(y) else "new"
+        elif math.isnan(declared):
+            sign = "changed"
+        else:
+            sign = "better" if abs(y - declared) < abs(x - declared) else "worse"
+        out.append({"key": key, "declared": declared, "a": x, "b": y, "sign": sign})
+    moved = lambda c: math.inf if math.isnan(c["a"] - c["b"]) else abs(c["b"] - c["a"])  # noqa: E731
+    return sorted(out, key=lambda c: (c["sign"] != "worse", -moved(c)))
+
+
+def verdict_changes(a: Path, b: Path) -> list[dict]:
+    """The verdicts (verdicts.csv of two result directories) whose status changed: {name, a, b, sign}; a verdict in
+    one run only counts from or to "-". Worse first."""
+    from .verdicts import read
+
+    def index(path: Path) -> dict:
+        found = read(path) if Path(path).is_dir() else None
+        return {(v.verdict, v.engine, v.formulation, v.integrator, v.precision, v.case): v.status
+                for v in found or []}
+
+    old, new = index(a), index(b)
+    out = []
+    for key in dict.fromkeys([*old, *new]):
+        x, y = old.get(key, "-"), new.get(key, "-")
+        if x == y:
+            continue
+        rank_x, rank_y = VERDICT_RANK.get(x, 1), VERDICT_RANK.get(y, 1)
+        sign = "worse" if rank_y > rank_x else "better" if rank_y < rank_x else "changed"
+        name = " ".join(p for p in (key[0], key[1], key[2], key[3], "" if key[4] in ("", FLOAT64) else key[4],
+                                    key[5]) if p)
+        out.append({"name": name, "a": x, "b": y, "sign": sign})
+    return sorted(out, key=lambda c: c["sign"] != "worse")
+
+
+def metric_signs(changes: pd.DataFrame) -> list[dict]:
+    """Per accuracy metric (lower is better), over the rows ok in both runs: how many got worse (B / A > PR_RATIO)
+    and better (< 1 / PR_RATIO), and the largest ratio each way with its row. Metrics with a change, most worsened
+    first."""
+    both = changes[(changes["status_a"] == "ok") & (changes["status_b"] == "ok")] if len(changes) else changes
+    out = []
+    for metric in [c for c in changes.columns if c.endswith(gate.METRIC_SUFFIXES)]:
+        ratios = both[metric].dropna() if len(both) else pd.Series([], dtype=float)
+        worse, better = ratios[ratios > PR_RATIO], ratios[ratios < 1.0 / PR_RATIO]
+        if worse.empty and better.empty:
+            continue
+        entry = {"metric": metric, "worse": len(worse), "better": len(better), "worst": None, "best": None}
+        if len(worse):
+            entry["worst"] = (label(both.loc[worse.idxmax()]), float(worse.max()))
+        if len(better):
+            entry["best"] = (label(both.loc[better.idxmin()]), float(better.min()))
+        out.append(entry)
+    return sorted(out, key=lambda e: (-(e["worst"][1] if e["worst"] else 0.0), -e["better"]))
+
+
+def identical(a: pd.DataFrame, b: pd.DataFrame) -> bool:
+    """The same rows (by key), statuses and accuracy metrics, value for value (NaN where the other is NaN)."""
+    metrics = ["status", *_metrics(a, b)]
+    if set(gate.metric_columns(a.columns)) != set(gate.metric_columns(b.columns)):
+        return False
+    index = lambda df: {gate._key(row): [row.get(m) for m in metrics] for row in df.to_dict("records")}  # noqa: E731
+    rows_a, rows_b = index(a), index(b)
+
+    def same(x, y) -> bool:
+        return x == y or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y))
+
+    return rows_a.keys() == rows_b.keys() and all(all(same(x, y) for x, y in zip(rows_a[k], rows_b[k]))
+                                                   for k in rows_a)

@@ -14,6 +14,13 @@ drifts of these deterministic integrators by far less than 1 % on a machine of t
 of accuracy (a drift ten times worse). The floor absorbs the metrics that sit at round-off level (the truth's drifts,
 Casimir drifts of 1e-16 .. 1e-15), whose relative change across machines can exceed any factor: 1e-12 is a thousand
 times the round-off of a double yet well below every drift an integrator of the suite shows at its largest step.
+
+Two modes (MODES), recorded in the baseline by `stereodyn baseline --mode` and applied by `check`:
+- same-machine (the default): the check runs where the baseline was made, with the same library versions. Reruns are
+  then bit-identical, so factor 1.05 over the floor fails a 1.49x error increase that factor 2 let through.
+- cross-machine: another CPU or other library versions. Factor 2, for round-off that a different CPU (FMA, libm,
+  vector width) amplifies along a trajectory: docs/DESIGN.md §4, Baselines, gives the spread measured across CPUs.
+A baseline without a mode (stereodyn 0.2 and before) was checked with factor 2: cross-machine.
 """
 from __future__ import annotations
 
@@ -40,6 +47,9 @@ ORDER_KEY = ("case", "engine", "formulation", "integrator", "precision")
 ORDER_DROP = 0.5
 # Environment entries that differ on every run and say nothing about the numbers.
 _VOLATILE = ("date", "git commit")
+SAME_MACHINE, CROSS_MACHINE = "same-machine", "cross-machine"
+DEFAULT_MODE = SAME_MACHINE
+LEGACY_MODE = CROSS_MACHINE  # a baseline that records no mode was made for factor 2, 0.2.0's only default
 
 
 class GateError(ValueError):
@@ -55,6 +65,10 @@ class Tolerance:
 
     def allowed(self, baseline: float) -> float:
         return self.factor * baseline + self.floor
+
+
+# The default tolerance of each mode: factor (dimensionless) * baseline + floor (the metric's unit: rad, or relative).
+MODES = {SAME_MACHINE: Tolerance(1.05, 1e-12), CROSS_MACHINE: Tolerance(2.0, 1e-12)}
 
 
 @dataclass(frozen=True)
@@ -83,11 +97,17 @@ class Finding:
 
 @dataclass(frozen=True)
 class Baseline:
-    """A baseline file: its rows, the environment it was made in, and the fitted orders (may be empty)."""
+    """A baseline file: its rows, the environment it was made in, the fitted orders (may be empty) and the mode it was
+    written for (None: a file of stereodyn 0.2 or before, which records none)."""
 
     rows: list
     environment: dict
     orders: list
+    mode: str | None = None
+
+    @property
+    def applied_mode(self) -> str:
+        return self.mode or LEGACY_MODE
 
 
 def metric_columns(columns) -> list[str]:
@@ -173,9 +193,11 @@ def _order_rows(convergence: pd.DataFrame | None) -> list[dict]:
 
 
 def write_baseline(df: pd.DataFrame, path: Path, environment: dict | None = None,
-                   convergence: pd.DataFrame | None = None) -> int:
-    """Write the baseline of a results table and its fitted orders (JSON, one row per line); return the number of
-    rows."""
+                   convergence: pd.DataFrame | None = None, mode: str = DEFAULT_MODE) -> int:
+    """Write the baseline of a results table and its fitted orders (JSON, one row per line) for a gate mode (MODES);
+    return the number of rows."""
+    if mode not in MODES:
+        raise GateError(f"mode: {mode!r} is not a gate mode ({', '.join(MODES)})")
     columns = [*KEY, "status", *metric_columns(df.columns), "us_per_step"]
     rows = []
     for _, row in df.iterrows():
@@ -186,7 +208,7 @@ def write_baseline(df: pd.DataFrame, path: Path, environment: dict | None = None
                 value = None
             entry[column] = value.item() if hasattr(value, "item") else value
         rows.append(entry)
-    head = {"format": BASELINE_FORMAT, "environment": environment or {}}
+    head = {"format": BASELINE_FORMAT, "mode": mode, "environment": environment or {}}
     text = json.dumps(head, indent=1)[:-2] + ',\n "rows": [\n'
     text += ",\n".join("  " + json.dumps(row, separators=(",", ":")) for row in rows) + "\n ]"
     orders = _order_rows(convergence)
@@ -283,7 +305,10 @@ def read_baseline_file(path: Path) -> Baseline:
                         f"(also orders[{twice[0]}]): one fitted order per run family")
     if not isinstance(environment, dict):
         raise GateError(f"{path}: environment: must be an object")
-    return Baseline(rows, environment, orders)
+    mode = data.get("mode")
+    if mode is not None and mode not in MODES:
+        raise GateError(f"{path}: mode: must be one of {', '.join(MODES)}, got {json.dumps(mode)[:40]}")
+    return Baseline(rows, environment, orders, mode)
 
 
 def read_baseline(path: Path) -> list[dict]:
@@ -400,6 +425,32 @@ def compare_orders(current: pd.DataFrame | None, orders: list[dict]) -> list[Fin
     return findings
 
 
+def code_environment(manifest: dict | None, own: bool = False) -> dict:
+    """runs.json's "code" as environment entries: 'plug-in engine NAME' and 'plug-in integrator NAME' ->
+    'DIST VERSION, source HASH' for every class a plug-in provides (a plug-in's changed source shows even when its
+    version did not change), and with own 'stereodyn source' (its fingerprint: it changes with every commit, so the
+    gate leaves it out). Entries of an unexpected shape are left out (runs.json's code is informative)."""
+    code = (manifest or {}).get("code")
+    if not isinstance(code, dict):
+        return {}
+    entries = {}
+    if own and isinstance(code.get("stereodyn source"), str):
+        entries["stereodyn source"] = code["stereodyn source"]
+    for kind, table in (("engine", code.get("engines")), ("integrator", code.get("integrators"))):
+        for name, origins in (table.items() if isinstance(table, dict) else ()):
+            for origin in (origins if isinstance(origins, list) else [origins]):
+                if isinstance(origin, dict) and origin.get("distribution") not in (None, "stereodyn"):
+                    entries[f"plug-in {kind} {name}"] = (f"{origin.get('distribution')} {origin.get('version', '')}, "
+                                                         f"source {origin.get('source', '?')}")
+    return entries
+
+
+def recorded_environment(manifest: dict | None) -> dict:
+    """The environment a baseline keeps and check compares: runs.json's environment and its plug-ins' code."""
+    environment = (manifest or {}).get("environment")
+    return {**(environment if isinstance(environment, dict) else {}), **code_environment(manifest)}
+
+
 def environment_changes(baseline: dict, current: dict | None) -> list[str]:
     """'name old -> new' for every environment entry (library versions, CPU, platform) that differs between the
     baseline and the run; the date and the git commit are left out (they differ every time)."""
@@ -419,6 +470,70 @@ def new_rows(current: pd.DataFrame, baseline: list[dict]) -> int:
     """Rows of the current table that the baseline does not have (reported, never a failure)."""
     known = {_key(row) for row in baseline}
     return sum(_key(row) not in known for row in current.to_dict("records"))
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What `check` found against a baseline of `rows` rows and `orders` fitted orders: the findings of the rows
+    (compare) and of the orders (compare_orders), and the count of rows the baseline lacks (never a failure)."""
+
+    rows: int
+    orders: int
+    findings: tuple[Finding, ...]
+    order_findings: tuple[Finding, ...]
+    new: int = 0
+
+    @property
+    def worse(self) -> int:  # rows, not findings: a row with three metrics over its bound is one row
+        return len({f.key for f in self.findings if f.what != "missing"})
+
+    @property
+    def missing(self) -> int:
+        return sum(f.what == "missing" for f in self.findings)
+
+    @property
+    def fell(self) -> int:
+        return sum(f.what == "order" for f in self.order_findings)
+
+    @property
+    def orders_missing(self) -> int:
+        return sum(f.what == "missing order" for f in self.order_findings)
+
+    @property
+    def passed(self) -> bool:
+        return not self.findings and not self.order_findings
+
+    def headline(self, baseline: str) -> str:
+        """check's last line: 'check passed: ...' or 'check failed: ...', each count named for what it counts."""
+        note = f"; {self.new} rows not in the baseline (not checked)" if self.new else ""
+        if self.passed:
+            orders = f", {self.orders} fitted orders" if self.orders else ""
+            return f"check passed: {self.rows} baseline rows{orders}, none worse{note}"
+        parts = []
+        if self.worse:
+            parts.append(f"{self.worse} of {self.rows} baseline rows got worse than {baseline} allows")
+        if self.missing:
+            parts.append(f"{self.missing} of {self.rows} baseline rows missing")
+        if self.fell:
+            parts.append(f"{self.fell} of {self.orders} fitted orders fell")
+        if self.orders_missing:  # the run wrote no order for the family: not a lower order, an absent one
+            parts.append(f"{self.orders_missing} of {self.orders} fitted orders missing")
+        return f"check failed: {'; '.join(parts)}{note}"
+
+
+def mode_line(mode: str, source: str, tolerances: Tolerances, changes: list[str]) -> str:
+    """Which gate mode check applied, from where, and the tolerance it gives (after --factor, --floor, a file)."""
+    tolerance = tolerances.default
+    line = (f"gate: {mode} mode ({source}): a drift or error may grow to {tolerance.factor:g} x baseline + "
+            f"{tolerance.floor:g}")
+    if tolerances.per_metric:
+        line += f", other bounds for {', '.join(name for name, _ in tolerances.per_metric)}"
+    if tolerances.time_factor is not None:
+        line += f"; us_per_step to {tolerances.time_factor:g} x baseline"
+    if mode == SAME_MACHINE and any(not c.startswith(("run environment unknown", "platform ", "plug-in "))
+                                    for c in changes):
+        line += f" (the environment differs: on another machine or versions, --mode {CROSS_MACHINE})"
+    return line
 
 
 def _ratio(value: float) -> str:
@@ -449,10 +564,13 @@ def summary(findings: list[Finding]) -> list[str]:
             changes = sorted({f"{f.baseline} -> {f.current}" for f in group})
             lines.append(f"{head}, status {', '.join(changes)}")
         elif kind in ("order", "missing order"):
+            # an order belongs to a run family (case, engine, formulation, integrator, precision): several per case
+            cases = len({f.key[0] for f in group})
+            families = (f"{rows} famil{'ies' if rows != 1 else 'y'} over {cases} case{'s' if cases != 1 else ''}"
+                        if rows != cases else f"{rows} famil{'ies' if rows != 1 else 'y'}")
             f = min(group, key=lambda x: _number(x.current))
-            lines.append(f"{engine} {integrator}: fitted {f.current}, baseline {f.baseline}, {f.message}"
-                         f" ({rows} case{'s' if rows != 1 else ''})" if kind == "order"
-                         else f"{head}: convergence rows missing")
+            lines.append(f"{engine} {integrator}: fitted {f.current}, baseline {f.baseline}, {f.message} ({families})"
+                         if kind == "order" else f"{engine} {integrator}: fitted order missing ({families})")
         elif kind == "missing":
             lines.append(f"{head}, missing")
         else:

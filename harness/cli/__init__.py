@@ -41,6 +41,7 @@ _commands: dict = {}
 
 DEFAULT_OUT = "out"
 FIGURES_ENV = "STEREODYN_FIGURES"  # "0": --no-figures by default (a test suite, a CI gate)
+GATE_MODES = ("same-machine", "cross-machine")  # harness.analysis.gate.MODES (this module imports no analysis)
 
 
 class BadInput(Exception):
@@ -167,7 +168,8 @@ def _parser() -> argparse.ArgumentParser:
                           "DIR/figures/")
     _figures(run)
     run.add_argument("--quiet", action="store_true",
-                     help="no progress (a bar on a terminal, one line per phase otherwise, on stderr)")
+                     help="print nothing on success: no progress (a bar on a terminal, one line per phase otherwise, "
+                          "on stderr), no summary; warnings and --strict's failed verdicts still go to stderr")
     run.add_argument("--verbose", action="store_true", help="also print every case's drift table")
     run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
     run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
@@ -202,6 +204,10 @@ def _parser() -> argparse.ArgumentParser:
     baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
     baseline.add_argument("dir", type=_path)
     baseline.add_argument("--out", type=_path, required=True, metavar="FILE", help="baseline file to write (JSON)")
+    baseline.add_argument("--mode", choices=GATE_MODES, default=GATE_MODES[0],
+                          help="what `check` will compare against it, recorded in the file: same-machine (the "
+                               "default; the same machine and library versions, factor 1.05) or cross-machine "
+                               "(another CPU or versions, factor 2)")
     _allow_partial(baseline)
     gate = commands.add_parser("check", help="exit 1 and print the rows of DIR that got worse than the baseline")
     gate.add_argument("dir", type=_path)
@@ -209,16 +215,27 @@ def _parser() -> argparse.ArgumentParser:
     _allow_partial(gate)
     gate.add_argument("--tolerances", type=_path, default=None, metavar="FILE.toml",
                        help="[default] factor/floor, [metric.NAME] factor/floor, [time] factor")
+    gate.add_argument("--mode", choices=GATE_MODES, default=None,
+                       help="the default tolerance: same-machine (factor 1.05) or cross-machine (factor 2); default: "
+                            "the mode the baseline records (cross-machine for a baseline that records none)")
     gate.add_argument("--factor", type=float, default=None,
-                       help="a drift or error may grow to factor * baseline + floor (default 2, every metric)")
+                       help="a drift or error may grow to factor * baseline + floor (default: the mode's, every "
+                            "metric)")
     gate.add_argument("--floor", type=float, default=None, help="absolute floor (default 1e-12, every metric)")
     gate.add_argument("--time-factor", type=float, default=None,
-                       help="also fail when us_per_step exceeds this factor times the baseline's")
+                       help="also fail when us_per_step exceeds this factor times the baseline's (only on one idle "
+                            "machine: a loaded one moves timings by more, docs/DESIGN.md §4, Baselines)")
+    gate.add_argument("--junit", type=_path, default=None, metavar="FILE",
+                       help="also write JUnit XML: one test case per baseline row and fitted order")
+    gate.add_argument("--quiet", action="store_true", help="print nothing on success, only the failures otherwise")
     compare = commands.add_parser("compare", help="two runs side by side: environments, then every row's metrics as "
                                                    "ratios B/A, largest changes first (OUT/compare.md, OUT/compare.html)")
     compare.add_argument("a", type=_path, metavar="A", help="result directory or baseline file (the reference)")
     compare.add_argument("b", type=_path, metavar="B", help="result directory or baseline file (the new run)")
     compare.add_argument("--out", type=_path, default=None, metavar="DIR", help="where to write (default: B)")
+    compare.add_argument("--format", choices=("pages", "pr"), default="pages",
+                         help="pages (default): write compare.md, compare.html, compare.csv; pr: also print a "
+                              "markdown summary of at most 60 lines for a pull request (OUT/compare-pr.md)")
     _allow_partial(compare)
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
@@ -413,8 +430,11 @@ def main(argv: list[str] | None = None) -> int:
         args = _parser().parse_args(argv)
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
+    streams = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = _PipeSafe(sys.stdout), _PipeSafe(sys.stderr)
     try:
         code = _commands[args.command](args)
+        sys.stdout.flush()  # here, not at exit: a reader gone (`| head -1`) is met while the status is still ours
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError, EngineError,
             CompareError, FolderNotReady, SectionError) as exc:
         code = _error(str(exc))
@@ -429,10 +449,45 @@ def main(argv: list[str] | None = None) -> int:
         else:
             report_internal(exc)
             return 3
+    finally:
+        sys.stdout, sys.stderr = streams
     if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
     return code
+
+
+class _PipeSafe:
+    """A text stream whose reader may leave (`stereodyn check ... | head -1`): the first write or flush that meets a
+    closed pipe points the file descriptor at /dev/null, and the command goes on to its own exit status, with no
+    "Broken pipe" error (exit 2) nor Python's "Exception ignored" at exit."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+
+    def _gone(self) -> None:
+        try:  # what the buffer still holds, and every later write, goes to /dev/null
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):  # a stream without a descriptor (a test's capture)
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 def _plugin_warnings_on_one_line() -> None:

@@ -13,6 +13,8 @@ def main(args) -> int:
         manifest = read_manifest(args.dir) or {}
         table, orders = gate.read_table(args.dir), gate.read_orders(args.dir)
     warn(warnings)  # once the tables read: a folder that cannot be read is one line, the error
-    rows = gate.write_baseline(table, args.out, manifest.get("environment"), orders)
-    print(f"wrote {args.out} ({rows} rows, {0 if orders is None else len(orders)} fitted orders)")
+    rows = gate.write_baseline(table, args.out, gate.recorded_environment(manifest), orders, args.mode)
+    print(f"wrote {args.out} ({rows} rows, {0 if orders is None else len(orders)} fitted orders; "
+          f"{args.mode} mode: check allows {gate.MODES[args.mode].factor:g} x baseline + "
+          f"{gate.MODES[args.mode].floor:g})")
     return 0

@@ -23,8 +23,9 @@ def main(args) -> int:
             same = written and os.path.realpath(folder) == os.path.realpath(out)
             warnings += (completeness(folder, args.allow_partial) if same
                          else held.enter_context(reading(folder, args.allow_partial)))
-        markdown, html, head = compare(args.a, args.b, args.out)
+        markdown, html, head = compare(args.a, args.b, args.out, pr=args.format == "pr")
     warn(warnings)  # once the tables read: a folder that cannot be read is one line, the error
     print("\n".join(head))
-    print(f"wrote {markdown} and {html}")
+    if args.format != "pr":  # pr: standard output is the summary alone, to paste or redirect as it is
+        print(f"wrote {markdown} and {html}")
     return 0

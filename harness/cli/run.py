@@ -48,8 +48,10 @@ def main(args) -> int:
         progress.stage("report: report.md, figures, report.html" if args.figures else "report: report.md, report.html")
         markdown, html = write_reports(args.out, df, self_contained=args.self_contained, figures=args.figures)
         mark_complete(args.out)  # the last write: check, baseline, compare and report read the folder from now on
-        print("\n".join(summary.terminal_lines(df, found, args.out, html)))
-    print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
+        if not args.quiet:  # quiet: nothing on success (a CI log); --strict's failures still go to stderr below
+            print("\n".join(summary.terminal_lines(df, found, args.out, html)))
+    if not args.quiet:
+        print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     if args.strict and verdicts.strict_failures(found):
         print("\n".join(verdicts.summary_lines(found)[1:]), file=sys.stderr)
         return 1

@@ -10,8 +10,10 @@ from pathlib import Path
 import pandas as pd
 
 from ..analysis import gate
-from ..analysis.compare import (DIFFERS, FIGURE_ROWS, FLOOR, GROUPS, LISTED, TIMING, CompareError, environment_rows,
-                                group, label, load, row_changes)
+from ..analysis.compare import (DIFFERS, FIGURE_ROWS, FLOOR, GROUPS, LISTED, ORDER_CHANGE, PR_RATIO, TIMING,
+                                CompareError, environment_rows, group, identical, label, load, load_orders,
+                                metric_signs, order_changes, row_changes, verdict_changes)
+from ..engines.base import FLOAT64
 from .markdown import markdown_table
 
 
@@ -54,6 +56,82 @@ def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes:
     return lines
 
 
+PR_LINES = 60  # a pull request's comment or step summary: the whole diff on one screen or two
+# Rows per table, at most: with their headings the sections fill PR_LINES exactly (2 + 12 + 14 + 10 + 12 + 9 + 1).
+PR_LISTED = {"environment": 6, "metrics": 8, "status": 4, "orders": 6, "verdicts": 3}
+
+
+def _short(value: str) -> str:
+    """A cell of the environment table: a source hash of 24 hex digits cut to 12, still unambiguous for a reader."""
+    return " ".join(word[:12] + "…" if len(word) == 24 and all(c in "0123456789abcdef" for c in word) else word
+                    for word in str(value).split(" "))
+
+
+def _capped(header: list[str], rows: list[list], cap: int, rest: str) -> list[str]:
+    lines = markdown_table(header, rows[:cap])
+    return lines + ([f"... and {len(rows) - cap} more {rest}"] if len(rows) > cap else [])
+
+
+def _order(value: float) -> str:
+    return "-" if math.isnan(value) else f"{value:.2f}"
+
+
+def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.DataFrame, orders: list[dict],
+             verdicts: list[dict], same_rows: bool) -> list[str]:
+    """`compare --format pr`: at most PR_LINES lines of markdown, no image: the environment keys that differ, each
+    accuracy metric's rows worse and better (lower is better), status changes, fitted orders that moved (nearer the
+    declared order is better) and verdicts that changed; one line when nothing differs at all."""
+    env = [r for r in environment_rows(env_a, env_b) if r[3] == DIFFERS]
+    if same_rows and not env and not orders and not verdicts:
+        return [f"**stereodyn compare**: `{path_b}` is identical to `{path_a}` ({len(changes)} rows, the same "
+                "statuses, metrics, fitted orders, verdicts and environment, the date aside)."]
+    statuses = changes[changes["status_a"] != changes["status_b"]] if len(changes) else changes
+    rank = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2, "-": 3}  # a row gone ("-") is the worst
+    status_rows = [[label(r), r["status_a"], r["status_b"],
+                    "worse" if rank.get(r["status_b"], 3) > rank.get(r["status_a"], 3) else "better"]
+                   for _, r in statuses.iterrows()]
+    status_rows.sort(key=lambda r: r[3] != "worse")
+    metrics = metric_signs(changes)
+    worse = sum(m["worse"] for m in metrics) + sum(r[3] == "worse" for r in status_rows) \
+        + sum(o["sign"] == "worse" for o in orders) + sum(v["sign"] == "worse" for v in verdicts)
+    lines = [f"**stereodyn compare**: B `{path_b}` against A `{path_a}`: {len(changes)} rows; "
+             f"{'**' + str(worse) + ' changes for the worse**' if worse else 'no change for the worse'} "
+             f"(a metric beyond {PR_RATIO:g}x either way, an order moved by more than {ORDER_CHANGE:g}).", ""]
+    if env:
+        lines += [f"Environment: {len(env)} key{'s differ' if len(env) != 1 else ' differs'}", "",
+                  *_capped(["key", "A", "B"], [[r[0], _short(r[1]), _short(r[2])] for r in env],
+                           PR_LISTED["environment"], "keys in compare.md"), ""]
+    else:
+        lines += ["Same environment (the date aside).", ""]
+    if metrics:
+        rows = [[m["metric"], f"{m['worse']} worse" if m["worse"] else "-", f"{m['better']} better" if m["better"]
+                 else "-", f"{m['worst'][1]:.3g}x {m['worst'][0]}" if m["worst"] else "-",
+                 f"{m['best'][1]:.3g}x {m['best'][0]}" if m["best"] else "-"] for m in metrics]
+        lines += ["Accuracy, rows ok in both (B / A; lower error is better):", "",
+                  *_capped(["metric", "worse", "better", "worst (B / A)", "best (B / A)"], rows, PR_LISTED["metrics"],
+                           "metrics in compare.md"), ""]
+    else:
+        lines += [f"Accuracy: no metric of a row ok in both changed by more than {PR_RATIO:g}x.", ""]
+    if status_rows:
+        lines += [f"Status changes: {len(status_rows)}", "",
+                  *_capped(["row", "A", "B", ""], status_rows, PR_LISTED["status"], "in compare.md"), ""]
+    if orders:
+        fell = sum(o["sign"] == "worse" for o in orders)
+        rows = [[" ".join(x for x in (*o["key"][:4], "" if o["key"][4] == FLOAT64 else o["key"][4]) if x),
+                 "-" if math.isnan(o["declared"]) else f"{o['declared']:g}", _order(o["a"]), _order(o["b"]),
+                 o["sign"]] for o in orders]
+        lines += [f"Fitted orders: {len(orders)} moved, {fell} worse (farther from the declared order, or gone)", "",
+                  *_capped(["family", "declared", "A", "B", ""], rows, PR_LISTED["orders"],
+                           "(compare both convergence.csv)"), ""]
+    if verdicts:
+        rows = [[v["name"], v["a"], v["b"], v["sign"]] for v in verdicts]
+        lines += [f"Verdicts: {len(verdicts)} changed", "",
+                  *_capped(["verdict", "A", "B", ""], rows, PR_LISTED["verdicts"], "(verdicts.csv)"), ""]
+    lines.append("Every row: compare.md and compare.csv beside this summary.")
+    assert len(lines) <= PR_LINES, len(lines)  # PR_LISTED bounds it
+    return lines
+
+
 def figure(changes: pd.DataFrame) -> bytes | None:
     """A bar per row of the largest accuracy changes (log10 of the ratio B / A of its most-changed metric)."""
     top = changes[changes["change"] >= GROUPS[-1][0]].sort_values("change", ascending=False).head(FIGURE_ROWS)
@@ -79,9 +157,14 @@ def figure(changes: pd.DataFrame) -> bytes | None:
     return figures.png(fig)  # the report's resolution and palette: readable at 100% (10 in = 960 px)
 
 
-def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, Path, list[str]]:
+PR_FILE = "compare-pr.md"
+
+
+def compare(path_a: Path, path_b: Path, out: Path | None = None,
+            pr: bool = False) -> tuple[Path, Path, list[str]]:
     """Write compare.md, compare.html, compare.csv (and the figure) to `out` (default: B, which must then be a
-    directory); return the two pages and the headline lines for the terminal."""
+    directory), with pr also compare-pr.md (pr_lines); return the two pages and the headline lines for the terminal
+    (with pr: the lines of compare-pr.md)."""
     from . import html
     from ..run.results import write_atomic
 
@@ -104,6 +187,12 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None) -> tuple[Path, 
     write_atomic(out / "compare.md", markdown)
     write_atomic(out / "compare.html", html.render(markdown, {figure_path: png} if png else {}, out))
     write_atomic(out / "compare.csv", changes.to_csv(index=False, float_format="%.6g"))
+    if pr:
+        summary = pr_lines(path_a, path_b, env_a, env_b, changes, order_changes(load_orders(path_a),
+                                                                                load_orders(path_b)),
+                           verdict_changes(path_a, path_b), identical(table_a, table_b))
+        write_atomic(out / PR_FILE, "\n".join(summary) + "\n")
+        return out / "compare.md", out / "compare.html", summary
     differing = [f"{r[0]} {r[1]} -> {r[2]}" for r in environment_rows(env_a, env_b) if r[3] == DIFFERS]
     head = ["environment differs: " + ", ".join(differing) if differing else "environment: the same (the date aside)"]
     groups = changes.apply(group, axis=1) if len(changes) else pd.Series([], dtype=str)
