@@ -36,7 +36,8 @@ from pathlib import Path  # noqa: E402
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
 case_files = CaseError = engine_names = EngineError = budget = None
 # Each command is the module of its name in this package, with main(args) -> int.
-COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators", "engines")
+COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators", "engines",
+            "history", "matrix")
 _commands: dict = {}
 
 DEFAULT_OUT = "out"
@@ -216,6 +217,8 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("b", type=_path, metavar="B", help="result directory or baseline file (the new run)")
     compare.add_argument("--out", type=_path, default=None, metavar="DIR", help="where to write (default: B)")
     _allow_partial(compare)
+    _history_parser(commands)
+    _matrix_parser(commands)
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
     commands.add_parser("engines", help="list every registered engine: origin (built in, or the plug-in's "
@@ -241,6 +244,42 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("--integrator", default=None, help="MJCF only: MuJoCo integrator (default rk4)")
     export.add_argument("--dt", type=_scale, default=None, help="MJCF only: timestep (default: the case's first dt)")
     return parser
+
+
+def _history_parser(commands) -> None:
+    history = commands.add_parser("history", help="result folders or baselines in order (commit, date, an engine's "
+                                                   "version): each metric, status and fitted order over the "
+                                                   "sequence, steps flagged (OUT/history.html, OUT/history*.csv)")
+    history.add_argument("dirs", type=_path, nargs="+", metavar="DIR", help="result folders or baseline files")
+    history.add_argument("--by", default="date", metavar="date|commit|given|PACKAGE",
+                         help="order by runs.json's date (default), git commit (in --repo's history), as given, or "
+                              "the version of a package the environment records (e.g. mujoco)")
+    history.add_argument("--repo", type=_path, default=Path("."), help="the git repository for --by commit")
+    history.add_argument("--out", type=_path, default=Path("history"), help="where to write (default ./history)")
+    history.add_argument("--step-factor", type=float, default=1.1,
+                         help="a metric's level must change by this factor to be a step (default 1.1)")
+    history.add_argument("--order-step", type=float, default=0.5,
+                         help="a fitted order's level must change by this much to be a step (default 0.5)")
+    _allow_partial(history)
+
+
+def _matrix_parser(commands) -> None:
+    matrix = commands.add_parser("matrix", help="the same runs in one isolated environment per package "
+                                                "specification (uv), then their history and a compare of each "
+                                                "neighbouring pair; run arguments after --")
+    matrix.add_argument("specs", nargs="+", metavar="SPEC",
+                        help="one environment's requirements, space-separated ('mujoco==3.3.7', 'mujoco==4.0.0 "
+                             "pin==3.4.0')")
+    matrix.add_argument("--cross", action="store_true",
+                        help="one environment per combination of the specs' packages (a cross product)")
+    matrix.add_argument("--out", type=_path, default=Path("matrix"), help="where to write (default ./matrix)")
+    matrix.add_argument("--stereodyn", default=None, metavar="PATH_OR_REQUIREMENT",
+                        help="the stereodyn installed in each environment (default: this checkout's source, or "
+                             "stereodyn==VERSION)")
+    matrix.add_argument("--overlay", action="store_true",
+                        help="install only the specs (no dependencies) over this environment's packages: fast, "
+                             "not isolated")
+    matrix.set_defaults(run_args=None)
 
 
 def _allow_partial(parser) -> None:
@@ -386,8 +425,11 @@ def main(argv: list[str] | None = None) -> int:
     if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
         signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
+    argv, run_args = _run_arguments(sys.argv[1:] if argv is None else list(argv))
     try:
         args = _parser().parse_args(argv)
+        if run_args is not None:
+            args.run_args = run_args
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
     try:
@@ -410,6 +452,15 @@ def main(argv: list[str] | None = None) -> int:
         print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
         return 130
     return code
+
+
+def _run_arguments(argv: list[str]) -> tuple[list[str], list[str] | None]:
+    """`matrix SPEC ... -- RUN ARGUMENTS`: the arguments after the first -- are the runs' (argparse would take them
+    as more specs)."""
+    if argv[:1] == ["matrix"] and "--" in argv:
+        at = argv.index("--")
+        return argv[:at], argv[at + 1:]
+    return argv, None
 
 
 def _plugin_warnings_on_one_line() -> None:

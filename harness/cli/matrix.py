@@ -1,0 +1,5 @@
+"""`stereodyn matrix`: placeholder."""
+
+
+def main(args) -> int:
+    raise NotImplementedError
