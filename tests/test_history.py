@@ -143,3 +143,27 @@ def test_the_section_is_absent_from_a_report_without_history(tmp_path):
     context = sections.Context(tmp_path, pd.DataFrame(), {}, None, {}, {})
     assert page.history_lines(context) == []
     shutil.rmtree(tmp_path)
+
+
+def test_the_page_is_readable_at_100_percent(tmp_path):
+    """The history page as Chromium lays it out in a 1400 px window (tests/test_figures_readable.py's measure): its
+    figure's smallest text is >= 10 px, drawn at >= 96 dpi; a table's text is the page's (0.85 em of 16 px)."""
+    import io
+
+    from PIL import Image
+
+    from stereodyn.harness.report import figures
+    from test_figures_readable import CHROMIUM, MIN_DPI, MIN_TEXT_PX, displayed_widths, png_of
+
+    if CHROMIUM is None:
+        pytest.skip("chromium not installed (apt-get install -y chromium)")
+    dirs = [folder(tmp_path / name, date, scale=(1, "attitude_err", 3.0) if i >= 2 else None)
+            for i, (name, date) in enumerate(zip("abcd", DATES))]
+    out = tmp_path / "out"
+    assert cli.main(["history", *map(str, dirs), "--out", str(out)]) == 0
+    measured = displayed_widths(out / "history.html", tmp_path)
+    assert len(measured) == 1, measured
+    src, shown, natural = measured[0]
+    image = Image.open(io.BytesIO(png_of(out / "history.html", src)))
+    dpi, font = image.info["dpi"][0], float(image.info[figures.FONT_KEY])
+    assert round(dpi) >= MIN_DPI and font * dpi / 72.0 * shown / natural >= MIN_TEXT_PX, (dpi, font, shown, natural)

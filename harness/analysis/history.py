@@ -201,7 +201,8 @@ def points_table(points: list[Point], steps: pd.DataFrame) -> pd.DataFrame:
     for index, point in enumerate(points, 1):
         here = steps[steps["point"] == index] if len(steps) else steps
         rows.append({"point": index, "label": point.label, "path": point.path,
-                     "date": point.environment.get("date", ""), "commit": point.environment.get("git commit", ""),
+                     "date": point.environment.get("date", ""),
+                     "commit": str(point.environment.get("git commit", ""))[:12],
                      "rows": len(point.table), "orders": len(point.orders),
                      "steps": len(here), "worse": int((here["direction"] == "worse").sum()) if len(here) else 0,
                      **{k: str(point.environment.get(k, ABSENT)) for k in varying}})

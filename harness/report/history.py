@@ -25,7 +25,8 @@ def _read(out_dir: Path, name: str) -> pd.DataFrame | None:
     if not path.exists():
         return None
     return read_csv_table(path, keep_default_na=False,
-                          dtype={"formulation": str, "integrator": str, "dt": str, "label": str, "change": str})
+                          dtype={"formulation": str, "integrator": str, "dt": str, "label": str, "change": str,
+                                 "commit": str, "date": str})
 
 
 def _row(entry) -> str:
@@ -81,7 +82,18 @@ def figure(table: pd.DataFrame, steps: pd.DataFrame, labels: list[str]) -> bytes
     drawn = steps[steps["quantity"] != STATUS].drop_duplicates(list(STEP_COLUMNS[:7])).head(FIGURE_SERIES)
     if drawn.empty:
         return None
-    figure_, grid = figures._panel_grid(len(drawn), 4.4, 2.6, 0.2)
+    from matplotlib.figure import Figure
+
+    columns = min(2, len(drawn))
+    rows = math.ceil(len(drawn) / columns)
+    width, height = 5.0 * columns, 2.9 * rows + 0.2
+    figure_ = Figure(figsize=(width, height))
+    # room on the left of each panel for a log axis's labels (4x10^-9), above it for its two-line title
+    figure_.subplots_adjust(left=0.95 / width, right=1 - 0.15 / width, bottom=0.55 / height, top=1 - 0.6 / height,
+                            wspace=1.1 / 3.9, hspace=1.1 / 1.9)
+    grid = figure_.subplots(rows, columns, squeeze=False)
+    for axes in grid.flat[len(drawn):]:
+        axes.set_visible(False)
     for axes, (_, step) in zip(grid.flat, drawn.iterrows()):
         same = (table["quantity"] == step["quantity"])
         for column in STEP_COLUMNS[:6]:
