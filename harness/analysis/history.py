@@ -244,3 +244,19 @@ def order(points: list[Point], by: str, commits: list[str] | None = None) -> lis
     if by == "date":
         return sorted(points, key=lambda p: str(p.environment["date"]))
     return sorted(points, key=lambda p: version_key(p.environment[key]))
+
+
+def orders_side_by_side(points: list[Point]) -> pd.DataFrame:
+    """Every fitted order of every run family (gate.ORDER_KEY), the declared order and one column per point (its
+    label; empty where that run fitted none), families in first-seen order."""
+    rows: dict = {}
+    for point in points:
+        for row in point.orders.to_dict("records") if len(point.orders) else []:
+            entry = rows.setdefault(gate._order_key(row), {"declared": math.nan})
+            entry[point.label] = gate._number(row.get("fitted"))
+            declared = gate._number(row.get("declared"))
+            if math.isfinite(declared):
+                entry["declared"] = declared
+    return pd.DataFrame([{**dict(zip(ORDER_KEY, k)), "declared": v["declared"],
+                          **{p.label: v.get(p.label, math.nan) for p in points}} for k, v in rows.items()],
+                        columns=[*ORDER_KEY, "declared", *(p.label for p in points)])

@@ -256,11 +256,15 @@ def _history_parser(commands) -> None:
                               "the version of a package the environment records (e.g. mujoco)")
     history.add_argument("--repo", type=_path, default=Path("."), help="the git repository for --by commit")
     history.add_argument("--out", type=_path, default=Path("history"), help="where to write (default ./history)")
-    history.add_argument("--step-factor", type=float, default=1.1,
-                         help="a metric's level must change by this factor to be a step (default 1.1)")
-    history.add_argument("--order-step", type=float, default=0.5,
-                         help="a fitted order's level must change by this much to be a step (default 0.5)")
+    _steps(history)
     _allow_partial(history)
+
+
+def _steps(parser) -> None:
+    parser.add_argument("--step-factor", type=float, default=1.1,
+                        help="a metric's level must change by this factor to be a step (default 1.1)")
+    parser.add_argument("--order-step", type=float, default=0.5,
+                        help="a fitted order's level must change by this much to be a step (default 0.5)")
 
 
 def _matrix_parser(commands) -> None:
@@ -277,8 +281,12 @@ def _matrix_parser(commands) -> None:
                         help="the stereodyn installed in each environment (default: this checkout's source, or "
                              "stereodyn==VERSION)")
     matrix.add_argument("--overlay", action="store_true",
-                        help="install only the specs (no dependencies) over this environment's packages: fast, "
-                             "not isolated")
+                        help="install only the specs over this environment's packages (their new dependencies at "
+                             "this environment's versions): fast, not isolated")
+    matrix.add_argument("--rerun", action="store_true",
+                        help="run again where an earlier matrix ran the same environment and arguments (default: "
+                             "reuse its results)")
+    _steps(matrix)
     matrix.set_defaults(run_args=None)
 
 

@@ -61,12 +61,16 @@ def build(points: list, by: str, out: Path, factor: float, order_step: float, co
     return page.write(out, table, steps, listed), steps, points
 
 
-def main(args) -> int:
-    from . import output_folder
-
+def check_steps(args) -> None:
     for option, value, low in (("--step-factor", args.step_factor, 1.0), ("--order-step", args.order_step, 0.0)):
         if not (math.isfinite(value) and value > low):
             raise BadInput(f"{option}: must be a finite number > {low:g}, got {value:g}")
+
+
+def main(args) -> int:
+    from . import output_folder
+
+    check_steps(args)
     if len(args.dirs) < 2:
         raise BadInput(f"history: needs at least two result folders or baselines, got {len(args.dirs)}")
     commit_list = commits(args.repo) if args.by == "commit" else None
