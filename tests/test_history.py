@@ -99,14 +99,16 @@ def test_orders_and_statuses_step_and_are_signed(tmp_path):
 
 
 def test_baselines_line_up_with_folders(tmp_path):
-    """A baseline file is a point like a folder (its rows and orders)."""
+    """A baseline file is a point like a folder, its rows and its fitted orders (rk4's 4.0 in the baseline, 2.0 in
+    the folder after it)."""
     a = folder(tmp_path / "a", DATES[0])
-    b = folder(tmp_path / "b", DATES[1], scale=(0, "energy_drift", 100.0))
+    b = folder(tmp_path / "b", DATES[1], scale=(0, "energy_drift", 100.0), order=2.0)
     assert cli.main(["baseline", str(a), "--out", str(tmp_path / "a.json")]) == 0
     out = tmp_path / "out"
     assert cli.main(["history", str(tmp_path / "a.json"), str(b), "--by", "given", "--out", str(out)]) == 0
     steps = pd.read_csv(out / "history_steps.csv", keep_default_na=False)
-    assert steps[["quantity", "label", "change"]].values.tolist() == [["energy_drift", "b", "100x"]]
+    assert sorted(steps[["quantity", "label", "change"]].values.tolist()) == [["energy_drift", "b", "100x"],
+                                                                              ["order", "b", "-2.00"]]
 
 
 @pytest.mark.parametrize("argv, words", [
