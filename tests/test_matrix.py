@@ -147,3 +147,26 @@ def test_cross_product_of_two_packages():
                                            "mujoco==4.0.0 pin==3.4.0", "mujoco==4.0.0 pin==4.1.0"]
     assert environments(["mujoco==4.0.0 pin==4.1.0"], cross=False) == [("mujoco==4.0.0 pin==4.1.0",
                                                                          ("mujoco==4.0.0", "pin==4.1.0"))]
+
+
+@pytest.mark.slow  # builds two isolated environments from the registry (network; ~1 min each the first time, cached
+# after) and runs a case in each (~20 s)
+def test_two_real_mujoco_releases(tmp_path, capsys):
+    """MuJoCo 3.3.7 and 4.0.0 from the registry, each in an isolated environment with stereodyn: the lagrange top's
+    rk4 fits order 2 under 3.x (its RK4 is 2nd order on a ball joint) and 4 under 4.0 (measured 2.001 and 3.998 on
+    the quick suite, whose dt list this is); the history flags the step, better. A second call builds nothing."""
+    argv = ["matrix", "mujoco==3.3.7", "mujoco==4.0.0", "--out", str(tmp_path / "out"), "--", "lagrange-top",
+            "--engines", "mujoco", "--integrators", "rk4", "--t-end", "2", "--dt", "1e-2,3e-3", "--no-certify",
+            "--jobs", "1", "--quiet"]
+    assert cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "lagrange-top mujoco rk4 (declared 4): mujoco==3.3.7 2.00, mujoco==4.0.0 4.00" in printed, printed
+    orders = pd.read_csv(tmp_path / "out" / "orders.csv")
+    rk4 = orders[(orders["case"] == "lagrange-top") & (orders["integrator"] == "rk4")].iloc[0]
+    assert abs(rk4["mujoco==3.3.7"] - 2.0) < 0.2 and abs(rk4["mujoco==4.0.0"] - 4.0) < 0.2, rk4
+    steps = pd.read_csv(tmp_path / "out" / "history_steps.csv", keep_default_na=False)
+    order = steps[steps["quantity"] == "order"]
+    assert order[["label", "direction"]].values.tolist() == [["mujoco==4.0.0", "better"]]
+    assert cli.main(argv) == 0
+    again = pd.read_csv(tmp_path / "out" / "matrix.csv")
+    assert again["cached"].tolist() == [True, True] and again["status"].tolist() == ["ok", "ok"]
