@@ -169,3 +169,33 @@ def test_the_page_is_readable_at_100_percent(tmp_path):
     image = Image.open(io.BytesIO(png_of(out / "history.html", src)))
     dpi, font = image.info["dpi"][0], float(image.info[figures.FONT_KEY])
     assert round(dpi) >= MIN_DPI and font * dpi / 72.0 * shown / natural >= MIN_TEXT_PX, (dpi, font, shown, natural)
+
+
+def test_by_commit_follows_the_repository_history(tmp_path, capsys):
+    """--by commit: the runs in the order of their recorded commits in --repo's history (not by date, nor as given);
+    a commit the repository lacks is one line, exit 2."""
+    import subprocess
+
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], check=True, capture_output=True,  # noqa: E731
+                                    text=True).stdout.strip()
+    git("init", "-q")
+    shas = []
+    for n in range(3):
+        git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "--allow-empty", "-m", f"c{n}")
+        shas.append(git("rev-parse", "HEAD"))
+    dirs = []
+    for name, sha, date in (("x", shas[2], DATES[0]), ("y", shas[0], DATES[1]), ("z", shas[1], DATES[2])):
+        dirs.append(folder(tmp_path / name, date))
+        manifest = json.loads((dirs[-1] / "runs.json").read_text())
+        manifest["environment"]["git commit"] = sha
+        (dirs[-1] / "runs.json").write_text(json.dumps(manifest))
+    out = tmp_path / "out"
+    assert cli.main(["history", *map(str, dirs), "--by", "commit", "--repo", str(repo), "--out", str(out)]) == 0
+    assert "3 runs in order (commit): y, z, x" in capsys.readouterr().out
+    manifest["environment"]["git commit"] = "f" * 40
+    (dirs[-1] / "runs.json").write_text(json.dumps(manifest))
+    assert cli.main(["history", *map(str, dirs), "--by", "commit", "--repo", str(repo), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--by commit: {dirs[-1]}: git commit 'ffffffff" in err, err
