@@ -95,6 +95,63 @@ def offline(tmp_path, monkeypatch):
     return tmp_path
 
 
+# What `stereodyn run` leaves, written by a stand-in run in the environment's own Python (the fast test): the toy's
+# version read from the environment's installed metadata, recorded as a run records its plug-in, and an attitude error
+# 1e4 x larger under 2.0 (rk4_naive's against rk4's, as the real runs measure).
+STAND_IN = """
+import json, sys
+from importlib.metadata import version
+from pathlib import Path
+
+out = Path(sys.argv[1])
+v = version("stereodyn-mtoy")
+err = 2e-9 * (1e4 if v == "2.0" else 1.0)
+head = "case,engine,formulation,integrator,precision,dt,status,message,energy_drift,attitude_err,us_per_step"
+rows = [f"free-asymmetric,mtoy,,rk4,float64,{dt},ok,,1e-10,{err * k},2.0" for dt, k in ((0.01, 16), (0.005, 1))]
+(out / "results.csv").write_text("\\n".join([head, *rows]) + "\\n")
+env = {"python": "3.11", "stereodyn-mtoy": f"{v} (plug-in: engine mtoy)", "date": "2026-11-26T10:00:00+00:00"}
+(out / "runs.json").write_text(json.dumps({"format": 1, "environment": env, "code": {}, "runs": [],
+                                           "complete": True}))
+print("stand-in run", v)
+"""
+
+
+def test_two_toy_versions_are_installed_cached_and_lined_up(offline, monkeypatch, capsys):
+    """The machinery, fast: uv builds an environment per version of the toy engine from the local wheels (1.0, 2.0;
+    9.9 has no wheel: a row saying why), each environment's Python sees its own version (a stand-in for `stereodyn
+    run` reads it), the history over them flags 2.0's attitude error, worse, and compare 1 -> 2 is written. A second
+    call builds nothing and runs nothing again: the same environment folders, their marks untouched, rows cached and
+    reused."""
+    from stereodyn.harness.cli import matrix
+
+    monkeypatch.setattr(matrix, "command", lambda python, argv, folder: [str(python), "-c", STAND_IN, str(folder)])
+    out = offline / "out"
+    argv = ["matrix", f"{DIST}==1.0", f"{DIST}==2.0", f"{DIST}==9.9", "--overlay", "--out", str(out), "--", *RUN]
+    assert cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    rows = pd.read_csv(out / "matrix.csv", keep_default_na=False)
+    assert rows["status"].tolist() == ["ok", "ok", "install failed"], rows
+    assert "9.9" in rows["reason"][2] and rows["reason"][:2].tolist() == ["", ""] and "install failed" in printed
+    assert rows["cached"].tolist() == [False, False, False]
+    envs = [Path(p) for p in rows["path"][:2]]
+    assert all(p.parent == offline / "cache" / "stereodyn" / "matrix" for p in envs) and envs[0] != envs[1]
+    logs = [(out / "runs" / f"{n}-{DIST}=={v}.log").read_text() for n, v in ((1, "1.0"), (2, "2.0"))]
+    assert [log.strip() for log in logs] == ["stand-in run 1.0", "stand-in run 2.0"]
+    steps = pd.read_csv(out / "history_steps.csv", keep_default_na=False)
+    assert set(zip(steps["quantity"], steps["label"], steps["direction"])) == {("attitude_err", f"{DIST}==2.0",
+                                                                                "worse")}, steps
+    assert (out / "compare" / "1-2" / "compare.md").is_file() and (out / "history.html").is_file()
+    marks = [(p / "stereodyn-matrix.json").stat().st_mtime_ns for p in envs]
+
+    assert cli.main(argv) == 0
+    again = pd.read_csv(out / "matrix.csv", keep_default_na=False)
+    assert again["cached"].tolist() == [True, True, False] and again["reused"][:2].tolist() == ["True", "True"]
+    assert [(p / "stereodyn-matrix.json").stat().st_mtime_ns for p in envs] == marks
+    assert again["path"].tolist() == rows["path"].tolist()
+
+
+@pytest.mark.slow  # two real `stereodyn run` subprocesses (~8 s of CPU each: imports, the truth, the report's
+# figures), twice the default suite's budget for a test file; the fast test above covers the machinery
 def test_two_versions_of_a_toy_engine_run_line_up_and_are_cached(offline, capsys):
     """Three specifications: 1.0 and 2.0 install and run, 9.9 (no such wheel) is a row saying why. The history over
     1.0 -> 2.0 flags the toy rk4's attitude error as worse at 2.0 (rk4_naive's error at dt 1e-2 over 1 s is ~1e4 x

@@ -64,6 +64,11 @@ def run_arguments(args) -> list[str]:
     return given
 
 
+def command(python: Path, argv: list[str], folder: Path) -> list[str]:
+    """The run in an environment: its Python's `stereodyn run ARGV --out FOLDER`."""
+    return [str(python), "-m", "stereodyn", "run", *argv, "--out", str(folder)]
+
+
 def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str, str, bool]:
     """`stereodyn run ARGV --out FOLDER` with the environment's Python: (status, reason, reused). A folder from an
     earlier matrix with the same environment (its cache key) and arguments is reused, unless rerun."""
@@ -79,8 +84,7 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
     folder.mkdir(parents=True)
     log = folder.parent / f"{folder.name}.log"
     with open(log, "w") as out:
-        done = subprocess.run([str(environment.python), "-m", "stereodyn", "run", *argv, "--out", str(folder)],
-                              stdout=out, stderr=subprocess.STDOUT)
+        done = subprocess.run(command(environment.python, argv, folder), stdout=out, stderr=subprocess.STDOUT)
     if done.returncode != 0:
         lines = [line for line in log.read_text(errors="replace").splitlines() if line.strip()]
         return "run failed", f"stereodyn run exited {done.returncode}: {lines[-1] if lines else 'no output'} " \
