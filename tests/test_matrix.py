@@ -227,3 +227,21 @@ def test_two_real_mujoco_releases(tmp_path, capsys):
     assert cli.main(argv) == 0
     again = pd.read_csv(tmp_path / "out" / "matrix.csv")
     assert again["cached"].tolist() == [True, True] and again["status"].tolist() == ["ok", "ok"]
+
+
+def test_a_bug_in_an_environments_run_is_exit_3_not_a_row(offline, monkeypatch, capsys):
+    """A run that ends with exit 3 (a bug in stereodyn, harness/errors.py) ends the matrix with exit 3 and the run's
+    traceback; exit 2 there (that environment refused the run arguments, e.g. an engine it lacks) is a row."""
+    from stereodyn.harness.cli import matrix
+
+    bug = "import sys; print('Traceback (most recent call last):\\nKeyError: x'); sys.exit({code})"
+    out = offline / "out"
+    argv = ["matrix", f"{DIST}==1.0", "--overlay", "--out", str(out), "--", *RUN]
+    monkeypatch.setattr(matrix, "command", lambda python, argv, folder: [str(python), "-c", bug.format(code=3)])
+    assert cli.main(argv) == 3
+    err = capsys.readouterr().err
+    assert "KeyError: x" in err and "stereodyn: internal error" in err and "ended with exit 3" in err
+    monkeypatch.setattr(matrix, "command", lambda python, argv, folder: [str(python), "-c", bug.format(code=2)])
+    assert cli.main(argv) == 0
+    row = pd.read_csv(out / "matrix.csv", keep_default_na=False).iloc[0]
+    assert row["status"] == "run failed" and row["reason"].startswith("stereodyn run exited 2: KeyError: x")

@@ -85,6 +85,13 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
     log = folder.parent / f"{folder.name}.log"
     with open(log, "w") as out:
         done = subprocess.run(command(environment.python, argv, folder), stdout=out, stderr=subprocess.STDOUT)
+    if done.returncode == 130:  # interrupted there: the matrix is too
+        raise KeyboardInterrupt
+    if done.returncode == 3:  # a bug in stereodyn is never a row (harness/errors.py), in an environment's run neither
+        from ..errors import InternalError
+
+        raise InternalError(f"stereodyn run in the environment {environment.path} ended with exit 3 ({log})",
+                            log.read_text(errors="replace")[-8000:])
     if done.returncode != 0:
         lines = [line for line in log.read_text(errors="replace").splitlines() if line.strip()]
         return "run failed", f"stereodyn run exited {done.returncode}: {lines[-1] if lines else 'no output'} " \
