@@ -106,6 +106,7 @@ def main(args) -> int:
     from ..analysis import history as analysis
     from ..report.compare import compare
     from ..run import environments as envs
+    from ..run.results import write_atomic
     from .history import build, check_steps, load_point
 
     check_steps(args)
@@ -146,23 +147,26 @@ def main(args) -> int:
             compare(Path(a.path), Path(b.path), target)
             print(f"compare {a.label} -> {b.label}: {target / 'compare.md'}")
         print(f"history: {pages[1]} ({len(steps)} steps flagged)")
+    else:  # an earlier matrix's history in this folder is not this one's
+        for name in ("history.csv", "history_steps.csv", "history_points.csv", "history.md", "history.html"):
+            (out / name).unlink(missing_ok=True)
+        print(f"history: none (a history needs two environments that ran; {len(points)} did)")
     orders = analysis.orders_side_by_side(points)
-    from ..run.results import write_atomic
-
     write_atomic(out / "orders.csv", orders.to_csv(index=False, float_format="%.4g"))
     write_atomic(out / "matrix.csv", table.to_csv(index=False))
-    _print_orders(orders, [p.label for p in points])
+    _print_orders(orders, [p.label for p in points], args.order_step)
     print(f"wrote {out / 'matrix.csv'} ({len(ran)} of {len(rows)} environments ran) and {out / 'orders.csv'}")
     return 0
 
 
-def _print_orders(orders, labels: list[str]) -> None:
-    """The fitted orders that differ between the environments (by more than the history's order step)."""
+def _print_orders(orders, labels: list[str], step: float) -> None:
+    """The fitted orders that differ between the environments (by more than the history's order step, or fitted in
+    some and not others)."""
     if len(labels) < 2 or orders.empty:
         return
     values = orders[labels].astype(float)
     spread = values.max(axis=1) - values.min(axis=1)
-    differ = orders[(spread > 0.5) | (values.isna().any(axis=1) & values.notna().any(axis=1))]
+    differ = orders[(spread >= step) | (values.isna().any(axis=1) & values.notna().any(axis=1))]
     print(f"fitted orders that differ between environments ({len(differ)} of {len(orders)} run families):")
     for _, row in differ.head(ORDERS_SHOWN).iterrows():
         family = " ".join(str(row[c]) for c in ("case", "engine", "formulation", "integrator") if row[c])
