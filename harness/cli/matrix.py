@@ -130,7 +130,8 @@ def main(args) -> int:
             status, reason, reused = run_in(environment, folder, argv, args.rerun)
             row.update(status=status, reason=reason, results=str(folder), reused=reused)
         rows.append(row)
-        where = ("cached" if environment.cached else "built") + (", runs reused" if row.get("reused") else "")
+        where = ("cached" if environment.cached else "not built" if environment.reason else "built") \
+            + (", runs reused" if row.get("reused") else "")
         print(f"[{index}/{len(matrix)}] {label}: {row['status']} ({where})"
               + (f": {one_line(row['reason'])}" if row["reason"] else ""), flush=True)
     table = pd.DataFrame(rows)
