@@ -199,3 +199,19 @@ def test_by_commit_follows_the_repository_history(tmp_path, capsys):
     assert cli.main(["history", *map(str, dirs), "--by", "commit", "--repo", str(repo), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"--by commit: {dirs[-1]}: git commit 'ffffffff" in err, err
+
+
+def test_a_series_without_numbers_and_a_row_that_appears(tmp_path):
+    """A metric a row has at no run (empty in every results.csv) flags nothing; a row only in the later run is a
+    change (the gate does not check a new row), one gone from it is worse (the gate's "missing")."""
+    a = folder(tmp_path / "a", DATES[0], scale=(3, "attitude_err", float("nan")))
+    b = folder(tmp_path / "b", DATES[1], scale=(3, "attitude_err", float("nan")))
+    rows = pd.read_csv(a / "results.csv")
+    rows.iloc[[0, 1, 3]].to_csv(a / "results.csv", index=False)  # euler dt=0.01 appears in b
+    rows = pd.read_csv(b / "results.csv")
+    rows.iloc[[0, 2, 3]].to_csv(b / "results.csv", index=False)  # rk4 dt=0.003 gone from b
+    out = tmp_path / "out"
+    assert cli.main(["history", str(a), str(b), "--out", str(out)]) == 0
+    steps = pd.read_csv(out / "history_steps.csv", keep_default_na=False, dtype={"dt": str})
+    assert sorted(zip(steps["integrator"], steps["dt"], steps["quantity"], steps["change"], steps["direction"])) == [
+        ("euler", "0.01", "status", "- -> ok", "changed"), ("rk4", "0.003", "status", "ok -> -", "worse")]

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from statistics import median
 
 import pandas as pd
 
@@ -53,18 +54,20 @@ def segments(values: list[float], threshold: float) -> list[int]:
     segment costing `threshold` (a level off by the threshold costs as much as a segment), kept only where the fitted
     levels of two neighbouring segments differ by at least `threshold`."""
     n = len(values)
-    if n < 2:
+    # a series whose values all lie within the threshold has no step (every fitted level is a median of its values):
+    # most series of deterministic runs, and the fit is O(n^3)
+    if n < 2 or max(values) - min(values) < threshold * (1 - 1e-9):
         return []
 
-    def cost(i: int, j: int) -> tuple[float, float]:  # values[i:j] fitted by their median
-        level = float(pd.Series(values[i:j]).median())
-        return sum(abs(v - level) for v in values[i:j]), level
+    def cost(i: int, j: int) -> float:  # values[i:j] fitted by their median
+        level = median(values[i:j])
+        return sum(abs(v - level) for v in values[i:j])
 
     best = [0.0] + [math.inf] * n  # best[j]: the cheapest fit of values[:j]
     start = [0] * (n + 1)
     for j in range(1, n + 1):
         for i in range(j):
-            total = best[i] + cost(i, j)[0] + threshold
+            total = best[i] + cost(i, j) + threshold
             if total < best[j] - 1e-15:
                 best[j], start[j] = total, i
     bounds, j = [], n
@@ -72,7 +75,7 @@ def segments(values: list[float], threshold: float) -> list[int]:
         bounds.append(start[j])
         j = start[j]
     bounds = sorted(bounds)  # [0, s1, s2, ...]
-    levels = [cost(a, b)[1] for a, b in zip(bounds, bounds[1:] + [n])]
+    levels = [median(values[a:b]) for a, b in zip(bounds, bounds[1:] + [n])]
     # a tolerance of one part in 1e9 of the threshold: a step of exactly the threshold (the factor 1.1 in log10 after
     # rounding) is a step
     return [s for s, before, after in zip(bounds[1:], levels, levels[1:])
@@ -126,32 +129,28 @@ def flag(table: pd.DataFrame, points: list[Point], factor: float = STEP_FACTOR,
     fitted levels, the difference of an order's, "A -> B" of a status) at each point where a series steps, and the
     steps alone (STEP_COLUMNS: before and after the fitted levels, or the statuses). Lower is better for a metric; for
     an order, nearer the declared order (a higher one where none is declared); a worse status ranks as the gate
-    ranks it (ok < diverged < failed, skipped; absent counts as worst)."""
-    table = table.assign(step="", change="")
+    ranks it (ok < diverged < failed, skipped), a row gone missing is worse, a row that appears a change."""
     declared = _declared(points)
+    records = table.to_dict("records")
     found = []
-    for (key, quantity), group in _groups(table):
-        rows = group.index.tolist()
+    for (key, quantity), rows in _groups(records):
         if quantity == STATUS:
-            statuses = group["status"].tolist()
+            statuses = [records[r]["status"] for r in rows]
             for i in range(1, len(statuses)):
-                if statuses[i] != statuses[i - 1]:
-                    rank = lambda s: gate.STATUS_RANK.get(s, 3)  # noqa: E731
-                    direction = ("worse" if rank(statuses[i]) > rank(statuses[i - 1]) else
-                                 "better" if rank(statuses[i]) < rank(statuses[i - 1]) else "changed")
-                    found.append((rows[i], statuses[i - 1], statuses[i], f"{statuses[i - 1]} -> {statuses[i]}",
-                                  direction))
+                before, after = statuses[i - 1], statuses[i]
+                if after != before:
+                    found.append((rows[i], before, after, f"{before} -> {after}", _status_direction(before, after)))
             continue
-        finite = [(r, v) for r, v in zip(rows, group["value"]) if math.isfinite(v)]
+        finite = [(r, records[r]["value"]) for r in rows if math.isfinite(records[r]["value"])]
         if quantity == ORDER:
-            levels = [v for _, v in finite]
-            threshold = order_step
+            levels, threshold = [v for _, v in finite], order_step
         else:
-            levels = [math.log10(max(v, FLOOR)) for _, v in finite]
-            threshold = math.log10(factor)
+            levels, threshold = [math.log10(max(v, FLOOR)) for _, v in finite], math.log10(factor)
+        if not levels:  # no number at any run (a metric this row never has)
+            continue
         starts = segments(levels, threshold)
         bounds = [0, *starts, len(levels)]
-        fitted = [float(pd.Series(levels[a:b]).median()) for a, b in zip(bounds, bounds[1:])]
+        fitted = [median(levels[a:b]) for a, b in zip(bounds, bounds[1:])]
         for s, before, after in zip(starts, fitted, fitted[1:]):
             if quantity == ORDER:
                 target = declared.get(key)
@@ -161,28 +160,39 @@ def flag(table: pd.DataFrame, points: list[Point], factor: float = STEP_FACTOR,
                 ratio = 10 ** (after - before)
                 found.append((finite[s][0], 10 ** before, 10 ** after, f"{ratio:.3g}x",
                               "worse" if ratio > 1 else "better"))
+    step, change = [""] * len(records), [""] * len(records)
     steps = []
-    for row, before, after, change, direction in found:
-        table.loc[row, "step"], table.loc[row, "change"] = direction, change
-        entry = table.loc[row]
+    for row, before, after, text, direction in found:
+        step[row], change[row] = direction, text
+        entry = records[row]
         steps.append((*[entry[k] for k in KEY], entry["quantity"], entry["point"], entry["label"], before, after,
-                      change, direction))
+                      text, direction))
     steps_table = pd.DataFrame(steps, columns=list(STEP_COLUMNS))
     if len(steps_table):  # worse first, then by where in the sequence
         rank = steps_table["direction"].map({"worse": 0, "changed": 1, "better": 2})
         steps_table = steps_table.assign(_rank=rank).sort_values(["_rank", "point"], kind="stable") \
             .drop(columns="_rank").reset_index(drop=True)
-    return table[list(COLUMNS)], steps_table
+    return table.assign(step=step, change=change)[list(COLUMNS)], steps_table
 
 
-def _groups(table: pd.DataFrame):
-    """((key, quantity), rows) per series of `series`'s table, in its order (keys may hold "" and NaN: grouped by
-    hand, not by pandas, which drops NaN keys)."""
+def _status_direction(before: str, after: str) -> str:
+    """A status change signed as the gate ranks statuses; a row gone missing is worse (the gate fails it), one that
+    appears is a change (the gate does not check it)."""
+    if after == ABSENT:
+        return "worse"
+    if before == ABSENT:
+        return "changed"
+    rank = gate.STATUS_RANK
+    return "worse" if rank[after] > rank[before] else "better" if rank[after] < rank[before] else "changed"
+
+
+def _groups(records: list[dict]):
+    """((key, quantity), row indices) per series of `series`'s table, in its order (keys may hold "" and NaN: grouped
+    by hand, not by pandas, which drops NaN keys)."""
     seen: dict = {}
-    for index, row in zip(table.index, table[[*KEY, "quantity"]].itertuples(index=False)):
-        seen.setdefault((tuple(row[:-1]), row[-1]), []).append(index)
-    for (key, quantity), rows in seen.items():
-        yield (key, quantity), table.loc[rows]
+    for index, row in enumerate(records):
+        seen.setdefault((tuple(row[k] for k in KEY), row["quantity"]), []).append(index)
+    return seen.items()
 
 
 def history(points: list[Point], factor: float = STEP_FACTOR,
