@@ -10,8 +10,6 @@ environments) is `-m slow`.
 import base64
 import hashlib
 import json
-import os
-import shutil
 import zipfile
 from pathlib import Path
 
