@@ -21,6 +21,7 @@ from stereodyn.harness import cli
 pytest.importorskip("uv", reason="stereodyn matrix needs uv (pip install 'stereodyn[matrix]')")
 
 DIST, PACKAGE = "stereodyn-mtoy", "stereodyn_mtoy"
+OTHER = "stereodyn-mother"  # a second toy distribution: an environment may vary two packages at once
 ENGINE = '''
 """A toy engine plug-in, version {version}: the body stepped by the harness's Lie-group integrators on Pinocchio's
 dynamics; its rk4 is {inner}."""
@@ -57,14 +58,17 @@ RUN = ["free-asymmetric", "--engines", "mtoy", "--t-end", "1", "--dt", "1e-2,5e-
        "--jobs", "1", "--quiet"]
 
 
-def wheel(folder: Path, version: str, inner: str) -> Path:
-    """A wheel of the toy engine (PEP 427: the module, METADATA, WHEEL, entry_points.txt, RECORD)."""
-    dist_info = f"{PACKAGE}-{version}.dist-info"
-    files = {f"{PACKAGE}/__init__.py": ENGINE.format(version=version, inner=inner),
-             f"{dist_info}/METADATA": f"Metadata-Version: 2.1\nName: {DIST}\nVersion: {version}\n",
+def wheel(folder: Path, version: str, inner: str, dist: str = DIST) -> Path:
+    """A wheel of the toy engine, or of another toy distribution (PEP 427: the module, METADATA, WHEEL,
+    entry_points.txt, RECORD)."""
+    package = dist.replace("-", "_")
+    dist_info = f"{package}-{version}.dist-info"
+    files = {f"{package}/__init__.py": ENGINE.format(version=version, inner=inner),
+             f"{dist_info}/METADATA": f"Metadata-Version: 2.1\nName: {dist}\nVersion: {version}\n",
              f"{dist_info}/WHEEL": "Wheel-Version: 1.0\nGenerator: test\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
-             f"{dist_info}/entry_points.txt": f"[stereodyn.engines]\nmtoy = {PACKAGE}:MatrixToyEngine\n"}
-    path = folder / f"{PACKAGE}-{version}-py3-none-any.whl"
+             f"{dist_info}/entry_points.txt": f"[stereodyn.engines]\nmtoy = {PACKAGE}:MatrixToyEngine\n"
+             if dist == DIST else ""}
+    path = folder / f"{package}-{version}-py3-none-any.whl"
     record = []
     with zipfile.ZipFile(path, "w") as archive:
         for name, text in files.items():
@@ -84,6 +88,7 @@ def offline(tmp_path, monkeypatch):
     wheels.mkdir()
     wheel(wheels, "1.0", "rk4")
     wheel(wheels, "2.0", "rk4_naive")
+    wheel(wheels, "1.0", "rk4", dist=OTHER)
     monkeypatch.setenv("UV_FIND_LINKS", str(wheels))
     monkeypatch.setenv("UV_NO_INDEX", "1")
     monkeypatch.setenv("UV_OFFLINE", "1")
@@ -110,7 +115,11 @@ rows = [f"free-asymmetric,mtoy,,rk4,float64,{dt},ok,,1e-10,{err * k},2.0" for dt
 env = {"python": "3.11", "stereodyn-mtoy": f"{v} (plug-in: engine mtoy)", "date": "2026-11-26T10:00:00+00:00"}
 (out / "runs.json").write_text(json.dumps({"format": 1, "environment": env, "code": {}, "runs": [],
                                            "complete": True}))
-print("stand-in run", v)
+try:
+    other = version("stereodyn-mother")
+except Exception:
+    other = "absent"
+print("stand-in run", v, other)
 """
 
 
@@ -124,7 +133,8 @@ def test_two_toy_versions_are_installed_cached_and_lined_up(offline, monkeypatch
 
     monkeypatch.setattr(matrix, "command", lambda python, argv, folder: [str(python), "-c", STAND_IN, str(folder)])
     out = offline / "out"
-    argv = ["matrix", f"{DIST}==1.0", f"{DIST}==2.0", f"{DIST}==9.9", "--overlay", "--out", str(out), "--", *RUN]
+    argv = ["matrix", f"{DIST}==1.0", f"{DIST}==2.0 {OTHER}==1.0", f"{DIST}==9.9", "--overlay", "--out", str(out),
+            "--", *RUN]
     assert cli.main(argv) == 0
     printed = capsys.readouterr().out
     rows = pd.read_csv(out / "matrix.csv", keep_default_na=False)
@@ -133,11 +143,11 @@ def test_two_toy_versions_are_installed_cached_and_lined_up(offline, monkeypatch
     assert rows["cached"].tolist() == [False, False, False]
     envs = [Path(p) for p in rows["path"][:2]]
     assert all(p.parent == offline / "cache" / "stereodyn" / "matrix" for p in envs) and envs[0] != envs[1]
-    logs = [(out / "runs" / f"{n}-{DIST}=={v}.log").read_text() for n, v in ((1, "1.0"), (2, "2.0"))]
-    assert [log.strip() for log in logs] == ["stand-in run 1.0", "stand-in run 2.0"]
+    logs = [path.read_text().strip() for path in sorted((out / "runs").glob("*.log"))]
+    assert logs == ["stand-in run 1.0 absent", "stand-in run 2.0 1.0"]  # two packages vary at once in the second
     steps = pd.read_csv(out / "history_steps.csv", keep_default_na=False)
-    assert set(zip(steps["quantity"], steps["label"], steps["direction"])) == {("attitude_err", f"{DIST}==2.0",
-                                                                                "worse")}, steps
+    assert set(zip(steps["quantity"], steps["label"], steps["direction"])) == {
+        ("attitude_err", f"{DIST}==2.0 {OTHER}==1.0", "worse")}, steps
     assert (out / "compare" / "1-2" / "compare.md").is_file() and (out / "history.html").is_file()
     marks = [(p / "stereodyn-matrix.json").stat().st_mtime_ns for p in envs]
 
