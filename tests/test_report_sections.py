@@ -14,7 +14,7 @@ from stereodyn.harness import cli
 from stereodyn.harness.report import build, sections
 
 BUILT_IN = ["title", "verdicts", "summary", "work-precision", "cross-engine-agreement", "each-integrator", "runs-that-did-not-complete",
-            "formulations-side-by-side", "cases", "oracle-and-theory-checks", "definitions", "environment"]
+            "formulations-side-by-side", "cases", "oracle-and-theory-checks", "definitions", "history", "environment"]
 
 
 @pytest.fixture(scope="module")

@@ -36,7 +36,8 @@ from pathlib import Path  # noqa: E402
 # interrupt while they load ends in one line, not a traceback: this module imports only the standard library.
 case_files = CaseError = engine_names = EngineError = budget = None
 # Each command is the module of its name in this package, with main(args) -> int.
-COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators", "engines")
+COMMANDS = ("cases", "run", "report", "baseline", "check", "export", "advise", "compare", "integrators", "engines",
+            "history", "matrix")
 _commands: dict = {}
 
 DEFAULT_OUT = "out"
@@ -237,6 +238,8 @@ def _parser() -> argparse.ArgumentParser:
                          help="pages (default): write compare.md, compare.html, compare.csv; pr: also print a "
                               "markdown summary of at most 60 lines for a pull request (OUT/compare-pr.md)")
     _allow_partial(compare)
+    _history_parser(commands)
+    _matrix_parser(commands)
     commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
                                             "and origin (built in, or the plug-in's distribution)")
     commands.add_parser("engines", help="list every registered engine: origin (built in, or the plug-in's "
@@ -270,6 +273,50 @@ def _figures(parser) -> None:
     parser.add_argument("--figures", action=argparse.BooleanOptionalAction, default=os.environ.get(FIGURES_ENV) != "0",
                         help="draw the figures of report.md and report.html (default; --no-figures: the tables only, "
                              f"faster, and the default when the environment sets {FIGURES_ENV}=0)")
+
+
+def _history_parser(commands) -> None:
+    history = commands.add_parser("history", help="result folders or baselines in order (commit, date, an engine's "
+                                                   "version): each metric, status and fitted order over the "
+                                                   "sequence, steps flagged (OUT/history.html, OUT/history*.csv)")
+    history.add_argument("dirs", type=_path, nargs="+", metavar="DIR", help="result folders or baseline files")
+    history.add_argument("--by", default="date", metavar="date|commit|given|PACKAGE",
+                         help="order by runs.json's date (default), git commit (in --repo's history), as given, or "
+                              "the version of a package the environment records (e.g. mujoco)")
+    history.add_argument("--repo", type=_path, default=Path("."), help="the git repository for --by commit")
+    history.add_argument("--out", type=_path, default=Path("history"), help="where to write (default ./history)")
+    _steps(history)
+    _allow_partial(history)
+
+
+def _steps(parser) -> None:
+    parser.add_argument("--step-factor", type=float, default=1.1,
+                        help="a metric's level must change by this factor to be a step (default 1.1)")
+    parser.add_argument("--order-step", type=float, default=0.5,
+                        help="a fitted order's level must change by this much to be a step (default 0.5)")
+
+
+def _matrix_parser(commands) -> None:
+    matrix = commands.add_parser("matrix", help="the same runs in one isolated environment per package "
+                                                "specification (uv), then their history and a compare of each "
+                                                "neighbouring pair; run arguments after --")
+    matrix.add_argument("specs", nargs="+", metavar="SPEC",
+                        help="one environment's requirements, space-separated ('mujoco==3.3.7', 'mujoco==4.0.0 "
+                             "pin==3.4.0')")
+    matrix.add_argument("--cross", action="store_true",
+                        help="one environment per combination of the specs' packages (a cross product)")
+    matrix.add_argument("--out", type=_path, default=Path("matrix"), help="where to write (default ./matrix)")
+    matrix.add_argument("--stereodyn", default=None, metavar="PATH_OR_REQUIREMENT",
+                        help="the stereodyn installed in each environment (default: this checkout's source, or "
+                             "stereodyn==VERSION)")
+    matrix.add_argument("--overlay", action="store_true",
+                        help="install only the specs over this environment's packages (their new dependencies at "
+                             "this environment's versions): fast, not isolated")
+    matrix.add_argument("--rerun", action="store_true",
+                        help="run again where an earlier matrix ran the same environment and arguments (default: "
+                             "reuse its results)")
+    _steps(matrix)
+    matrix.set_defaults(run_args=None)
 
 
 def _allow_partial(parser) -> None:
@@ -426,8 +473,11 @@ def main(argv: list[str] | None = None) -> int:
     if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
         signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
+    argv, run_args = _run_arguments(sys.argv[1:] if argv is None else list(argv))
     try:
         args = _parser().parse_args(argv)
+        if run_args is not None:
+            args.run_args = run_args
     except SystemExit as exc:  # the usage error's line is printed already; a caller of main() gets the code
         return exc.code if isinstance(exc.code, int) else 2
     streams = sys.stdout, sys.stderr
@@ -488,6 +538,15 @@ class _PipeSafe:
 
     def __getattr__(self, name):
         return getattr(self._stream, name)
+
+
+def _run_arguments(argv: list[str]) -> tuple[list[str], list[str] | None]:
+    """`matrix SPEC ... -- RUN ARGUMENTS`: the arguments after the first -- are the runs' (argparse would take them
+    as more specs)."""
+    if argv[:1] == ["matrix"] and "--" in argv:
+        at = argv.index("--")
+        return argv[:at], argv[at + 1:]
+    return argv, None
 
 
 def _plugin_warnings_on_one_line() -> None:

@@ -1,0 +1,91 @@
+"""`stereodyn history DIR ...`: result folders or baselines lined up in order, every series with its steps flagged."""
+from __future__ import annotations
+
+import math
+import subprocess
+from contextlib import ExitStack
+from pathlib import Path
+
+from . import BadInput, warn
+
+
+def load_point(path: Path, label: str, held: ExitStack, allow_partial: bool, warnings: list[str]):
+    """A result folder (read only when no command writes it, and complete) or a baseline file as a history Point."""
+    import pandas as pd
+
+    from ..analysis import compare, gate
+    from ..analysis.history import Point
+    from ..run.store import reading
+
+    if path.is_dir():
+        warnings += held.enter_context(reading(path, allow_partial))
+    table, environment = compare.load(path)
+    if path.is_dir():
+        orders = gate.read_orders(path)
+        orders = (pd.DataFrame() if orders is None else
+                  orders.rename(columns={"order": "fitted", "declared_order": "declared"}))
+    else:
+        orders = pd.DataFrame(gate.read_baseline_file(path).orders)
+    return Point(label, str(path), table, orders, environment)
+
+
+def labels(paths: list[Path]) -> list[str]:
+    """Each path's name, made unique by its place where two share one."""
+    names = [p.stem if p.is_file() else p.name or str(p) for p in paths]
+    return [f"{n} ({i})" if names.count(n) > 1 else n for i, n in enumerate(names, 1)]
+
+
+def commits(repo: Path) -> list[str]:
+    """The repository's commits, oldest first (every branch, topological order)."""
+    try:
+        done = subprocess.run(["git", "-C", str(repo), "rev-list", "--topo-order", "--reverse", "--all"],
+                              capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise BadInput(f"--repo {repo}: cannot run git ({exc})") from None
+    if done.returncode != 0:
+        raise BadInput(f"--repo {repo}: not a git repository ({done.stderr.strip().splitlines()[-1:] or ['?']})")
+    return done.stdout.split()
+
+
+def build(points: list, by: str, out: Path, factor: float, order_step: float, commit_list=None) -> tuple:
+    """Order the points, compute the history and write it: (pages, steps table)."""
+    from ..analysis import history
+    from ..report import history as page
+
+    try:
+        points = history.order(points, by, commit_list)
+    except ValueError as exc:
+        raise BadInput(f"--by {by}: {exc}") from None
+    table, steps = history.history(points, factor, order_step)
+    listed = history.points_table(points, steps).assign(ordered_by=by)
+    return page.write(out, table, steps, listed), steps, points
+
+
+def check_steps(args) -> None:
+    for option, value, low in (("--step-factor", args.step_factor, 1.0), ("--order-step", args.order_step, 0.0)):
+        if not (math.isfinite(value) and value > low):
+            raise BadInput(f"{option}: must be a finite number > {low:g}, got {value:g}")
+
+
+def main(args) -> int:
+    from . import output_folder
+
+    check_steps(args)
+    if len(args.dirs) < 2:
+        raise BadInput(f"history: needs at least two result folders or baselines, got {len(args.dirs)}")
+    commit_list = commits(args.repo) if args.by == "commit" else None
+    out = output_folder(args.out, "--out")
+    warnings: list[str] = []
+    with ExitStack() as held:
+        points = [load_point(path, label, held, args.allow_partial, warnings)
+                  for path, label in zip(args.dirs, labels(args.dirs))]
+    warn(warnings)
+    pages, steps, ordered = build(points, args.by, out, args.step_factor, args.order_step, commit_list)
+    print(f"{len(ordered)} runs in order ({args.by}): {', '.join(p.label for p in ordered)}")
+    worse = steps[steps["direction"] == "worse"] if len(steps) else steps
+    print(f"{len(steps)} steps flagged, {len(worse)} worse" + (":" if len(worse) else ""))
+    for _, step in worse.head(10).iterrows():
+        print(f"  {step['case']} {step['engine']} {step['formulation']} {step['integrator']} dt={step['dt'] or '-'} "
+              f"{step['quantity']}: {step['change']} at {step['label']}")
+    print(f"wrote {pages[0]} and {pages[1]}")
+    return 0
