@@ -20,9 +20,10 @@ import traceback
 from pathlib import Path
 
 # Raised by Python itself on code that is wrong (or raised by our code on a request it should never have received: a
-# plan that asks an adapter for an integrator it lacks is a bug of the plan). Not ValueError, ArithmeticError,
+# plan that asks an adapter for an integrator it lacks is a bug of the plan). ZeroDivisionError: Python's own float
+# division in our code (numpy's gives inf, which the row's checks judge). Not ValueError, the other ArithmeticErrors,
 # RuntimeError, LinAlgError, ImportError, NotImplementedError, MemoryError: engines and numerics raise those on data.
-PROGRAMMING_ERRORS = (AttributeError, NameError, TypeError, KeyError, IndexError, AssertionError)
+PROGRAMMING_ERRORS = (AttributeError, NameError, TypeError, KeyError, IndexError, AssertionError, ZeroDivisionError)
 
 # stereodyn's packages, wherever setuptools' package-dir put their folders (_ours)
 _PACKAGES = ("stereodyn", "stereodyn.harness", "stereodyn.reference", "stereodyn.cases")

@@ -27,6 +27,15 @@ def _scratch_cwd(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _module_runs_in_process():
+    """As _runs_in_process (below) for the module fixtures, a file's shared sweep: they are set up before any function
+    fixture."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("STEREODYN_IN_PROCESS", "1")
+        yield
+
+
 @pytest.fixture(autouse=True)
 def _runs_in_process(monkeypatch):
     """--jobs 1 runs in the test's own process (harness.run.pool.in_process), so that what a test patches holds in

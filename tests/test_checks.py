@@ -111,7 +111,7 @@ ENGINE_TOLERANCE = {
 def mujoco_rk4(tmp_path_factory):
     out = tmp_path_factory.mktemp("mujoco")
     assert cli.main(["run", *ENGINE_CASES, "--engines", "mujoco", "--integrators", "rk4", "--dt", "3e-3",
-                     "--jobs", "2", "--quiet", "--out", str(out)]) == 0
+                     "--jobs", "1", "--quiet", "--out", str(out)]) == 0
     return out
 
 

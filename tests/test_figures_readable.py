@@ -65,7 +65,7 @@ def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("figures") / "out"
     assert cli.main(["run", "--figures", "free-asymmetric", "--engines", "mujoco,pinocchio,reference", "--integrators",
                      "rk4,euler,scipy_rk45,taylor", "--t-end", "1", "--dt", "1e-2,3e-3", "--dt-ladder",
-                     "--ladder-max-steps", "100", "--no-certify", "--jobs", "2", "--quiet", "--out", str(out)]) == 0
+                     "--ladder-max-steps", "100", "--no-certify", "--jobs", "1", "--quiet", "--out", str(out)]) == 0
     return out
 
 

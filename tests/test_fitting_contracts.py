@@ -74,3 +74,13 @@ def test_the_tolerance_fit_counts_the_points_below_their_tolerance_above_round_o
     # the last point (1e-14 < 30 eps x 5000 steps) is at round-off: not fitted
     assert fit["points"] == 3 and fit["tol_min"] == 1e-8 and fit["below_tol"] == 0
     assert fit["max_err_over_tol"] == pytest.approx(5.0) and fit["slope"] == pytest.approx(1.0, abs=0.05)
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # nor a slope of 0/0
+def test_two_points_of_one_dt_have_no_slope_and_raise_nothing():
+    """A ladder's point and the sweep's at one dt (--dt-ladder --ladder-max-steps 100 over 1 s gives 0.01, a sweep dt
+    too): regimes raised ZeroDivisionError, and advice rows read "worker failed: ZeroDivisionError"."""
+    points = pd.DataFrame({"dt": [0.05, 0.01, 0.01, 0.003], "steps": [20, 100, 100, 333], "status": ["ok"] * 4,
+                           "state_err": [1.6e-7, 2.5e-10, 2.5e-10, 2.0e-12]})
+    marked, floor_dt, _ = fitting.regimes(points)
+    assert len(marked) == 4 and (marked["regime"] == fitting.ASYMPTOTIC).sum() >= 3 and math.isnan(floor_dt)

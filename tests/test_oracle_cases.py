@@ -41,7 +41,7 @@ def truth_sweep(tmp_path_factory):
     heyoka runs (the truth and the other formulations)."""
     out = tmp_path_factory.mktemp("oracles")
     assert cli.main(["run", *_names(), "free-asymmetric", "--engines", "reference", "--integrators", "taylor",
-                     "--jobs", "2", "--quiet", "--out", str(out)]) == 0
+                     "--jobs", "1", "--quiet", "--out", str(out)]) == 0
     df = read_results(out / "results.csv")
     truth = df[(df.formulation == "quaternion") & (df.integrator == "taylor")].set_index("case")
     checks = read_checks(out / "checks.csv")

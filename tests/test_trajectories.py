@@ -26,7 +26,7 @@ def saved(tmp_path_factory):
     out = tmp_path_factory.mktemp("saved")
     assert cli.main(["run", "free-asymmetric", "heavy-asymmetric", "--engines", "mujoco,pinocchio,reference",
                      "--integrators", "euler,rk4,taylor,scipy_rk45", "--t-end", "2", "--dt", "1e-2,3e-3",
-                     "--save-trajectories", "--no-ladder", "--no-certify", "--jobs", "2", "--quiet",
+                     "--save-trajectories", "--no-ladder", "--no-certify", "--jobs", "1", "--quiet",
                      "--out", str(out)]) == 0
     results = pd.read_csv(out / "results.csv", dtype={"formulation": str}, keep_default_na=False)
     index = pd.read_csv(out / "trajectories" / "index.csv", dtype={"formulation": str}, keep_default_na=False)

@@ -106,8 +106,8 @@ def regimes(points: pd.DataFrame, eps: float = EPS) -> tuple[pd.DataFrame, float
     dt, err_ok, steps = points["dt"].to_numpy(float)[index], err[index], points["steps"].to_numpy(float)[index]
     floor_at = None
     for i in range(len(index) - 1):
-        if not (err_ok[i] <= ASYMPTOTIC_MAX and err_ok[i] <= FLOOR_MAX):
-            continue
+        if not (err_ok[i] <= ASYMPTOTIC_MAX and err_ok[i] <= FLOOR_MAX) or dt[i] == dt[i + 1]:
+            continue  # two points of one dt (a ladder's and the sweep's) have no slope between them
         if math.log(err_ok[i] / err_ok[i + 1]) / math.log(dt[i] / dt[i + 1]) < FLOOR_SLOPE:
             floor_at = i
             break
@@ -126,6 +126,7 @@ def regimes(points: pd.DataFrame, eps: float = EPS) -> tuple[pd.DataFrame, float
                              np.where(near_rounding, ROUNDOFF, np.where(past_floor, IRREGULAR, ASYMPTOTIC)))
     while True:  # the coarsest asymptotic point, while its local slope disagrees with the next pair's
         at = np.flatnonzero(regime == ASYMPTOTIC)
+        at = at[np.sort(np.unique(points["dt"].to_numpy(float)[at], return_index=True)[1])]  # one point a dt
         if len(at) < 3:
             break
         log_dt, log_err = np.log(points["dt"].to_numpy(float)[at[:3]]), np.log(err[at[:3]])
