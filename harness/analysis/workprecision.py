@@ -118,14 +118,13 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
 
 
 def weak_claims(sweep_rows: list[dict], chaotic: set[str]) -> set[tuple]:
-    """The claims (engine, formulation, integrator) whose dt lists miss the order rule on too little evidence to
-    judge (analysis.verdicts.NOT_ENOUGH: fewer than MIN_POINTS asymptotic points on every non-chaotic case and fewer
-    than MIN_CASES such cases): a --strict run measures them more before it judges. A claim that meets the rule on
-    little evidence is judged as it is (its verdict states the evidence), so --strict costs nothing more there."""
-    from .verdicts import NOT_ENOUGH, order_verdicts
+    """The claims (engine, formulation, integrator) whose dt lists give too little evidence to judge (fewer than
+    MIN_POINTS asymptotic points on every non-chaotic case and fewer than MIN_CASES such cases: verdicts.weak_evidence),
+    whether they meet the order rule or miss it (verdicts.NOT_ENOUGH): a --strict run measures them more before it
+    judges. Without --strict they are judged as they are, the verdict stating its evidence."""
+    from .verdicts import weak_evidence
 
-    return {(v.engine, v.formulation, v.integrator) for v in order_verdicts(convergence_table(sweep_rows), chaotic)
-            if v.status == NOT_ENOUGH} if sweep_rows else set()
+    return weak_evidence(convergence_table(sweep_rows), chaotic) if sweep_rows else set()
 
 
 def first_part_families(short: list[tuple[Family, list[dict], int]], points: list[dict], ladder_rows: list[dict],
@@ -207,7 +206,7 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         chaotic = {c.name for c in rigid if set(c.tags) & set(CHAOTIC_TAGS)}
         measured = {(r["engine"], r["formulation"], r["integrator"]) for r in sweep_rows
                     if math.isfinite(r["order"]) and r["case"] not in chaotic}
-        # and those whose dt lists miss the rule on too few points to judge (verdicts.NOT_ENOUGH): measured more
+        # and those whose dt lists give too few points to judge, passed or missed (weak_claims): measured more
         weak = weak_claims(sweep_rows, chaotic)
         if weak:
             short = short_ladder_families(rigid_results, rigid, engines, integrators, sweep_rows, laddered, weak)
