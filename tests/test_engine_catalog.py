@@ -43,5 +43,7 @@ def test_the_listing_imports_no_optional_sdk_and_still_lists_what_each_engine_ru
 def test_a_missing_sdk_reads_not_installed_with_the_install_command():
     lines = _listing("import sys; sys.modules['newton'] = None")
     newton = next(line for line in lines if line.startswith("newton:"))
+    from stereodyn.harness import install
+
     assert newton.endswith("not installed: newton engine unavailable: No module named 'newton'; install the extra: "
-                           "pip install 'stereodyn[newton]'")
+                           + install.hint("newton"))

@@ -27,9 +27,10 @@ import weakref
 
 import numpy as np
 
+from .. import install
 from .quiet import native_output_silenced
 
-INSTALL = "pip install 'stereodyn[bullet]'"
+INSTALL = install.hint("bullet")  # a checkout's or a distribution's form
 
 
 try:

@@ -29,7 +29,9 @@ import time
 
 import numpy as np
 
-INSTALL = "pip install 'stereodyn[drake]'"
+from .. import install
+
+INSTALL = install.hint("drake")  # a checkout's or a distribution's form
 EPS = float(np.finfo(float).eps)
 # A fixed-step run's maximum step is dt (1 + STRETCH_ULPS eps steps). A sample interval of m steps, (j_b - j_a) dt in
 # floating point, can exceed m steps of dt accumulated in Drake's clock (t += h, rounded each step) by a few ulps of

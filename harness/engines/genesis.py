@@ -32,9 +32,10 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .. import install
 from .base import FLOAT32, FLOAT64, Engine, singular_torque, require_modules
 
-INSTALL = "pip install 'stereodyn[genesis]'"
+INSTALL = install.hint("genesis")  # a checkout's or a distribution's form
 # Genesis does not declare torch; importing it costs 15-30 s, so the SDK is imported on the first prepare and only
 # its presence is checked here.
 require_modules(f"{INSTALL} (Genesis also needs torch: the CPU wheel is enough)", "genesis", "torch")

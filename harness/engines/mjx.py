@@ -26,7 +26,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-INSTALL = "pip install 'stereodyn[mjx]'"
+from .. import install
+
+INSTALL = install.hint("mjx")  # a checkout's or a distribution's form
 
 # One XLA thread per worker: `--jobs N` then means N busy cores for this engine as for every other (the timing
 # contract, docs/ENGINES.md). XLA reads the flags when its CPU backend starts, so they are set before jax is imported;

@@ -28,10 +28,11 @@ import math
 
 import numpy as np
 
+from .. import install
 from .base import FLOAT32, Engine, singular_torque, require_modules
 from .quiet import native_output_silenced
 
-INSTALL = "pip install 'stereodyn[newton]'"
+INSTALL = install.hint("newton")  # a checkout's or a distribution's form
 require_modules(INSTALL, "newton", "warp")  # imported on the first prepare (_sdk): 4-8 s
 
 from ..scenes.cases import Case, unphysical_inertia

@@ -22,10 +22,11 @@ import math
 
 import numpy as np
 
+from .. import install
 from .base import FLOAT32, Engine, singular_torque, require_modules
 from .quiet import native_output_silenced
 
-INSTALL = "pip install 'stereodyn[warp]'"
+INSTALL = install.hint("warp")  # a checkout's or a distribution's form
 require_modules(INSTALL, "warp", "mujoco_warp")  # imported on the first prepare (_sdk): 5-10 s
 
 from .. import budget
