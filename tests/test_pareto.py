@@ -133,11 +133,11 @@ def test_terminal_names_the_cheapest_run_per_engine(tmp_path):
     pareto_table(runs, ["a", "b"]).to_csv(tmp_path / "pareto.csv", index=False)
     lines = summary.cheapest_lines(tmp_path)
     # per engine first (its runs named without the engine), then any; a scope that reaches no case says why
-    assert lines[4:7] == ["  mujoco     <= 1e-03: 2/2 cases, most often euler (2); dearest b: euler dt=0.01 (101 µs/s)",
-                          "             <= 1e-06: 2/2 cases, most often rk4 (2); dearest b: rk4 dt=0.01 (401 µs/s)",
+    assert lines[4:7] == ["  mujoco     <= 1e-03: 2/2 cases, most often euler dt=0.01 (2); most expensive b: euler dt=0.01 (101 µs/s)",
+                          "             <= 1e-06: 2/2 cases, most often rk4 dt=0.01 (2); most expensive b: rk4 dt=0.01 (401 µs/s)",
                           "             <= 1e-09: no case (none reached it: 2)"]
     assert [line[:13].strip() for line in lines[1::3]] == ["reference", "mujoco", "pinocchio", "any"]
-    assert lines[-1].endswith("most often reference taylor (2); dearest a: reference taylor dt=0.01 (50 µs/s)")
+    assert lines[-1].endswith("most often reference taylor dt=0.01 (2); most expensive a: reference taylor dt=0.01 (50 µs/s)")
 
 
 # ------------------------------------------------------------------------------------------------ timing phase

@@ -52,7 +52,7 @@ def test_run_prints_one_line_per_phase_when_stderr_is_not_a_terminal(tmp_path, c
     assert cli.main(["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2",
                      "--jobs", "1", "--out", str(tmp_path)]) == 0
     assert capsys.readouterr().err.splitlines() == [
-        "stereodyn: truths of 1 cases, then 3 runs on 1 workers", "stereodyn: timing 3 runs, one at a time, in rounds",
+        "stereodyn: truths of 1 case, then 3 runs on 1 worker", "stereodyn: timing 3 runs, one at a time, in rounds",
         "stereodyn: report: report.md, report.html"]  # STEREODYN_FIGURES=0 (tests/conftest.py)
     assert cli.main(["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2",
                      "--jobs", "1", "--out", str(tmp_path / "quiet"), "--quiet"]) == 0
@@ -78,3 +78,61 @@ def test_a_phase_is_one_plain_line_off_a_terminal_and_one_line_on_it():
     for quiet in (ProgressBar(s := io.StringIO(), enabled=False), ProgressBar(t := Terminal(), enabled=False)):
         quiet.stage("report")
     assert s.getvalue() == t.getvalue() == ""
+
+
+class FakeClock:
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def test_off_a_terminal_a_heartbeat_line_comes_at_least_every_30_s():
+    """Issue 32: with stderr redirected, progress lines at most 30 s apart over a run of more than 2 minutes, with the
+    phase, the count done of the total, the elapsed time and the ETA. A fake clock, the heartbeat called as the
+    thread calls it (every HEARTBEAT_POLL_S)."""
+    from stereodyn.harness.run import progress
+
+    log, clock = io.StringIO(), FakeClock()
+    bar = ProgressBar(log, clock=clock, heartbeat=False)
+    written: list[float] = []
+    stamp = lambda: written.extend([clock.now] * (log.getvalue().count("\n") - len(written)))  # noqa: E731
+    bar.stage("truths of 2 cases, then 10 runs on 2 workers")
+    stamp()
+    bar.start(10, 10.0)
+    while clock.now < 1000.0 + 150.0:  # 2.5 min: 10 runs of 12 s, then a phase without counts
+        clock.now += progress.HEARTBEAT_POLL_S
+        if bar.total and bar.done < 10 and clock.now - 1000.0 >= 12.0 * (bar.done + 1):
+            bar.advance("run", 1.0, "ok")
+        if bar.done == 10 and bar.phase_name.startswith("truths"):
+            bar.stage("work–precision: default dt and tolerance ladders")
+        bar.heartbeat()
+        stamp()
+    lines = log.getvalue().splitlines()
+    gaps = [b - a for a, b in zip([1000.0, *written], [*written, clock.now])]
+    assert max(gaps) <= 30.0, gaps
+    beats = [line for line in lines if line.startswith("stereodyn: ... ")]
+    assert len(beats) >= 4, lines
+    assert "truths of 2 cases" in beats[0] and "/10 runs, ETA " in beats[0] and "in all" in beats[0], beats[0]
+    assert any(line.startswith("stereodyn: ... work–precision") and "runs" not in line.split(";")[0]
+               for line in beats), beats  # a phase that counts nothing says so by saying no count
+
+
+def test_the_heartbeat_thread_writes_and_stops(monkeypatch):
+    import time
+
+    from stereodyn.harness.run import progress
+
+    monkeypatch.setattr(progress, "HEARTBEAT_S", 0.05)
+    monkeypatch.setattr(progress, "HEARTBEAT_POLL_S", 0.01)
+    log = io.StringIO()
+    bar = ProgressBar(log)
+    bar.stage("timing")
+    time.sleep(0.5)
+    assert bar.finish() >= 0.5
+    written = log.getvalue()
+    assert written.count("stereodyn: ... timing") >= 2, written
+    time.sleep(0.2)
+    assert log.getvalue() == written  # finished: no more lines
+    assert ProgressBar(io.StringIO(), enabled=False)._thread is None  # --quiet: no thread at all

@@ -5,12 +5,13 @@ reason, the cheapest run for a few accuracy targets, and where the report is. Th
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .text import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
+from .text import grouped_reasons, plural, reason  # noqa: F401 (reason: part of this API)
 
 # Accuracy targets (max attitude error, rad) of the terminal's "cheapest run" lines: three decades of pareto.csv's.
 TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)
@@ -22,8 +23,9 @@ TERMINAL_VERDICTS = 20
 
 def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
     """Per engine scope of pareto.csv, then `any` (every run): per accuracy target, on how many cases some run of the
-    scope reaches it, the run named most often, and the case whose cheapest run is dearest (the target's worst case);
-    where no case is reached, why (pareto.csv's `source`)."""
+    scope reaches it, the run named most often with the steps (or tolerances) it reached it at, and the case whose
+    cheapest run is the most expensive (the target's worst case); where no case is reached, why (pareto.csv's
+    `source`)."""
     from . import workprecision
     from .pareto import ANY, scope_rows, scopes, setting
 
@@ -46,13 +48,25 @@ def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
                 lines.append(f"{head}<= {target:.0e}: no case" + (" (" + ", ".join(
                     f"{reason}: {count}" for reason, count in why.items()) + ")" if len(why) else ""))
                 continue
-            counts = hit.apply(name, axis=1).value_counts(sort=False)
+            names = hit.apply(name, axis=1)
+            counts = names.value_counts(sort=False)
             best = counts.idxmax()
-            dearest = hit.loc[hit["us_per_sim_s"].idxmax()]
-            lines.append(f"{head}<= {target:.0e}: {len(hit)}/{cases} cases, most often {best} ({counts[best]}); "
-                         f"dearest {dearest['case']}: {name(dearest)} {setting(dearest)} "
-                         f"({dearest['us_per_sim_s']:.3g} µs/s)")
+            worst = hit.loc[hit["us_per_sim_s"].idxmax()]
+            lines.append(f"{head}<= {target:.0e}: {len(hit)}/{cases} cases, most often {best} "
+                         f"{_settings(hit[names == best])} ({counts[best]}); most expensive {worst['case']}: "
+                         f"{name(worst)} {setting(worst)} ({worst['us_per_sim_s']:.3g} µs/s)")
     return lines
+
+
+def _settings(rows: pd.DataFrame) -> str:
+    """The steps (or tolerances) of one method's answers: 'dt=0.01', 'dt=0.0025..0.01', 'tol=1e-10..1e-06', or
+    'default tol'."""
+    for column, label, spec in (("dt", "dt", ".3g"), ("tolerance", "tol", ".0e")):
+        values = pd.to_numeric(rows[column], errors="coerce").dropna() if column in rows else pd.Series(dtype=float)
+        if len(values):
+            low, high = format(values.min(), spec), format(values.max(), spec)
+            return f"{label}={low}" if low == high else f"{label}={low}..{high}"
+    return "default tol"
 
 
 def _method(row) -> str:
@@ -64,28 +78,60 @@ def _own_method(row) -> str:
     return " ".join(str(row[c]) for c in ("formulation", "integrator") if isinstance(row[c], str) and row[c])
 
 
-def terminal_lines(df: pd.DataFrame, found: list, out_dir: Path, report: Path | None = None) -> list[str]:
-    """The default output of `stereodyn run`."""
+# The reason of a run skipped because its engine's SDK is not installed (harness.engines: UnavailableEngine's message)
+_NOT_INSTALLED = re.compile(r"^(\S+) engine unavailable: No module named")
+
+
+def not_installed(df: pd.DataFrame) -> list[str]:
+    """The engines whose runs were skipped because their SDK is not installed, in table order."""
+    skipped = df[df["status"] == "skipped"]
+    found = (_NOT_INSTALLED.match(m) for m in skipped.get("message", pd.Series(dtype=object)) if isinstance(m, str))
+    return list(dict.fromkeys(match.group(1) for match in found if match))
+
+
+def terminal_lines(df: pd.DataFrame, found: list, out_dir: Path, report: Path | None = None,
+                   elapsed_s: float | None = None) -> list[str]:
+    """The default output of `stereodyn run`: the runs of engines not installed are one line, apart from the runs
+    that did not complete."""
+    from .. import install
     from . import verdicts
 
-    counts = df["status"].value_counts()
-    lines = [f"{len(df)} runs over {df['case'].nunique()} cases: "
-             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped"))]
+    missing = not_installed(df)
+    absent = df["engine"].isin(missing) & (df["status"] == "skipped")
+    ran = df[~absent]
+    counts = ran["status"].value_counts()
+    lines = [f"{plural(len(ran), 'run')} over {plural(ran['case'].nunique(), 'case')}: "
+             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped"))
+             + (f"; in {_clock(elapsed_s)}" if elapsed_s is not None else "")]
+    if missing:
+        hint = install.hint(missing[0] if len(missing) == 1 else "engines")
+        lines.append(f"not installed: {', '.join(missing)} ({plural(int(absent.sum()), 'run')} not run) — {hint}")
     verdict_lines = verdicts.summary_lines(found)
     lines += verdict_lines[:1 + TERMINAL_VERDICTS]
     if len(verdict_lines) > 1 + TERMINAL_VERDICTS:
-        lines.append(f"... and {len(verdict_lines) - 1 - TERMINAL_VERDICTS} more failed verdicts: verdicts.csv")
-    entries = grouped_reasons(df)
+        lines.append(f"... and {plural(len(verdict_lines) - 1 - TERMINAL_VERDICTS, 'more failed verdict')}: "
+                     "verdicts.csv")
+    entries = grouped_reasons(ran)
     if entries:
-        lines.append("did not complete, by reason (numbers elided; every run in results.csv):")
+        lines.append("did not complete, by reason (the first run's message; every run in results.csv):")
         for entry in entries[:TERMINAL_REASONS]:
-            more = f", +{entry['count'] - 1}" if entry["count"] > 1 else ""
-            lines.append(f"  {entry['count']:4d} {entry['status']}: {entry['reason']} ({entry['runs'][0]}{more})")
+            more = f"; {entry['count'] - 1} more like it" if entry["count"] > 1 else ""
+            lines.append(f"  {entry['count']:4d} {entry['status']}: {entry['example']} ({entry['runs'][0]}{more})")
         if len(entries) > TERMINAL_REASONS:
             rest = entries[TERMINAL_REASONS:]
-            lines.append(f"  ... and {len(rest)} more reasons ({sum(e['count'] for e in rest)} runs): "
-                         "report.md, Runs that did not complete")
+            lines.append(f"  ... and {plural(len(rest), 'more reason')} "
+                         f"({plural(sum(e['count'] for e in rest), 'run')}): report.md, Runs that did not complete")
     lines += cheapest_lines(out_dir)
     if report is not None:
         lines.append(f"report: {report}  (drift tables: --verbose, or report.md)")
     return lines
+
+
+def _clock(seconds: float) -> str:
+    """An elapsed time as a person reads it: '48 s', '3 min 12 s', '1 h 02 min'."""
+    seconds = int(round(seconds))
+    if seconds < 60:
+        return f"{seconds} s"
+    if seconds < 3600:
+        return f"{seconds // 60} min {seconds % 60:02d} s"
+    return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"

@@ -32,16 +32,28 @@ def _subject(row) -> str:
     formulation = f" {formulation}" if isinstance(formulation, str) and formulation else ""
     dt = row.get("dt")
     dt = f" dt={dt:g}" if isinstance(dt, float) and np.isfinite(dt) else ""
-    return f"{row['case']} {row['engine']}{formulation} {row['integrator']}{dt}"
+    integrator = row.get("integrator", "")
+    integrator = f" {integrator}" if isinstance(integrator, str) and integrator else ""
+    return f"{row['case']} {row['engine']}{formulation}{integrator}{dt}"
+
+
+def plural(count: int, word: str, words: str | None = None) -> str:
+    """'1 run', '2 runs' ('1 more reason', '3 more reasons')."""
+    return f"{count} {word if count == 1 else words or word + 's'}"
 
 
 def grouped_reasons(df: pd.DataFrame, statuses=("failed", "diverged", "skipped")) -> list[dict]:
-    """Runs that did not complete, one entry per (status, reason): count and the runs, most frequent first
-    (failures before divergences before skips on a tie)."""
+    """Runs that did not complete, one entry per (status, reason): count, the runs, and the first run's own message
+    (`example`, its numbers kept), most frequent first (failures before divergences before skips on a tie)."""
     rank = {s: i for i, s in enumerate(statuses)}
     rows = df[df["status"].isin(statuses)]
     groups: dict[tuple[str, str], list[str]] = {}
+    examples: dict[tuple[str, str], str] = {}
     for _, row in rows.iterrows():
-        groups.setdefault((row["status"], reason(row.get("message"))), []).append(_subject(row))
-    entries = [{"status": s, "reason": r, "count": len(runs), "runs": runs} for (s, r), runs in groups.items()]
+        message = row.get("message")
+        key = (row["status"], reason(message))
+        groups.setdefault(key, []).append(_subject(row))
+        examples.setdefault(key, message.strip() if isinstance(message, str) and message.strip() else key[1])
+    entries = [{"status": s, "reason": r, "count": len(runs), "runs": runs, "example": examples[(s, r)]}
+               for (s, r), runs in groups.items()]
     return sorted(entries, key=lambda e: (rank[e["status"]], -e["count"], e["reason"]))

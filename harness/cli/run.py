@@ -25,31 +25,35 @@ def main(args) -> int:
     options = SweepOptions(args.engines, args.out, args.integrators, jobs=args.jobs, certify=not args.no_certify,
                            resume=args.resume, scheduler=args.scheduler, save_trajectories=args.save_trajectories)
     progress = ProgressBar(enabled=not args.quiet)
-    output_folder(args.out, "--out")
-    _quiet_engines(args.out)
-    budget.configure(budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget))  # workers inherit it
-    if args.scheduler:  # before any truth is computed
-        from ..run.distributed import check_cluster
+    try:  # the heartbeat thread (off a terminal) ends with the command, whatever ends it
+        output_folder(args.out, "--out")
+        _quiet_engines(args.out)
+        budget.configure(budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget))  # workers inherit it
+        if args.scheduler:  # before any truth is computed
+            from ..run.distributed import check_cluster
 
-        check_cluster(args.scheduler)
-    with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
-        # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
-        with worker_pool(options.jobs, options.engines) as pool:
-            compared: list[dict] = []  # the states the cross-engine agreement compares (agreement.csv)
-            df = run_sweep(chosen, options, progress=progress, pool=pool, agreement=compared, final=False)
-            agreement.write(args.out, compared)
-            del compared
-            _work_precision(args, options, chosen, df, pool, progress)
-        found = verdicts.evaluate(args.out, df, chosen)
-        # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
-        workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
-        if args.verbose:
-            print(drift_table_text(df))
-        progress.stage("report: report.md, figures, report.html" if args.figures else "report: report.md, report.html")
-        markdown, html = write_reports(args.out, df, self_contained=args.self_contained, figures=args.figures)
-        mark_complete(args.out)  # the last write: check, baseline, compare and report read the folder from now on
-        if not args.quiet:  # quiet: nothing on success (a CI log); --strict's failures still go to stderr below
-            print("\n".join(summary.terminal_lines(df, found, args.out, html)))
+            check_cluster(args.scheduler)
+        with folder_lock(args.out):  # the whole command: a second run into --out waits for none of it to interleave
+            # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
+            with worker_pool(options.jobs, options.engines) as pool:
+                compared: list[dict] = []  # the states the cross-engine agreement compares (agreement.csv)
+                df = run_sweep(chosen, options, progress=progress, pool=pool, agreement=compared, final=False)
+                agreement.write(args.out, compared)
+                del compared
+                _work_precision(args, options, chosen, df, pool, progress)
+            found = verdicts.evaluate(args.out, df, chosen)
+            # "What to use" recommends no run of an integrator that failed a verdict (it names it instead)
+            workprecision.rewrite_pareto(args.out, df, verdicts.failed_integrators(found))
+            if args.verbose:
+                print(drift_table_text(df))
+            progress.stage("report: report.md, figures, report.html" if args.figures else "report: report.md, report.html")
+            markdown, html = write_reports(args.out, df, self_contained=args.self_contained, figures=args.figures)
+            mark_complete(args.out)  # the last write: check, baseline, compare and report read the folder from now on
+            elapsed = progress.finish()
+            if not args.quiet:  # quiet: nothing on success (a CI log); --strict's failures still go to stderr below
+                print("\n".join(summary.terminal_lines(df, found, args.out, html, elapsed_s=elapsed)))
+    finally:
+        progress.finish()
     if not args.quiet:
         print(f"wrote {args.out / 'results.csv'}, {markdown} and {html}")
     if args.strict and verdicts.strict_failures(found):

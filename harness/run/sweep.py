@@ -28,6 +28,7 @@ from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
 from .workers import WatchedPool
+from ..analysis.text import plural
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
@@ -199,7 +200,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
             local_pool(local_jobs, len(pending), tuple(engines))
         with own_pool as pool:
-            progress.stage(f"truths of {len(cases)} cases, then {len(pending)} runs on {local_jobs} workers")
+            progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
+                           f"{plural(local_jobs, 'worker')}")
 
             def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
                 nonlocal pending
@@ -222,7 +224,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
-            progress.stage(f"timing {len(untimed)} runs, one at a time, in rounds")
+            progress.stage(f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
         timings = time_specs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed])
         for spec, timed_columns in zip(untimed, timings):
             key = keys[id(spec)]
