@@ -240,11 +240,13 @@ def _parser() -> argparse.ArgumentParser:
     _allow_partial(compare)
     _history_parser(commands)
     _matrix_parser(commands)
-    commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its metadata "
-                                            "and origin (built in, or the plug-in's distribution)")
-    commands.add_parser("engines", help="list every registered engine: origin (built in, or the plug-in's "
-                                        "distribution and version), installed or the install command, models, "
-                                        "integrators, precision")
+    listed = commands.add_parser("integrators", help="list every integrator `run --integrators` accepts, with its "
+                                                     "metadata and origin (built in, or the plug-in's distribution)")
+    engines = commands.add_parser("engines", help="list every registered engine: origin (built in, or the plug-in's "
+                                                  "distribution and version), installed or the install command, "
+                                                  "models, integrators, precision")
+    for listing in (listed, engines):  # 100 columns by default (issue 32)
+        listing.add_argument("--wide", action="store_true", help="every column and reason in full, however wide")
     advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
                                                  "reaches an accuracy on a case, checked by runs")
     advise.add_argument("case", metavar="CASE_OR_FILE", help="a suite case name or a .toml path")

@@ -5,5 +5,5 @@ from __future__ import annotations
 def main(args) -> int:
     from ..engines.catalog import render, rows
 
-    print(render(rows()))
+    print(render(rows(), wide=args.wide))
     return 0

@@ -6,5 +6,5 @@ from __future__ import annotations
 def main(args) -> int:
     from ..report.method import integrator_rows, listing
 
-    print(listing(integrator_rows()))
+    print(listing(integrator_rows(), wide=args.wide))
     return 0

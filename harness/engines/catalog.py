@@ -101,15 +101,29 @@ def rows() -> list[EngineRow]:
     return table
 
 
-def render(table: list[EngineRow]) -> str:
-    """The rows as text: one block per engine (the lists are too long for one line)."""
+NARROW = 100  # `stereodyn engines` fits this many columns unless --wide (issue 32: 374 columns before)
+
+
+def render(table: list[EngineRow], wide: bool = True) -> str:
+    """The rows as text: one block per engine (the lists are too long for one line). Not wide: each line wrapped to
+    NARROW columns, and an engine not installed gives its install command only (the missing module with --wide)."""
     lines = []
     for row in table:
-        lines.append(f"{row.name}: {row.origin}; {row.status}")
+        status = row.status
+        if not wide and status.startswith("not installed: ") and "install the extra: " in status:
+            status = "not installed: " + status.split("install the extra: ", 1)[1]
+        lines += _wrapped(f"{row.name}: {row.origin}; {status}", wide, "    ")
         if row.models:
-            lines.append(f"  models: {', '.join(row.models)}")
+            lines += _wrapped(f"  models: {', '.join(row.models)}", wide, "    ")
         if row.integrators:
-            lines.append(f"  integrators (* in the default sweep): {', '.join(row.integrators)}")
+            lines += _wrapped(f"  integrators (* in the default sweep): {', '.join(row.integrators)}", wide, "    ")
         if row.precisions:
-            lines.append(f"  precision: {', '.join(row.precisions)}")
+            lines += _wrapped(f"  precision: {', '.join(row.precisions)}", wide, "    ")
     return "\n".join(lines)
+
+
+def _wrapped(text: str, wide: bool, indent: str) -> list[str]:
+    import textwrap
+
+    return [text] if wide else textwrap.wrap(text, NARROW, subsequent_indent=indent, break_long_words=False,
+                                             break_on_hyphens=False)

@@ -78,13 +78,51 @@ def integrator_rows() -> list[dict]:
     return rows
 
 
-def listing(rows: list[dict]) -> str:
-    """The text of `stereodyn integrators`: a fixed-width table."""
-    columns = ("name", "state_space", "order", "stages", "symplectic", "geometric", "energy_bounded", "symmetric",
-               "casimir_preserving", "default_sweep", "origin", "description")
-    cells = [list(columns)] + [[_text(row[c]) for c in columns] for row in rows]
+# `stereodyn integrators` fits this many columns unless --wide (issue 32: 330 columns wrapped in an 80-column terminal)
+NARROW = 100
+# The claims column of the narrow listing: one letter a declared property, '.' where it is not declared
+CLAIM_LETTERS = (("symplectic", "s"), ("symmetric", "r"), ("geometric", "g"), ("energy_bounded", "e"),
+                 ("casimir_preserving", "c"))
+
+
+def listing(rows: list[dict], wide: bool = False) -> str:
+    """The text of `stereodyn integrators`: a fixed-width table. Narrow (the default) fits NARROW columns: the
+    declared properties as letters (a legend ends the table) and the description cut to the room left; wide has a
+    column per property and the whole description."""
+    if wide:
+        columns = ("name", "state_space", "order", "stages", "symplectic", "geometric", "energy_bounded",
+                   "symmetric", "casimir_preserving", "default_sweep", "origin", "description")
+        cells = [list(columns)] + [[_text(row[c]) for c in columns] for row in rows]
+    else:
+        columns = ("name", "state_space", "order", "stages", "sweep", "claims", "origin", "description")
+        cells = [list(columns)] + [[_text(row["name"]), _text(row["state_space"]), _text(row["order"]),
+                                    _text(row["stages"]), _text(row["default_sweep"]), _claims(row),
+                                    _short_origin(row["origin"]), _text(row["description"])] for row in rows]
     widths = [max(len(r[i]) for r in cells) for i in range(len(columns) - 1)]
-    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1] for r in cells)
+    room = None if wide else NARROW - sum(w + 2 for w in widths)
+    room = room if room is None or room >= 20 else 0  # a description cut to a few letters says nothing
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + _cut(r[-1], room) for r in cells]
+    if not wide:
+        lines += ["claims: " + ", ".join(f"{letter} {name}" for name, letter in CLAIM_LETTERS),
+                  "('.': not declared) every column and the descriptions in full: stereodyn integrators --wide"]
+    return "\n".join(line.rstrip() for line in lines)
+
+
+def _short_origin(origin) -> str:
+    """'built in' for every built-in (an engine's own says its engine in state_space); a plug-in's in full."""
+    text = _text(origin)
+    return "built in" if text.startswith("built in") else text
+
+
+def _claims(row: dict) -> str:
+    """The declared properties as letters ('srg..'); empty for an engine's own integrator (it declares none)."""
+    if all(row[name] == "" for name, _ in CLAIM_LETTERS):
+        return ""
+    return "".join(letter if row[name] is True else "." for name, letter in CLAIM_LETTERS)
+
+
+def _cut(text: str, room: int | None) -> str:
+    return text if room is None or len(text) <= room else (text[:room - 1] + "…" if room > 1 else "")
 
 
 def _text(value) -> str:
