@@ -3,7 +3,7 @@ flag from the argparse parser (harness/cli/__init__.py), every case key from the
 validate it (harness/scenes/cases.py, the torque models, the sliding ladder's scene), every column of every CSV from
 the constant that declares it.
 
-As a mkdocs hook (mkdocs.yml `hooks:`) the pages are added to the build in memory, under reference/; run as a script,
+As a mkdocs hook (mkdocs.yml `hooks:`) the pages are added to the build in memory, beside docs/'s own; run as a script,
 `python tools/docs_reference.py DIR` writes them to DIR to read.
 """
 from __future__ import annotations
@@ -16,9 +16,9 @@ import re
 import sys
 from pathlib import Path
 
-# page file -> (title, function); the nav of mkdocs.yml names these paths
-PAGES = {"reference/cli.md": "Command line", "reference/case-keys.md": "Case keys",
-         "reference/tables.md": "Result tables"}
+# page file (at the top of the site, beside DESIGN.md, so that links between them are plain names) -> title; the nav
+# of mkdocs.yml names these files
+PAGES = {"cli.md": "Command line", "case-keys.md": "Case keys", "tables.md": "Result tables"}
 
 # The CSV files and the constants that declare their columns, in the order a run writes them.
 TABLES = (
@@ -35,9 +35,10 @@ TABLES = (
     ("tolerance_fit.csv", "stereodyn.harness.analysis.fitting", "TOLERANCE_FIT_COLUMNS", "one row per adaptive method"),
     ("checks.csv", "stereodyn.harness.scenes.checks", "COLUMNS", "one row per run and quantity against theory"),
     ("agreement.csv", "stereodyn.harness.analysis.agreement", "COLUMNS", "pairs of engines running one method"),
-    ("trajectories/index.csv", "stereodyn.harness.run.store", "TRAJECTORY_INDEX_COLUMNS",
+    ("DIR/trajectories/index.csv", "stereodyn.harness.run.store", "TRAJECTORY_INDEX_COLUMNS",
      "`run --save-trajectories`: each saved run's file"),
-    ("history.csv", "stereodyn.harness.analysis.history", "COLUMNS", "`stereodyn history`: each metric over the folders"),
+    ("history.csv", "stereodyn.harness.analysis.history", "COLUMNS",
+     "`stereodyn history`: each metric over the folders"),
     ("history_steps.csv", "stereodyn.harness.analysis.history", "STEP_COLUMNS", "`stereodyn history`: the steps found"),
 )
 # CSVs whose columns follow the data (no constant declares them): named so the page is complete.
@@ -191,7 +192,7 @@ def case_keys_page() -> str:
              "Generated from the case schema and the code that validates it (`harness/scenes/cases.py`, the torque "
              "models of `reference/torque_models/`, `harness/scenes/sliding_ladder.py`). A file breaking a rule is "
              "refused with one line, `FILE: KEY: RULE`, exit 2. The format with an example of every key: "
-             "[DESIGN §3](../DESIGN.md#3-case-file-toml); the numeric ranges: [limits](../limits.md). "
+             "[DESIGN §3](DESIGN.md#3-case-file-toml); the numeric ranges: [limits](limits.md). "
              "`<...>` in a rule is the value found in the file.", ""]
     tables = schema()
     for scene, table, allowed, required in tables:
@@ -245,7 +246,7 @@ def tables_page() -> str:
     meanings = _design_meanings()
     lines = ["# Result tables", "",
              "Every CSV stereodyn writes, with its columns in order, generated from the constant that declares them. "
-             "What each column means: [DESIGN §4](../DESIGN.md#4-result-tables) (results.csv's meanings are "
+             "What each column means: [DESIGN §4](DESIGN.md#4-result-tables) (results.csv's meanings are "
              "repeated here). Each output folder's own `README.md` says which of these files it holds.", ""]
     for file, declared, columns, what in table_columns():
         lines += [f"## {file}", "", f"{what}. Declared in `{declared}`.", ""]
@@ -271,8 +272,7 @@ def tables_page() -> str:
 
 def pages() -> dict[str, str]:
     """{path under docs/: text} of every generated page."""
-    return {"reference/cli.md": cli_page(), "reference/case-keys.md": case_keys_page(),
-            "reference/tables.md": tables_page()}
+    return dict(zip(PAGES, (cli_page(), case_keys_page(), tables_page())))
 
 
 # --------------------------------------------------------------------------------------------- mkdocs hook
