@@ -1,5 +1,6 @@
 """out/ explains itself (issue 32): DIR/README.md lists every file and folder of a run's output, and the figures are
 named by case and kind."""
+import shutil
 from pathlib import Path
 
 import pytest
@@ -54,3 +55,12 @@ def test_a_foreign_file_is_listed_and_a_foreign_readme_is_kept(tmp_path):
     (tmp_path / "README.md").write_text("# my project\n")  # e.g. --out . in someone's repository
     assert index.write(tmp_path) is None
     assert (tmp_path / "README.md").read_text() == "# my project\n"
+
+
+def test_compare_into_a_result_folder_keeps_its_index_complete(out, tmp_path):
+    b = tmp_path / "b"
+    shutil.copytree(out, b)
+    assert cli.main(["compare", str(out), str(b), "--format", "pr"]) == 0
+    present = {f"{p.name}/" if p.is_dir() else p.name for p in b.iterdir() if not p.name.startswith(".")}
+    assert {"compare.md", "compare.html", "compare.csv", "compare-pr.md"} <= present
+    assert set(_listed(b)) == present

@@ -16,7 +16,8 @@ ENTRIES: dict[str, str] = {
                    "one file with `stereodyn report DIR --self-contained`",
     "report.md": "the same report as Markdown, figures linked from `figures/`",
     "figures/": "the report's PNGs, named CASE-KIND.png: KIND is `work-precision` (error against cost), "
-                "`invariants` (drifts against time) or `tolerance` (error against requested tolerance)",
+                "`invariants` (drifts against time) or `tolerance` (error against requested tolerance); "
+                "`stereodyn compare` adds compare-largest-changes.png",
     "results.csv": "one row per run: what ran, its status and reason, drifts, errors against the truth, cost",
     "verdicts.csv": "one row per verdict: declared against measured (order, bounded energy, the truth's invariants, "
                     "oracles), with its rule",
