@@ -129,8 +129,8 @@ def test_the_site_navigation_names_only_pages_that_exist():
     assert [page for page in nav if page not in generated and not (ROOT / "docs" / page).is_file()] == []
 
 
-# slow: ~30 s of CPU measured (each `stereodyn run` starts a pool of workers, as the README's commands do); the fast
-# test above parses every one of these commands with the parser
+# slow: 45 s of CPU, 130 s wall on 2 shared cores, measured (each `stereodyn run` starts a pool of workers, as the
+# README's commands do); the fast test above parses every one of these commands with the parser
 @pytest.mark.slow
 def test_the_three_paths_run_as_written(tmp_path):
     env = {**os.environ, "STEREODYN_FIGURES": "0"}
