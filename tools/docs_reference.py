@@ -71,7 +71,9 @@ def commands(parser: argparse.ArgumentParser | None = None) -> dict[str, argpars
 
 
 def _cell(text) -> str:
-    return " ".join(str(text).split()).replace("|", "\\|")
+    """Text for a table cell: one line, `|` escaped, and `<`, `>` as entities (Markdown would take <key> for a tag
+    and drop it)."""
+    return " ".join(str(text).split()).replace("|", "\\|").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def _flag(action: argparse.Action) -> str:
