@@ -1,6 +1,6 @@
-"""The README's plug-in guide is a working package: its blocks (each opening with `# <project>/PATH`) are extracted,
-built, pip-installed into a target folder, listed by `stereodyn integrators`, run by `stereodyn run --integrators
-kutta3`, and its own tests pass."""
+"""The plug-in guide (docs/integrators.md; in the README before issue 32) is a working package: its blocks (each
+opening with `# <project>/PATH`) are extracted, built, pip-installed into a target folder, listed by `stereodyn
+integrators`, run by `stereodyn run --integrators kutta3`, and its own tests pass."""
 import importlib.metadata
 import re
 import subprocess
@@ -12,7 +12,7 @@ import pandas as pd
 import plugin_packages
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = Path(__file__).resolve().parents[1] / "docs" / "integrators.md"  # the guide's page
 SECTION = "### Writing one: a complete plug-in package"
 
 def readme_files() -> dict[str, str]:
@@ -57,7 +57,7 @@ def installed(tmp_path_factory) -> tuple[Path, Path]:
     assert meta["project"]["entry-points"]["stereodyn.integrators"] == {"kutta3": "stereodyn_kutta3:INTEGRATORS"}
     if not _can_build_with_setuptools():
         # setuptools < 70.1 builds wheels only with the `wheel` package installed: the stand-in backend zips the
-        # package the README's [tool.setuptools] names, with the README's metadata; the files installed are the README's
+        # package the guide's [tool.setuptools] names, with the guide's metadata; the files installed are the guide's
         pyproject = files["pyproject.toml"].replace(
             'requires = ["setuptools>=61"]\nbuild-backend = "setuptools.build_meta"',
             'requires = []\nbuild-backend = "zip_backend"\nbackend-path = ["."]')

@@ -19,7 +19,7 @@ import pandas as pd
 from ..scenes import checks as theory_checks
 from ..analysis import workprecision
 from ..analysis.verdicts import failed_integrators, read as read_verdicts
-from . import figures, html
+from . import figures, html, index
 from . import sections
 # the modules whose sections the page shows besides this one's and markdown's (each registers its own)
 from . import agreement, history, method, verdicts, workprecision as work_precision_sections  # noqa: F401
@@ -118,10 +118,13 @@ def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool
 
 
 def figure_stem(case: str) -> str:
-    """A figure's file name for a case: safe (ASCII slug), bounded (<= 40 + 9 characters) and unique (the slug alone
-    maps every non-ASCII name to "", and two names to one file; the hash of the whole name tells them apart)."""
-    digest = hashlib.sha256(str(case).encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    """A figure's file name for a case: the case's own name where it is already a safe, short ASCII slug (the suite's
+    are: free-asymmetric-invariants.png); else the slug bounded to 40 characters and a hash of the whole name, so two
+    names never share a file (the slug alone maps every non-ASCII name to "")."""
     stem = html.slug(str(case))[:40].strip("-")
+    if stem == case:
+        return stem
+    digest = hashlib.sha256(str(case).encode("utf-8", "surrogatepass")).hexdigest()[:8]
     return f"{stem}-{digest}" if stem else digest
 
 
@@ -266,4 +269,5 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained:
     md_path, html_path = out_dir / "report.md", out_dir / "report.html"
     write_atomic(md_path, markdown)
     write_atomic(html_path, html.render(markdown, images, out_dir, embed=self_contained))
+    index.write(out_dir)  # last: it lists what the folder holds now
     return md_path, html_path

@@ -165,7 +165,7 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
     """Write compare.md, compare.html, compare.csv (and the figure) to `out` (default: B, which must then be a
     directory), with pr also compare-pr.md (pr_lines); return the two pages and the headline lines for the terminal
     (with pr: the lines of compare-pr.md)."""
-    from . import html
+    from . import html, index
     from ..run.results import write_atomic
 
     if out is None:
@@ -192,6 +192,9 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
                                                                                 load_orders(path_b)),
                            verdict_changes(path_a, path_b), identical(table_a, table_b))
         write_atomic(out / PR_FILE, "\n".join(summary) + "\n")
+    if (out / index.INDEX_FILE).is_file():  # a result folder with its index (DIR/README.md) now holds these too
+        index.write(out)
+    if pr:
         return out / "compare.md", out / "compare.html", summary
     differing = [f"{r[0]} {r[1]} -> {r[2]}" for r in environment_rows(env_a, env_b) if r[3] == DIFFERS]
     head = ["environment differs: " + ", ".join(differing) if differing else "environment: the same (the date aside)"]
