@@ -89,8 +89,8 @@ def test_plugins_that_raise_at_import_are_one_line_each_and_the_rest_works(broke
     assert listing.returncode == 0 and "Traceback" not in listing.stderr, listing.stderr[-3000:]
     assert "mujoco: built in; installed" in listing.stdout and "reference: built in; installed" in listing.stdout
     assert [line for line in listing.stdout.splitlines() if "broken_engine" in line] == [
-        f"broken_engine: plug-in from {BROKEN_DIST}; not usable: engine plug-in 'broken_engine' ({BROKEN}.engine:Broken, "
-        f"distribution {BROKEN_DIST}) does not load: RuntimeError: engine broken on purpose"]
+        f"broken_engine: plug-in from {BROKEN_DIST}; not usable: engine plug-in 'broken_engine' "
+        f"({BROKEN}.engine:Broken, distribution {BROKEN_DIST}) does not load: RuntimeError: engine broken on purpose"]
     out = tmp_path / "out"
     assert cli.main(["run", "free-asymmetric", "--engines", "reference", "--integrators", "rk4", "--t-end", "0.2",
                      "--dt", "1e-2", "--no-ladder", "--no-certify", "--jobs", "1", "--quiet", "--out", str(out)]) == 0

@@ -235,8 +235,8 @@ def plugin(monkeypatch, tmp_path, module: str, text: str) -> None:
     from stereodyn.reference import registry
     entry = EntryPoint(name="world", value=module, group=package.ENTRY_POINT_GROUP)
     monkeypatch.setattr(registry, "entry_points", lambda group: [entry] if group == package.ENTRY_POINT_GROUP else [])
-    monkeypatch.setattr(package, "TORQUE_MODELS", registry.Registry(package.TORQUE_MODELS.what, package.ENTRY_POINT_GROUP,
-                                                                    package.BUILT_IN))
+    fresh = registry.Registry(package.TORQUE_MODELS.what, package.ENTRY_POINT_GROUP, package.BUILT_IN)
+    monkeypatch.setattr(package, "TORQUE_MODELS", fresh)
 
 
 def test_a_torque_model_of_another_distribution_is_loaded_by_its_entry_point(monkeypatch, tmp_path):
