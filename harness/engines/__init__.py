@@ -123,7 +123,7 @@ def _check(engine: Engine, where: str) -> None:
     with plugins.guard(f"{where}: models() failed"):
         models = engine.models()
     required = _REQUIRED + (_RIGID_BODY_HOOKS if isinstance(models, dict) and any(
-        type(model) is RigidBodyModel for model in models.values()) else ())
+        isinstance(model, RigidBodyModel) for model in models.values()) else ())
     missing = [method for method in required if getattr(type(engine), method) is getattr(Engine, method)]
     if missing:
         raise EngineError(f"{where}: does not implement {', '.join(m + '()' for m in missing)} (required of an "
