@@ -64,6 +64,44 @@ def test_a_registry_names_each_failure_and_loads_the_rest(monkeypatch, tmp_path)
         sys.modules.pop("bad_member", None)
 
 
+SCENE_PLUGIN = '''
+from stereodyn.harness import scenes
+
+
+class Scene:
+    kind, title, needs_truth, keeps_states, work_precision, columns = "toy_plugin_scene", "a toy", False, False, False, ()
+
+
+scenes.register(Scene())
+'''
+
+
+def test_a_scene_of_another_distribution_is_found_through_its_entry_point(monkeypatch, tmp_path, recwarn):
+    """The scenes' group: a module that registers its scene on import is loaded when the kinds are read; one that
+    raises is one warning line naming it, and the built-in scenes stay."""
+    from importlib.metadata import EntryPoint
+
+    from stereodyn.harness.scenes import base
+    (tmp_path / "toy_scene_plugin.py").write_text(SCENE_PLUGIN)
+    (tmp_path / "broken_scene_plugin.py").write_text("raise RuntimeError('scene broken on purpose')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    entries = [EntryPoint("toy", "toy_scene_plugin", base.ENTRY_POINT_GROUP),
+               EntryPoint("broken", "broken_scene_plugin", base.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(registry, "entry_points", lambda group: entries if group == base.ENTRY_POINT_GROUP else [])
+    monkeypatch.setattr(base, "SCENES", registry.Registry(base.SCENES.what, base.ENTRY_POINT_GROUP,
+                                                          base.SCENES.builtins))
+    monkeypatch.setattr(base, "_SCENES", dict(base._SCENES))
+    try:
+        assert scenes.kinds() == ("rigid_body", "sliding_ladder", "toy_plugin_scene")
+        assert scenes.scene("toy_plugin_scene").title == "a toy"
+        lines = [str(w.message) for w in recwarn.list]
+        assert lines == ["scene plug-in 'broken' (broken_scene_plugin) does not load: RuntimeError: scene broken on "
+                         "purpose"]
+    finally:
+        sys.modules.pop("toy_scene_plugin", None)
+        sys.modules.pop("broken_scene_plugin", None)
+
+
 @pytest.fixture(scope="module")
 def broken(tmp_path_factory) -> Path:
     """One distribution whose engine and report section raise at import."""
