@@ -29,6 +29,11 @@ class Registry:
     group: str
     builtins: tuple[str, ...] = ()
     accept: Callable[[str, Any], None] | None = None
+    # the words of a failure after the plug-in's description; None: "does not load" (its import) or "is refused"
+    # (accept)
+    failure: str | None = None
+    # the group's entry points (default importlib.metadata's; a registry whose tests stand in their own passes one)
+    lister: Callable[[str], Any] | None = None
     failed: dict[str, str] = field(default_factory=dict)
     _loaded: bool = False
 
@@ -36,7 +41,7 @@ class Registry:
         """The group's entry points, without importing them (one per name and value: a distribution seen twice on
         sys.path counts once)."""
         seen: dict[tuple[str, str], EntryPoint] = {}
-        for entry in entry_points(group=self.group):
+        for entry in (self.lister or (lambda group: entry_points(group=group)))(self.group):
             seen.setdefault((entry.name, entry.value), entry)
         return list(seen.values())
 
@@ -50,10 +55,12 @@ class Registry:
         for module in self.builtins:
             importlib.import_module(module)
         for entry in self.entry_points():
+            where = plugins.describe(entry, self.what)
             try:
-                obj = plugins.load(entry, self.what)
+                with plugins.guard(f"{where} {self.failure or 'does not load'}"):
+                    obj = entry.load()
                 if self.accept is not None:
-                    with plugins.guard(f"{plugins.describe(entry, self.what)} is refused"):
+                    with plugins.guard(f"{where} {self.failure or 'is refused'}"):
                         self.accept(entry.name, obj)
             except plugins.PluginError as exc:
                 self.failed.setdefault(entry.name, str(exc))
