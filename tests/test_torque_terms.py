@@ -232,8 +232,11 @@ def plugin(monkeypatch, tmp_path, module: str, text: str) -> None:
     (tmp_path / f"{module}.py").write_text(text)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(base, "TORQUES", dict(base.TORQUES))
+    from stereodyn.reference import registry
     entry = EntryPoint(name="world", value=module, group=package.ENTRY_POINT_GROUP)
-    monkeypatch.setattr(package, "entry_points", lambda group: [entry] if group == package.ENTRY_POINT_GROUP else [])
+    monkeypatch.setattr(registry, "entry_points", lambda group: [entry] if group == package.ENTRY_POINT_GROUP else [])
+    fresh = registry.Registry(package.TORQUE_MODELS.what, package.ENTRY_POINT_GROUP, package.BUILT_IN)
+    monkeypatch.setattr(package, "TORQUE_MODELS", fresh)
 
 
 def test_a_torque_model_of_another_distribution_is_loaded_by_its_entry_point(monkeypatch, tmp_path):

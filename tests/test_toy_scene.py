@@ -77,7 +77,8 @@ class PendulumScene:
     needs_truth = True
     keeps_states = False
     work_precision = False
-    columns = ("energy_drift", "attitude_err", "attitude_err_end", "omega_err", "torque_mode")
+    # swing_amplitude (rad, max |θ| over the samples) is this scene's own column: results.csv and the report carry it
+    columns = ("energy_drift", "attitude_err", "attitude_err_end", "omega_err", "torque_mode", "swing_amplitude")
 
     def parse(self, parser, data: dict) -> PendulumCase:
         parser.table(data, "", TOP)
@@ -100,7 +101,8 @@ class PendulumScene:
         case, (theta, omega) = run.case, traj.state.T
         energy = case.energy(theta, omega)
         scale = abs(case.energy(case.theta0, 0.0)) + 0.5 * case.inertia * case.omega0 ** 2
-        out = {"torque_mode": "none", "energy_drift": float(np.max(np.abs(energy - energy[0]))) / scale}
+        out = {"torque_mode": "none", "energy_drift": float(np.max(np.abs(energy - energy[0]))) / scale,
+               "swing_amplitude": float(np.max(np.abs(theta)))}
         if truth is not None:
             exact = truth.on(grid)
             angle = np.abs(theta - exact[:, 0])
@@ -188,6 +190,11 @@ def test_a_toy_scene_runs_through_a_sweep_and_the_report(pendulum_scene, tmp_pat
     # energy: RK4 1.0e-8 at dt 1e-2, Euler 0.45 (it pumps energy in)
     assert rows.loc[("rk4", 1e-2), "energy_drift"] < 1e-7 and rows.loc[("euler", 1e-2), "energy_drift"] > 1e-2
     assert np.isfinite(rows.wall_s).all()  # the timing phase timed them, through the same prepare
+    # the scene's own column reaches results.csv: released from rest at 1 rad, RK4 swings back to 1 rad (measured
+    # 1 - 1e-7 at dt 1e-2), Euler pumps energy in and swings wider (measured 1.32); the bounds hold 1e-4 and 1.05
+    assert abs(rows.loc[("rk4", 1e-2), "swing_amplitude"] - 1.0) < 1e-4
+    assert rows.loc[("euler", 1e-2), "swing_amplitude"] > 1.05
+    assert list(df.columns)[-1] == "swing_amplitude"
     # an engine without a model of the scene: one skipped row saying so
     mujoco = df[df.engine == "mujoco"]
     assert len(mujoco) == 1 and mujoco.status.iloc[0] == "skipped"
@@ -196,6 +203,10 @@ def test_a_toy_scene_runs_through_a_sweep_and_the_report(pendulum_scene, tmp_pat
     assert set(checks[checks.case == "toy-pendulum"].quantity) >= {"energy_drift"}
     report = (out / "report.md").read_text()
     assert "toy-pendulum" in report and (out / "report.html").is_file()
+    # ... and the report's table of the case (its header row names it; the value of RK4 at dt 1e-2 shows as 1.00e+00)
+    section = report[report.index("### toy-pendulum"):]
+    header = next(line for line in section.splitlines() if line.startswith("| engine"))
+    assert header.rstrip(" |").endswith("swing_amplitude")
 
 
 def test_without_the_scene_the_kind_is_unknown(tmp_path):

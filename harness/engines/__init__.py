@@ -8,12 +8,16 @@ claims a built-in's name is refused with a warning; the built-in keeps it."""
 from __future__ import annotations
 
 from functools import cache
-from importlib.metadata import EntryPoint, entry_points
+from importlib.metadata import EntryPoint
 
 from ...reference import plugins
+from ...reference.registry import Registry
 from .base import Engine, RigidBodyModel
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
+# The engines' discovery (reference.registry): every engine, stereodyn's own included, is an entry point (no built-in
+# table: pyproject.toml registers the built-ins), listed without importing and loaded one by one on first use (_load).
+ENGINES = Registry("engine plug-in", ENTRY_POINT_GROUP)
 # The truth of every case: this engine's formulation and adaptive integrator (the one spelling of its engine's name
 # outside its adapter).
 TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR = "reference", "quaternion", "taylor"
@@ -35,9 +39,8 @@ def _entry_points() -> dict[str, EntryPoint]:
     third parties' are both refused; each refusal a PluginWarning naming both (never an error: this runs in every
     command that lists engines)."""
     claims: dict[str, list[EntryPoint]] = {}
-    for entry in entry_points(group=ENTRY_POINT_GROUP):
-        if all(other.value != entry.value for other in claims.get(entry.name, [])):
-            claims.setdefault(entry.name, []).append(entry)
+    for entry in ENGINES.entry_points():
+        claims.setdefault(entry.name, []).append(entry)
     found: dict[str, EntryPoint] = {}
     for name, entries in claims.items():
         own = [entry for entry in entries if _own(entry)]
@@ -120,7 +123,7 @@ def _check(engine: Engine, where: str) -> None:
     with plugins.guard(f"{where}: models() failed"):
         models = engine.models()
     required = _REQUIRED + (_RIGID_BODY_HOOKS if isinstance(models, dict) and any(
-        type(model) is RigidBodyModel for model in models.values()) else ())
+        isinstance(model, RigidBodyModel) for model in models.values()) else ())
     missing = [method for method in required if getattr(type(engine), method) is getattr(Engine, method)]
     if missing:
         raise EngineError(f"{where}: does not implement {', '.join(m + '()' for m in missing)} (required of an "

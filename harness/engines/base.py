@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import warnings
 from typing import TYPE_CHECKING, Protocol
 
@@ -67,43 +67,94 @@ class Simulation(Protocol):
     def run(self, grid: "TimeGrid") -> Trajectory: ...
 
 
-class Engine:
-    """The base class of an engine plug-in (entry-point group `stereodyn.engines`, harness.engines). Subclass it, set
-    `name`, implement the three required methods; every other hook has the default written here, which is what an
-    engine that does not override it gets. The harness calls these methods only, never getattr.
+@dataclass(frozen=True)
+class Offer:
+    """What an engine declares of one of its integrators (Engine.offer): the integrators-offered group.
 
-    Required: integrators(), unsupported(case), prepare(case, integrator, dt, **formulation).
+    order: the order it claims (convergence.csv's declared_order, the order verdict); NaN: the registry's order in the
+    engine's state space (NaN for a name the registry does not know). orders: (formulation, order) pairs where the
+    integrator is another method on one of the engine's models (Genesis's implicitfast is the implicit midpoint rule,
+    order 2, on a free body). method: what it is in harness.engines.methods' vocabulary (runs of one method and dt are
+    compared across engines, agreement.csv); None: the registry's method, "" for one it does not know. adaptive:
+    it chooses its own steps (rows with dt None; prepare gets tolerance=...). default_sweep: whether a sweep that names
+    no integrators runs it; None: the registry's rule (True for an engine's own names). precisions: FLOAT64, FLOAT32,
+    each a row of its own (an engine declaring any other than float64 gets prepare(..., precision=...)). deviation: a
+    documented departure from what it declares (KnownDeviation), or None.
     """
 
-    name: str = ""
-    # The state space ("lie" or "vector", harness.integrators) of the registered integrators this engine runs, if
-    # any: their declared orders come from the registry, and harness.testing runs an integrator of that space here.
-    state_space: str | None = None
-    # The formulation harness.testing runs a registered integrator on ("" for an engine without formulations).
-    default_formulation: str = ""
-    # Cost of one right-hand-side evaluation of one step, µs (the sweep's scheduler ranks runs by it:
-    # harness.run.sweep).
+    order: float = math.nan
+    orders: tuple[tuple[str, float], ...] = ()
+    method: str | None = None
+    adaptive: bool = False
+    default_sweep: bool | None = None
+    precisions: tuple[str, ...] = (FLOAT64,)
+    deviation: KnownDeviation | None = None
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The engine's timing declarations, read by the scheduler and the timing phases.
+
+    pass_us: µs of one right-hand-side evaluation of one step (the scheduler's cost model, harness.run.pool).
+    startup_s: s a worker pays once for this engine before its first run (SDK import, compilations); 0.0: none
+    declared. short_warm_up: a run's first steps pay every first-call cost (nothing is built per grid length), so the
+    timing phases warm it up on its first few hundred steps (harness.run.timing.warm_up); False warms up on the whole
+    run, safe for any engine. process_global_precision: building a model of one precision releases the other's
+    (Genesis's gs.init): the timing phases prepare and time its runs one precision at a time. prepare_budget_s: the
+    least prepare budget (s) its runs get, for a first preparation that compiles for minutes (the larger of it and
+    --prepare-budget holds); None: the sweep's.
+    """
+
     pass_us: float = 5.0
-    # Matplotlib line style of this engine's lines in the report's figures.
-    linestyle: str = "-."
-    # Distributions whose versions can change this engine's results: they key the store (harness.environment).
-    packages: tuple[str, ...] = ()
-    # Model formats `stereodyn export` can write through export(case, fmt, integrator, dt).
-    export_formats: tuple[str, ...] = ()
-    # Documented departures of this engine's integrators from their declared behaviour (KnownDeviation).
-    known_deviations: tuple[KnownDeviation, ...] = ()
-    # True when the engine's precision is set for its whole process (Genesis's gs.init): building a model of one
-    # precision releases the models of the other, so the timing phases prepare and time its runs one precision at a
-    # time (harness.run.timing.groups).
-    process_global_precision: bool = False
-    # True when a run's first steps pay every first-call cost of the whole run (nothing is compiled or allocated per
-    # grid length): the timing phases then warm a run up on its first few hundred steps instead of the whole run
-    # (harness.run.timing.warm_up). False (the default) warms up on the whole run, which any engine is safe with.
+    startup_s: float = 0.0
     short_warm_up: bool = False
-    # The prepare budget (s) this engine's runs get at least, for an engine whose first preparation in a process
-    # imports and compiles for minutes: a run's prepare budget is the larger of this and the sweep's
-    # (--prepare-budget; harness.run.measure.prepare_budget). None: the sweep's.
+    process_global_precision: bool = False
     prepare_budget_s: float | None = None
+
+
+@dataclass(frozen=True)
+class About:
+    """How the rest of stereodyn places the engine. packages: distributions whose versions can change its results
+    (they key the store, harness.environment). linestyle: Matplotlib line style of its lines in the report's figures.
+    export_formats: model formats `stereodyn export` can write (its rigid-body model's export()). state_space: the
+    state space ("lie" or "vector", harness.integrators) of the registered integrators it runs, None for none; their
+    orders come from the registry, and harness.testing runs an integrator of that space here, on `formulation` ("" for
+    an engine without formulations)."""
+
+    packages: tuple[str, ...] = ()
+    linestyle: str | tuple = "-."
+    export_formats: tuple[str, ...] = ()
+    state_space: str | None = None
+    formulation: str = ""
+
+
+# 0.2.0's attributes, now fields of a group: a class that still sets one has it folded into its group (Engine's
+# __init_subclass__), so both spellings read the same value.
+_TIMING_ATTRIBUTES = ("pass_us", "short_warm_up", "process_global_precision", "prepare_budget_s")
+_ABOUT_ATTRIBUTES = {"packages": "packages", "linestyle": "linestyle", "export_formats": "export_formats",
+                     "state_space": "state_space", "default_formulation": "formulation"}
+
+
+class Engine:
+    """The base class of an engine plug-in (entry-point group `stereodyn.engines`, harness.engines): the protocol an
+    author writes is PROTOCOL, every name of it but the three required methods with a default here.
+
+    Required: integrators(), unsupported(case), prepare(case, integrator, dt, **keywords). Groups: `offer(integrator)`
+    (an Offer: order, method, adaptive, default sweep, precisions, known deviation), `timing` (Timing), `about`
+    (About), and the scenes it models: `models()` (scene kind -> SceneModel: the rigid body through RigidBodyModel,
+    whose subclass holds the engine's formulations, default runs and steps, run-level refusals, torque mode, export)
+    and `unmodelled(scene)`.
+
+    The methods and properties below PROTOCOL are what the harness reads, derived from those groups; an engine does
+    not override them. A 0.2.0 engine that does (its hooks and attributes of these names) still works: its hooks are
+    called, its attributes folded into the groups.
+    """
+
+    PROTOCOL = ("name", "integrators", "unsupported", "prepare", "offer", "timing", "about", "models", "unmodelled")
+
+    name: str = ""
+    timing: Timing = Timing()
+    about: About = About()
     _legacy_ladder = False  # set for a 0.2.0 plug-in that still implements the sliding ladder's four hooks
 
     def __init_subclass__(cls, **kwargs):
@@ -114,6 +165,12 @@ class Engine:
                           "(DESIGN §7); they still run the sliding ladder through an adapter", DeprecationWarning,
                           stacklevel=2)
             cls._legacy_ladder = "prepare_sliding_ladder" in legacy or cls._legacy_ladder
+        timing = {name: vars(cls)[name] for name in _TIMING_ATTRIBUTES if name in vars(cls)}
+        if timing and not isinstance(vars(cls)[next(iter(timing))], property):
+            cls.timing = replace(cls.timing, **timing)
+        about = {field: vars(cls)[name] for name, field in _ABOUT_ATTRIBUTES.items() if name in vars(cls)}
+        if about and not any(isinstance(value, property) for value in about.values()):
+            cls.about = replace(cls.about, **about)
 
     # ---------------------------------------------------------------------------------------------- required
 
@@ -126,97 +183,30 @@ class Engine:
         raise NotImplementedError(f"engine {self.name!r} does not implement unsupported(case)")
 
     def prepare(self, case: "Case", integrator: str, dt: float | None, **formulation) -> Simulation:
-        """Build the model (not timed). formulation=... is passed when formulations() is not empty.
+        """Build the model (not timed). formulation=... is passed when the rigid-body model has variants.
 
-        tolerance=... (keyword, float | None) is passed for an adaptive integrator (adaptive(integrator) True): None,
-        or not passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine
-        says otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
+        tolerance=... (keyword, float | None) is passed for an adaptive integrator (Offer.adaptive): None, or not
+        passed, is the engine's default tolerance for it (the sweep's row, dt None: 1e-8 unless the engine says
+        otherwise in docs/ENGINES.md); a float is the requested tolerance, applied as both the relative and the
         absolute tolerance (scipy: rtol = atol = tol; heyoka: tol; Drake: set_target_accuracy(tol)). The tolerance
-        ladders (analysis.tolerance_ladders) pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The
-        adaptive run's Trajectory fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0
-        where the method has them.
+        ladders pass 1e-3 ... 1e-13. A fixed-step integrator accepts and ignores it. The adaptive run's Trajectory
+        fills steps (accepted steps) and rhs_evals (right-hand-side evaluations), both > 0 where the method has them.
+        precision=... is passed where Offer.precisions is other than float64 only.
         """
         raise NotImplementedError(f"engine {self.name!r} does not implement prepare(case, integrator, dt)")
 
-    # ---------------------------------------------------------------------------------------------- optional
+    # ---------------------------------------------------------------------------------------------- groups
 
-    def formulations(self) -> tuple[str, ...]:
-        """The formulations it runs; each run names one (prepare(..., formulation=...)). Default: none, and rows have
-        formulation ""."""
-        return ()
-
-    def in_default_sweep(self, integrator: str) -> bool:
-        """Whether a sweep that names no integrators runs this one on this engine. Default: the registry's
-        in_default_sweep (False for classes declaring default_sweep = False, and for entry-point plug-ins that do not
-        opt in with default_sweep = True; an engine's own name is run)."""
-        from .. import integrators
-
-        return integrators.in_default_sweep(integrator)
-
-    def precisions(self, integrator: str) -> tuple[str, ...]:
-        """The floating-point precisions (FLOAT64, FLOAT32) the integrator runs in, each a row of its own. Default:
-        float64 only. An engine declaring anything else gets prepare(..., precision=...) on every run."""
-        return (FLOAT64,)
-
-    def method(self, integrator: str) -> str:
-        """What the integrator is, in the vocabulary of harness.engines.methods ("semi_implicit_euler", "rk4", ...):
-        runs of the same method and dt on a case are compared across engines (agreement.csv). Default: the
-        registry's method of a registered integrator; "" (compared with nothing) for one it does not know."""
-        from .methods import registered_method  # (not `from . import methods`: the package imports this module)
-
-        return registered_method(integrator, self.state_space or "lie")
-
-    def adaptive(self, integrator: str) -> bool:
-        """Whether an integrator chooses its own steps (its runs have dt None; prepare takes tolerance=...). Default:
-        none does."""
-        return False
-
-    def default_run(self, case: "Case", formulation: str, integrator: str) -> bool:
-        """Whether a sweep that names no integrators (no --integrators) runs this formulation/integrator pair on the
-        case (harness.run.plan). Default: every pair. An engine leaves out costly variants whose findings a smaller
-        selection already shows; naming the integrator runs it everywhere."""
-        return True
-
-    def default_dts(self, case: "Case", integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
-        """The steps of the case's dt list a sweep that names no integrators runs. Default: all of them; an engine
-        that costs milliseconds a step keeps a coarse one."""
-        return dts
-
-    def unsupported_run(self, case: "Case", formulation: str, integrator: str) -> str | None:
-        """Why one formulation/integrator pair cannot model the case (the run is `skipped`), or None (default)."""
-        return None
-
-    def torque_mode(self, case: "Case") -> str:
-        """How the case's external torques enter the model (results column torque_mode) when the trajectory does not
-        say (Trajectory.info["torque_mode"]). Default "none"."""
-        return "none"
-
-    def declared_order(self, integrator: str) -> float:
-        """The order an integrator claims (convergence.csv's declared_order). Default: the registry's order in
-        state_space; NaN for an integrator the registry does not know (override for the engine's own)."""
-        from .. import integrators
-
-        try:
-            return float(integrators.get(integrator, self.state_space or "lie").order)
-        except KeyError:
-            return math.nan
-
-    def formulation_order(self, formulation: str, integrator: str) -> float:
-        """The order the integrator has on one of the engine's models (formulations), for an engine whose integrator
-        is another method on another model (convergence.csv's declared_order, the order verdict). Default:
-        declared_order(integrator) on every model."""
-        return self.declared_order(integrator)
-
-    def prepare_ensemble(self, case: "Case", integrator: str, dt: float, quat0: np.ndarray, omega0: np.ndarray,
-                         threads: int = 1) -> "EnsembleSimulation":
-        """N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together. Default: not supported."""
-        raise NotImplementedError(f"engine {self.name!r} does not run ensembles")
+    def offer(self, integrator: str) -> Offer:
+        """What the engine declares of one of its integrators. Default: Offer(), the registry's declarations."""
+        return Offer()
 
     def models(self) -> dict[str, "SceneModel"]:
         """The scenes this engine models: scene kind (harness.scenes) -> its model of that scene. A case of a kind
-        not listed gives one skipped row (unmodelled). Default: the rigid body with a fixed point, through the hooks
-        above (prepare, formulations, unsupported, ...), as every engine of 0.2.0 does. An engine that models another
-        scene adds its model: {**super().models(), "sliding_ladder": MyLadderModel()}."""
+        not listed gives one skipped row (unmodelled). Default: the rigid body with a fixed point through
+        RigidBodyModel (prepare, unsupported and the defaults), as every engine of 0.2.0 does. An engine with
+        formulations, default runs or an export returns its RigidBodyModel subclass; one that models another scene
+        adds its model: {**super().models(), "sliding_ladder": MyLadderModel()}."""
         models: dict[str, SceneModel] = {RIGID_BODY: RigidBodyModel(self)}
         if type(self)._legacy_ladder:
             models[SLIDING_LADDER] = _LegacyLadderModel(self)
@@ -226,9 +216,88 @@ class Engine:
         """Why this engine has no model of the scene (harness.scenes.base.Scene): the skipped row's message."""
         return f"{self.name} adapter does not model {scene.title}"
 
+    # ------------------------------------------------------- read by the harness: derived, never overridden
+
+    def _rigid_body(self) -> "SceneModel":
+        model = self.models().get(RIGID_BODY)
+        return model if isinstance(model, SceneModel) else RigidBodyModel(self)
+
+    def formulations(self) -> tuple[str, ...]:
+        """The rigid-body model's variants (results.csv's formulation column; none: "")."""
+        return tuple(self._rigid_body().variants())
+
+    def default_run(self, case: "Case", formulation: str, integrator: str) -> bool:
+        return self._rigid_body().default_run(case, formulation, integrator)
+
+    def default_dts(self, case: "Case", integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
+        return tuple(self._rigid_body().default_dts(case, integrator, tuple(dts)))
+
+    def unsupported_run(self, case: "Case", formulation: str, integrator: str) -> str | None:
+        return self._rigid_body().unsupported_run(case, formulation, integrator)
+
+    def torque_mode(self, case: "Case") -> str:
+        return self._rigid_body().torque_mode(case)
+
     def export(self, case: "Case", fmt: str, integrator: str | None, dt: float | None) -> str:
-        """The model text in one of export_formats."""
-        raise NotImplementedError(f"engine {self.name!r} exports no format")
+        return self._rigid_body().export(case, fmt, integrator, dt)
+
+    def prepare_ensemble(self, case: "Case", integrator: str, dt: float, quat0: np.ndarray, omega0: np.ndarray,
+                         threads: int = 1) -> "EnsembleSimulation":
+        """N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together (RigidBodyModel)."""
+        return self._rigid_body().prepare_ensemble(case, integrator, dt, quat0, omega0, threads)
+
+    def in_default_sweep(self, integrator: str) -> bool:
+        declared = self.offer(integrator).default_sweep
+        if declared is not None:
+            return bool(declared)
+        from .. import integrators
+
+        return integrators.in_default_sweep(integrator)
+
+    def precisions(self, integrator: str) -> tuple[str, ...]:
+        return tuple(self.offer(integrator).precisions)
+
+    def method(self, integrator: str) -> str:
+        declared = self.offer(integrator).method
+        if declared is not None:
+            return declared
+        from .methods import registered_method  # (not `from . import methods`: the package imports this module)
+
+        return registered_method(integrator, self.state_space or "lie")
+
+    def adaptive(self, integrator: str) -> bool:
+        return bool(self.offer(integrator).adaptive)
+
+    def declared_order(self, integrator: str) -> float:
+        order = float(self.offer(integrator).order)
+        if not math.isnan(order):
+            return order
+        from .. import integrators
+
+        try:
+            return float(integrators.get(integrator, self.state_space or "lie").order)
+        except KeyError:
+            return math.nan
+
+    def formulation_order(self, formulation: str, integrator: str) -> float:
+        return float(dict(self.offer(integrator).orders).get(formulation, self.declared_order(integrator)))
+
+    @property
+    def known_deviations(self) -> tuple[KnownDeviation, ...]:
+        if not _overrides(self, "integrators"):  # none to declare (the registry refuses such an engine at load)
+            return ()
+        return tuple(d for i in self.integrators() if (d := self.offer(i).deviation) is not None)
+
+    pass_us = property(lambda self: self.timing.pass_us)
+    startup_s = property(lambda self: self.timing.startup_s)
+    short_warm_up = property(lambda self: self.timing.short_warm_up)
+    process_global_precision = property(lambda self: self.timing.process_global_precision)
+    prepare_budget_s = property(lambda self: self.timing.prepare_budget_s)
+    packages = property(lambda self: self.about.packages)
+    linestyle = property(lambda self: self.about.linestyle)
+    export_formats = property(lambda self: self.about.export_formats)
+    state_space = property(lambda self: self.about.state_space)
+    default_formulation = property(lambda self: self.about.formulation)
 
 
 RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"  # scene kinds (harness.scenes) the defaults name
@@ -253,11 +322,19 @@ class SceneModel:
         return None
 
     def unsupported_run(self, case, variant: str, integrator: str) -> str | None:
+        """Why one variant/integrator pair cannot run the case (its row is skipped), or None."""
         return None
 
     def default_run(self, case, variant: str, integrator: str) -> bool:
-        """Whether a sweep that names no integrators runs the pair. Default: every pair."""
+        """Whether a sweep that names no integrators runs the pair on the case (harness.run.plan). Default: every
+        pair; a model leaves out costly variants whose findings a smaller selection already shows (naming the
+        integrator runs it everywhere)."""
         return True
+
+    def default_dts(self, case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
+        """The steps of the case's dt list a sweep that names no integrators runs. Default: all of them; a model that
+        costs milliseconds a step keeps a coarse one."""
+        return dts
 
     def precisions(self, integrator: str) -> tuple[str, ...]:
         """The precisions this model runs an integrator in (a scene other than the rigid body: float64)."""
@@ -276,32 +353,55 @@ class SceneModel:
         raise ValueError(f"{case.name}: no {fmt} export of this scene's model")
 
 
+def _overrides(engine: Engine, hook: str) -> bool:
+    """Whether the engine's class defines a 0.2.0 hook of this name itself (then the hook, not the default, holds)."""
+    return getattr(type(engine), hook) is not getattr(Engine, hook)
+
+
 class RigidBodyModel(SceneModel):
-    """The rigid body with a fixed point as an engine models it through the Engine hooks (0.2.0's protocol)."""
+    """The rigid body with a fixed point as an engine models it: prepare and unsupported are the engine's, the rest
+    the defaults (SceneModel's), which an engine's subclass overrides. A 0.2.0 engine's own hooks of the old names
+    (formulations, default_run, default_dts, unsupported_run, torque_mode, export, prepare_ensemble) are called."""
 
     def __init__(self, engine: Engine):
         self.engine = engine
 
     def variants(self) -> tuple[str, ...]:
-        return tuple(self.engine.formulations())
+        return tuple(self.engine.formulations()) if _overrides(self.engine, "formulations") else ()
 
     def unsupported(self, case) -> str | None:
         return self.engine.unsupported(case)
 
     def unsupported_run(self, case, variant: str, integrator: str) -> str | None:
-        return self.engine.unsupported_run(case, variant, integrator)
+        if _overrides(self.engine, "unsupported_run"):
+            return self.engine.unsupported_run(case, variant, integrator)
+        return None
 
     def default_run(self, case, variant: str, integrator: str) -> bool:
-        return self.engine.default_run(case, variant, integrator)
+        return self.engine.default_run(case, variant, integrator) if _overrides(self.engine, "default_run") else True
+
+    def default_dts(self, case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
+        if _overrides(self.engine, "default_dts"):
+            return self.engine.default_dts(case, integrator, dts)
+        return dts
 
     def torque_mode(self, case) -> str:
-        return self.engine.torque_mode(case)
+        return self.engine.torque_mode(case) if _overrides(self.engine, "torque_mode") else "none"
 
     def precisions(self, integrator: str) -> tuple[str, ...]:
         return tuple(self.engine.precisions(integrator))
 
     def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
-        return self.engine.export(case, fmt, integrator, dt)
+        if _overrides(self.engine, "export"):
+            return self.engine.export(case, fmt, integrator, dt)
+        raise NotImplementedError(f"engine {self.engine.name!r} exports no format")
+
+    def prepare_ensemble(self, case, integrator: str, dt: float, quat0: np.ndarray, omega0: np.ndarray,
+                         threads: int = 1) -> "EnsembleSimulation":
+        """N initial states stepped together. Default: not supported."""
+        if _overrides(self.engine, "prepare_ensemble"):
+            return self.engine.prepare_ensemble(case, integrator, dt, quat0, omega0, threads)
+        raise NotImplementedError(f"engine {self.engine.name!r} does not run ensembles")
 
     def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None,
                 precision: str = FLOAT64):

@@ -41,7 +41,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
 
 from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .base import Engine, singular_torque
+from .base import RIGID_BODY, About, Engine, Offer, RigidBodyModel, Timing, singular_torque
 from ..grid import TimeGrid
 from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
 from ...reference.rotations import matrix_to_quat, quat_conj, quat_mul
@@ -183,33 +183,35 @@ def _body_state(qi: tuple, axes: list, position, velocity) -> tuple[tuple, tuple
     return (qw, qx, qy, qz), omega, rotation
 
 
+class BulletRigidBody(RigidBodyModel):
+    """The rigid body in PyBullet: the torque computed in Python and applied at every step."""
+
+    def torque_mode(self, case: Case) -> str:
+        return "step" if case.body.has_external_torque else "none"
+
+
 class BulletEngine(Engine):
     """PyBullet's Featherstone multibody on a spherical joint, Bullet's semi-implicit Euler step, float64."""
 
     name = "bullet"
     # measured: 3-6 µs per step from the Python loop on the loaded 2-core machine (docs/ENGINES.md)
-    pass_us = 4.0
-    linestyle = ":"
-    packages = ("pybullet",)
+    timing = Timing(pass_us=4.0)
+    about = About(packages=("pybullet",), linestyle=":")
 
     def integrators(self) -> tuple[str, ...]:
         return (STEP,)
 
-    def in_default_sweep(self, integrator: str) -> bool:
-        return integrator == STEP
+    def offer(self, integrator: str) -> Offer:
+        ours = integrator == STEP
+        return Offer(order=1.0 if ours else math.nan, method="semi_implicit_euler" if ours else "",
+                     default_sweep=ours)
 
-    def declared_order(self, integrator: str) -> float:
-        return 1.0 if integrator == STEP else math.nan
-
-    def method(self, integrator: str) -> str:
-        return "semi_implicit_euler" if integrator == STEP else ""
+    def models(self) -> dict:
+        return {**super().models(), RIGID_BODY: BulletRigidBody(self)}
 
     def unsupported(self, case: Case) -> str | None:
         # [body] physical = false: a link's inertia is a physical body's (as MuJoCo's and Drake's; not probed further)
         return unphysical_inertia(case) or singular_torque(case)
-
-    def torque_mode(self, case: Case) -> str:
-        return "step" if case.body.has_external_torque else "none"
 
     def prepare(self, case: Case, integrator: str, dt: float | None, **options) -> BulletSimulation:
         if integrator != STEP:

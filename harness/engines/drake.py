@@ -59,7 +59,7 @@ except ImportError as exc:  # the registry turns this into skipped rows whose re
 
 from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
-from .base import SLIDING_LADDER, Engine, singular_torque
+from .base import RIGID_BODY, SLIDING_LADDER, About, Engine, Offer, RigidBodyModel, Timing, singular_torque
 from ..grid import TimeGrid
 from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
 from ...reference.rotations import quat_to_matrix
@@ -326,55 +326,57 @@ UNMODELLED = {SLIDING_LADDER: "drake: the sliding ladder needs bilateral constra
                               "MultibodyPlant lacks (the discrete plant's are compliant): not modelled exactly"}
 
 
+def _free_body_refusal(case: Case, formulation: str) -> str | None:
+    """Why the model cannot run the case (quaternion_free needs O at the centre of mass), or None."""
+    if formulation == QUATERNION_FREE and np.any(np.asarray(case.body.com) != 0.0):
+        return ("quaternion_free: a free body moves as the pinned one only when O is its centre of mass "
+                "(com = 0); Drake's continuous plant has no exact pin for it")
+    return None
+
+
+class DrakeRigidBody(RigidBodyModel):
+    """The rigid body in Drake's MultibodyPlant: models rpy_ball and quaternion_free, the torque on an input port."""
+
+    def variants(self) -> tuple[str, ...]:
+        return MODELS
+
+    def unsupported_run(self, case: Case, variant: str, integrator: str) -> str | None:
+        return _free_body_refusal(case, variant)
+
+    def default_run(self, case: Case, variant: str, integrator: str) -> bool:
+        """The quaternion_free model joins a default sweep only where the scene allows it: elsewhere it is absent,
+        not a skipped row (naming it with --integrators still shows the reason)."""
+        return _free_body_refusal(case, variant) is None
+
+    def torque_mode(self, case: Case) -> str:
+        return "input_port" if case.body.has_external_torque else "none"
+
+
 class DrakeEngine(Engine):
     """Drake's MultibodyPlant (models rpy_ball and quaternion_free) with Drake's integrators."""
 
     name = "drake"
-    default_formulation = RPY_BALL
     # measured: µs per step of the default sweep's integrators on the suite's cases (docs/ENGINES.md)
-    pass_us = 12.0
-    linestyle = "-."
-    packages = ("drake",)
-
-    def formulations(self) -> tuple[str, ...]:
-        return MODELS
+    timing = Timing(pass_us=12.0)
+    about = About(packages=("drake",), linestyle="-.", formulation=RPY_BALL)
 
     def integrators(self) -> tuple[str, ...]:
         return (DISCRETE, *FIXED_STEP, *ADAPTIVE)
 
-    def in_default_sweep(self, integrator: str) -> bool:
-        return integrator in DEFAULT_SWEEP
-
-    def adaptive(self, integrator: str) -> bool:
-        return integrator in ADAPTIVE
-
-    def declared_order(self, integrator: str) -> float:
-        """The order of the solution each scheme propagates (the discrete plant: semi-implicit Euler, 1)."""
-        if integrator == DISCRETE:
-            return 1.0
-        return float(FIXED_STEP.get(ADAPTIVE.get(integrator, integrator), math.nan))
-
-    def method(self, integrator: str) -> str:
-        """The adaptive runs have no dt to be compared at: none."""
-        return METHODS.get(integrator, "")
+    def offer(self, integrator: str) -> Offer:
+        """The order of the solution each scheme propagates (the discrete plant: semi-implicit Euler, 1); the
+        adaptive runs have no dt to be compared at: no method."""
+        order = 1.0 if integrator == DISCRETE else float(FIXED_STEP.get(ADAPTIVE.get(integrator, integrator),
+                                                                           math.nan))
+        return Offer(order=order, method=METHODS.get(integrator, ""), adaptive=integrator in ADAPTIVE,
+                     default_sweep=integrator in DEFAULT_SWEEP)
 
     def unsupported(self, case: Case) -> str | None:
         # SpatialInertia::IsPhysicallyValid() refuses a body that breaks the triangle inequality
         return unphysical_inertia(case) or singular_torque(case)
 
-    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        if formulation == QUATERNION_FREE and np.any(np.asarray(case.body.com) != 0.0):
-            return ("quaternion_free: a free body moves as the pinned one only when O is its centre of mass "
-                    "(com = 0); Drake's continuous plant has no exact pin for it")
-        return None
-
-    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
-        """The quaternion_free model joins a default sweep only where the scene allows it: elsewhere it is absent,
-        not a skipped row (naming it with --integrators still shows the reason)."""
-        return self.unsupported_run(case, formulation, integrator) is None
-
-    def torque_mode(self, case: Case) -> str:
-        return "input_port" if case.body.has_external_torque else "none"
+    def models(self) -> dict:
+        return {**super().models(), RIGID_BODY: DrakeRigidBody(self)}
 
     def unmodelled(self, scene) -> str:
         return UNMODELLED.get(scene.kind) or super().unmodelled(scene)
@@ -388,7 +390,7 @@ class DrakeEngine(Engine):
         if integrator not in self.integrators():
             raise KeyError(f"unknown integrator {integrator!r} for the Drake engine; "
                            f"valid: {', '.join(self.integrators())}")
-        reason = self.unsupported(case) or self.unsupported_run(case, formulation, integrator)
+        reason = self.unsupported(case) or _free_body_refusal(case, formulation)
         if reason:
             raise ValueError(f"{case.name}: {reason}")
         if integrator not in ADAPTIVE and (dt is None or not dt > 0):

@@ -33,7 +33,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from .. import install
-from .base import FLOAT32, FLOAT64, Engine, singular_torque, require_modules
+from .base import FLOAT32, FLOAT64, RIGID_BODY, About, Engine, Offer, Timing, singular_torque, require_modules
 
 INSTALL = install.hint("genesis")  # a checkout's or a distribution's form
 # Genesis does not declare torch; importing it costs 15-30 s, so the SDK is imported on the first prepare and only
@@ -41,7 +41,7 @@ INSTALL = install.hint("genesis")  # a checkout's or a distribution's form
 require_modules(f"{INSTALL} (Genesis also needs torch: the CPU wheel is enough)", "genesis", "torch")
 
 from ..scenes.cases import Case, unphysical_inertia
-from .stepping import DEFAULT_CASES, coarse_dts, free_body_unsupported, run_steps
+from .stepping import SteppedRigidBody, run_steps
 from ..grid import TimeGrid
 from ..trajectory import Trajectory
 from ...reference.torques import torque_function
@@ -171,61 +171,31 @@ class GenesisEngine(Engine):
     """Genesis's rigid solver (models ball and free) on the CPU, float64 and float32."""
 
     name = "genesis"
-    default_formulation = BALL
-    # measured: 300-600 µs per step from the Python loop on the loaded 2-core machine (docs/ENGINES.md)
-    pass_us = 400.0
-    linestyle = "--"
-    packages = ("genesis-world", "torch")
-    # gs.init's precision holds for the process: the timing phases time one precision's runs at a time
-    process_global_precision = True
-    # A first prepare in a process imports Genesis (15-30 s) and builds its kernels cold (80-107 s), measured under
-    # load 14 on 2 cores: past the sweep's default 120 s. 600 s keeps ~4x that; later prepares take 0.5-20 s.
-    prepare_budget_s = 600.0
-
-    def formulations(self) -> tuple[str, ...]:
-        return MODELS
+    # measured: 300-600 µs per step from the Python loop on the loaded 2-core machine (docs/ENGINES.md). gs.init's
+    # precision holds for the process: the timing phases time one precision's runs at a time. A first prepare in a
+    # process imports Genesis (15-30 s) and builds its kernels cold (80-107 s), measured under load 14 on 2 cores:
+    # past the sweep's default 120 s. 600 s keeps ~4x that; later prepares take 0.5-20 s.
+    timing = Timing(pass_us=400.0, process_global_precision=True, prepare_budget_s=600.0)
+    about = About(packages=("genesis-world", "torch"), linestyle="--", formulation=BALL)
 
     def integrators(self) -> tuple[str, ...]:
         return INTEGRATORS
 
-    def precisions(self, integrator: str) -> tuple[str, ...]:
-        return PRECISIONS
-
-    def in_default_sweep(self, integrator: str) -> bool:
-        return integrator in DEFAULT_SWEEP
-
-    def declared_order(self, integrator: str) -> float:
-        return 1.0 if integrator in INTEGRATORS else math.nan
-
-    def formulation_order(self, formulation: str, integrator: str) -> float:
-        """On the free body implicitfast and approximate_implicitfast are the implicit midpoint rule (Genesis PR
-        #3074: a standalone free body's rotation solved at the midpoint velocity): order 2 (measured 2.00 on
-        free-asymmetric); every integrator is order 1 on the ball joint."""
-        if formulation == FREE and integrator in MIDPOINT_ON_FREE:
-            return 2.0
-        return self.declared_order(integrator)
-
-    def method(self, integrator: str) -> str:
-        return METHODS.get(integrator, "")
+    def offer(self, integrator: str) -> Offer:
+        """Every integrator is order 1 on the ball joint; on the free body implicitfast and approximate_implicitfast
+        are the implicit midpoint rule (Genesis PR #3074: a standalone free body's rotation solved at the midpoint
+        velocity): order 2 (measured 2.00 on free-asymmetric)."""
+        known = integrator in INTEGRATORS
+        return Offer(order=1.0 if known else math.nan, orders=((FREE, 2.0),) if integrator in MIDPOINT_ON_FREE else (),
+                     method=METHODS.get(integrator, ""), default_sweep=integrator in DEFAULT_SWEEP,
+                     precisions=PRECISIONS)
 
     def unsupported(self, case: Case) -> str | None:
         # MuJoCo's compiler (Genesis parses MJCF through it) refuses an unphysical inertia
         return unphysical_inertia(case) or singular_torque(case)
 
-    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        return free_body_unsupported(case.body.com, "Genesis has no exact pin for it") if formulation == FREE else None
-
-    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
-        """The general cases only (DEFAULT_CASES), the free model where the scene allows it."""
-        return case.name in DEFAULT_CASES and self.unsupported_run(case, formulation, integrator) is None
-
-    def default_dts(self, case: Case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
-        """One coarse step in a default sweep: the largest of the case's at most COARSE_DT (heavy-asymmetric's 0.3 is
-        beyond every Euler variant's stability limit: a diverged row says nothing more than MuJoCo's does)."""
-        return coarse_dts(dts)
-
-    def torque_mode(self, case: Case) -> str:
-        return "step" if case.body.has_external_torque else "none"
+    def models(self) -> dict:
+        return {**super().models(), RIGID_BODY: SteppedRigidBody(self, MODELS, FREE, "Genesis has no exact pin for it")}
 
     def prepare(self, case: Case, integrator: str, dt: float | None, formulation: str = BALL,
                 precision: str = FLOAT64, **options) -> GenesisSimulation:
@@ -235,7 +205,7 @@ class GenesisEngine(Engine):
             raise KeyError(f"unknown integrator {integrator!r} for the genesis engine; valid: {', '.join(INTEGRATORS)}")
         if precision not in PRECISIONS:
             raise KeyError(f"unknown precision {precision!r} for the genesis engine; valid: {', '.join(PRECISIONS)}")
-        reason = self.unsupported(case) or self.unsupported_run(case, formulation, integrator)
+        reason = self.unsupported(case) or self.models()[RIGID_BODY].unsupported_run(case, formulation, integrator)
         if reason:
             raise ValueError(f"{case.name}: {reason}")
         if dt is None or not dt > 0:

@@ -36,13 +36,14 @@ INSTALL = install.hint("mjx")  # a checkout's or a distribution's form
 _XLA_THREADS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_XLA_THREADS}".strip()
-from .base import FLOAT32, FLOAT64, Engine, KnownDeviation, singular_torque, require_modules
+from .base import FLOAT32, FLOAT64, About, KnownDeviation, Timing, require_modules
 
 # jax and mujoco.mjx are imported on the first prepare (_sdk: 2-8 s); loading the adapter only checks them
 require_modules(INSTALL, "jax", "mujoco.mjx")
 
 from .. import budget
-from ..scenes.cases import Case, unphysical_inertia
+from ..scenes.cases import Case
+from .backends import MujocoBackend
 from .mujoco import scene_state, torque_mode
 from ..grid import TimeGrid, time_grid
 from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
@@ -71,9 +72,8 @@ RK4_DEVIATION = KnownDeviation(
 # rollout again for each case. MuJoCo compiles a body whose inertia is diagonal about its origin as a "simple" one
 # (another static structure): two compilations per integrator and precision cover the suite.
 MODEL_NAME = "stereodyn"
-# The default sweep's cases: the four general ones. Each run costs 15-60 µs a step, and a compilation 5-30 s per
-# integrator, precision and model structure in each worker; the rest run with --engines mjx.
-DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
+# The default sweep's cases: the four general ones (stepping.DEFAULT_CASES). Each run costs 15-60 µs a step, and a
+# compilation 5-30 s per integrator, precision and model structure in each worker; the rest run with --engines mjx.
 
 
 def _constant_torque_only(case: Case) -> str | None:
@@ -208,44 +208,16 @@ class MjxSimulation:
                           info={"torque_mode": self.torque_mode})
 
 
-class MjxEngine(Engine):
+class MjxEngine(MujocoBackend):
     """MuJoCo's JAX back-end (MJX 3.17) on the CPU: euler, rk4, implicitfast, each in float64 and float32."""
 
     name = "mjx"
     # measured on the loaded 2-core machine: 12-30 µs per euler step, 40-60 µs per rk4 step (docs/ENGINES.md)
-    pass_us = 15.0
-    linestyle = (0, (3, 1, 1, 1))
-    packages = ("mujoco-mjx", "jax", "jaxlib", "mujoco")
-    known_deviations = (RK4_DEVIATION,)
-
-    def integrators(self) -> tuple[str, ...]:
-        return tuple(INTEGRATORS)
-
-    def precisions(self, integrator: str) -> tuple[str, ...]:
-        return (FLOAT64, FLOAT32)
-
-    def in_default_sweep(self, integrator: str) -> bool:
-        return integrator in DEFAULT_SWEEP
-
-    def declared_order(self, integrator: str) -> float:
-        return ORDERS.get(integrator, math.nan)
-
-    def method(self, integrator: str) -> str:
-        return METHODS.get(integrator, "")
-
-    def unsupported(self, case: Case) -> str | None:
-        return unphysical_inertia(case) or singular_torque(case)  # MuJoCo's compiler refuses the first
-
-    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        return _constant_torque_only(case)
-
-    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
-        """The general cases only (DEFAULT_CASES); a case whose torque MJX cannot apply is absent from a default
-        sweep (named, it is a skipped row)."""
-        return case.name in DEFAULT_CASES and _constant_torque_only(case) is None
-
-    def torque_mode(self, case: Case) -> str:
-        return torque_mode(case)
+    timing = Timing(pass_us=15.0)
+    about = About(packages=("mujoco-mjx", "jax", "jaxlib", "mujoco"), linestyle=(0, (3, 1, 1, 1)))
+    stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
+    run_precisions, deviations = (FLOAT64, FLOAT32), {"rk4": RK4_DEVIATION}
+    torque_refusal = staticmethod(_constant_torque_only)
 
     def prepare(self, case: Case, integrator: str, dt: float, precision: str = FLOAT64) -> MjxSimulation:
         if integrator not in INTEGRATORS:

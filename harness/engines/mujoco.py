@@ -32,7 +32,7 @@ from .. import budget
 from ..scenes.cases import Case, unphysical_inertia
 from ..trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                           diverged_trajectory, sample_good, samples_good)
-from .base import SLIDING_LADDER, Engine, SceneModel, singular_torque
+from .base import RIGID_BODY, SLIDING_LADDER, About, Engine, Offer, RigidBodyModel, SceneModel, Timing, singular_torque
 from ..grid import TimeGrid
 from ...reference.torques import torque_function
 
@@ -457,19 +457,8 @@ METHODS = {"euler": "semi_implicit_euler", "implicitfast": "semi_implicit_euler"
 DEFAULT_MJCF_INTEGRATOR = "rk4"
 
 
-class MujocoEngine(Engine):
-    name = "mujoco"
-    # measured on the suite's four general cases (2-core AMD EPYC): 1.2-1.9 µs per stage per step
-    pass_us = 1.5
-    linestyle = "-"
-    packages = ("mujoco",)
-    export_formats = ("mjcf",)
-
-    def declared_order(self, integrator: str) -> float:
-        return float(ORDERS.get(integrator, math.nan))
-
-    def method(self, integrator: str) -> str:
-        return METHODS.get(integrator, "")
+class MujocoRigidBody(RigidBodyModel):
+    """The rigid body in MuJoCo C: its torque entered as qfrc_applied or through mjcb_passive; exported as MJCF."""
 
     def torque_mode(self, case: Case) -> str:
         return torque_mode(case)
@@ -479,6 +468,16 @@ class MujocoEngine(Engine):
         if unphysical_inertia(case):
             raise ValueError(f"{case.name}: {unphysical_inertia(case)}")
         return mjcf(case, integrator or DEFAULT_MJCF_INTEGRATOR, case.dt[0] if dt is None else dt)
+
+
+class MujocoEngine(Engine):
+    name = "mujoco"
+    # measured on the suite's four general cases (2-core AMD EPYC): 1.2-1.9 µs per stage per step
+    timing = Timing(pass_us=1.5)
+    about = About(packages=("mujoco",), linestyle="-", export_formats=("mjcf",))
+
+    def offer(self, integrator: str) -> Offer:
+        return Offer(order=float(ORDERS.get(integrator, math.nan)), method=METHODS.get(integrator, ""))
 
     def integrators(self) -> tuple[str, ...]:
         return tuple(INTEGRATORS)
@@ -495,7 +494,7 @@ class MujocoEngine(Engine):
         return MujocoSimulation(case, integrator, dt)
 
     def models(self) -> dict:
-        return {**super().models(), SLIDING_LADDER: LadderModel()}
+        return {**super().models(), RIGID_BODY: MujocoRigidBody(self), SLIDING_LADDER: LadderModel()}
 
 
 class LadderModel(SceneModel):

@@ -29,14 +29,14 @@ import math
 import numpy as np
 
 from .. import install
-from .base import FLOAT32, Engine, singular_torque, require_modules
+from .base import FLOAT32, RIGID_BODY, About, Engine, Offer, Timing, singular_torque, require_modules
 from .quiet import native_output_silenced
 
 INSTALL = install.hint("newton")  # a checkout's or a distribution's form
 require_modules(INSTALL, "newton", "warp")  # imported on the first prepare (_sdk): 4-8 s
 
 from ..scenes.cases import Case, unphysical_inertia
-from .stepping import DEFAULT_CASES, coarse_dts, free_body_unsupported, run_steps
+from .stepping import SteppedRigidBody, run_steps
 from ..grid import TimeGrid
 from ..trajectory import Trajectory
 from ...reference.rotations import quat_to_matrix
@@ -160,47 +160,22 @@ class NewtonEngine(Engine):
     """Newton's solvers (featherstone, semi_implicit, xpbd) on a ball or free joint, float32 on Warp's CPU device."""
 
     name = "newton"
-    default_formulation = BALL
     # measured: 1-30 µs per replayed step on the loaded 2-core machine (docs/ENGINES.md)
-    pass_us = 10.0
-    linestyle = (0, (3, 1, 1, 1))
-    packages = ("newton", "warp-lang")
-
-    def formulations(self) -> tuple[str, ...]:
-        return MODELS
+    timing = Timing(pass_us=10.0)
+    about = About(packages=("newton", "warp-lang"), linestyle=(0, (3, 1, 1, 1)), formulation=BALL)
 
     def integrators(self) -> tuple[str, ...]:
         return tuple(SOLVERS)
 
-    def precisions(self, integrator: str) -> tuple[str, ...]:
-        return (FLOAT32,)
-
-    def in_default_sweep(self, integrator: str) -> bool:
-        return integrator in SOLVERS
-
-    def declared_order(self, integrator: str) -> float:
-        return ORDERS.get(integrator, math.nan)
-
-    def method(self, integrator: str) -> str:
-        return METHODS.get(integrator, "")
+    def offer(self, integrator: str) -> Offer:
+        return Offer(order=ORDERS.get(integrator, math.nan), method=METHODS.get(integrator, ""),
+                     default_sweep=integrator in SOLVERS, precisions=(FLOAT32,))
 
     def unsupported(self, case: Case) -> str | None:
         return unphysical_inertia(case) or singular_torque(case)
 
-    def torque_mode(self, case: Case) -> str:
-        return "step" if case.body.has_external_torque else "none"
-
-    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        return free_body_unsupported(case.body.com, "Newton's free joint has no pin") if formulation == FREE else None
-
-    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
-        """The general cases only (DEFAULT_CASES), the free model where the scene allows it."""
-        return case.name in DEFAULT_CASES and self.unsupported_run(case, formulation, integrator) is None
-
-    def default_dts(self, case: Case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
-        """One coarse step in a default sweep: the largest of the case's at most COARSE_DT (heavy-asymmetric's 0.3 is
-        beyond every Euler variant's stability limit: a diverged row says nothing more than MuJoCo's does)."""
-        return coarse_dts(dts)
+    def models(self) -> dict:
+        return {**super().models(), RIGID_BODY: SteppedRigidBody(self, MODELS, FREE, "Newton's free joint has no pin")}
 
     def prepare(self, case: Case, integrator: str, dt: float | None, formulation: str = BALL,
                 precision: str = FLOAT32, **options) -> NewtonSimulation:
@@ -210,7 +185,7 @@ class NewtonEngine(Engine):
             raise KeyError(f"unknown integrator {integrator!r} for the newton engine; valid: {', '.join(SOLVERS)}")
         if precision != FLOAT32:
             raise KeyError(f"unknown precision {precision!r} for the newton engine; valid: {FLOAT32}")
-        reason = self.unsupported(case) or self.unsupported_run(case, formulation, integrator)
+        reason = self.unsupported(case) or self.models()[RIGID_BODY].unsupported_run(case, formulation, integrator)
         if reason:
             raise ValueError(f"{case.name}: {reason}")
         if dt is None or not dt > 0:

@@ -19,7 +19,7 @@ from .. import integrators
 from .. import budget
 from ..scenes.cases import Case
 from ..trajectory import SlidingLadderTrajectory, Status, Trajectory
-from .base import SLIDING_LADDER, Engine, SceneModel, singular_torque
+from .base import RIGID_BODY, SLIDING_LADDER, About, Engine, RigidBodyModel, SceneModel, Timing, singular_torque
 from ..grid import TimeGrid
 from ..integrators.base import check_stepper
 from ..integrators.ensemble import integrate_ensemble
@@ -218,15 +218,8 @@ class PinocchioEnsemble:
                 for t in trajectories]
 
 
-class PinocchioEngine(Engine):
-    name = "pinocchio"
-    state_space = "lie"
-    # measured on the suite's four general cases (2-core AMD EPYC): 2.4-2.9 µs per stage per step
-    pass_us = 2.6
-    linestyle = "--"
-    packages = ("pin",)
-    short_warm_up = True  # Python step loops over compiled right-hand sides: nothing is built per grid length
-    export_formats = ("urdf",)
+class PinocchioRigidBody(RigidBodyModel):
+    """The rigid body in Pinocchio: exported as URDF, and run as ensembles."""
 
     def export(self, case: Case, fmt: str, integrator: str | None, dt: float | None) -> str:
         """URDF: the body, its ball joint as a three-joint gimbal. A URDF holds no stepper: an integrator or a dt is
@@ -235,6 +228,22 @@ class PinocchioEngine(Engine):
             raise ValueError(f"--{'integrator' if integrator is not None else 'dt'}: applies to a format that holds a "
                              f"stepper (mjcf), not to {fmt}")
         return urdf(case)
+
+    def prepare_ensemble(self, case: Case, integrator: str | type[integrators.Integrator], dt: float,
+                         quat0: np.ndarray, omega0: np.ndarray, threads: int = 1) -> "PinocchioEnsemble":
+        """The case's body from N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together; the
+        accelerations of each stage are one pin.abaInParallel call on `threads` OpenMP threads. Worth it from tens
+        of members on: below that the fixed cost of the numpy calls dominates. threads > 1 only on idle cores: OpenMP
+        threads contending with other processes (a sweep's workers) made a 64-member RK4 ensemble 6x slower."""
+        return PinocchioEnsemble(case, self.engine.prepare(case, integrator, dt), quat0, omega0, threads)
+
+
+class PinocchioEngine(Engine):
+    name = "pinocchio"
+    # measured on the suite's four general cases (2-core AMD EPYC): 2.4-2.9 µs per stage per step; Python step loops
+    # over compiled right-hand sides: nothing is built per grid length (a short warm-up)
+    timing = Timing(pass_us=2.6, short_warm_up=True)
+    about = About(packages=("pin",), linestyle="--", export_formats=("urdf",), state_space="lie")
 
     def integrators(self) -> tuple[str, ...]:
         """The registry's Lie-group integrators: euler, symplectic_euler, rk4, rk4_naive, then plug-ins."""
@@ -253,16 +262,8 @@ class PinocchioEngine(Engine):
                            f"valid: {', '.join(self.integrators())}")
         return PinocchioSimulation(case, cls(), float(dt))
 
-    def prepare_ensemble(self, case: Case, integrator: str | type[integrators.Integrator], dt: float,
-                         quat0: np.ndarray, omega0: np.ndarray, threads: int = 1) -> PinocchioEnsemble:
-        """The case's body from N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together; the
-        accelerations of each stage are one pin.abaInParallel call on `threads` OpenMP threads. Worth it from tens
-        of members on: below that the fixed cost of the numpy calls dominates. threads > 1 only on idle cores: OpenMP
-        threads contending with other processes (a sweep's workers) made a 64-member RK4 ensemble 6x slower."""
-        return PinocchioEnsemble(case, self.prepare(case, integrator, dt), quat0, omega0, threads)
-
     def models(self) -> dict:
-        return {**super().models(), SLIDING_LADDER: LadderModel()}
+        return {**super().models(), RIGID_BODY: PinocchioRigidBody(self), SLIDING_LADDER: LadderModel()}
 
 
 class LadderModel(SceneModel):

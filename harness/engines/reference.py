@@ -12,7 +12,7 @@ from .. import integrators
 from .. import budget
 from ..scenes.cases import Case
 from ..trajectory import SlidingLadderTrajectory, Status, Trajectory, diverged_trajectory
-from .base import SLIDING_LADDER, Engine, SceneModel, singular_torque
+from .base import RIGID_BODY, SLIDING_LADDER, About, Engine, Offer, RigidBodyModel, SceneModel, Timing, singular_torque
 from ..grid import TimeGrid
 from ..integrators import scipy_ivp
 from ...reference import formulations as ref_formulations  # the module; `formulations` is the engine's method
@@ -145,42 +145,44 @@ class LadderEquationModel(SceneModel):
         return SlidingLadderEquation(case.ladder)
 
 
+class ReferenceRigidBody(RigidBodyModel):
+    """The rigid body in the reference formulations: each a variant; the torque in the right-hand side."""
+
+    def variants(self) -> tuple[str, ...]:
+        return tuple(ref_formulations.FORMULATIONS)
+
+    def default_run(self, case: Case, variant: str, integrator: str) -> bool:
+        """scipy's methods: DEFAULT_SCIPY on the quaternion formulation; everything else runs."""
+        if integrator in scipy_ivp.METHODS:
+            return integrator in DEFAULT_SCIPY and variant == ref_formulations.Quaternion.name
+        return True
+
+    def torque_mode(self, case: Case) -> str:
+        return "rhs" if case.body.has_external_torque else "none"
+
+
 class ReferenceEngine(Engine):
     """Formulations quaternion, gibbs, gibbs_hamiltonian, euler_zxz; integrators taylor, scipy's (scipy_ivp.METHODS)
     and the registry's "vector" ones (euler, rk4, then plug-ins)."""
 
     name = "reference"
-    state_space = STATE_SPACE
-    default_formulation = ref_formulations.Quaternion.name
-    # measured on the suite's four general cases (2-core AMD EPYC): 5.6-7.5 µs per stage per step
-    pass_us = 6.5
-    linestyle = ":"
-    packages = ("heyoka",)
-    short_warm_up = True  # Python step loops over compiled right-hand sides: nothing is built per grid length
+    # measured on the suite's four general cases (2-core AMD EPYC): 5.6-7.5 µs per stage per step; Python step loops
+    # over compiled right-hand sides: nothing is built per grid length (a short warm-up)
+    timing = Timing(pass_us=6.5, short_warm_up=True)
+    about = About(packages=("heyoka",), linestyle=":", state_space=STATE_SPACE,
+                  formulation=ref_formulations.Quaternion.name)
 
     def models(self) -> dict:
-        return {**super().models(), SLIDING_LADDER: LadderEquationModel()}
-
-    def formulations(self) -> tuple[str, ...]:
-        return tuple(ref_formulations.FORMULATIONS)
+        return {**super().models(), RIGID_BODY: ReferenceRigidBody(self), SLIDING_LADDER: LadderEquationModel()}
 
     def integrators(self) -> tuple[str, ...]:
         return (TAYLOR,) + tuple(scipy_ivp.METHODS) + integrators.names(state_space=STATE_SPACE)
 
-    def adaptive(self, integrator: str) -> bool:
-        return integrator == TAYLOR or integrator in scipy_ivp.METHODS
-
-    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
-        """scipy's methods: DEFAULT_SCIPY on the quaternion formulation; everything else runs."""
-        if integrator in scipy_ivp.METHODS:
-            return integrator in DEFAULT_SCIPY and formulation == ref_formulations.Quaternion.name
-        return True
+    def offer(self, integrator: str) -> Offer:
+        return Offer(adaptive=integrator == TAYLOR or integrator in scipy_ivp.METHODS)
 
     def unsupported(self, case: Case) -> str | None:
         return singular_torque(case)
-
-    def torque_mode(self, case: Case) -> str:
-        return "rhs" if case.body.has_external_torque else "none"
 
     def prepare(self, case: Case, integrator: str | type[integrators.Integrator], dt: float | None,
                 formulation: str = ref_formulations.Quaternion.name, chart_changes: bool = True,

@@ -10,6 +10,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from .. import budget
+from .base import RigidBodyModel
 from ..grid import TimeGrid
 from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
 
@@ -86,3 +87,29 @@ def free_body_unsupported(com, why: str) -> str | None:
     if np.any(np.asarray(com) != 0.0):
         return f"free: a free body moves as the pinned one only when O is its centre of mass (com = 0); {why}"
     return None
+
+
+class SteppedRigidBody(RigidBodyModel):
+    """The rigid body of an engine stepped from Python with a ball and a free model (Genesis, Newton): the free model
+    only where O is the centre of mass (`free_words`: the engine's reason otherwise), the torque applied at every step
+    (torque_mode `step`), a default sweep of the general cases (DEFAULT_CASES) at one coarse step (coarse_dts)."""
+
+    def __init__(self, engine, variants: tuple[str, ...], free: str, free_words: str):
+        super().__init__(engine)
+        self._variants, self._free, self._free_words = variants, free, free_words
+
+    def variants(self) -> tuple[str, ...]:
+        return self._variants
+
+    def unsupported_run(self, case, variant: str, integrator: str) -> str | None:
+        return free_body_unsupported(case.body.com, self._free_words) if variant == self._free else None
+
+    def default_run(self, case, variant: str, integrator: str) -> bool:
+        """The general cases only (DEFAULT_CASES), the free model where the scene allows it."""
+        return case.name in DEFAULT_CASES and self.unsupported_run(case, variant, integrator) is None
+
+    def default_dts(self, case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
+        return coarse_dts(dts)
+
+    def torque_mode(self, case) -> str:
+        return "step" if case.body.has_external_torque else "none"

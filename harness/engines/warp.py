@@ -23,14 +23,15 @@ import math
 import numpy as np
 
 from .. import install
-from .base import FLOAT32, Engine, singular_torque, require_modules
+from .base import FLOAT32, About, Timing, require_modules
 from .quiet import native_output_silenced
 
 INSTALL = install.hint("warp")  # a checkout's or a distribution's form
 require_modules(INSTALL, "warp", "mujoco_warp")  # imported on the first prepare (_sdk): 5-10 s
 
 from .. import budget
-from ..scenes.cases import Case, unphysical_inertia
+from ..scenes.cases import Case
+from .backends import MujocoBackend
 from .mujoco import scene_state, torque_mode
 from ..grid import TimeGrid
 from ..trajectory import Status, Trajectory, divergence_limit2, divergence_message, sample_good
@@ -42,12 +43,10 @@ MODEL_NAME = "stereodyn"  # one name for every case's model (as the MJX adapter'
 INTEGRATORS: dict[str, int] = {"euler": 1, "rk4": 4, "implicitfast": 1, "implicit": 1}
 ORDERS = {"euler": 1.0, "rk4": 4.0, "implicitfast": 1.0, "implicit": 1.0}
 METHODS = {"euler": "semi_implicit_euler", "rk4": "rk4", "implicitfast": "semi_implicit_euler"}
-# The default sweep: euler and rk4 at one coarse step on the four general cases (0.03-0.1 ms a step with the
-# captured graph, ~5 ms a step without it); every other case and step runs with --engines warp (and --dt).
+# The default sweep: euler and rk4 at one coarse step (stepping.coarse_dts) on the four general cases
+# (stepping.DEFAULT_CASES; 0.03-0.1 ms a step with the captured graph, ~5 ms a step without it); every other case and
+# step runs with --engines warp (and --dt).
 DEFAULT_SWEEP = ("euler", "rk4")
-DEFAULT_CASES = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric")
-# The coarse step: the largest of the case's dts not above this (heavy-asymmetric's 0.3 is beyond Euler's stability).
-COARSE_DT = 1e-2
 
 
 def _constant_torque_only(case: Case) -> str | None:
@@ -148,46 +147,16 @@ class WarpSimulation:
                           info={"torque_mode": self.torque_mode})
 
 
-class WarpEngine(Engine):
+class WarpEngine(MujocoBackend):
     """MuJoCo Warp 4.0 on the CPU, one world, float32: euler, rk4, implicitfast, implicit."""
 
     name = "warp"
     # measured: ~4.7 ms per euler step on the loaded 2-core machine (docs/ENGINES.md)
-    pass_us = 4700.0
-    linestyle = (0, (1, 1))
-    packages = ("mujoco-warp", "warp-lang", "mujoco")
-
-    def integrators(self) -> tuple[str, ...]:
-        return tuple(INTEGRATORS)
-
-    def precisions(self, integrator: str) -> tuple[str, ...]:
-        return (FLOAT32,)
-
-    def in_default_sweep(self, integrator: str) -> bool:
-        return integrator in DEFAULT_SWEEP
-
-    def default_run(self, case: Case, formulation: str, integrator: str) -> bool:
-        return case.name in DEFAULT_CASES and _constant_torque_only(case) is None
-
-    def default_dts(self, case: Case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
-        """One coarse step (COARSE_DT or the largest below it) in a default sweep."""
-        coarse = [dt for dt in dts if dt <= COARSE_DT]
-        return (max(coarse),) if coarse else (min(dts),)
-
-    def declared_order(self, integrator: str) -> float:
-        return ORDERS.get(integrator, math.nan)
-
-    def method(self, integrator: str) -> str:
-        return METHODS.get(integrator, "")
-
-    def unsupported(self, case: Case) -> str | None:
-        return unphysical_inertia(case) or singular_torque(case)  # MuJoCo's compiler refuses the first
-
-    def unsupported_run(self, case: Case, formulation: str, integrator: str) -> str | None:
-        return _constant_torque_only(case)
-
-    def torque_mode(self, case: Case) -> str:
-        return torque_mode(case)
+    timing = Timing(pass_us=4700.0)
+    about = About(packages=("mujoco-warp", "warp-lang", "mujoco"), linestyle=(0, (1, 1)))
+    stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
+    run_precisions, coarse_default_step = (FLOAT32,), True
+    torque_refusal = staticmethod(_constant_torque_only)
 
     def prepare(self, case: Case, integrator: str, dt: float, precision: str = FLOAT32) -> WarpSimulation:
         if integrator not in INTEGRATORS:

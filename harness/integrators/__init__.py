@@ -17,6 +17,7 @@ from __future__ import annotations
 from importlib.metadata import entry_points
 
 from ...reference import plugins
+from ...reference.registry import Registry
 
 from .base import Integrator, LieSystem, check_step_signature
 from .geometric import GEOMETRIC
@@ -90,25 +91,30 @@ def _check(cls: type) -> type[Integrator]:
 
 
 def _load_plugins() -> None:
+    """The integrators of the entry-point group, once (reference.registry, as every registry): an entry names a class
+    or a list of classes. One that does not load, or whose class the registry refuses, is one warning line, and every
+    name it offered (the entry point's, and each class's it got to) answers failed_plugin; the other integrators
+    run."""
     global _plugins_loaded
     if _plugins_loaded:
         return
     _plugins_loaded = True
-    for entry in entry_points(group=ENTRY_POINT_GROUP):
-        offered = [entry.name]  # the names a user may ask for: the entry point's, and each class's it got to
-        try:
-            with plugins.guard(f"{plugins.describe(entry, 'integrator plug-in')} not loaded"):
-                loaded = entry.load()
-                for cls in (loaded if isinstance(loaded, (list, tuple)) else (loaded,)):
-                    offered.append(getattr(cls, "name", None))
-                    register(cls)  # TypeError, ValueError: a class the registry refuses
-                    if not plugins.own(cls):  # stereodyn's own class offered again keeps its default_sweep
-                        _from_entry_points.add(cls)
-        except plugins.PluginError as exc:  # a broken plug-in must not take the built-ins down with it
-            plugins.warn(str(exc))
-            for name in offered:
-                if isinstance(name, str) and name not in names(None):
-                    _failed.setdefault(name, str(exc))
+    offered: dict[str, list] = {}  # entry point -> the names a user may ask for: its own, and each class's it got to
+
+    def accept(name: str, loaded) -> None:
+        for cls in (loaded if isinstance(loaded, (list, tuple)) else (loaded,)):
+            offered.setdefault(name, []).append(getattr(cls, "name", None))
+            register(cls)  # TypeError, ValueError: a class the registry refuses
+            if not plugins.own(cls):  # stereodyn's own class offered again keeps its default_sweep
+                _from_entry_points.add(cls)
+
+    found = Registry("integrator plug-in", ENTRY_POINT_GROUP, accept=accept, failure="not loaded",
+                     lister=lambda group: entry_points(group=group))  # this module's name: tests stand theirs in
+    for entry_name, line in found.load().items():  # a broken plug-in must not take the built-ins down with it
+        plugins.warn(line)
+        for name in [entry_name, *offered.get(entry_name, ())]:
+            if isinstance(name, str) and name not in names(None):
+                _failed.setdefault(name, line)
 
 
 def failed_plugin(name: str) -> str | None:

@@ -22,7 +22,6 @@ from ..analysis.verdicts import failed_integrators, read as read_verdicts
 from . import figures, html, index
 from . import sections
 # the modules whose sections the page shows besides this one's and markdown's (each registers its own)
-from . import agreement, history, method, verdicts, workprecision as work_precision_sections  # noqa: F401
 from .markdown import markdown_table as _md_table, number as _num
 from ..run.processes import exit_with_parent
 from ..run.results import read_csv_table, read_results, write_atomic

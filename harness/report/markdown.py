@@ -9,6 +9,7 @@ import pandas as pd
 
 from ..analysis.text import grouped_reasons, number, reason  # noqa: F401 (number, reason: part of this API)
 from ..environment import environment
+from ..run.results import COLUMNS as RESULTS_COLUMNS
 from . import sections
 
 from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS
@@ -149,6 +150,8 @@ def problem_lines(df: pd.DataFrame) -> list[str]:
 def case_lines(case: str, group: pd.DataFrame, extras: Sequence[str] = ()) -> list[str]:
     """A case's section: its drift table, its divergences, then `extras` (its figures)."""
     columns = TERMINAL_COLUMNS[:-2] + ("attitude_err_end", "truth_err", "chart_changes", "wall_s", "us_per_step")
+    # a scene's own columns (Scene.columns beyond results.COLUMNS), which results.csv carries after the others
+    columns += tuple(c for c in group.columns if c not in RESULTS_COLUMNS and not c.startswith("_"))
     counts = group["status"].value_counts()
     # Skipped runs have no numbers: counted here, their reasons grouped in "Runs that did not complete" (results.csv
     # has each row).

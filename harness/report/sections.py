@@ -2,17 +2,21 @@
 of the report's Context that returns Markdown lines ([] leaves the section out). The page is every registered section
 in order (then name); a new section is one `register` call and touches no other section (DESIGN §7). A third party's
 sections are discovered as asv's plug-ins are: a distribution names its module under the entry-point group
-`stereodyn.report_sections`, and the report imports it (its `register` calls run) before it lists the sections."""
+`stereodyn.report_sections`, and the report imports it (its `register` calls run) before it lists the sections.
+stereodyn's own section modules are the registry's built-in table (BUILT_IN, reference.registry): found the same way,
+never through an import line elsewhere that could be forgotten (tests/test_registries.py checks the table holds every
+module that registers a section). A plug-in that does not import is one warning line naming it; the report renders
+without it."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Callable
 
 import pandas as pd
 
 from ...reference import plugins
+from ...reference.registry import Registry
 
 
 @dataclass(frozen=True)
@@ -41,10 +45,15 @@ class Section:
 
 ENTRY_POINT_GROUP = "stereodyn.report_sections"
 _REGISTRY: dict[str, Section] = {}
+# stereodyn's own modules that register sections (each registers its own at import)
+BUILT_IN = tuple(f"{__package__}.{module}" for module in (
+    "markdown", "build", "verdicts", "workprecision", "agreement", "method", "history"))
+SECTIONS = Registry("report section plug-in", ENTRY_POINT_GROUP, BUILT_IN)
 
 
 class SectionError(ImportError):
-    """A report-section plug-in that does not import: one line naming it."""
+    """A report-section plug-in that does not import: one line naming it (0.2.0's exception; a failed plug-in is now
+    a warning, and the report renders without it)."""
 
 
 def register(name: str, order: float) -> Callable:
@@ -61,13 +70,10 @@ def unregister(name: str) -> None:
 
 
 def load_plugins() -> None:
-    """Import every module named under ENTRY_POINT_GROUP (each registers its sections); SectionError naming the
-    plug-in when one does not import (reference.plugins' guard: any Exception or SystemExit)."""
-    for entry in entry_points(group=ENTRY_POINT_GROUP):
-        try:
-            plugins.load(entry, "report section plug-in")
-        except plugins.PluginError as exc:  # a plug-in's own bug: name it, never a traceback from inside the report
-            raise SectionError(str(exc)) from None
+    """Import the built-in section modules and every module named under ENTRY_POINT_GROUP (each registers its
+    sections), once; a plug-in that does not import (reference.plugins' guard: any Exception or SystemExit) is one
+    warning line naming it, said once, and the other sections render."""
+    SECTIONS.load_or_warn()
 
 
 def registered() -> list[Section]:

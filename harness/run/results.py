@@ -10,6 +10,7 @@ import pandas as pd
 from ..atomic import write_atomic  # noqa: F401 (imported from here too)
 from ..precision import FLOAT64
 from ..tables import TableError, read_csv_table  # noqa: F401 (imported from here too)
+from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
@@ -26,16 +27,25 @@ def row_order(row: dict) -> tuple:
     return tuple(row.get(key, 0) for key in SORT_KEYS)
 
 
+def columns() -> tuple[str, ...]:
+    """The table's columns: COLUMNS, then each registered scene's own (Scene.columns not in COLUMNS), in the scenes'
+    registry order, so that a new scene's metric reaches results.csv (DESIGN §7)."""
+    own = (column for kind in kinds() for column in scene(kind).columns if column not in COLUMNS)
+    return (*COLUMNS, *dict.fromkeys(own))
+
+
 def frame(rows: list[dict]) -> pd.DataFrame:
-    """A DataFrame with exactly COLUMNS (missing values NaN), in the canonical row order."""
+    """A DataFrame with exactly columns() (missing values NaN), in the canonical row order. A scene's own column
+    that no row fills is left out: the table of a sweep without that scene's cases is COLUMNS, as before."""
     df = pd.DataFrame(rows)
-    for column in COLUMNS:
+    names = [c for c in columns() if c in COLUMNS or c in df]
+    for column in names:
         if column not in df:
             df[column] = float("nan")
     if df.empty:
-        return df[list(COLUMNS)]
+        return df[names]
     df = df.sort_values([k for k in SORT_KEYS if k in df], kind="stable")
-    return df[list(COLUMNS)].reset_index(drop=True)
+    return df[names].reset_index(drop=True)
 
 
 def write_results(df: pd.DataFrame, path: Path) -> None:

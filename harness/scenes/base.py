@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Callable, Protocol
 
+from ...reference.registry import Registry
+
 if TYPE_CHECKING:
     from ..grid import TimeGrid
     from ..engines.base import SceneModel
@@ -40,6 +42,11 @@ class Scene(Protocol):
 
 
 _SCENES: dict[str, Scene] = {}
+# The scenes' discovery (reference.registry): stereodyn's own modules, then the modules other distributions name under
+# the entry-point group (each calls register(scene) at import), loaded when the kinds are first asked for; a plug-in
+# that does not import is one warning line, and its cases' kind stays unknown.
+ENTRY_POINT_GROUP = "stereodyn.scenes"
+SCENES = Registry("scene plug-in", ENTRY_POINT_GROUP, (f"{__package__}.rigid_body", f"{__package__}.sliding_ladder"))
 
 
 def register(scene: Scene) -> Scene:
@@ -54,11 +61,14 @@ def unregister(kind: str) -> None:
 
 
 def kinds() -> tuple[str, ...]:
+    SCENES.load_or_warn()
     return tuple(_SCENES)
 
 
 def scene(kind: str) -> Scene:
     """The scene of a kind; KeyError naming the known kinds."""
+    if kind not in _SCENES:
+        SCENES.load_or_warn()
     try:
         return _SCENES[kind]
     except KeyError:

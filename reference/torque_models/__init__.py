@@ -15,21 +15,21 @@ three dataclasses and their *_components formulas) stay importable from here.
 """
 from __future__ import annotations
 
-import importlib
 import pkgutil
-from importlib.metadata import entry_points
 
-from .. import plugins
+from ..registry import Registry
 from .base import TORQUES, At, TorqueModel, merged, models, ordered, register  # noqa: F401
 from .body_torque import BodyTorque, body_torque_components  # noqa: F401
 from .central_field import CentralField, gravity_gradient_components  # noqa: F401
 from .precession import PrecessionTorque, precession_components  # noqa: F401
 
-for _module in sorted(info.name for info in pkgutil.iter_modules(__path__)):
-    importlib.import_module(f"{__name__}.{_module}")  # registers its model
-
 # Torque models of other distributions: a module named under this entry-point group registers its models on import.
 ENTRY_POINT_GROUP = "stereodyn.torque_models"
+# The built-in table: every module of this folder (the three above first, by their imports), by file name.
+BUILT_IN = tuple(f"{__name__}.{info.name}" for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name))
+TORQUE_MODELS = Registry("torque model plug-in", ENTRY_POINT_GROUP, BUILT_IN)
+for _module in BUILT_IN:  # registered with the package: the results columns are the registry's at import
+    __import__(_module)
 
 
 class TorqueModelError(ImportError):
@@ -39,9 +39,8 @@ class TorqueModelError(ImportError):
 def load_plugins() -> None:
     """Import every module named under ENTRY_POINT_GROUP (each registers its models; importing again is a no-op);
     TorqueModelError naming the plug-in when one does not import (reference.plugins' guard: any Exception or
-    SystemExit). The case parser calls it before reading a file."""
-    for entry in entry_points(group=ENTRY_POINT_GROUP):
-        try:
-            plugins.load(entry, "torque model plug-in")
-        except plugins.PluginError as exc:  # a plug-in's own bug: name it, never a traceback from inside the parser
-            raise TorqueModelError(str(exc)) from None
+    SystemExit), each time it is asked: a case file may hold its table. The case parser calls it before reading a
+    file."""
+    failed = TORQUE_MODELS.load()
+    if failed:  # a plug-in's own bug: name it, never a traceback from inside the parser
+        raise TorqueModelError(next(iter(failed.values())))

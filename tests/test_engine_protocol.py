@@ -1,0 +1,186 @@
+"""The lean engine protocol (issue 29): an author knows Engine.PROTOCOL (at most 12 names: the required methods and
+the groups); every other public name of Engine is a reader derived from them, which no built-in adapter overrides;
+an engine written against 0.2.0 (its hooks and attributes of the old names) reads the same through both."""
+import ast
+import dataclasses
+import math
+from pathlib import Path
+
+import pytest
+
+from stereodyn.harness.engines import base
+from stereodyn.harness.engines.base import About, Engine, KnownDeviation, Offer, RigidBodyModel, Timing
+from stereodyn.harness.scenes.cases import load_suite
+
+ROOT = Path(__file__).resolve().parents[1]
+# Every public name of Engine that is not in PROTOCOL: what the harness reads (0.2.0's names, derived from the groups)
+READERS = {"formulations", "default_run", "default_dts", "unsupported_run", "torque_mode", "export",
+           "prepare_ensemble", "in_default_sweep", "precisions", "method", "adaptive", "declared_order",
+           "formulation_order", "known_deviations", "pass_us", "startup_s", "short_warm_up",
+           "process_global_precision", "prepare_budget_s", "packages", "linestyle", "export_formats", "state_space",
+           "default_formulation", "PROTOCOL"}
+
+
+def test_an_author_knows_at_most_12_names():
+    public = {name for name in dir(Engine) if not name.startswith("_")}
+    assert len(Engine.PROTOCOL) <= 12 and len(set(Engine.PROTOCOL)) == len(Engine.PROTOCOL)
+    assert public == set(Engine.PROTOCOL) | READERS  # a new public name is either protocol or a reader, said here
+    for group in (Offer, Timing, About):
+        assert dataclasses.is_dataclass(group) and group.__dataclass_params__.frozen
+
+
+def _adapter_classes() -> list[tuple[str, ast.ClassDef]]:
+    """(file, class) of every class in harness/engines/ derived, by its bases' names, from Engine or a built-in
+    engine base (MujocoBackend)."""
+    found = []
+    for path in sorted((ROOT / "harness" / "engines").glob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ClassDef) and any(getattr(b, "id", "") in ("Engine", "MujocoBackend")
+                                                      for b in node.bases):
+                found.append((path.name, node))
+    return found
+
+
+def test_no_built_in_adapter_overrides_a_reader():
+    """The built-ins declare through the protocol only: the groups are enough for nine engines."""
+    classes = _adapter_classes()
+    assert len(classes) >= 10  # the nine adapters, MujocoBackend and the registry's stand-ins
+    for file, cls in classes:
+        defined = {node.name for node in cls.body if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))}
+        defined |= {target.id for node in cls.body if isinstance(node, (ast.Assign, ast.AnnAssign))
+                    for target in (node.targets if isinstance(node, ast.Assign) else [node.target])
+                    if isinstance(target, ast.Name)}
+        assert not defined & (READERS - {"PROTOCOL"}), (file, cls.name, defined & READERS)
+
+
+class Legacy(Engine):
+    """An engine of 0.2.0: old attribute names, old hooks."""
+
+    name = "legacy"
+    state_space = "lie"
+    default_formulation = "b"
+    pass_us = 3.0
+    short_warm_up = True
+    linestyle = "-"
+    packages = ("numpy",)
+    known_deviations = (KnownDeviation("rk4", "order", 2.0, 0.3, "upstream"),)
+
+    def integrators(self):
+        return ("rk4", "euler")
+
+    def unsupported(self, case):
+        return None
+
+    def prepare(self, case, integrator, dt, **options):
+        return ("prepared", integrator, dt, options)
+
+    def formulations(self):
+        return ("a", "b")
+
+    def precisions(self, integrator):
+        return ("float64", "float32")
+
+    def declared_order(self, integrator):
+        return 7.0
+
+    def default_run(self, case, formulation, integrator):
+        return formulation == "a"
+
+    def default_dts(self, case, integrator, dts):
+        return dts[:1]
+
+    def unsupported_run(self, case, formulation, integrator):
+        return "not b" if formulation == "b" else None
+
+    def torque_mode(self, case):
+        return "legacy"
+
+
+class Lean(Engine):
+    """The same declarations through the protocol."""
+
+    name = "lean"
+    timing = Timing(pass_us=3.0, short_warm_up=True, startup_s=12.5)
+    about = About(packages=("numpy",), linestyle="-", state_space="lie", formulation="b")
+
+    class RigidBody(RigidBodyModel):
+        def variants(self):
+            return ("a", "b")
+
+        def default_run(self, case, variant, integrator):
+            return variant == "a"
+
+        def default_dts(self, case, integrator, dts):
+            return dts[:1]
+
+        def unsupported_run(self, case, variant, integrator):
+            return "not b" if variant == "b" else None
+
+        def torque_mode(self, case):
+            return "legacy"
+
+    def integrators(self):
+        return ("rk4", "euler")
+
+    def offer(self, integrator):
+        deviation = KnownDeviation("rk4", "order", 2.0, 0.3, "upstream") if integrator == "rk4" else None
+        return Offer(order=7.0, precisions=("float64", "float32"), deviation=deviation)
+
+    def unsupported(self, case):
+        return None
+
+    def prepare(self, case, integrator, dt, **options):
+        return ("prepared", integrator, dt, options)
+
+    def models(self):
+        return {**super().models(), base.RIGID_BODY: self.RigidBody(self)}
+
+
+def _readings(engine: Engine, case) -> dict:
+    model = engine.models()[base.RIGID_BODY]
+    return {
+        "timing": (engine.pass_us, engine.short_warm_up, engine.timing.pass_us, engine.timing.short_warm_up),
+        "about": (engine.packages, engine.linestyle, engine.state_space, engine.default_formulation,
+                  engine.about.formulation),
+        "integrators": [(engine.precisions(i), engine.declared_order(i), engine.formulation_order("a", i),
+                         engine.adaptive(i), engine.in_default_sweep(i), engine.method(i)) for i in ("rk4", "euler")],
+        "deviations": engine.known_deviations,
+        "runs": (engine.formulations(), model.variants(), engine.default_run(case, "a", "rk4"),
+                 engine.default_run(case, "b", "rk4"), engine.default_dts(case, "rk4", (0.1, 0.01)),
+                 engine.unsupported_run(case, "b", "rk4"), model.unsupported_run(case, "b", "rk4"),
+                 engine.torque_mode(case), model.torque_mode(case), model.precisions("rk4")),
+        "prepare": model.prepare(case, "b", "rk4", 0.01, precision="float32"),
+    }
+
+
+def test_a_0_2_0_engine_reads_as_the_same_engine_written_on_the_protocol():
+    case = load_suite()[0]
+    legacy, lean = _readings(Legacy(), case), _readings(Lean(), case)
+    assert legacy == lean
+    assert legacy["timing"] == (3.0, True, 3.0, True)  # 0.2.0's attributes folded into the group
+    assert legacy["about"] == (("numpy",), "-", "lie", "b", "b")
+    assert legacy["integrators"][0] == (("float64", "float32"), 7.0, 7.0, False, True, "rk4")
+    assert legacy["runs"] == (("a", "b"), ("a", "b"), True, False, (0.1,), "not b", "not b", "legacy", "legacy",
+                              ("float64", "float32"))
+    assert legacy["prepare"] == ("prepared", "rk4", 0.01, {"formulation": "b", "precision": "float32"})
+
+
+def test_the_start_up_cost_is_a_timing_declaration():
+    """harness.run.pool may read engine.startup_s (or engine.timing.startup_s): 0.0 where none is declared."""
+    assert Lean().startup_s == 12.5 and Lean().timing.startup_s == 12.5
+    assert Legacy().startup_s == 0.0 and Engine().startup_s == 0.0
+    from stereodyn.harness.engines import get_engine
+    assert get_engine("mujoco").startup_s == 0.0 and get_engine("mujoco").pass_us == 1.5
+
+
+def test_the_defaults_of_an_engine_that_declares_nothing():
+    class Minimal(Engine):
+        name = "minimal"
+
+    engine = Minimal()
+    assert engine.offer("rk4") == Offer() and math.isnan(Offer().order)
+    assert engine.declared_order("rk4") == 4.0 and engine.method("rk4") == "rk4"  # the registry's
+    assert not engine.in_default_sweep("implicit_midpoint")  # the registry's rule: a geometric method runs when named
+    assert engine.timing == Timing() and engine.about == About() and engine.known_deviations == ()
+    with pytest.raises(NotImplementedError, match="exports no format"):
+        engine.export(None, "mjcf", None, None)
