@@ -1,4 +1,5 @@
-"""Work–precision measuring: dt ladders and stability limits.
+"""Work–precision measuring: the runs of the dt ladders and stability limits (their tables, constants and pure rules:
+harness.analysis.ladders, re-exported here).
 
 For a case × engine × formulation × integrator, a ladder is LADDER_POINTS log-spaced steps from the largest stable dt
 (found by bisection) down to t_end / max_steps, where the 4th-order methods reach their round-off floor. Each point is
@@ -37,11 +38,15 @@ import numpy as np
 import pandas as pd
 
 from .. import budget
-from . import fitting
-from .fitting import declared_order, fit
+from ..analysis import fitting
+from ..analysis.fitting import declared_order, fit
+from ..analysis.ladders import (FIRST_PART_HALVINGS, FIRST_PART_MARGIN, LADDER, LADDER_COLUMNS,  # noqa: F401
+                                LADDER_POINTS, MIN_STEPS, SHORT_LADDER, SHORT_POINTS, SHORT_TARGET, STABILITY_RTOL,
+                                STABLE_ENERGY_DRIFT, families, first_part_span, ladder_dts, short_reason,
+                                stability_limit, stable, walk)  # (F401: re-exported, this module's API before issue 29)
 from ..scenes import scene_of
-from ..scenes.cases import CHAOTIC_TAGS, Case, with_overrides
-from ..scenes.rigid_body import state_err
+from ..scenes.cases import CHAOTIC_TAGS, Case, with_overrides  # noqa: F401 (part of this API)
+from ..scenes.metrics import state_err
 from ..trajectory import Status
 from ..run import timing
 from ..run.processes import raise_unless_data
@@ -50,22 +55,7 @@ from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
 from ..engines.base import EPS
 from ..run.workers import WatchedPool
 
-LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "rhs_evals",
-                  "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
-                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "source")
-LADDER, SHORT_LADDER = "ladder", "short-ladder"   # the `source` of a ladder's points and convergence row
-LADDER_POINTS = 10
 TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
-STABLE_ENERGY_DRIFT = 1.0    # energy off by its whole scale: the run has blown up even if |ω| is not yet 1e6 x
-STABILITY_RTOL = 0.02        # bisection stops when the bracket [stable, unstable] is this tight (relative)
-MIN_STEPS = 20               # the largest dt tried is t_end / MIN_STEPS: fewer steps say nothing about stability
-# A short ladder stops at SHORT_TARGET asymptotic points: three, so that one point bent by rounding or by the
-# pre-asymptotic range shows as a bent line, and so that a fit steeper than the declared order can be kept as
-# superconvergence (fitting.STEEP). Its walk to finer steps ends after SHORT_POINTS points in all (each at most
-# max_steps steps); its walk to coarser steps goes on up to t_end / MIN_STEPS, which an exact method needs to be called
-# exact: doubling from dt, all its points together cost fewer steps than one run at dt (t_end/2dt + t_end/4dt + ...).
-# Measured: strang_free_flow on a 500 s case from dt = 0.25 stopped at 6.4 s with a 6-point cap, its claim unmeasured.
-SHORT_POINTS, SHORT_TARGET = 6, 3
 
 
 # ------------------------------------------------------------------------------------------------ one point
@@ -101,66 +91,19 @@ def _timed(sim, grid) -> dict:
     return timing.columns(timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S), grid.t_end)
 
 
-def time_points(points: list[dict], families_by_label: dict[tuple, "Family"]) -> None:
-    """The ladders' timing phase (harness.run.timing.time_points: a timed run shares the cores with no other run)."""
+def time_points(points: list[dict], families_by_key: dict[tuple, Family], setting: str = "dt") -> None:
+    """The timing phase of the dt ladders, the tolerance ladders and the advice, its one home (harness.run.timing.
+    time_points: a timed run shares the cores with no other run): each point's run prepared again from its family
+    (families_by_key: Family.key -> Family) at the point's setting, "dt" or "tolerance"."""
     def prepare(row: dict):
-        family = families_by_label[(row["case"], row["engine"], row["formulation"], row["integrator"],
-                                    row["precision"])]
-        return prepare_run(family.run(dt=row["dt"]))
+        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"],
+                                  row["precision"])]
+        return prepare_run(family.run(**{setting: row[setting]}))
 
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
 
 
-def _stable(row: dict) -> bool:
-    drift = row.get("energy_drift", math.nan)
-    return row.get("status") == Status.OK.value and not (isinstance(drift, float) and drift > STABLE_ENERGY_DRIFT)
-
-
-# ------------------------------------------------------------------------------------------------ stability
-
-def walk(dt: float, direction: int, dt_floor: float, dt_cap: float):
-    """dt doubled (direction +1) or halved (-1) again and again while it stays in [dt_floor, dt_cap]: the one walk of
-    the stability search and the short ladders."""
-    while True:
-        dt = dt * 2.0 ** direction
-        if not dt_floor * (1 - 1e-12) <= dt <= dt_cap * (1 + 1e-12):
-            return
-        yield dt
-
-
-def stability_limit(is_stable: Callable[[float], bool], dt_start: float, dt_cap: float,
-                    dt_floor: float) -> tuple[float, str]:
-    """(largest stable dt, note): doubling or halving from dt_start until the outcome changes, then geometric
-    bisection to STABILITY_RTOL. NaN with a note when no change is found in [dt_floor, dt_cap]."""
-    dt = min(dt_start, dt_cap)
-    first = is_stable(dt)
-    last = {first: dt}  # the last dt tried with each outcome
-    for dt in walk(dt, 1 if first else -1, dt_floor, dt_cap):
-        outcome = is_stable(dt)
-        last[outcome] = dt
-        if outcome != first:
-            break
-    else:
-        return math.nan, (f"stable up to dt = {dt:.4g} s (t_end / {MIN_STEPS} is the largest tried)" if first
-                          else f"unstable down to dt = {dt:.4g} s")
-    stable_dt, unstable_dt = last[True], last[False]
-    while unstable_dt / stable_dt > 1.0 + STABILITY_RTOL:
-        middle = math.sqrt(stable_dt * unstable_dt)
-        if is_stable(middle):
-            stable_dt = middle
-        else:
-            unstable_dt = middle
-    return stable_dt, ""
-
-
 # ------------------------------------------------------------------------------------------------ ladders
-
-def ladder_dts(top: float, bottom: float, points: int = LADDER_POINTS) -> list[float]:
-    """points log-spaced steps from top down to bottom (each rounded to 4 significant digits, so a dt prints back)."""
-    if not bottom < top:
-        return [top]
-    return [float(f"{x:.4g}") for x in np.geomspace(top, bottom, points)]
-
 
 def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     """The ladder of one family: its points and its convergence row. Never raises."""
@@ -171,7 +114,7 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
 
     def is_stable(dt: float) -> bool:
         cache[dt] = measure(family, dt, timed=False, with_truth=False)
-        return _stable(cache[dt])
+        return stable(cache[dt])
 
     start = max(case.dt)
     stable_dt, stability_note = stability_limit(is_stable, start, cap, floor)
@@ -237,58 +180,8 @@ def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple
     row = {**family.columns, "stable_dt_max": math.nan, "source": SHORT_LADDER}
     row.update(fit(frame(), declared, family.precision))
     if not math.isfinite(row["order"]):
-        row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *_short_reason(family, marked())])
+        row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *short_reason(family, marked())])
     return new, row
-
-
-def _short_reason(family: Family, points: pd.DataFrame) -> list[str]:
-    """Why a short ladder found no order, in words a reader acts on (points: fitting.regimes' marked points)."""
-    at_round_off = points[points["regime"] == fitting.ROUNDOFF]
-    others = points[points["regime"] != fitting.ROUNDOFF]
-    # A point finer than every point at round-off that did not run ok (a run budget: an elliptic-function step costs
-    # 1.3 ms) has no error: no evidence either way. Whether the method is exact rests on the points that ran.
-    unrun = others[(others["regime"] == fitting.FAILED) & (others["dt"] < at_round_off["dt"].min())] \
-        if len(at_round_off) else others.iloc[:0]
-    others = others.drop(unrun.index)
-    if len(at_round_off) and (others.empty or others["dt"].min() > at_round_off["dt"].max()):
-        largest = at_round_off["dt"].max()
-        ran = "" if unrun.empty else (
-            f" (dt = {', '.join(f'{dt:.3g}' for dt in unrun['dt'])} did not run ok: {fitting.NO_EVIDENCE}, so this "
-            f"rests on the {len(at_round_off)} points that ran, dt = {at_round_off['dt'].min():.3g} to {largest:.3g})")
-        if others.empty:  # exact at every dt the walk reached: up to t_end / MIN_STEPS, or the walk stopped early
-            return ["exact for this motion: the error is at round-off up to the largest dt tried" + ran] \
-                if largest * 2.0 > family.case.t_end / MIN_STEPS * (1 + 1e-9) else []
-        first = others.loc[others["dt"].idxmin()]
-        what = {fitting.FAILED: "did not run ok", fitting.ABOVE: f"state_err > {fitting.ASYMPTOTIC_MAX:g}",
-                fitting.ASYMPTOTIC: "the error leaves round-off",
-                fitting.IRREGULAR: "the error leaves round-off"}[first["regime"]]
-        if first["regime"] == fitting.FAILED:
-            return [f"error at round-off for every stable dt: every dt up to {largest:.3g} (dt = {first['dt']:.3g}: "
-                    f"{what}){ran}"]
-        return [f"error at round-off for every dt up to {largest:.3g} (dt = {first['dt']:.3g}: {what}){ran}"]
-    chaotic = sorted(set(family.case.tags) & set(CHAOTIC_TAGS))
-    ok = points[points["regime"] != fitting.FAILED]
-    if len(ok) and (ok["regime"] == fitting.ABOVE).all() and chaotic:
-        return [f"the case is {'/'.join(chaotic)}: its error grows exponentially and stays above the asymptotic "
-                "range at every dt tried"]
-    return []
-
-
-# A first part keeps FIRST_PART_MARGIN between the range's top and its model error at the coarsest of three points
-# above the steps cap, and is at least t_end / 2 ** FIRST_PART_HALVINGS long.
-FIRST_PART_MARGIN, FIRST_PART_HALVINGS = 2.0, 10
-
-
-def first_part_span(t_end: float, dt: float, err: float, order: float, max_steps: int) -> float:
-    """The longest span t_end / 2^k (k >= 1) over which three dt down to its steps cap, 4, 2 and 1 x span / max_steps,
-    are in the asymptotic range by the error model err x (t / t_end) x (dt' / dt)^order (a phase error, growing
-    linearly in time; order the declared one) from one point (dt, err) over t_end; NaN where none is."""
-    for k in range(1, FIRST_PART_HALVINGS + 1):
-        span = t_end / 2 ** k
-        coarsest = 4.0 * span / max_steps
-        if err * (span / t_end) * (coarsest / dt) ** order <= fitting.ASYMPTOTIC_MAX / FIRST_PART_MARGIN:
-            return span
-    return math.nan
 
 
 def run_first_part(family: Family, points: list[dict], max_steps: int, row: dict) -> tuple[list[dict], dict]:
@@ -324,21 +217,6 @@ def run_first_part(family: Family, points: list[dict], max_steps: int, row: dict
         return new, {**fitted, "note": "; ".join(x for x in (note, fitted["note"]) if x)}
     return new, {**row, "note": "; ".join(x for x in (row["note"], f"over the first {span:g} s no order either "
                                                                      f"({fitted['points']} asymptotic point(s))") if x)}
-
-
-def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
-             formulations: tuple[str, ...] | None = None) -> list[Family]:
-    """The fixed-step run families a sweep of these cases would have (harness.run.plan.plan's selection)."""
-    from ..run.plan import plan
-
-    specs, _ = plan(cases, engines, integrators)
-    out = {}
-    for spec in specs:
-        if spec.dt is None or (formulations is not None and spec.formulation not in formulations):
-            continue
-        out.setdefault((spec.case.name, spec.engine, spec.formulation, spec.integrator, spec.precision),
-                       Family(spec.case, spec.engine, spec.formulation, spec.integrator, spec.precision))
-    return list(out.values())
 
 
 def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> tuple[list[dict], dict]:
