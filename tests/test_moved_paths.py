@@ -38,7 +38,7 @@ def test_a_plugin_import_of_0_2_0_works_in_a_fresh_interpreter():
 def test_no_module_of_the_package_imports_an_old_path():
     code = ("import warnings; warnings.simplefilter('error', DeprecationWarning)\n"
             "import stereodyn.harness.cli, stereodyn.harness.analysis.workprecision, stereodyn.harness.analysis.verdicts\n"
-            "import stereodyn.harness.cli.run, stereodyn.harness.cli.advise, stereodyn.harness.analysis.advice\n"
+            "import stereodyn.harness.cli.run, stereodyn.harness.cli.advise, stereodyn.harness.pipeline.advice\n"
             "import stereodyn.harness.report.build, stereodyn.harness.testing, stereodyn.harness.engines.reference\n")
     subprocess.run([sys.executable, "-c", code], check=True)
 

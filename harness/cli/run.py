@@ -10,7 +10,7 @@ from . import BadInput, check_names, output_folder, select_cases
 def main(args) -> int:
     from .. import budget
     from ..analysis import verdicts
-    from ..pipeline import Request, run
+    from ..pipeline.phases import Request, run
     from ..run.sweep import SweepOptions
 
     check_names(args)

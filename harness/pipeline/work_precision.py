@@ -22,9 +22,9 @@ from ..analysis.ladders import LADDER_COLUMNS, tolerance_frame
 from ..analysis.step_advice import ADVICE_COLUMNS, advice_tasks
 from ..run.workers import WatchedPool
 from ..scenes.cases import Case
-from . import advice as advising
-from . import tolerance_ladders
+from .advice import run_advice
 from .dt_ladders import run_ladders
+from .tolerance_ladders import run_ladders as run_tolerance_ladders
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,7 @@ def ladders(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         ladder_rows = workprecision.with_first_parts(ladder_rows, parts)
     convergence = workprecision.convergence_rows(ladder_rows, plan.sweep_rows)
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
-    tolerance_df = tolerance_frame(tolerance_ladders.run_ladders(plan.adaptive, pool, progress, plan.tolerances)
+    tolerance_df = tolerance_frame(run_tolerance_ladders(plan.adaptive, pool, progress, plan.tolerances)
                                    if plan.adaptive else [])
     paths = workprecision.write_tables(out_dir, results, ladder_df, convergence, tolerance_df, write_pareto)
     workprecision.write_order_checks(out_dir, convergence)
@@ -72,7 +72,7 @@ def advice(out_dir: Path, results: pd.DataFrame, measured: Ladders, pool: Watche
         return None
     tasks = advice_tasks(plan.chosen, plan.adaptive, results, measured.ladder, measured.tolerance,
                          measured.convergence, tolerance_fits(measured.tolerance))
-    table = advising.run_advice(tasks, workprecision.advice_targets(plan.mode), plan.max_steps, pool, progress) \
+    table = run_advice(tasks, workprecision.advice_targets(plan.mode), plan.max_steps, pool, progress) \
         if tasks else pd.DataFrame(columns=list(ADVICE_COLUMNS))
     return workprecision.write_advice(out_dir, table)
 
