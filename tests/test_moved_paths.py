@@ -52,3 +52,17 @@ def test_run_sweep_with_0_2_0_arguments_warns_and_sweeps_as_with_options(tmp_pat
     pd.testing.assert_frame_equal(old.drop(columns=TIMINGS), new.drop(columns=TIMINGS))
     with pytest.raises(TypeError, match="unexpected arguments"):  # options and 0.2.0's arguments: not both
         run_sweep([case], SweepOptions(["pinocchio"], tmp_path / "both"), jobs=1)
+
+
+def test_names_that_moved_to_the_pipeline_are_forwarded_with_a_warning():
+    """analysis.workprecision.analyse and the verdicts' check runs moved to harness.pipeline in issue 29 (analysis runs
+    nothing): the old attribute is the new object, with a DeprecationWarning naming it (harness/moved.py: forwarded)."""
+    from stereodyn.harness.analysis import verdicts, workprecision
+    from stereodyn.harness.pipeline import checks, work_precision
+
+    with pytest.warns(DeprecationWarning, match=r"use stereodyn\.harness\.pipeline\.work_precision\.analyse"):
+        assert workprecision.analyse is work_precision.analyse
+    with pytest.warns(DeprecationWarning, match=r"use stereodyn\.harness\.pipeline\.checks\.energy_verdicts"):
+        assert verdicts.energy_verdicts is checks.energy_verdicts
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        workprecision.no_such_name  # noqa: B018
