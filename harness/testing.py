@@ -24,7 +24,6 @@ harness.analysis.claims, those of `stereodyn run`'s verdicts (DESIGN §5), on a 
 """
 from __future__ import annotations
 
-import math
 from collections import abc
 from pathlib import Path
 from typing import Iterable

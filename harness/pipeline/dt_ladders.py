@@ -34,7 +34,6 @@ import math
 from concurrent.futures import as_completed
 from typing import Callable
 
-import numpy as np
 import pandas as pd
 
 from .. import budget
