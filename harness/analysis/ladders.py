@@ -15,7 +15,7 @@ import pandas as pd
 
 from . import fitting
 from ..engines import get_engine
-from ..engines.base import FLOAT64
+from ..engines.base import EPS, FLOAT64
 from ..run.spec import Family
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..trajectory import Status
@@ -85,6 +85,63 @@ def ladder_dts(top: float, bottom: float, points: int = LADDER_POINTS) -> list[f
     if not bottom < top:
         return [top]
     return [float(f"{x:.4g}") for x in np.geomspace(top, bottom, points)]
+
+
+def short_ladder(family: Family, known: list[dict], max_steps: int, declared: float,
+                 measure_at: Callable[[float], dict]) -> tuple[list[dict], dict]:
+    """A short ladder's walk (harness.pipeline.dt_ladders' docstring): from the family's known points (columns dt,
+    steps, status, state_err), which dt to run next, coarser first, until SHORT_TARGET points are asymptotic or the walk
+    stops; measure_at(dt) runs one point and returns its ladder row (the pipeline's). Returns the new points and the
+    family's convergence row (fitted against declared, its note saying why where no order came)."""
+    case = family.case
+    cap, floor = case.t_end / MIN_STEPS, case.t_end / max_steps
+    columns = ["dt", "steps", "status", "state_err"]
+    new: list[dict] = []
+
+    def frame() -> pd.DataFrame:  # the sweep's points and the new ones
+        return pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns)
+
+    def marked() -> pd.DataFrame:
+        return fitting.regimes(frame(), EPS[family.precision])[0]
+
+    def asymptotic() -> int:
+        return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
+
+    # a point that leaves the range in the walk's direction ends that direction
+    leaves = {1: (fitting.ABOVE, fitting.FAILED), -1: (fitting.ROUNDOFF, fitting.IRREGULAR)}
+    stops = []
+    for direction in (1, -1):  # coarser first: its steps are the cheap ones
+        points = marked()
+        edge = points.iloc[0] if direction == 1 else points.iloc[-1]
+        if asymptotic() >= SHORT_TARGET or edge["regime"] in leaves[direction]:
+            continue
+        if direction == -1 and edge["regime"] == fitting.FAILED and (points["regime"] != fitting.FAILED).any():
+            continue  # failed finer than a run that finished (a run budget, not a stability limit): finer costs more
+        last = None
+        for dt in walk(float(edge["dt"]), direction, floor, cap):
+            if direction == -1 and len(new) >= SHORT_POINTS:  # the coarse walk ends at the cap (its cost: see above)
+                stops.append(f"short ladder stopped at {SHORT_POINTS} points")
+                break
+            previous = marked().iloc[-1]  # the finest point before this one (used when walking finer)
+            new.append(measure_at(float(f"{dt:.4g}")) | {"source": SHORT_LADDER})
+            points = marked()
+            last = points.loc[points["dt"] == new[-1]["dt"], "regime"].iloc[-1]
+            if asymptotic() >= SHORT_TARGET or last in leaves[direction]:
+                break
+            if direction == -1 and last == previous["regime"] == fitting.ABOVE \
+                    and new[-1]["state_err"] > previous["state_err"] * 2.0 ** -fitting.FLOOR_SLOPE:
+                # saturated (an attitude error of order pi, a chaotic separation): finer steps here are the costly ones
+                stops.append(f"state_err not falling above {fitting.ASYMPTOTIC_MAX:g} from dt = {previous['dt']:.3g} "
+                             f"to {new[-1]['dt']:.3g}")
+                break
+        else:
+            stops.append(f"dt = {dt if last else edge['dt']:.3g} is the " + (
+                f"largest tried (t_end / {MIN_STEPS})" if direction == 1 else f"smallest tried (t_end / {max_steps})"))
+    row = {**family.columns, "stable_dt_max": math.nan, "source": SHORT_LADDER}
+    row.update(fitting.fit(frame(), declared, family.precision))
+    if not math.isfinite(row["order"]):
+        row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *short_reason(family, marked())])
+    return new, row
 
 
 def short_reason(family: Family, points: pd.DataFrame) -> list[str]:

@@ -41,8 +41,8 @@ from ..analysis import fitting
 from ..analysis.fitting import declared_order, fit
 from ..analysis.ladders import (FIRST_PART_HALVINGS, FIRST_PART_MARGIN, LADDER, LADDER_COLUMNS,  # noqa: F401
                                 LADDER_POINTS, MIN_STEPS, SHORT_LADDER, SHORT_POINTS, SHORT_TARGET, STABILITY_RTOL,
-                                STABLE_ENERGY_DRIFT, families, first_part_span, ladder_dts, short_reason,
-                                stability_limit, stable, walk)  # (F401: re-exported, this module's API before issue 29)
+                                STABLE_ENERGY_DRIFT, families, first_part_span, ladder_dts, short_ladder,
+                                short_reason, stability_limit, stable, walk)  # (F401: re-exported, this module's API before issue 29)
 from ..scenes import scene_of
 from ..scenes.cases import CHAOTIC_TAGS, Case, with_overrides  # noqa: F401 (part of this API)
 from ..scenes.metrics import state_err
@@ -129,58 +129,10 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
 
 def run_short_ladder(family: Family, known: list[dict], max_steps: int) -> tuple[list[dict], dict]:
     """The short ladder of a family whose own dt list (known: the sweep's runs of it, with columns dt, steps, status,
-    state_err) has fewer than two asymptotic points: its points (untimed) and its convergence row. A point that
-    breaks is data (measure), as in the sweep."""
-    case = family.case
+    state_err) has fewer than two asymptotic points: its points (untimed) and its convergence row. Which dt it runs is
+    analysis.ladders.short_ladder's; each point is run here (measure: a point that breaks is data, as in the sweep)."""
     declared = declared_order(family.engine, family.integrator, family.formulation)
-    cap, floor = case.t_end / MIN_STEPS, case.t_end / max_steps
-    columns = ["dt", "steps", "status", "state_err"]
-    new: list[dict] = []
-
-    def frame() -> pd.DataFrame:  # the sweep's points and the new ones
-        return pd.DataFrame([{c: p.get(c, math.nan) for c in columns} for p in known + new], columns=columns)
-
-    def marked() -> pd.DataFrame:
-        return fitting.regimes(frame(), EPS[family.precision])[0]
-
-    def asymptotic() -> int:
-        return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
-
-    # a point that leaves the range in the walk's direction ends that direction
-    leaves = {1: (fitting.ABOVE, fitting.FAILED), -1: (fitting.ROUNDOFF, fitting.IRREGULAR)}
-    stops = []
-    for direction in (1, -1):  # coarser first: its steps are the cheap ones
-        points = marked()
-        edge = points.iloc[0] if direction == 1 else points.iloc[-1]
-        if asymptotic() >= SHORT_TARGET or edge["regime"] in leaves[direction]:
-            continue
-        if direction == -1 and edge["regime"] == fitting.FAILED and (points["regime"] != fitting.FAILED).any():
-            continue  # failed finer than a run that finished (a run budget, not a stability limit): finer costs more
-        last = None
-        for dt in walk(float(edge["dt"]), direction, floor, cap):
-            if direction == -1 and len(new) >= SHORT_POINTS:  # the coarse walk ends at the cap (its cost: see above)
-                stops.append(f"short ladder stopped at {SHORT_POINTS} points")
-                break
-            previous = marked().iloc[-1]  # the finest point before this one (used when walking finer)
-            new.append(measure(family, float(f"{dt:.4g}"), timed=False) | {"source": SHORT_LADDER})
-            points = marked()
-            last = points.loc[points["dt"] == new[-1]["dt"], "regime"].iloc[-1]
-            if asymptotic() >= SHORT_TARGET or last in leaves[direction]:
-                break
-            if direction == -1 and last == previous["regime"] == fitting.ABOVE \
-                    and new[-1]["state_err"] > previous["state_err"] * 2.0 ** -fitting.FLOOR_SLOPE:
-                # saturated (an attitude error of order pi, a chaotic separation): finer steps here are the costly ones
-                stops.append(f"state_err not falling above {fitting.ASYMPTOTIC_MAX:g} from dt = {previous['dt']:.3g} "
-                             f"to {new[-1]['dt']:.3g}")
-                break
-        else:
-            stops.append(f"dt = {dt if last else edge['dt']:.3g} is the " + (
-                f"largest tried (t_end / {MIN_STEPS})" if direction == 1 else f"smallest tried (t_end / {max_steps})"))
-    row = {**family.columns, "stable_dt_max": math.nan, "source": SHORT_LADDER}
-    row.update(fit(frame(), declared, family.precision))
-    if not math.isfinite(row["order"]):
-        row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *short_reason(family, marked())])
-    return new, row
+    return short_ladder(family, known, max_steps, declared, lambda dt: measure(family, dt, timed=False))
 
 
 def run_first_part(family: Family, points: list[dict], max_steps: int, row: dict) -> tuple[list[dict], dict]:
