@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
 
-from ..reference.truth import OutOfTime
+from ..reference.deadline import OutOfTime
 
 # Defaults (docs/limits.md, "Time"). The suite's longest accuracy run (an extreme case's 1e6 steps of a Python-stepped
 # integrator) takes ~15 s on the 2-core dev machine; its longest truth ~10 s with its real128 certification; model

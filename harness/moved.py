@@ -1,4 +1,5 @@
-"""The import paths of 0.2.0 that moved in the layout of issue 20 (DESIGN §1), kept importable as aliases.
+"""The import paths of 0.2.0 that moved in the layout of issue 20 (DESIGN §1), and those that moved to the pipeline
+layer in issue 29, kept importable as aliases.
 
 `import stereodyn.harness.cases` (a plug-in's `from stereodyn.harness.cases import Case`) gives the module at its new
 path, the same object, so attributes, monkeypatching and pickling agree, with a DeprecationWarning naming the new path.
@@ -15,26 +16,29 @@ import warnings
 MOVED = {  # old module under stereodyn.harness -> its path now
     "cases": "scenes.cases", "checks": "scenes.checks", "metrics": "scenes.metrics", "oracles": "scenes.oracles",
     "series": "scenes.series", "sliding_ladder": "scenes.sliding_ladder",
-    "distributed": "run.distributed", "dt_ladders": "analysis.dt_ladders", "plan": "run.plan",
+    "distributed": "run.distributed", "dt_ladders": "pipeline.dt_ladders", "plan": "run.plan",
     "processes": "run.processes", "progress": "run.progress", "results": "run.results", "runner": "run.sweep",
-    "store": "run.store", "timing": "run.timing", "tolerance_ladders": "analysis.tolerance_ladders",
+    "store": "run.store", "timing": "run.timing", "tolerance_ladders": "pipeline.tolerance_ladders",
     "compare": "analysis.compare", "fitting": "analysis.fitting", "gate": "analysis.gate",
     "summary": "analysis.summary", "verdicts": "analysis.verdicts", "workprecision": "analysis.workprecision",
     # not in 0.2.0: for branches begun before these moved
     "pareto": "analysis.pareto", "step_advice": "analysis.step_advice",
+    # issue 29: the modules of analysis/ that ran simulations are the pipeline's (their pure tables and rules stay in
+    # analysis: ladders.py, step_advice.py)
+    "analysis.dt_ladders": "pipeline.dt_ladders", "analysis.tolerance_ladders": "pipeline.tolerance_ladders",
+    "analysis.advice": "pipeline.advice",
 }
 PACKAGE = "stereodyn.harness"
 
 
 class _Alias(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     def find_spec(self, fullname, path=None, target=None):
-        package, _, leaf = fullname.rpartition(".")
-        if package != PACKAGE or leaf not in MOVED:
+        if not fullname.startswith(PACKAGE + ".") or fullname[len(PACKAGE) + 1:] not in MOVED:
             return None
         return importlib.machinery.ModuleSpec(fullname, self)
 
     def create_module(self, spec):
-        new = f"{PACKAGE}.{MOVED[spec.name.rpartition('.')[2]]}"
+        new = f"{PACKAGE}.{MOVED[spec.name[len(PACKAGE) + 1:]]}"
         warnings.warn(f"{spec.name} is deprecated: import {new}", DeprecationWarning, stacklevel=2)
         module = importlib.import_module(new)
         spec.loader_state = module.__spec__
@@ -48,3 +52,14 @@ class _Alias(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 def install() -> None:
     if not any(isinstance(finder, _Alias) for finder in sys.meta_path):
         sys.meta_path.append(_Alias())
+
+
+def forwarded(module: str, name: str, moved: dict[str, str]):
+    """A module's __getattr__ for names that moved out of it (moved: name -> its module now, under stereodyn.harness):
+    the object at its new home, with a DeprecationWarning naming it; AttributeError for any other name. The import is
+    by name, at the first use: an analysis module never imports the pipeline (tests/test_layers.py)."""
+    if name not in moved:
+        raise AttributeError(f"module {module!r} has no attribute {name!r}")
+    new = f"{PACKAGE}.{moved[name]}"
+    warnings.warn(f"{module}.{name} is deprecated: use {new}.{name}", DeprecationWarning, stacklevel=2)
+    return getattr(importlib.import_module(new), name)

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 from test_euler_angles import lagrange_through_vertical
 
-from stereodyn.harness.analysis import tolerance_ladders
+from stereodyn.harness.pipeline import tolerance_ladders
 from stereodyn.harness.analysis import fitting
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines.reference import ReferenceEngine

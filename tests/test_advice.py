@@ -150,13 +150,14 @@ def test_the_default_run_writes_checked_advice_and_the_report_shows_it_per_engin
     """The default ladders' families get advice.csv rows at 1e-3 and 1e-6 rad, each checked: the dt reaches the
     target, the checked dt above it (at most 1.25x) does not, and the advised run is timed."""
     from stereodyn.harness.analysis import workprecision
+    from stereodyn.harness.pipeline import work_precision
     from stereodyn.harness.report.workprecision import report_lines
     from stereodyn.harness.run.sweep import SweepOptions, run_sweep
     from stereodyn.harness.scenes.cases import find_case, with_overrides
 
     case = with_overrides(find_case("free-asymmetric"), t_end=2.0, dt=[2e-2, 1e-2])
     df = run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["rk4"], jobs=1, certify=False))
-    workprecision.analyse(tmp_path, df, [case], ["mujoco"], ["rk4"], ladder="default", max_steps=2000)
+    work_precision.analyse(tmp_path, df, [case], ["mujoco"], ["rk4"], ladder="default", max_steps=2000)
     advice = pd.read_csv(tmp_path / workprecision.ADVICE_FILE, keep_default_na=False, na_values=[""])
     assert tuple(advice.columns) == step_advice.ADVICE_COLUMNS
     assert list(advice["target"]) == list(workprecision.DEFAULT_ADVICE_TARGETS)

@@ -1,4 +1,4 @@
-"""Step-size advice (harness.analysis.advice, step_advice) on a known error law: the rows a family gets, their order,
+"""Step-size advice (harness.pipeline.advice, analysis.step_advice) on a known error law: the rows a family gets, their order,
 the step cap, the cost, the families advised. The runs are replaced by the law (dt_ladders.measure), so every answer is
 known. Found by the mutation check (tools/mutants.py, docs/mutants.md)."""
 from __future__ import annotations
@@ -9,8 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness.analysis import advice, dt_ladders, step_advice, tolerance_ladders
-from stereodyn.harness.analysis.dt_ladders import Family
+from stereodyn.harness.analysis import step_advice
+from stereodyn.harness.pipeline import advice, dt_ladders, tolerance_ladders
+from stereodyn.harness.pipeline.dt_ladders import Family
 from stereodyn.harness.analysis.step_advice import error_model, rounded, search
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.scenes.cases import find_case, with_overrides
@@ -60,9 +61,9 @@ def test_a_point_that_did_not_finish_ok_never_reaches_a_target(law):
 
 
 def test_the_advised_runs_are_timed_and_their_cost_is_in_the_row(law, monkeypatch):
-    def time_points(points, families):
+    def time_points(points, families, setting="dt"):
         for p in points:
-            p["us_per_sim_s"] = 1e4 * p["dt"]
+            p["us_per_sim_s"] = 1e4 * p[setting]
     monkeypatch.setattr(dt_ladders, "time_points", time_points)
     table = advice.run_advice([(FAMILY, False, [], 4.0)], (1e-3, 1e-6), MAX_STEPS)
     assert np.allclose(table["us_per_sim_s"], 1e4 * table["dt"], rtol=1e-12)
@@ -72,14 +73,15 @@ def test_adaptive_advice_carries_the_cost_of_its_timed_run(monkeypatch):
     """An adaptive family's advised tolerance is timed by the tolerance ladders' timing phase; its row gets that cost
     (issue 28: advice.csv had no us_per_sim_s for adaptive methods)."""
     family = Family(CASE, "reference", "quaternion", "scipy_rk45")
-    row = advice._row(family, 1e-6, "tolerance", setting=1e-8, error=5e-7)
+    row = advice.advice_row(family, 1e-6, "tolerance", setting=1e-8, error=5e-7)
     point = {**family.columns, "tolerance": 1e-8, "status": "ok", "attitude_err": 5e-7}
     monkeypatch.setattr(advice, "advise_family", lambda *a: ([dict(row)], [dict(point)]))
 
-    def time_points(points, families):
+    def time_points(points, families, setting="dt"):  # the one timing phase, at the points' tolerances here
+        assert setting == "tolerance"
         for p in points:
             p["us_per_sim_s"] = 321.0
-    monkeypatch.setattr(tolerance_ladders, "time_points", time_points)
+    monkeypatch.setattr(dt_ladders, "time_points", time_points)
     table = advice.run_advice([(family, True, [], 1.0)], (1e-6,), MAX_STEPS)
     assert table["us_per_sim_s"].tolist() == [321.0] and table["tolerance"].tolist() == [1e-8]
 

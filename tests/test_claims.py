@@ -14,6 +14,7 @@ import pytest
 
 from stereodyn.harness import integrators, testing
 from stereodyn.harness.analysis import claims, verdicts
+from stereodyn.harness.pipeline import checks
 from stereodyn.harness.integrators import properties
 from stereodyn.harness.integrators.lie import RK4, dexp_coefficient
 from stereodyn.harness.scenes.cases import find_case
@@ -239,11 +240,11 @@ def test_property_verdicts_rows_and_a_check_that_breaks(monkeypatch):
     as a failed energy_bounded claim does."""
     df = pd.DataFrame({"engine": ["pinocchio", "pinocchio", "mujoco", "reference"],
                        "integrator": ["rk4_naive", "euler", "rk4", "taylor"], "status": ["ok", "failed", "ok", "ok"]})
-    rows = verdicts.property_verdicts(df)
+    rows = checks.property_verdicts(df)
     assert {(v.verdict, v.engine, v.integrator, v.status) for v in rows} == {
         ("stages", "pinocchio", "rk4_naive", "pass"), ("geometric", "pinocchio", "rk4_naive", "pass")}
     # a table without engines: every state space that has the name
-    assert {(v.verdict, v.engine, v.integrator) for v in verdicts.property_verdicts(df.drop(columns="engine"))} == {
+    assert {(v.verdict, v.engine, v.integrator) for v in checks.property_verdicts(df.drop(columns="engine"))} == {
         ("stages", "pinocchio", "rk4_naive"), ("geometric", "pinocchio", "rk4_naive"), ("stages", "pinocchio", "rk4"),
         ("geometric", "pinocchio", "rk4"), ("stages", "reference", "rk4")}
 
@@ -251,7 +252,7 @@ def test_property_verdicts_rows_and_a_check_that_breaks(monkeypatch):
         raise ValueError("no such body")
 
     monkeypatch.setattr(claims, "check", broken)
-    rows = verdicts.property_verdicts(df)
+    rows = checks.property_verdicts(df)
     assert {v.status for v in rows} == {verdicts.FAIL}
     assert rows[0].line == ("integrator pinocchio rk4_naive declares stages; the check run failed: ValueError: "
                             "no such body")

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from stereodyn.harness import errors
-from stereodyn.harness.analysis import tolerance_ladders
+from stereodyn.harness.pipeline import tolerance_ladders
 from test_advice import CASE_OUTSIDE_THE_SUITE
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,7 +71,7 @@ def test_a_sweep_with_a_bug_in_an_analysis_module_exits_3_with_the_traceback(whe
     the "advice" case exits 0 with 11 "truth failed: AttributeError" rows; without it in run_ladder's, the other."""
     import types
 
-    from stereodyn.harness.analysis import advice
+    from stereodyn.harness.pipeline import advice
     from stereodyn.harness.cli import main
 
     if where == "advice":

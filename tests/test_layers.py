@@ -1,11 +1,12 @@
 """The layers of the package (DESIGN §1): reference <- harness (scenes, run, engines, integrators) <- analysis <-
-report <- cli. A module imports only from its own layer or those below it, anywhere in its source (static, as
-test_import_cycles reads it): analysis never renders (imports nothing from report), reference never imports harness."""
+report <- pipeline <- cli. A module imports only from its own layer or those below it, anywhere in its source (static,
+as test_import_cycles reads it): analysis never renders (imports nothing from report) and runs nothing (nothing that
+measures, pools, times or budgets runs), reference never imports harness."""
 import ast
 
-from test_import_cycles import ROOT, graph, modules
+from test_import_cycles import ROOT, graph, imports, modules
 
-LAYERS = ("reference", "harness", "analysis", "report", "cli")
+LAYERS = ("reference", "harness", "analysis", "report", "pipeline", "cli")
 # stereodyn.harness.testing keeps its 0.2.0 path (plug-ins import it) but measures and fits: the analysis layer.
 ANALYSIS_ELSEWHERE = ("stereodyn.harness.testing",)
 
@@ -15,7 +16,7 @@ def layer(module: str) -> str | None:
     and for the case files' package."""
     if module.startswith("stereodyn.reference"):
         return "reference"
-    for name in ("analysis", "report", "cli"):
+    for name in ("analysis", "report", "pipeline", "cli"):
         if module == f"stereodyn.harness.{name}" or module.startswith(f"stereodyn.harness.{name}."):
             return name
     if module in ANALYSIS_ELSEWHERE:
@@ -53,6 +54,37 @@ def test_analysis_imports_nothing_from_report():
     bad = [f"{m} -> {t}" for m, targets in edges.items() if layer(m) == "analysis" for t in targets
            if layer(t) == "report"]
     assert not bad, bad
+
+
+# What runs simulations (issue 29): the one run -> row, the pool and its workers, timing, the processes' interrupt rule,
+# the sweep, the truths, the Dask path, the budgets. analysis/ reads tables and returns tables: it imports none of them
+# (the pipeline runs what analysis decides), not even inside a function.
+RUNS_THINGS = tuple(f"stereodyn.harness.{m}" for m in (
+    "run.measure", "run.pool", "run.workers", "run.timing", "run.processes", "run.sweep", "run.truth",
+    "run.distributed", "budget"))
+
+
+def running_imports(edges: dict[str, set[str]]) -> list[str]:
+    """Every import by a module of analysis/ of a module that runs things (RUNS_THINGS), as 'importer -> imported'."""
+    return [f"{m} -> {t}" for m, targets in sorted(edges.items())
+            if m == "stereodyn.harness.analysis" or m.startswith("stereodyn.harness.analysis.")
+            for t in sorted(targets) if t in RUNS_THINGS]
+
+
+def test_analysis_imports_nothing_that_runs_simulations():
+    bad = running_imports(graph())
+    assert not bad, "analysis/ imports what runs simulations (move the running part to harness/pipeline/):\n" + \
+        "\n".join(bad)
+
+
+def test_a_lazy_running_import_in_analysis_is_found(tmp_path):
+    """The rule reads imports inside functions too: a fitter that times its runs is caught."""
+    path = tmp_path / "fitting.py"
+    path.write_text("import math\n\ndef fit(points):\n    from ..run import timing\n    return timing\n")
+    name = "stereodyn.harness.analysis.fitting"
+    edges = {name: imports(name, path, set(RUNS_THINGS) | {"stereodyn.harness.run"})}
+    assert running_imports(edges) == [f"{name} -> stereodyn.harness.run.timing"]
+    assert running_imports({"stereodyn.harness.pipeline.advice": {"stereodyn.harness.run.measure"}}) == []
 
 
 def test_an_upward_import_is_found():

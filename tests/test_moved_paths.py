@@ -38,7 +38,7 @@ def test_a_plugin_import_of_0_2_0_works_in_a_fresh_interpreter():
 def test_no_module_of_the_package_imports_an_old_path():
     code = ("import warnings; warnings.simplefilter('error', DeprecationWarning)\n"
             "import stereodyn.harness.cli, stereodyn.harness.analysis.workprecision, stereodyn.harness.analysis.verdicts\n"
-            "import stereodyn.harness.cli.run, stereodyn.harness.cli.advise, stereodyn.harness.analysis.advice\n"
+            "import stereodyn.harness.cli.run, stereodyn.harness.cli.advise, stereodyn.harness.pipeline.advice\n"
             "import stereodyn.harness.report.build, stereodyn.harness.testing, stereodyn.harness.engines.reference\n")
     subprocess.run([sys.executable, "-c", code], check=True)
 
@@ -52,3 +52,17 @@ def test_run_sweep_with_0_2_0_arguments_warns_and_sweeps_as_with_options(tmp_pat
     pd.testing.assert_frame_equal(old.drop(columns=TIMINGS), new.drop(columns=TIMINGS))
     with pytest.raises(TypeError, match="unexpected arguments"):  # options and 0.2.0's arguments: not both
         run_sweep([case], SweepOptions(["pinocchio"], tmp_path / "both"), jobs=1)
+
+
+def test_names_that_moved_to_the_pipeline_are_forwarded_with_a_warning():
+    """analysis.workprecision.analyse and the verdicts' check runs moved to harness.pipeline in issue 29 (analysis runs
+    nothing): the old attribute is the new object, with a DeprecationWarning naming it (harness/moved.py: forwarded)."""
+    from stereodyn.harness.analysis import verdicts, workprecision
+    from stereodyn.harness.pipeline import checks, work_precision
+
+    with pytest.warns(DeprecationWarning, match=r"use stereodyn\.harness\.pipeline\.work_precision\.analyse"):
+        assert workprecision.analyse is work_precision.analyse
+    with pytest.warns(DeprecationWarning, match=r"use stereodyn\.harness\.pipeline\.checks\.energy_verdicts"):
+        assert verdicts.energy_verdicts is checks.energy_verdicts
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        workprecision.no_such_name  # noqa: B018

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import cli
-from stereodyn.harness.analysis import dt_ladders, verdicts, workprecision
+from stereodyn.harness.analysis import verdicts, workprecision
+from stereodyn.harness.pipeline import dt_ladders
 
 
 def _convergence(rows) -> pd.DataFrame:

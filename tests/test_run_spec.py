@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from stereodyn.harness.analysis import tolerance_ladders
+from stereodyn.harness.pipeline import tolerance_ladders
 from stereodyn.harness.engines.base import Engine
 from stereodyn.harness.run import plan as planning
 from stereodyn.harness.run.measure import measure

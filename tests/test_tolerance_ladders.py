@@ -13,8 +13,9 @@ from scipy.integrate import solve_ivp
 from stereodyn.harness import engines
 from stereodyn.harness.run.pool import worker_pool
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep
-from stereodyn.harness.analysis import tolerance_ladders
+from stereodyn.harness.pipeline import tolerance_ladders
 from stereodyn.harness.analysis import fitting, workprecision
+from stereodyn.harness.pipeline import work_precision
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines.base import Engine
 from stereodyn.harness.report import build
@@ -98,7 +99,7 @@ def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine,
     assert [(f.engine, f.formulation, f.integrator) for f in found] == [("stub", "", "stub_dop853")]
     # the whole phase, as `stereodyn run --dt-ladder` has it: the sweep's rows, then the ladders and the tables
     df = run_sweep([case], SweepOptions(["stub"], tmp_path, ["stub_dop853"], jobs=1))
-    workprecision.analyse(tmp_path, df, [case], ["stub"], ["stub_dop853"], ladder="full")
+    work_precision.analyse(tmp_path, df, [case], ["stub"], ["stub_dop853"], ladder="full")
     points = pd.read_csv(tmp_path / workprecision.TOLERANCE_FILE, keep_default_na=False, na_values=[""])
     assert tuple(points.columns) == tolerance_ladders.TOLERANCE_COLUMNS
     assert list(points["tolerance"]) == sorted(tolerance_ladders.TOLERANCES, reverse=True)

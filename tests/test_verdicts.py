@@ -9,10 +9,11 @@ import pytest
 
 from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness import cli
-from stereodyn.harness.analysis import dt_ladders
+from stereodyn.harness.pipeline import dt_ladders
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.run import timing
 from stereodyn.harness.analysis import verdicts, workprecision
+from stereodyn.harness.pipeline import checks
 from stereodyn.harness import integrators as registry
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
@@ -269,7 +270,7 @@ def test_truth_verdicts():
 
 def test_energy_verdict_on_a_bounded_method():
     results = pd.DataFrame([{"integrator": "implicit_midpoint", "status": "ok"}])
-    found = verdicts.energy_verdicts(results)
+    found = checks.energy_verdicts(results)
     assert {(v.engine, v.status) for v in found} == {("pinocchio", "pass"), ("reference", "pass")}
     growth = [float(re.search(r"\(([\d.]+)x\)", v.detail).group(1)) for v in found]
     assert all(g <= 2.0 for g in growth), [v.detail for v in found]
@@ -279,7 +280,7 @@ def test_energy_verdict_fails_a_drifting_method(monkeypatch):
     """Euler's energy error grows about linearly in time: declared bounded, it fails (measured ~20x over 20x)."""
     euler = registry.get("euler", "lie")
     monkeypatch.setattr(euler, "energy_bounded", True)
-    found = [v for v in verdicts.energy_verdicts(pd.DataFrame([{"integrator": "euler", "status": "ok"}]))
+    found = [v for v in checks.energy_verdicts(pd.DataFrame([{"integrator": "euler", "status": "ok"}]))
              if v.engine == "pinocchio"]
     assert [v.status for v in found] == ["fail"] and verdicts.failed_integrators(found) == {("*", "*", "euler")}
 
@@ -306,7 +307,7 @@ def test_energy_verdict_passes_methods_at_round_off_and_fails_a_small_drift(monk
     floor's 2x); the floor testing.energy_noise grows with them. A drift of 8 eps a step still fails."""
     registry.names()
     monkeypatch.setitem(registry._registry, ("lie", StrangDrifting.name), StrangDrifting)
-    found = verdicts.energy_verdicts(pd.DataFrame([{"integrator": name, "status": "ok"} for name in
+    found = checks.energy_verdicts(pd.DataFrame([{"integrator": name, "status": "ok"} for name in
                                                    ("strang_free_flow", "moser_veselov", "strang_drifting")]))
     status = {v.integrator: v for v in found}
     assert status["strang_free_flow"].status == "pass" and status["moser_veselov"].status == "pass", found

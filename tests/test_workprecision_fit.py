@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness.analysis import dt_ladders
+from stereodyn.harness.pipeline import dt_ladders
 from stereodyn.harness.analysis import fitting
 from stereodyn.harness.scenes.cases import find_case, with_overrides
-from stereodyn.harness.analysis.dt_ladders import Family, stability_limit
+from stereodyn.harness.pipeline.dt_ladders import Family, stability_limit
 from stereodyn.harness.analysis.fitting import fit, order_slope, pareto
 
 T_END = 10.0

@@ -10,7 +10,7 @@ from child_processes import ended, started_since
 
 from stereodyn.harness.run.pool import worker_pool
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep
-from stereodyn.harness.analysis import workprecision
+from stereodyn.harness.pipeline import work_precision as workprecision
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 
 ROOT = Path(__file__).resolve().parents[1]

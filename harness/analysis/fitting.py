@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ..scenes import checks
+from ..scenes.metrics import state_err
 from ..engines import EngineError, get_engine
 from ..engines.base import EPS as PRECISION_EPS, FLOAT64
 from ..run.results import with_precision
@@ -91,7 +92,7 @@ MIN_POINTS, MIN_CASES = 3, 3
 NOT_MEASURABLE = "not measurable in"
 # A short ladder's point that did not run ok (a run budget) where the others are at round-off: its words in the note.
 NO_EVIDENCE = "no error, no evidence either way"
-# The note of an order measured over the case's first part only (analysis.dt_ladders.run_first_part): the verdict
+# The note of an order measured over the case's first part only (pipeline.dt_ladders.run_first_part): the verdict
 # quotes it, so a reader sees over what span the order was measured.
 FIRST_PART = "order measured over the first"
 
@@ -163,7 +164,7 @@ def reason(marked: pd.DataFrame) -> str:
 
 
 # The kinds of reason a convergence row's note gives, by the words that start them (the report counts families by
-# these): fit() and harness.analysis.dt_ladders write them.
+# these): fit() and harness.pipeline.dt_ladders write them.
 NOTE_GROUPS = (
     (FIRST_PART, "order measured over the case's first part (the whole span's error above the range at the cap)"),
     (SUPERCONVERGENT, SUPERCONVERGENT),
@@ -230,9 +231,9 @@ def fit(points: pd.DataFrame, declared: float, precision: str = FLOAT64) -> dict
 
 
 def with_state_err(df: pd.DataFrame) -> pd.DataFrame:
+    """A copy of the table with its state_err column (harness.scenes.metrics.state_err, the rule's one home)."""
     df = df.copy()
-    parts = df[["attitude_err", "omega_err", "casimir_drift"]].astype(float)
-    df["state_err"] = parts.max(axis=1).where(np.isfinite(df["attitude_err"].astype(float)))
+    df["state_err"] = state_err(df)
     return df
 
 

@@ -5,7 +5,7 @@ Scopes: `any` (every run: the reference formulations and heyoka's Taylor method 
 ran (only that engine's runs: what a user of that engine can switch to). In each cell of a scope:
 - candidates: the scope's ok runs with a finite error and a timing that reach the target; runs whose integrator failed
   a verdict are left out (named in `not_recommended` where cheaper), and so are runs whose timing was disturbed
-  (harness.run.timing.disturbed: a spread larger than the time itself, still so after the timing phase re-timed it);
+  (harness.run.results.disturbed: a spread larger than the time itself, still so after the timing phase re-timed it);
 - tie-mates: every candidate within the timing noise of the fastest (TIE_RTOL, the spreads), but never one more than
   TIE_MAX_RATIO times slower than the fastest, whatever its spread;
 - the winner: among the tie-mates of the fastest's engine, the fewest right-hand-side evaluations per simulated second
@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from ..run.timing import disturbed
+from ..run.results import disturbed
 from ..trajectory import Status
 from .text import number as _num
 

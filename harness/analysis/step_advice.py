@@ -2,7 +2,9 @@
 asymptotic range (s the step dt, or the requested tolerance of an adaptive method), and the checked search for the
 largest setting whose max attitude error reaches a target.
 
-The search is given a function that runs the family at a setting and returns the error (analysis.advice runs it):
+The search is given a function that runs the family at a setting and returns the error (harness.pipeline.advice runs
+it, and the advised runs' timing; which families are advised, and on which known points, is advice_tasks and
+families_to_advise below):
 it starts just inside the model's estimate, steps once by CHECK_RATIO to the other side, then doubles or halves until
 a setting that reaches the target and one that does not are known, and bisects (geometrically) until they are within
 CHECK_RATIO. The setting advised is the one that reaches it, with its measured error. A target the family cannot
@@ -20,6 +22,13 @@ import numpy as np
 import pandas as pd
 
 from . import fitting
+from .fitting import FAMILY, with_state_err
+from .ladders import TOLERANCES
+from ..engines import get_engine
+from ..precision import FLOAT64
+from ..run.results import with_precision
+from ..run.spec import Family
+from ..trajectory import Status
 
 CHECK_RATIO = 1.25        # the advised setting reaches the target, CHECK_RATIO times it (checked) does not
 MAX_CHECK_RUNS = 10       # runs per target at most (a good model needs 2; a bracket from scratch ~6)
@@ -200,3 +209,92 @@ def _not_reached(known: dict[float, float], lo: float, what: str, cap: str, runs
     return Advice(math.nan, math.nan, at, error, runs,
                   f"{_beyond(what)}: not reached down to {what} = {at:.4g}" + (f" ({cap})" if cap else "")
                   + f", {why}" + (f"; the model needs {what} = {estimate:.3g}" if math.isfinite(estimate) else ""))
+
+
+# ------------------------------------------------------------------------------------------------ what is advised
+
+# The tolerances an advice may name: the tolerance ladders' range (harness.analysis.ladders.TOLERANCES).
+TOLERANCE_LO, TOLERANCE_HI = min(TOLERANCES), max(TOLERANCES)
+
+
+def advised_error(row: dict) -> float:
+    """The error an advice is checked on: a run's attitude_err, NaN unless it ran ok."""
+    err = row.get("attitude_err", math.nan)
+    return float(err) if row.get("status") == Status.OK.value and err is not None and math.isfinite(err) \
+        else math.nan
+
+
+def advice_row(family: Family, target: float, what: str, setting: float = math.nan, **columns) -> dict:
+    """One advice.csv row (ADVICE_COLUMNS) of a family at a target; what: its setting's column, "dt" or "tolerance"."""
+    row = {c: math.nan for c in ADVICE_COLUMNS} | {
+        "case": family.case.name, "engine": family.engine, "formulation": family.formulation,
+        "integrator": family.integrator, "precision": family.precision, "target": target, "note": ""}
+    row[what] = setting
+    row["error_checked"] = columns.pop("error", math.nan)
+    row.update(columns)
+    return row
+
+
+def family_key(point: dict) -> tuple:
+    """The family key (Family.key: case, engine, formulation, integrator, precision) of a point or row."""
+    return (point["case"], point["engine"], point["formulation"], point["integrator"],
+            point.get("precision") or FLOAT64)
+
+
+def advice_tasks(fixed: list[Family], adaptive: list[Family], results: pd.DataFrame, ladder: pd.DataFrame,
+                 tolerance: pd.DataFrame, convergence: pd.DataFrame,
+                 tolerance_fit: pd.DataFrame) -> list[tuple[Family, bool, list[dict], float]]:
+    """run_advice's tasks after a sweep: each fixed-step family with a fitted order (convergence.csv), its points
+    the sweep's runs and its ladder points (ladder.csv); each adaptive family with a fitted slope (tolerance_fit.csv),
+    its points the tolerance ladder's (tolerance.csv)."""
+    keys = list(FAMILY)
+    results, ladder, tolerance, convergence, tolerance_fit = (
+        with_precision(t) if len(t) else t for t in (results, ladder, tolerance, convergence, tolerance_fit))
+    sweep = results[results["dt"].notna()].fillna({"formulation": ""})
+    if len(sweep):
+        sweep = with_state_err(sweep)
+        sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
+    columns = ["dt", "steps", "status", "state_err", "attitude_err", "us_per_sim_s"]
+    by_family: dict[tuple, list[dict]] = {}
+    for frame_ in (sweep, ladder):
+        if len(frame_):
+            for key, group in frame_.fillna({"formulation": ""}).groupby(keys, sort=False):
+                by_family.setdefault(key, []).extend(group[columns].to_dict("records"))
+    orders = {tuple(r[k] for k in keys): r["order"] for _, r in convergence.fillna({"formulation": ""}).iterrows()}
+    tasks = [(f, False, by_family.get(f.key, []), orders[f.key]) for f in fixed
+             if math.isfinite(orders.get(f.key, math.nan))]
+    slopes = {tuple(r[k] for k in keys): r["slope"] for _, r in tolerance_fit.fillna({"formulation": ""}).iterrows()}
+    points = {key: group[["tolerance", "steps", "status", "state_err", "attitude_err", "us_per_sim_s"]]
+              .to_dict("records") for key, group in tolerance.fillna({"formulation": ""}).groupby(keys, sort=False)} \
+        if len(tolerance) else {}
+    tasks += [(f, True, points.get(f.key, []), slopes[f.key]) for f in adaptive
+              if math.isfinite(slopes.get(f.key, math.nan))]
+    return tasks
+
+
+def families_to_advise(case, engine_name: str, integrators: list[str] | None,
+                       formulation: str | None = None) -> list[tuple[Family, bool]]:
+    """The families `stereodyn advise` checks: the integrators named, or the engine's default-sweep integrators
+    with a declared order or error control, on one formulation (the one named, else quaternion or the engine's
+    first). Bad names raise ValueError with the valid ones."""
+    engine = get_engine(engine_name)
+    own = tuple(engine.formulations())
+    if formulation is None:
+        formulation = "quaternion" if "quaternion" in own else (own[0] if own else "")
+    elif formulation not in own:
+        raise ValueError(f"--formulation: {engine_name} has {', '.join(own) or 'no formulations'}, not {formulation!r}")
+    known = engine.integrators()
+    if integrators:
+        unknown = [i for i in integrators if i not in known]
+        if unknown:
+            raise ValueError(f"--integrator: unknown for {engine_name}: {', '.join(unknown)}; valid: {', '.join(known)}")
+        chosen = list(integrators)
+    else:
+        chosen = [i for i in known if engine.in_default_sweep(i) and engine.default_run(case, formulation, i)
+                  and (engine.adaptive(i) or math.isfinite(engine.declared_order(i)))]
+    out = []
+    for integrator in chosen:
+        if engine.unsupported(case) or engine.unsupported_run(case, formulation, integrator):
+            continue
+        out.append((Family(case, engine_name, formulation, integrator), engine.adaptive(integrator)))
+    return out

@@ -36,10 +36,8 @@ from ..tables import read_optional
 from .fitting import CONVERGENCE_FILE, FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
 from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import read_csv_table, with_precision, write_atomic
-from ..run.processes import raise_unless_data
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
-from ..engines import (TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR,
-                                      engine_for_state_space, get_engine)
+from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, get_engine
 from ..engines.base import FLOAT64, KnownDeviation
 
 VERDICTS_FILE = "verdicts.csv"
@@ -49,7 +47,7 @@ PASS, FAIL, UNMEASURED = "pass", "fail", "not measured"
 # `run --strict` fails it as it fails FAIL, yet "What to use" still recommends its runs (no claim was disproved).
 NO_REASON = "not measured, no reason"
 # Why a case has no fitted order, where the reason excuses it (the words of the convergence note, written by
-# harness.fitting and harness.run.dt_ladders' short ladders; fitting.NOTE_GROUPS) -> the reason in a reader's words.
+# harness.fitting and harness.pipeline.dt_ladders' short ladders; fitting.NOTE_GROUPS) -> the reason in a reader's words.
 EXCUSES = (("exact for this motion", "exact for this motion"),
            ("round-off for every stable dt", "at the precision floor (error at round-off for every stable dt)"),
            ("error at round-off for every dt up to", "at the precision floor (error at round-off up to the largest "
@@ -267,83 +265,6 @@ def _known_deviation(engine: str, integrator: str) -> KnownDeviation | None:
     return next((d for d in declared if d.integrator == integrator and d.quantity == "order"), None)
 
 
-def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
-    """For each integrator of the run that declares energy_bounded: the long-run energy check (harness.testing), on
-    the engine of its state space (Pinocchio for "lie", the reference's quaternion formulation for "vector")."""
-    from .. import integrators as registry
-    from .. import testing
-
-    ran = set(results.loc[results["status"] == "ok", "integrator"].astype(str))
-    long_steps = ENERGY_STEPS * ENERGY_RATIO
-    noise = testing.energy_noise(long_steps)
-    rule = (f"energy error over {long_steps} steps <= {testing.ENERGY_GROWTH:g}x that over {ENERGY_STEPS} (dt "
-            f"{ENERGY_DT:g}, {ENERGY_CASE}), both floored at round-off: {noise:.1e} = (8 + n/4) eps, n the steps")
-    out = []
-    for space in registry.state_spaces():
-        for name in registry.names(space):
-            cls = registry.get(name, space)
-            if name not in ran or not getattr(cls, "energy_bounded", False):
-                continue
-            runner_engine = engine_for_state_space(space)  # where harness.testing runs the integrator
-            engine, formulation = runner_engine.name, runner_engine.default_formulation
-            base = dict(engine=engine, formulation=formulation, integrator=name, rule=rule)
-            try:
-                short = testing.energy_error(cls, ENERGY_CASE, ENERGY_DT, ENERGY_STEPS, space,
-                                             formulation or None)
-                long = testing.energy_error(cls, ENERGY_CASE, ENERGY_DT, ENERGY_STEPS * ENERGY_RATIO, space,
-                                            formulation or None)
-            except Exception as exc:  # a run that breaks is a failed claim, with its reason
-                raise_unless_data(exc)
-                out.append(Verdict("energy_bounded", **base, status=FAIL,
-                                   detail=f"declares a bounded energy error; the check run failed: {exc}"))
-                continue
-            growth = long / max(short, testing.ENERGY_NOISE)
-            ok = testing.energy_bounded(short, long, long_steps)
-            at_round_off = " (round-off)" if max(short, long) <= noise else ""
-            out.append(Verdict("energy_bounded", **base, status=PASS if ok else FAIL,
-                               detail=f"declares a bounded energy error: {short:.2e} after {ENERGY_STEPS} steps, "
-                                      f"{long:.2e} after {long_steps} ({growth:.1f}x){at_round_off}"))
-    return out
-
-
-def property_verdicts(results: pd.DataFrame) -> list[Verdict]:
-    """For each registered integrator that ran ok on an engine of its state space (any engine, for a table without an
-    engine column): every property it declares and its stages (harness.analysis.claims: measured on a few short steps
-    of one or two bodies, not on the runs), one verdict each, named by the claim. MuJoCo's own rk4 is no run of the
-    registry's."""
-    from .. import integrators as registry
-    from . import claims
-
-    ok = results[results["status"] == "ok"]
-    spaces = {}
-    for engine in (ok["engine"].astype(str).unique() if "engine" in ok else ()):
-        try:
-            spaces[engine] = get_engine(engine).state_space
-        except (KeyError, ValueError):  # an engine no longer registered: its rows are no run of ours
-            spaces[engine] = None
-    ran = ({(spaces[e], i) for e, i in zip(ok["engine"].astype(str), ok["integrator"].astype(str))} if "engine" in ok
-           else {(space, i) for space in registry.state_spaces() for i in ok["integrator"].astype(str)})
-    out = []
-    for space in registry.state_spaces():
-        for name in registry.names(space):
-            if (space, name) not in ran:
-                continue
-            cls = registry.get(name, space)
-            runner_engine = engine_for_state_space(space)
-            base = dict(engine=runner_engine.name, formulation=runner_engine.default_formulation, integrator=name)
-            for claim in claims.claimed(cls):
-                try:
-                    found = claims.check(cls, claim)
-                except Exception as exc:  # a check run that breaks is a failed claim, with its reason
-                    raise_unless_data(exc)
-                    out.append(Verdict(claim, **base, status=FAIL, rule=f"the {claim} check runs",
-                                       detail=f"declares {claim}; the check run failed: {type(exc).__name__}: {exc}"))
-                    continue
-                out.append(Verdict(claim, **base, case=found.case, status=PASS if found.passed else FAIL,
-                                   detail=found.detail, rule=found.rule))
-    return out
-
-
 def _truth_rows(results: pd.DataFrame) -> pd.DataFrame:
     df = results.fillna({"formulation": ""})
     return df[(df["engine"] == TRUTH[0]) & (df["formulation"] == TRUTH[1]) & (df["integrator"] == TRUTH[2])]
@@ -403,9 +324,11 @@ def truth_verdicts(results: pd.DataFrame, checks_table: pd.DataFrame | None) -> 
     return out
 
 
-def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy: bool = True) -> list[Verdict]:
+def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (),
+             checked: Iterable[Verdict] = ()) -> list[Verdict]:
     """Every verdict of a run folder (convergence.csv and checks.csv when present) and its results table; cases: the
-    run's Case objects, whose tags say which are chaotic. Writes DIR/verdicts.csv."""
+    run's Case objects, whose tags say which are chaotic; checked: the verdicts of the integrators' own check runs
+    (energy_bounded and the declared properties: harness.pipeline.checks, which runs them). Writes DIR/verdicts.csv."""
     from ..scenes import checks
 
     out_dir = Path(out_dir)
@@ -415,9 +338,7 @@ def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (), energy:
                                 ("formulation", "note", "source", "engine", "integrator", "case"))
     if convergence is not None and len(convergence):
         verdicts += order_verdicts(convergence, excluded)
-    if energy:
-        verdicts += energy_verdicts(results)
-        verdicts += property_verdicts(results)
+    verdicts += checked
     checks_path = out_dir / checks.CHECKS_FILE
     verdicts += truth_verdicts(results, checks.read_checks(checks_path) if checks_path.exists() else None)
     write(verdicts, out_dir / VERDICTS_FILE)
@@ -475,3 +396,10 @@ def summary_lines(verdicts: list[Verdict]) -> list[str]:
     lines += [f"verdict {words[v.status]}: {v.line}" for v in strict_failures(verdicts)]
     lines += [f"verdict {v.status}: {v.line}" for v in verdicts if v.status in (KNOWN, FIXED)]
     return lines
+
+
+def __getattr__(name: str):
+    # the verdicts that run check runs are the pipeline's since issue 29 (harness/moved.py: forwarded, warned)
+    from ..moved import forwarded
+
+    return forwarded(__name__, name, {"energy_verdicts": "pipeline.checks", "property_verdicts": "pipeline.checks"})

@@ -1,8 +1,9 @@
-"""Work–precision: the phase of `stereodyn run` after the sweep (its report sections: harness.report.workprecision).
+"""Work–precision, the tables: which ladders a run gets (plan_ladders), how their rows and the sweep's make
+convergence.csv (convergence_rows), and the writing of the tables (its report sections: harness.report.workprecision).
 
-Measuring is analysis.dt_ladders (dt ladders, stability bisection) and analysis.tolerance_ladders (adaptive methods
-against the requested tolerance), fitting analysis.fitting (orders, round-off floors, tolerance proportionality, the
-Pareto table); this module chooses the ladders, runs them on the sweep's pool and writes the results (tables only).
+Measuring is harness.pipeline (dt_ladders: dt ladders, stability bisection; tolerance_ladders: adaptive methods against
+the requested tolerance; work_precision: the phase that runs what plan_ladders chose, on the sweep's pool), fitting
+analysis.fitting (orders, round-off floors, tolerance proportionality, the Pareto table). This module runs nothing.
 
 Outputs in the run folder: ladder.csv (every point), convergence.csv (one row per ladder, per short ladder, and per
 other run family of the sweep with two dt or more), tolerance.csv (every tolerance-ladder point), tolerance_fit.csv
@@ -12,27 +13,25 @@ and the orders as rows of checks.csv (quantity convergence_order, theory = the d
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import pandas as pd
 
-from . import step_advice
 from ..scenes import checks
-from . import advice as advising
 from ..scenes import scene_of
 from ..scenes.cases import CHAOTIC_TAGS, Case
-from . import tolerance_ladders
-from .dt_ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, Family, families, run_ladders
+from . import ladders as ladder_rules
+from .ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, families
 from ..engines import get_engine
 from .pareto import ACCURACY_TARGETS
 from .fitting import (CONVERGENCE_FILE, FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
                       pareto_table, sweep_orders, tolerance_fits, with_state_err)
 from ..engines.base import FLOAT64
 from ..run.plan import Selection
-from ..run.results import read_csv_table, with_precision, write_atomic
+from ..run.results import read_csv_table, with_precision, write_atomic  # noqa: F401 (read_csv_table: this API)
+from ..run.spec import Family
 from ..tables import read_optional  # noqa: F401 (part of this module's API since 0.2.0)
-from ..run.workers import WatchedPool
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -87,7 +86,7 @@ def _write(df: pd.DataFrame, path: Path) -> None:
 def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
                           sweep_rows: list[dict], laddered: set[tuple],
                           remeasure: set[tuple] = frozenset()) -> list[tuple[Family, list[dict], int]]:
-    """The families that get a short ladder (analysis.dt_ladders.run_short_ladder), each with its sweep runs and its
+    """The families that get a short ladder (pipeline.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order (or, for a claim (engine, formulation, integrator) in remeasure, whose order misses the rule on
@@ -131,7 +130,7 @@ def first_part_families(short: list[tuple[Family, list[dict], int]], points: lis
                         sweep_rows: list[dict], cases: list[Case]) -> list[tuple[Family, list[dict], int, dict]]:
     """The short-laddered families that may get a first part, each with its points, steps cap and row: no order, a
     case not chaotic, and a claim (engine, formulation, integrator, precision) that no non-chaotic case's fit measured
-    (only the order verdict needs it; it costs up to ~2 caps of steps). analysis.dt_ladders.run_first_part runs one
+    (only the order verdict needs it; it costs up to ~2 caps of steps). pipeline.dt_ladders.run_first_part runs one
     only where the finest ok point is above the range (or the only asymptotic one): never where the reason is
     exactness, round-off or no run ok."""
     chaotic = {c.name for c in cases if set(c.tags) & set(CHAOTIC_TAGS)}
@@ -153,45 +152,57 @@ def first_part_families(short: list[tuple[Family, list[dict], int]], points: lis
 
 
 def default_tolerance_families(cases: list[Case], engines: list[str],
-                               integrators: list[str] | None) -> list[tolerance_ladders.AdaptiveFamily]:
+                               integrators: list[str] | None) -> list[ladder_rules.AdaptiveFamily]:
     """The default run's tolerance ladders: on DEFAULT_LADDER_FORMULATIONS, the adaptive methods of the sweep's
     selection (run.plan.Selection: those named, or without --integrators each engine's default sweep). The others get
     ladders with --dt-ladder: Drake's six other error-controlled schemes were 70% of the tolerance ladders' timed
     seconds in a default run (2-core machine; radau3 and bogacki_shampine3 at 1e-11 take 0.2-0.6 M steps)."""
     selected = {name: Selection.of(get_engine(name), integrators).integrators for name in engines}
-    return [f for f in tolerance_ladders.families(cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
+    return [f for f in ladder_rules.adaptive_families(cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
             if f.integrator in selected[f.engine]]
 
 
-def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: list[str],
-            integrators: list[str] | None, ladder: str = "default", max_steps: int | None = None,
-            pool: WatchedPool | None = None,
-            progress: Callable[[str], None] | None = None, write_pareto: bool = True) -> dict[str, Path]:
-    """The work–precision phase of `stereodyn run`, after the sweep. ladder: "full" (every family of the sweep, and a
-    tolerance ladder for every adaptive method on every case and formulation), "default" (DEFAULT_LADDER cases,
-    DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other family whose dt list gives
-    no order), "short" (those short ladders only, for the integrators no case's dt list measured: a --strict run of
-    named cases) or "off". Writes ladder.csv, convergence.csv,
-    tolerance.csv, tolerance_fit.csv, pareto.csv and appends the orders to checks.csv; returns the paths written.
-    pool: the sweep's worker pool (harness.run.sweep.worker_pool)
-    the ladders run on; None runs them here. write_pareto False leaves pareto.csv to the caller (`stereodyn run` writes
-    it once, after the verdicts: rewrite_pareto; the table takes seconds in the default run)."""
-    out_dir = Path(out_dir)
+@dataclass(frozen=True)
+class LadderPlan:
+    """The ladders a run gets (plan_ladders), for harness.pipeline.work_precision to run. mode: "full", "default",
+    "short" or "off"; chosen: the dt ladders' families, costliest first; adaptive: the tolerance ladders' families;
+    tolerances: their requested tolerances (1); max_steps: a ladder's steps cap; short: the short ladders (family, its
+    sweep runs, its steps cap), costliest first; sweep_rows: the convergence rows of the sweep's own dt lists; rigid:
+    the cases with work–precision (Scene.work_precision); other_kinds: the names of the other cases."""
+
+    mode: str
+    chosen: list[Family]
+    adaptive: list[Family]
+    tolerances: tuple[float, ...]
+    max_steps: int
+    short: list[tuple[Family, list[dict], int]]
+    sweep_rows: list[dict]
+    rigid: list[Case]
+    other_kinds: frozenset[str]
+
+
+def plan_ladders(results: pd.DataFrame, cases: list[Case], engines: list[str], integrators: list[str] | None,
+                 ladder: str = "default", max_steps: int | None = None) -> LadderPlan:
+    """Which ladders the work–precision phase runs after this sweep (results: its table). ladder: "full" (every family
+    of the sweep, and a tolerance ladder for every adaptive method on every case and formulation), "default"
+    (DEFAULT_LADDER cases, DEFAULT_LADDER_FORMULATIONS, both kinds of ladder, and a short ladder for every other
+    family whose dt list gives no order), "short" (those short ladders only, for the integrators no case's dt list
+    measured: a --strict run of named cases) or "off"."""
     # Orders, floors and stability limits are about the body with a fixed point; other scene kinds (the constrained
     # sliding ladder, whose MuJoCo model has soft constraints) keep their Pareto rows only.
     rigid = [c for c in cases if scene_of(c).work_precision]
-    other_kinds = {c.name for c in cases} - {c.name for c in rigid}
+    other_kinds = frozenset({c.name for c in cases} - {c.name for c in rigid})
     if ladder == "full":
         chosen = families(rigid, engines, integrators)
-        adaptive = tolerance_ladders.families(rigid, engines, integrators)
-        tolerances = tolerance_ladders.TOLERANCES
+        adaptive = ladder_rules.adaptive_families(rigid, engines, integrators)
+        tolerances = ladder_rules.TOLERANCES
         max_steps = max_steps or FULL_MAX_STEPS
     elif ladder == "default":
         laddered_cases = [c for c in rigid if c.name in DEFAULT_LADDER]
         chosen = [f for f in families(laddered_cases, engines, integrators, DEFAULT_LADDER_FORMULATIONS)
                   if f.integrator not in DEFAULT_LADDER_SKIP]
         adaptive = default_tolerance_families(laddered_cases, engines, integrators)
-        tolerances = tolerance_ladders.DEFAULT_TOLERANCES
+        tolerances = ladder_rules.DEFAULT_TOLERANCES
         max_steps = max_steps or DEFAULT_MAX_STEPS
     else:
         chosen, adaptive, tolerances = [], [], ()
@@ -213,58 +224,72 @@ def analyse(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         short = [item for item in short if (item[0].engine, item[0].formulation, item[0].integrator) not in measured
                  or (item[0].engine, item[0].formulation, item[0].integrator) in weak]
     short.sort(key=lambda item: _ladder_cost(item[0]), reverse=True)
-    points, ladder_rows = run_ladders(chosen, max_steps or DEFAULT_MAX_STEPS, pool, progress, short) \
-        if chosen or short else ([], [])
-    first_parts = first_part_families(short, points, ladder_rows, sweep_rows, rigid)
-    if first_parts:  # a long horizon: the order over the case's first part, where the verdict needs it
-        more, parts = run_ladders([], max_steps or DEFAULT_MAX_STEPS, pool, progress, first_parts=first_parts)
-        points += more
-        by_family = {tuple(r[c] for c in FAMILY): r for r in parts}
-        ladder_rows = [by_family.get(tuple(r[c] for c in FAMILY), r) if r["source"] == SHORT_LADDER else r
-                       for r in ladder_rows]
+    return LadderPlan(ladder, chosen, adaptive, tolerances, max_steps or DEFAULT_MAX_STEPS, short, sweep_rows, rigid,
+                      other_kinds)
+
+
+def with_first_parts(ladder_rows: list[dict], parts: list[dict]) -> list[dict]:
+    """The ladders' convergence rows, each short ladder's replaced by its first part's row where one ran."""
+    by_family = {tuple(r[c] for c in FAMILY): r for r in parts}
+    return [by_family.get(tuple(r[c] for c in FAMILY), r) if r["source"] == SHORT_LADDER else r for r in ladder_rows]
+
+
+def convergence_rows(ladder_rows: list[dict], sweep_rows: list[dict]) -> pd.DataFrame:
+    """convergence.csv: the ladders' rows, then the sweep's, a short ladder's row in place of its family's row from
+    the dt list (a family with one dt had none: its short-ladder row comes last)."""
     by_key = {tuple(r[c] for c in FAMILY): r for r in ladder_rows if r["source"] == SHORT_LADDER}
-    # a short ladder's row takes the place of its family's row from the dt list; a family with one dt had none
     rows = [r for r in ladder_rows if r["source"] == LADDER]
     for row in sweep_rows:
         rows.append(by_key.pop(tuple(row[c] for c in FAMILY), row))
-    convergence = convergence_table(rows + list(by_key.values()))
-    ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
-    tolerance_df = tolerance_ladders.tolerance_frame(tolerance_ladders.run_ladders(adaptive, pool, progress, tolerances)
-                                                     if adaptive else [])
-    paths = {"ladder": out_dir / LADDER_FILE, "convergence": out_dir / CONVERGENCE_FILE,
-             "tolerance": out_dir / TOLERANCE_FILE, "tolerance_fit": out_dir / TOLERANCE_FIT_FILE,
-             "pareto": out_dir / PARETO_FILE}
+    return convergence_table(rows + list(by_key.values()))
+
+
+def table_paths(out_dir: Path) -> dict[str, Path]:
+    """The work–precision phase's tables in a run folder, by name."""
+    out_dir = Path(out_dir)
+    return {"ladder": out_dir / LADDER_FILE, "convergence": out_dir / CONVERGENCE_FILE,
+            "tolerance": out_dir / TOLERANCE_FILE, "tolerance_fit": out_dir / TOLERANCE_FIT_FILE,
+            "pareto": out_dir / PARETO_FILE}
+
+
+def write_tables(out_dir: Path, results: pd.DataFrame, ladder_df: pd.DataFrame, convergence: pd.DataFrame,
+                 tolerance_df: pd.DataFrame, write_pareto: bool = True) -> dict[str, Path]:
+    """ladder.csv, convergence.csv, tolerance.csv, tolerance_fit.csv and (write_pareto) pareto.csv; the paths."""
+    paths = table_paths(out_dir)
     _write(ladder_df, paths["ladder"])
     _write(convergence, paths["convergence"])
     _write(tolerance_df, paths["tolerance"])
     _write(tolerance_fits(tolerance_df), paths["tolerance_fit"])
     if write_pareto:
         _write(pareto(results, ladder_df, tolerance=tolerance_df), paths["pareto"])
-    if ladder != "off":
-        paths["advice"] = out_dir / ADVICE_FILE
-        _write(_advice(results, chosen, adaptive, ladder, ladder_df, tolerance_df, convergence,
-                       max_steps or DEFAULT_MAX_STEPS, pool, progress), paths["advice"])
-    checks_path = out_dir / checks.CHECKS_FILE
+    return paths
+
+
+def write_advice(out_dir: Path, table: pd.DataFrame) -> Path:
+    """advice.csv (analysis.step_advice.ADVICE_COLUMNS); its path."""
+    path = Path(out_dir) / ADVICE_FILE
+    _write(table, path)
+    return path
+
+
+def write_order_checks(out_dir: Path, convergence: pd.DataFrame) -> None:
+    """The fitted orders as checks.csv's convergence_order rows, in place of any the folder had."""
+    checks_path = Path(out_dir) / checks.CHECKS_FILE
     existing = checks.read_checks(checks_path) if checks_path.is_file() else pd.DataFrame(columns=list(checks.COLUMNS))
     existing = existing[existing["quantity"] != ORDER_QUANTITY]
     merged = pd.concat([existing, order_checks(convergence)], ignore_index=True) if len(existing) \
         else order_checks(convergence)
     write_atomic(checks_path, merged.to_csv(index=False, float_format="%.17g"))
-    return paths
 
 
-def _advice(results: pd.DataFrame, chosen: list[Family], adaptive: list[Family], ladder: str,
-            ladder_df: pd.DataFrame, tolerance_df: pd.DataFrame, convergence: pd.DataFrame, max_steps: int,
-            pool, progress) -> pd.DataFrame:
-    """advice.csv (harness.analysis.advice): the laddered families with a fitted order or slope (the dt and tolerance
-    ladders: DEFAULT_LADDER's in the default run, every family with --dt-ladder), at DEFAULT_ADVICE_TARGETS, or every
-    Pareto target with --dt-ladder."""
-    targets = ACCURACY_TARGETS if ladder == "full" else DEFAULT_ADVICE_TARGETS
-    tasks = advising.advice_tasks(chosen, adaptive, results, ladder_df, tolerance_df, convergence,
-                                  tolerance_fits(tolerance_df))
-    return advising.run_advice(tasks, targets, max_steps, pool, progress) if tasks else \
-        pd.DataFrame(columns=list(step_advice.ADVICE_COLUMNS))
+def advice_targets(mode: str) -> tuple[float, ...]:
+    """The accuracy targets advised (rad): every Pareto target with --dt-ladder ("full"), else
+    DEFAULT_ADVICE_TARGETS."""
+    return ACCURACY_TARGETS if mode == "full" else DEFAULT_ADVICE_TARGETS
 
 
-# ------------------------------------------------------------------------------------------------ the report
+def __getattr__(name: str):
+    # analyse ran the ladders from here until issue 29; it is the pipeline's now (harness/moved.py: forwarded, warned)
+    from ..moved import forwarded
 
+    return forwarded(__name__, name, {"analyse": "pipeline.work_precision"})

@@ -1,5 +1,5 @@
 """`stereodyn advise CASE --engine E`: the largest step (or tolerance) that reaches each accuracy target, checked by
-runs (harness.analysis.advice)."""
+runs (harness.pipeline.advice)."""
 from __future__ import annotations
 
 import math
@@ -11,7 +11,7 @@ from ..scenes import cases as case_files
 
 
 def main(args) -> int:
-    from ..analysis import advice as advising
+    from ..pipeline import advice as advising
     from ..scenes import scene_of
     from ..analysis.summary import TERMINAL_TARGETS
 

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.fitting import ASYMPTOTIC_MAX, FIRST_PART, ROUNDOFF_MARGIN, SUPERCONVERGENT, _name, note_group
-from ..analysis import dt_ladders
+from ..analysis import ladders as dt_ladders
 from ..analysis.workprecision import (ADVICE_FILE, CONVERGENCE_FILE, PARETO_FILE, SHORT_MAX_EVALS, SHORT_MAX_STEPS,
                                       TOLERANCE_FIT_FILE, read_optional)
-from ..analysis.dt_ladders import SHORT_LADDER, STABLE_ENERGY_DRIFT
+from ..analysis.ladders import SHORT_LADDER, STABLE_ENERGY_DRIFT
 from . import sections
 from .advice import advice_lines
 from .markdown import markdown_table as _md, number as _num

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from ..atomic import write_atomic  # noqa: F401 (imported from here too)
@@ -163,3 +164,9 @@ def read_results(path: Path) -> pd.DataFrame:
         raise TableError(f"{path}: row {twice[1] + 1}: duplicate key {describe_key(keys[twice[1]])} (also row "
                          f"{twice[0] + 1}): one row per key")
     return df
+
+
+def disturbed(best, spread):
+    """Whether a timing is disturbed: its spread is larger than its best time (element-wise for arrays; a NaN spread is
+    not). Here, not in run.timing, so that the Pareto table (analysis) reads it without the timing machinery."""
+    return np.asarray(spread, dtype=float) > np.asarray(best, dtype=float)

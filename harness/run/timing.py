@@ -16,6 +16,7 @@ from ..integrators.base import uncounted
 from ..precision import FLOAT64
 from ..trajectory import Status
 from .processes import raise_unless_data
+from .results import disturbed  # noqa: F401 (its home is the results table's module since issue 29: analysis reads it)
 
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
@@ -38,12 +39,6 @@ class Timing(NamedTuple):
     spread: float
     repeats: int
     disturbed: bool = False
-
-
-def disturbed(best, spread):
-    """Whether a timing is disturbed: its spread is larger than its best time (element-wise for arrays; a NaN spread is
-    not)."""
-    return np.asarray(spread, dtype=float) > np.asarray(best, dtype=float)
 
 
 def measure(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S,

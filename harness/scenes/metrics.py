@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 
 from .cases import Case
 from ..trajectory import Trajectory
@@ -15,6 +16,24 @@ from ...reference.rotations import attitude_angle, quat_to_matrix
 ERROR_COLUMNS = ("attitude_err", "attitude_err_end", "omega_err")
 # The columns the torque models measure (TorqueModel.columns), the registry's at import: precession_axis_drift.
 TORQUE_COLUMNS = tuple(column for model in torque_models.models() for column in model.columns)
+
+
+# The global error of the state, whose order the ladders fit (a method's order is that of its whole state): the largest
+# finite one of these columns, NaN without an attitude error. Its one home: the ladders, the advice, fitting's tables
+# and harness.testing all take it from state_err.
+STATE_ERR_PARTS = ("attitude_err", "omega_err", "casimir_drift")
+
+
+def state_err(row):
+    """max(attitude_err, omega_err, casimir_drift) over the finite ones, NaN where attitude_err is not finite. row: a
+    row (a mapping: returns a float) or a table (a DataFrame: returns a Series on its index); a missing part is NaN."""
+    table = hasattr(row, "columns")
+    parts = np.array([np.asarray(row[c] if c in row else np.full(len(row), np.nan) if table else math.nan, dtype=float)
+                      for c in STATE_ERR_PARTS], dtype=float).reshape(len(STATE_ERR_PARTS), -1)
+    finite = np.isfinite(parts)
+    largest = np.where(finite, parts, -np.inf).max(axis=0)
+    out = np.where(finite[0] & finite.any(axis=0), largest, np.nan)
+    return pd.Series(out, index=row.index, dtype=float) if table else float(out[0])
 
 
 def applicable_integrals(case: Case) -> tuple[str, ...]:

@@ -16,6 +16,7 @@ from .cases import RIGID_BODY, Case
 from .checks import ROW_KEY, measure as measure_checks
 from .metrics import (DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS, applicable_integrals, drifts, errors,
                       torque_metrics)
+from .metrics import state_err  # noqa: F401 (its path before issue 29; its home is metrics)
 from .oracles import exact_attitude, oracle_err
 from .series import invariant_series
 
@@ -68,15 +69,6 @@ def rhs_per_sim_s(dt: float | None, integrator: str, rhs_evals: int, steps: floa
     if dt is None or not math.isfinite(steps):
         return math.nan
     return steps * integrator_registry.stages(integrator) / t_end
-
-
-def state_err(row: dict) -> float:
-    """The global error of the state whose order the ladders fit: max(attitude_err, omega_err, casimir_drift) (NaN
-    without an attitude error). A method's order is that of its whole state (harness.run.dt_ladders)."""
-    if not math.isfinite(row.get("attitude_err", math.nan)):
-        return math.nan
-    parts = [row["attitude_err"], row["omega_err"], row["casimir_drift"]]
-    return max((p for p in parts if math.isfinite(p)), default=math.nan)
 
 
 class RigidBodyScene:

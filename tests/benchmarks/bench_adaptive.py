@@ -24,7 +24,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from stereodyn.harness.run import sweep as runner
-    from stereodyn.harness.analysis import tolerance_ladders
+    from stereodyn.harness.pipeline import tolerance_ladders
     from stereodyn.harness.analysis import workprecision
     from stereodyn.harness.scenes.cases import load_suite
     from stereodyn.harness.engines import engine_names

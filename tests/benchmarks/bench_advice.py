@@ -1,6 +1,6 @@
 """What the checked step-size advice (advice.csv, issue 21 item 2) adds to the default run: the advice phase alone,
 on a finished default run's tables (results.csv, ladder.csv, tolerance.csv, convergence.csv), on a pool of --jobs
-workers, as workprecision.analyse runs it.
+workers, as pipeline.work_precision runs it.
 
     python tests/benchmarks/bench_advice.py reports/default [--jobs 2] [--targets 1e-3,1e-6,1e-9]
 
@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stereodyn.harness.analysis import advice as advising, workprecision
-from stereodyn.harness.analysis.dt_ladders import families
+from stereodyn.harness.analysis import workprecision
+from stereodyn.harness.pipeline import advice as advising
+from stereodyn.harness.pipeline.dt_ladders import families
 from stereodyn.harness.analysis.fitting import tolerance_fits
 from stereodyn.harness.run import sweep as runner
 from stereodyn.harness.run.results import read_results

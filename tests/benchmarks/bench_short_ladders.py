@@ -21,6 +21,7 @@ import pandas as pd
 from stereodyn.harness.scenes import cases as case_files
 from stereodyn.harness.run import sweep as runner
 from stereodyn.harness.analysis import workprecision
+from stereodyn.harness.pipeline import work_precision
 from stereodyn.harness.run.results import read_results
 
 ENGINES = ["mujoco", "pinocchio", "reference"]
@@ -34,7 +35,7 @@ def phase(results: pd.DataFrame, jobs: int, short: bool) -> tuple[float, pd.Data
     try:
         with tempfile.TemporaryDirectory() as out, runner.worker_pool(jobs, tuple(ENGINES)) as pool:
             start = time.perf_counter()
-            workprecision.analyse(Path(out), results, suite, ENGINES, None, ladder="default", pool=pool)
+            work_precision.analyse(Path(out), results, suite, ENGINES, None, ladder="default", pool=pool)
             seconds = time.perf_counter() - start
             return seconds, pd.read_csv(Path(out) / workprecision.CONVERGENCE_FILE)
     finally:

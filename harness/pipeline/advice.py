@@ -1,8 +1,9 @@
 """Step-size advice, the runs (advice.csv; issue 21 item 2): per run family and accuracy target, the model's setting
-checked by runs (analysis.step_advice.search), each run one ladder point (analysis.dt_ladders.measure, or
-analysis.tolerance_ladders.measure for an adaptive method: the one measure path of the ladders), the advised runs then
-timed alone in the parent (the ladders' timing phase). Used by `stereodyn run` (workprecision.analyse) and
-`stereodyn advise`.
+checked by runs (analysis.step_advice.search), each run one ladder point (pipeline.dt_ladders.measure, or
+pipeline.tolerance_ladders.measure for an adaptive method: the one measure path of the ladders), the advised runs then
+timed alone in the parent (the ladders' timing phase). Which families are advised, on which known points, and the
+rows' shape are analysis.step_advice's (advice_tasks, families_to_advise, advice_row; re-exported here). Used by
+`stereodyn run` (pipeline.work_precision) and `stereodyn advise`.
 """
 from __future__ import annotations
 
@@ -13,22 +14,13 @@ from typing import Callable
 import pandas as pd
 
 from . import dt_ladders, tolerance_ladders
-from .dt_ladders import MIN_STEPS, Family
-from .step_advice import ADVICE_COLUMNS, error_model, rounded, search
-from ..precision import FLOAT64
+from ..analysis.ladders import MIN_STEPS
+from ..analysis.step_advice import (ADVICE_COLUMNS, TOLERANCE_HI, TOLERANCE_LO, advice_row,  # noqa: F401 (this API)
+                                    advice_tasks, advised_error, error_model, families_to_advise, family_key, rounded,
+                                    search)
 from ..run.processes import raise_unless_data
-from ..run.results import with_precision
-from ..trajectory import Status
+from ..run.spec import Family
 from ..run.workers import WatchedPool
-
-# The tolerances an advice may name: the tolerance ladders' range (harness.analysis.tolerance_ladders.TOLERANCES).
-TOLERANCE_LO, TOLERANCE_HI = min(tolerance_ladders.TOLERANCES), max(tolerance_ladders.TOLERANCES)
-
-
-def _error(row: dict) -> float:
-    err = row.get("attitude_err", math.nan)
-    return float(err) if row.get("status") == Status.OK.value and err is not None and math.isfinite(err) \
-        else math.nan
 
 
 def advise_family(family: Family, adaptive: bool, known: list[dict], order: float, targets: tuple[float, ...],
@@ -49,24 +41,24 @@ def advise_family(family: Family, adaptive: bool, known: list[dict], order: floa
             truth = tolerance_ladders.family_truth(family)
         except Exception as exc:  # the family's rows say why (our own bug says it louder: harness.errors)
             raise_unless_data(exc)
-            return [_row(family, target, what, note=f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0])
+            return [advice_row(family, target, what, note=f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0])
                     for target in targets], []
         measure = lambda s: tolerance_ladders.measure(family, s, truth)  # noqa: E731
     else:
         lo, hi, cap = case.t_end / max_steps, case.t_end / MIN_STEPS, f"t_end / {max_steps}"
         measure = lambda s: dt_ladders.measure(family, s, timed=False)  # noqa: E731
     points: dict[float, dict] = {float(row[what]): row for row in known if math.isfinite(row.get(what, math.nan))}
-    errors = {s: _error(row) for s, row in points.items()}
+    errors = {s: advised_error(row) for s, row in points.items()}
 
     def error_at(setting: float) -> float:
         points[setting] = {k: v for k, v in measure(setting).items() if not k.startswith("_")}
-        return _error(points[setting])
+        return advised_error(points[setting])
 
     rows, untimed = [], {}
     for target in sorted(targets, reverse=True):
         estimate = model.setting_for(target) if model is not None else math.nan
         advice = search(error_at, target, estimate, lo, hi, errors, what, cap)
-        row = _row(family, target, what, setting=advice.setting, error=advice.error, fails_at=advice.fails_at,
+        row = advice_row(family, target, what, setting=advice.setting, error=advice.error, fails_at=advice.fails_at,
                    error_fails=advice.error_fails, estimate=estimate, order=order, runs=advice.runs, note=advice.note)
         ran = points.get(advice.setting)
         row["us_per_sim_s"] = ran.get("us_per_sim_s", math.nan) if ran is not None else math.nan
@@ -76,16 +68,6 @@ def advise_family(family: Family, adaptive: bool, known: list[dict], order: floa
                 "integrator": family.integrator, what: advice.setting}
         rows.append(row)
     return rows, list(untimed.values())
-
-
-def _row(family: Family, target: float, what: str, setting: float = math.nan, **columns) -> dict:
-    row = {c: math.nan for c in ADVICE_COLUMNS} | {
-        "case": family.case.name, "engine": family.engine, "formulation": family.formulation,
-        "integrator": family.integrator, "precision": family.precision, "target": target, "note": ""}
-    row[what] = setting
-    row["error_checked"] = columns.pop("error", math.nan)
-    row.update(columns)
-    return row
 
 
 def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tuple[float, ...], max_steps: int,
@@ -111,7 +93,7 @@ def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tup
             except Exception as exc:  # a worker that died: the family's rows say why
                 raise_unless_data(exc)
                 what = "tolerance" if tasks[index][1] else "dt"
-                results[index] = ([_row(family, t, what, note=f"worker failed: {type(exc).__name__}: {exc}"
+                results[index] = ([advice_row(family, t, what, note=f"worker failed: {type(exc).__name__}: {exc}"
                                         .splitlines()[0]) for t in sorted(targets, reverse=True)], [])
             if progress:
                 progress(family.label)
@@ -120,32 +102,26 @@ def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tup
     return pd.DataFrame(rows, columns=list(ADVICE_COLUMNS)).fillna({"formulation": "", "note": ""})
 
 
-def _family(point: dict) -> tuple:
-    """The family key (Family.key: case, engine, formulation, integrator, precision) of a point or row."""
-    return (point["case"], point["engine"], point["formulation"], point["integrator"],
-            point.get("precision") or FLOAT64)
-
-
 def _time_advised(rows: list[dict], untimed: dict[int, list[dict]], tasks) -> None:
     """Time the advised runs that have no timing yet (each once, whatever the targets sharing it), here and alone,
     and fill their rows' us_per_sim_s, in place."""
     fixed = {family.key: family for family, adaptive, _, _ in tasks if not adaptive}
     adaptive = {family.key: family for family, is_adaptive, _, _ in tasks if is_adaptive}
     points = [point for index in sorted(untimed) for point in untimed[index]]
-    dt_points = [p for p in points if _family(p) in fixed]
-    tol_points = [p for p in points if _family(p) in adaptive]
+    dt_points = [p for p in points if family_key(p) in fixed]
+    tol_points = [p for p in points if family_key(p) in adaptive]
     if dt_points:
         dt_ladders.time_points(dt_points, fixed)
     if tol_points:
-        tolerance_ladders.time_points(tol_points, adaptive)
+        dt_ladders.time_points(tol_points, adaptive, "tolerance")
     cost = {}
     for p in dt_points:
-        cost[(*_family(p), "dt", p["dt"])] = p.get("us_per_sim_s")
+        cost[(*family_key(p), "dt", p["dt"])] = p.get("us_per_sim_s")
     for p in tol_points:
-        cost[(*_family(p), "tolerance", p["tolerance"])] = p.get("us_per_sim_s")
+        cost[(*family_key(p), "tolerance", p["tolerance"])] = p.get("us_per_sim_s")
     for row in rows:
         what = "tolerance" if math.isfinite(row["tolerance"]) else "dt"
-        found = cost.get((*_family(row), what, row[what]))
+        found = cost.get((*family_key(row), what, row[what]))
         if found is not None and math.isfinite(found):
             row["us_per_sim_s"] = found
 
@@ -153,76 +129,13 @@ def _time_advised(rows: list[dict], untimed: dict[int, list[dict]], tasks) -> No
 __all__ = ["advise_family", "run_advice", "rounded"]
 
 
-def advice_tasks(fixed: list[Family], adaptive: list[Family], results: pd.DataFrame, ladder: pd.DataFrame,
-                 tolerance: pd.DataFrame, convergence: pd.DataFrame,
-                 tolerance_fit: pd.DataFrame) -> list[tuple[Family, bool, list[dict], float]]:
-    """run_advice's tasks after a sweep: each fixed-step family with a fitted order (convergence.csv), its points
-    the sweep's runs and its ladder points (ladder.csv); each adaptive family with a fitted slope (tolerance_fit.csv),
-    its points the tolerance ladder's (tolerance.csv)."""
-    from .fitting import FAMILY, with_state_err
-
-    keys = list(FAMILY)
-    results, ladder, tolerance, convergence, tolerance_fit = (
-        with_precision(t) if len(t) else t for t in (results, ladder, tolerance, convergence, tolerance_fit))
-    sweep = results[results["dt"].notna()].fillna({"formulation": ""})
-    if len(sweep):
-        sweep = with_state_err(sweep)
-        sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
-    columns = ["dt", "steps", "status", "state_err", "attitude_err", "us_per_sim_s"]
-    by_family: dict[tuple, list[dict]] = {}
-    for frame_ in (sweep, ladder):
-        if len(frame_):
-            for key, group in frame_.fillna({"formulation": ""}).groupby(keys, sort=False):
-                by_family.setdefault(key, []).extend(group[columns].to_dict("records"))
-    orders = {tuple(r[k] for k in keys): r["order"] for _, r in convergence.fillna({"formulation": ""}).iterrows()}
-    tasks = [(f, False, by_family.get(f.key, []), orders[f.key]) for f in fixed
-             if math.isfinite(orders.get(f.key, math.nan))]
-    slopes = {tuple(r[k] for k in keys): r["slope"] for _, r in tolerance_fit.fillna({"formulation": ""}).iterrows()}
-    points = {key: group[["tolerance", "steps", "status", "state_err", "attitude_err", "us_per_sim_s"]]
-              .to_dict("records") for key, group in tolerance.fillna({"formulation": ""}).groupby(keys, sort=False)} \
-        if len(tolerance) else {}
-    tasks += [(f, True, points.get(f.key, []), slopes[f.key]) for f in adaptive
-              if math.isfinite(slopes.get(f.key, math.nan))]
-    return tasks
-
-
-def families_to_advise(case, engine_name: str, integrators: list[str] | None,
-                       formulation: str | None = None) -> list[tuple[Family, bool]]:
-    """The families `stereodyn advise` checks: the integrators named, or the engine's default-sweep integrators
-    with a declared order or error control, on one formulation (the one named, else quaternion or the engine's
-    first). Bad names raise ValueError with the valid ones."""
-    from ..engines import get_engine
-
-    engine = get_engine(engine_name)
-    own = tuple(engine.formulations())
-    if formulation is None:
-        formulation = "quaternion" if "quaternion" in own else (own[0] if own else "")
-    elif formulation not in own:
-        raise ValueError(f"--formulation: {engine_name} has {', '.join(own) or 'no formulations'}, not {formulation!r}")
-    known = engine.integrators()
-    if integrators:
-        unknown = [i for i in integrators if i not in known]
-        if unknown:
-            raise ValueError(f"--integrator: unknown for {engine_name}: {', '.join(unknown)}; valid: {', '.join(known)}")
-        chosen = list(integrators)
-    else:
-        chosen = [i for i in known if engine.in_default_sweep(i) and engine.default_run(case, formulation, i)
-                  and (engine.adaptive(i) or math.isfinite(engine.declared_order(i)))]
-    out = []
-    for integrator in chosen:
-        if engine.unsupported(case) or engine.unsupported_run(case, formulation, integrator):
-            continue
-        out.append((Family(case, engine_name, formulation, integrator), engine.adaptive(integrator)))
-    return out
-
-
 def advise(case, families: list[tuple[Family, bool]], targets: tuple[float, ...], max_steps: int,
            progress: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict[tuple, str]]:
     """What `stereodyn advise` runs: per family, the case's own dt list and a short ladder (dt doubled or halved until
-    three points are asymptotic, analysis.dt_ladders.run_short_ladder) for the order, or for an adaptive method the
+    three points are asymptotic, pipeline.dt_ladders.run_short_ladder) for the order, or for an adaptive method the
     default tolerance ladder (1e-3, 1e-5 … 1e-13) for its slope; then the checked search per target and the advised
     runs timed. Returns advice.csv's rows and, per family key without an order, why."""
-    from . import fitting
+    from ..analysis import fitting
 
     tasks, why = [], {}
     for family, adaptive in families:

@@ -1,5 +1,6 @@
-"""Tolerance ladders: every adaptive integrator of every engine (Engine.adaptive) run at a sweep of requested
-tolerances, per point the error achieved and the cost.
+"""Tolerance ladders, the runs (their tables and constants: harness.analysis.ladders, re-exported here): every
+adaptive integrator of every engine (Engine.adaptive) run at a sweep of requested tolerances, per point the error
+achieved and the cost.
 
 For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of
 TOLERANCES (1e-3 ... 1e-13, a decade apart; the default run's DEFAULT_TOLERANCES: two decades apart), each prepared
@@ -7,10 +8,10 @@ with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: r
 grid of the sweep's adaptive rows (RunKey.grid, harness.run.spec). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
-(harness.analysis.dt_ladders.time_points' protocol), costed as µs of stepping per simulated second, right-hand-side
-evaluations and steps per simulated second. The truth row itself (heyoka's taylor on the quaternion at its default,
-truth-grade tolerance) is not a ladder point: every point names its tolerance, and heyoka's taylor joins at the
-loose ones like any other adaptive method.
+(harness.pipeline.dt_ladders.time_points, the one timing phase of the ladders and the advice), costed as µs of
+stepping per simulated second, right-hand-side evaluations and steps per simulated second. The truth row itself
+(heyoka's taylor on the quaternion at its default, truth-grade tolerance) is not a ladder point: every point names its
+tolerance, and heyoka's taylor joins at the loose ones like any other adaptive method.
 
 A ladder walks from loose to tight and stops early, saying so in the last point's message, once a point's accuracy
 run took longer than POINT_BUDGET_S (the tighter points would each take longer still). The fits (tolerance
@@ -20,61 +21,24 @@ The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one
 """
 from __future__ import annotations
 
+import functools
 import math
 from concurrent.futures import as_completed
 from typing import Callable
 
 from .. import budget
-from ..engines import get_engine
-from ..engines.base import FLOAT64
-from ..scenes.cases import Case
-from ..scenes.rigid_body import state_err
+from ..analysis.ladders import (DEFAULT_TOLERANCES, POINT_BUDGET_S, TOLERANCE_COLUMNS, TOLERANCES,  # noqa: F401
+                                AdaptiveFamily, adaptive_cost, failed_point, tolerance_frame)
+from ..analysis.ladders import adaptive_families as families  # noqa: F401 (this module's name for it since 0.2.0)
+from ..scenes.metrics import state_err
 from ..trajectory import Status
-from ..run import timing
-from ..run.measure import measure as run_measure, prepare as prepare_run, rate
+from ..run.measure import measure as run_measure, rate
 from ..run.processes import raise_unless_data
 from ..run.workers import WatchedPool
-from .dt_ladders import TIMING_BUDGET_S, TIMING_REPEATS, Family, case_truth_on
+from .dt_ladders import case_truth_on, time_points as _time_points
 
-TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "tolerance", "t_end", "steps", "rhs_evals",
-                     "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
-                     "energy_drift", "state_err", "err_over_tol", "wall_s", "us_per_sim_s", "us_per_sim_s_spread",
-                     "rhs_per_sim_s", "steps_per_sim_s")
-TOLERANCES = tuple(10.0 ** -k for k in range(3, 14))  # --dt-ladder: every decade
-# The default run's ladders: every other decade, which halves their cost (~0.5 min on two cores, most of it Radau's
-# and BDF's tight points) and still spans the range.
-DEFAULT_TOLERANCES = TOLERANCES[::2]
-# A point whose accuracy run took longer than this (s) ends its ladder: each tighter tolerance costs more. Measured on
-# the 2-core dev machine (default ladder cases, t_end 20): the scipy methods' points take 0.005-3 s, BDF's and
-# Radau's at 1e-12 the longest.
-POINT_BUDGET_S = 5.0
-
-
-AdaptiveFamily = Family  # runs of one adaptive integrator that differ only in the requested tolerance
-
-
-def families(cases: list[Case], engines: list[str], integrators: list[str] | None,
-             formulations: tuple[str, ...] | None = None) -> list[AdaptiveFamily]:
-    """Every adaptive integrator (Engine.adaptive) of the engines, on each formulation and case the engine models;
-    integrators: the names chosen (None: all of them, whatever the sweep's default). formulations: only these (an
-    engine with formulations but none of these: its first), None: all."""
-    out = []
-    for name in engines:
-        engine = get_engine(name)
-        chosen = [i for i in engine.integrators() if engine.adaptive(i) and (integrators is None or i in integrators)]
-        own = tuple(engine.formulations()) or ("",)
-        if formulations is not None:
-            own = tuple(f for f in own if f in formulations) or own[:1]
-        for case in cases:
-            if engine.unsupported(case):
-                continue
-            for integrator in chosen:
-                for formulation in own:
-                    if engine.unsupported_run(case, formulation, integrator):
-                        continue
-                    for precision in engine.precisions(integrator):
-                        out.append(AdaptiveFamily(case, name, formulation, integrator, precision))
-    return out
+# 0.2.0's name: the one timing phase (dt_ladders.time_points) at the points' tolerances
+time_points = functools.partial(_time_points, setting="tolerance")
 
 
 # ------------------------------------------------------------------------------------------------ one point
@@ -90,10 +54,10 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
             with budget.within("truth", budget.configured().truth_s):
                 truth = case_truth_on(run)
     except budget.BudgetExceeded as exc:  # the ladder stops here (run_ladder: the point took longer than its budget)
-        return {**_failed_point(family, tolerance, str(exc)), "_accuracy_s": math.inf}
+        return {**failed_point(family, tolerance, str(exc)), "_accuracy_s": math.inf}
     except Exception as exc:
         raise_unless_data(exc)
-        return {**_failed_point(family, tolerance, f"truth failed: {type(exc).__name__}: {exc}"), "_accuracy_s": 0.0}
+        return {**failed_point(family, tolerance, f"truth failed: {type(exc).__name__}: {exc}"), "_accuracy_s": 0.0}
     measured = run_measure(run, truth, full=False)
     row.update({k: v for k, v in measured.items() if k in TOLERANCE_COLUMNS or k == "_accuracy_s"})
     row.pop("dt", None)
@@ -118,10 +82,10 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
     try:
         truth = family_truth(family)
     except budget.BudgetExceeded as exc:
-        return [_failed_point(family, tolerances[0], f"truth failed: {exc}")]
+        return [failed_point(family, tolerances[0], f"truth failed: {exc}")]
     except Exception as exc:
         raise_unless_data(exc)
-        return [_failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
+        return [failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
     points = []
     for tolerance in sorted(tolerances, reverse=True):
         row = measure(family, tolerance, truth)
@@ -133,26 +97,6 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
     return points
 
 
-def _failed_point(family: AdaptiveFamily, tolerance: float, message: str) -> dict:
-    return {**family.columns, "tolerance": float(tolerance), "status": Status.FAILED.value,
-            "message": message.splitlines()[0]}
-
-
-def time_points(points: list[dict], families_by_key: dict[tuple, AdaptiveFamily]) -> None:
-    """The timing phase, as the dt ladders' (harness.run.timing.time_points)."""
-    def prepare(row: dict):
-        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"],
-                                  row["precision"])]
-        return prepare_run(family.run(tolerance=row["tolerance"]))
-
-    timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
-
-
-def _ladder_cost(family: AdaptiveFamily) -> float:
-    """Rank of a family's cost, to start the costliest first: the engine's cost of a step (Engine.pass_us)."""
-    return get_engine(family.engine).pass_us
-
-
 def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 progress: Callable[[str], None] | None = None,
                 tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S) -> list[dict]:
@@ -160,7 +104,7 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
     timed here (time_points). Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose
     to tight. budget_s: run_ladder's point budget."""
     results: dict[int, list[dict]] = {}
-    order = sorted(range(len(chosen)), key=lambda i: _ladder_cost(chosen[i]), reverse=True)
+    order = sorted(range(len(chosen)), key=lambda i: adaptive_cost(chosen[i]), reverse=True)
     if pool is None:
         for index in order:
             results[index] = run_ladder(chosen[index], tolerances, budget_s)
@@ -174,21 +118,13 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 results[index] = future.result()
             except Exception as exc:  # a worker that died: one failed point says why
                 raise_unless_data(exc)
-                results[index] = [_failed_point(chosen[index], max(tolerances),
+                results[index] = [failed_point(chosen[index], max(tolerances),
                                                 f"worker failed: {type(exc).__name__}: {exc}")]
             if progress:
                 progress(chosen[index].label)
     points = [point for index in range(len(chosen)) for point in results[index]]
     time_points(points, {f.key: f for f in chosen})
     return [{k: v for k, v in point.items() if not k.startswith("_")} for point in points]
-
-
-def tolerance_frame(points: list[dict]):
-    """The points as tolerance.csv's table (TOLERANCE_COLUMNS, NaN where a column does not apply)."""
-    import pandas as pd
-
-    df = pd.DataFrame(points, columns=list(TOLERANCE_COLUMNS))
-    return df.fillna({"formulation": "", "message": "", "precision": FLOAT64}).astype({"tolerance": float})
 
 
 __all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families",
