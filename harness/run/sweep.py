@@ -28,7 +28,6 @@ from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
 from .workers import WatchedPool
-from ..analysis.text import plural
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
@@ -200,8 +199,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
             local_pool(local_jobs, len(pending), tuple(engines))
         with own_pool as pool:
-            progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
-                           f"{plural(local_jobs, 'worker')}")
+            progress.stage(f"truths of {_count(len(cases), 'case')}, then {_count(len(pending), 'run')} on "
+                           f"{_count(local_jobs, 'worker')}")
 
             def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
                 nonlocal pending
@@ -224,7 +223,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
-            progress.stage(f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
+            progress.stage(f"timing {_count(len(untimed), 'run')}, one at a time, in rounds")
         timings = time_specs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed])
         for spec, timed_columns in zip(untimed, timings):
             key = keys[id(spec)]
@@ -240,6 +239,11 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         if final:
             mark_complete(out_dir)
         return table()
+
+
+def _count(count: int, word: str) -> str:
+    """'1 case', '26 cases' (analysis.text.plural is a layer above)."""
+    return f"{count} {word}{'s' * (count != 1)}"
 
 
 def _needs_timing(row: dict) -> bool:
