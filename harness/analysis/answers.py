@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .pareto import ANY, ACCURACY_TARGETS, is_failed, scope_rows, scopes
+from .pareto import ANY, ACCURACY_TARGETS, is_failed, scopes
 
 SEARCHED, LISTED = "searched", "listed, not searched"
 ANSWER_COLUMNS = ("case", "scope", "target", "engine", "formulation", "integrator", "dt", "tolerance", "error",
@@ -33,19 +33,16 @@ def _finite(value) -> bool:
     return isinstance(value, (int, float)) and math.isfinite(value)
 
 
-def _same(a: float, b: float) -> bool:
-    """Two targets read back from CSV (1e-06 written as 1e-06): equal to 1e-9 relative."""
-    return abs(a - b) <= 1e-9 * max(abs(a), abs(b))
+def _target_key(target: float) -> str:
+    """A target as a key: equal for 1e-06 read back from CSV and 1e-6."""
+    return f"{float(target):.6e}"
 
 
-def _searched(advice: pd.DataFrame, case: str, engine: str, target: float, failed) -> list[dict]:
+def _searched(advice: list[dict], engine: str, failed) -> list[dict]:
     """advice.csv's advised rows (a finite dt or tolerance) of one case, engine and target, as answers."""
-    if advice is None or advice.empty:
-        return []
-    rows = advice[(advice["case"] == case) & (advice["engine"] == engine)]
     out = []
-    for _, row in rows.iterrows():
-        if not _same(float(row["target"]), target) or not (_finite(row["dt"]) or _finite(row["tolerance"])):
+    for row in advice:
+        if not (_finite(row["dt"]) or _finite(row["tolerance"])):
             continue
         formulation, integrator = _text(row["formulation"]), _text(row["integrator"])
         if is_failed(failed, engine, formulation, integrator):
@@ -78,31 +75,35 @@ def answers(pareto: pd.DataFrame, advice: pd.DataFrame | None = None, failed: se
     then each engine scope of pareto.csv and `any`, then target (pareto.csv's targets); a cell without an answer has
     an empty engine and `why_none` says why (pareto.csv's `source`)."""
     failed = set(failed)
-    if advice is not None and len(advice):
-        advice = advice.assign(formulation=advice["formulation"].map(_text))
-    targets = sorted(set(pareto["target"]) if len(pareto) else ACCURACY_TARGETS, reverse=True)
+    scope_of = pareto["scope"].fillna(ANY).astype(str) if "scope" in pareto else pd.Series(ANY, index=pareto.index)
+    cells: dict[tuple, list[dict]] = {}
+    for scope, row in zip(scope_of, pareto.to_dict("records")):
+        cells.setdefault((row["case"], scope, _target_key(row["target"])), []).append(row)
+    advised: dict[tuple, list[dict]] = {}
+    for row in ([] if advice is None else advice.to_dict("records")):
+        advised.setdefault((row["case"], row["engine"], _target_key(row["target"])), []).append(row)
+    targets = sorted({float(t) for t in pareto["target"]} or set(ACCURACY_TARGETS), reverse=True)
     engines = scopes(pareto)
     records = []
     for case in dict.fromkeys(pareto["case"]):
-        in_case = pareto[pareto["case"] == case]
         by_scope: dict[str, list[dict]] = {scope: [] for scope in [*engines, ANY]}
         for target in targets:
-            at = in_case[[_same(float(t), target) for t in in_case["target"]]]
+            key = _target_key(target)
             found = []
             for engine in engines:
-                cell = scope_rows(at, engine)
-                searched = _searched(advice, case, engine, target, failed)
+                cell = cells.get((case, engine, key), [])
+                searched = _searched(advised.get((case, engine, key), []), engine, failed)
                 covered = {(c["formulation"], c["integrator"]) for c in searched}
-                listed = [_listed(r) for _, r in cell.iterrows() if _text(r["engine"])
+                listed = [_listed(r) for r in cell if _text(r["engine"])
                           and (_text(r["formulation"]), _text(r["integrator"])) not in covered]
                 answer = _cheapest(searched + listed)
-                why = "" if answer else (_text(cell["source"].iloc[0]) if len(cell) else "")
+                why = "" if answer or not cell else _text(cell[0]["source"])
                 by_scope[engine].append(_record(case, engine, target, answer, why))
                 if answer:
                     found.append(answer)
-            why_any = scope_rows(at, ANY)["source"]
+            cell = cells.get((case, ANY, key), [])
             by_scope[ANY].append(_record(case, ANY, target, _cheapest(found),
-                                         "" if found else (_text(why_any.iloc[0]) if len(why_any) else "")))
+                                         "" if found or not cell else _text(cell[0]["source"])))
         records += [record for rows in by_scope.values() for record in rows]
     return pd.DataFrame(records, columns=list(ANSWER_COLUMNS))
 

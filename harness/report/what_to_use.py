@@ -33,7 +33,8 @@ def what_to_use_lines(answers: pd.DataFrame) -> list[str]:
              "comparable within one report only; each run is timed alone (best of up to 3). Runs within the timing "
              f"noise of the cheapest (the sum of their spreads, at least {TIE_RTOL:.0%}, never more than "
              f"{TIE_MAX_RATIO:g} x) are pareto.csv's `ties`; a run whose integrator failed a verdict, or whose timing "
-             "stayed disturbed, is no answer. Targets shown: "
+             f"stayed disturbed, is no answer. '{SAME}': the answer of the cell to its left (it reaches this target "
+             "too). Targets shown: "
              + ", ".join(f"{t:.0e}" for t in SHOWN_TARGETS) + " (pareto.csv and advice.csv hold every decade).", ""]
     targets = [t for t in sorted(answers["target"].unique(), reverse=True) if shown(t)]
     for scope in dict.fromkeys(answers["scope"]):
@@ -52,9 +53,19 @@ def _table(rows: pd.DataFrame, targets: list[float], own: bool) -> list[str]:
         cells = [case]
         for target in targets:
             hit = group[(group["target"] - target).abs() <= 1e-9 * target]
-            cells.append(cell(hit.iloc[0], own) if len(hit) else "-")
+            text = cell(hit.iloc[0], own) if len(hit) else "-"
+            # most answers reach several targets: said once, the cells to its right point back to it
+            cells.append(SAME if len(cells) > 1 and text != "-" and text == _last(cells) else text)
         body.append(cells)
     return markdown_table(["case"] + [f"≤ {t:.0e}" for t in targets], body)
+
+
+SAME = "="  # a cell whose answer is the one to its left (that run reaches this target too)
+
+
+def _last(cells: list[str]) -> str:
+    """The answer a row's SAME cells point back to."""
+    return next(c for c in reversed(cells) if c != SAME)
 
 
 def cell(row, own: bool = True) -> str:
