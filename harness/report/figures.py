@@ -142,7 +142,7 @@ def _panel_grid(count: int, width_in: float, height_in: float, legend_in: float,
     height = rows * height_in + 0.5 + extra_top
     figure = Figure(figsize=(width, height))
     figure.suptitle(wrapped, fontsize=SUPTITLE_FONT_PT)
-    figure.subplots_adjust(left=0.6 / width, right=1 - legend_in / width, bottom=0.55 / height,
+    figure.subplots_adjust(left=0.85 / width, right=1 - legend_in / width, bottom=0.55 / height,
                            top=1 - (0.45 + extra_top) / height, wspace=(legend_in + 0.55) / width_in,
                            hspace=0.55)
     grid = figure.subplots(rows, columns, squeeze=False)
