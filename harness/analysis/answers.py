@@ -56,9 +56,9 @@ def _searched(advice: list[dict], engine: str, failed) -> list[dict]:
 
 def _listed(row) -> dict:
     return {"engine": _text(row["engine"]), "formulation": _text(row["formulation"]),
-            "integrator": _text(row["integrator"]), "dt": row["dt"], "tolerance": row["tolerance"],
-            "error": row["attitude_err"], "us_per_sim_s": row["us_per_sim_s"],
-            "us_per_sim_s_spread": row["us_per_sim_s_spread"], "source": LISTED, "fails_at": math.nan}
+            "integrator": _text(row["integrator"]), "dt": row["dt"], "tolerance": row.get("tolerance", math.nan),
+            "error": row.get("attitude_err", math.nan), "us_per_sim_s": row["us_per_sim_s"],
+            "us_per_sim_s_spread": row.get("us_per_sim_s_spread", math.nan), "source": LISTED, "fails_at": math.nan}
 
 
 def _cheapest(candidates: list[dict]) -> dict | None:
@@ -97,13 +97,15 @@ def answers(pareto: pd.DataFrame, advice: pd.DataFrame | None = None, failed: se
                 listed = [_listed(r) for r in cell if _text(r["engine"])
                           and (_text(r["formulation"]), _text(r["integrator"])) not in covered]
                 answer = _cheapest(searched + listed)
-                why = "" if answer or not cell else _text(cell[0]["source"])
+                why = "" if answer or not cell else _text(cell[0].get("source"))
                 by_scope[engine].append(_record(case, engine, target, answer, why))
                 if answer:
                     found.append(answer)
             cell = cells.get((case, ANY, key), [])
+            if not engines:  # a pareto.csv written before scopes (0.3) is all `any`: its rows are the answers
+                found = [_listed(r) for r in cell if _text(r["engine"])]
             by_scope[ANY].append(_record(case, ANY, target, _cheapest(found),
-                                         "" if found or not cell else _text(cell[0]["source"])))
+                                         "" if found or not cell else _text(cell[0].get("source"))))
         records += [record for rows in by_scope.values() for record in rows]
     return pd.DataFrame(records, columns=list(ANSWER_COLUMNS))
 
