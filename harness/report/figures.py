@@ -128,12 +128,12 @@ def legend_width(labels, fontsize: float = MIN_FONT_PT) -> float:
     return 0.45 + 0.6 * fontsize / 72.0 * longest
 
 
-def _panel_grid(count: int, width_in: float, height_in: float, legend_in: float, title: str):
+def _panel_grid(count: int, height_in: float, legend_in: float, title: str):
     """A figure with `count` panels, as many a row as fit in MAX_WIDTH_IN (at most 3), each with room for its legend
     on its right, the panels widened to use the width available (at most PANEL_MAX_IN each); its title wrapped to
     its width."""
     columns = max(1, min(3, count, int(MAX_WIDTH_IN // (PANEL_MIN_IN + legend_in))))
-    width_in = max(width_in, min(PANEL_MAX_IN, MAX_WIDTH_IN / columns - legend_in))
+    width_in = max(PANEL_MIN_IN, min(PANEL_MAX_IN, MAX_WIDTH_IN / columns - legend_in))
     height_in = max(height_in, 0.62 * width_in)
     rows = math.ceil(count / columns)
     width = columns * (width_in + legend_in)
@@ -201,7 +201,7 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
     panels = facets(rows)
     styles = figure_styles(rows["integrator"])
     title = f"{case}: work–precision (points along dt or tolerance, largest first)"
-    figure, grid = _panel_grid(len(panels), 3.6, 2.9, legend_width(rows["integrator"]), title)
+    figure, grid = _panel_grid(len(panels), 2.9, legend_width(rows["integrator"]), title)
     for axes, (title_, panel) in zip(grid.flat, panels):
         for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
             # along dt, an adaptive method's along its tolerance (tolerance ladders): no zig-zag
@@ -274,7 +274,7 @@ def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
     panels = facets(rows)
     styles = figure_styles(rows["integrator"])
     title = f"{case}: error reached against tolerance requested"
-    figure, grid = _panel_grid(len(panels), 3.6, 2.9, legend_width([*rows["integrator"], "error = tol"]),
+    figure, grid = _panel_grid(len(panels), 2.9, legend_width([*rows["integrator"], "error = tol"]),
                                title)
     for axes, (title_, panel) in zip(grid.flat, panels):
         for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
