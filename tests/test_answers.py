@@ -32,14 +32,16 @@ def _advice(rows):
     """advice.csv rows: (engine, integrator, target, dt, tolerance, error, cost)."""
     return pd.DataFrame([{"case": "c", "engine": engine, "formulation": "", "integrator": integrator,
                           "target": target, "dt": dt, "tolerance": tol, "error_checked": err, "us_per_sim_s": cost,
-                          "fails_at": dt * 1.25, "note": ""} for engine, integrator, target, dt, tol, err, cost in rows])
+                          "fails_at": dt * 1.25, "note": ""}
+                         for engine, integrator, target, dt, tol, err, cost in rows])
 
 
 def test_searched_setting_replaces_its_family_listed_one_and_the_cheapest_engine_answers_any():
     nan = math.nan
     pareto = _pareto([
         # 1e-3: mujoco rk4 listed at dt 0.01 (100 µs/s); advice searched rk4 up to dt 0.05 (30 µs/s)
-        ("any", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5, 100.0), ("mujoco", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5, 100.0),
+        ("any", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5, 100.0),
+        ("mujoco", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5, 100.0),
         ("pinocchio", 1e-3, "pinocchio", "euler", 0.001, nan, 8e-4, 50.0),
         # 1e-6: advice searched rk4 (200 µs/s), but a listed euler run is cheaper still (150 µs/s)
         ("any", 1e-6, "mujoco", "euler", 1e-4, nan, 9e-7, 150.0),

@@ -105,10 +105,11 @@ def test_a_single_panel_with_a_long_legend_label_and_a_one_decade_cost_axis(draw
     panel's title was clipped at both ends. Break-checks: legend_width() returning 1.5 (the old fixed width) clips the
     legend; integrator_style() in place of figure_styles() repeats a colour; log_ticks without its minor labels leaves
     the cost axis unlabelled; the title unwrapped reaches outside."""
-    rows = pd.DataFrame(_rows("a-case-with-a-long-name-as-users-write-them-in-their-own-suites-of-bodies", "drake",
+    case = "a-case-with-a-long-name-as-users-write-them-in-their-own-suites-of-bodies"
+    rows = pd.DataFrame(_rows(case, "drake",
                               ["runge_kutta3_adaptive", "runge_kutta2", "discrete", "rk4", "euler"], (200.0, 900.0),
                               "quaternion_free"))
-    assert figures.work_precision(rows, "a-case-with-a-long-name-as-users-write-them-in-their-own-suites-of-bodies") is not None
+    assert figures.work_precision(rows, case) is not None
     figure = drawn[-1]
     _check(figure, markers=True)
     # the width available: a single panel is not drawn at half the page

@@ -31,8 +31,8 @@ def advice_lines(table: pd.DataFrame, answers: pd.DataFrame | None = None) -> li
              "What to use): the largest step dt, or for an adaptive method the largest requested tolerance, that "
              "reaches it (advice.csv). Estimated from the fitted error model C·dt^p on the asymptotic range, then "
              f"checked by runs: the setting shown reaches the target, {CHECK_RATIO:g} times it (or less: 'fails at') "
-             "does not. 'error checked' and 'µs/s' are the advised run's own, measured; a target beyond the step cap or "
-             "below the method's floor says so instead. The default run checks the families with a dt or tolerance "
+             "does not. 'error checked' and 'µs/s' are the advised run's own, measured; a target beyond the step cap "
+             "or below the method's floor says so instead. The default run checks the families with a dt or tolerance "
              "ladder at 1e-3 and 1e-6 rad; `--dt-ladder` every laddered family at every target; `stereodyn advise "
              "CASE --engine E` any case and engine. 'answer': the row What to use gives as the engine's answer (the "
              "cheapest advised integrator, unless a listed run is cheaper still).", ""]

@@ -66,8 +66,8 @@ def summary_lines(df: pd.DataFrame, failed: set = frozenset(), answer_table: pd.
         else:
             cells = [f"{_answer_name(answer)} {answer_setting(answer)} ({answer['source']})", _num(answer["error"]),
                      _num(answer["us_per_sim_s"], ".3g")]
-        rows.append([case, "-" if best is None else _run_name(best), "-" if best is None else _num(best["attitude_err"]),
-                     *cells])
+        rows.append([case, "-" if best is None else _run_name(best),
+                     "-" if best is None else _num(best["attitude_err"]), *cells])
     return _md_table(["case", "most accurate fixed-step run", "att_err",
                       f"answer for att_err <= {SUMMARY_ACCURACY:g} (What to use)", "its att_err", "µs/s"],
                      rows) + [""]
