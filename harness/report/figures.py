@@ -145,8 +145,9 @@ def _panel_grid(count: int, height_in: float, legend_in: float, title: str):
     height = rows * height_in + 0.5 + extra_top
     figure = Figure(figsize=(width, height))
     figure.suptitle(wrapped, fontsize=SUPTITLE_FONT_PT)
+    # between two panels: the left one's legend, then the right one's plain-text y tick labels (0.0001: ~0.5 in)
     figure.subplots_adjust(left=0.85 / width, right=1 - legend_in / width, bottom=0.55 / height,
-                           top=1 - (0.45 + extra_top) / height, wspace=(legend_in + 0.55) / width_in,
+                           top=1 - (0.45 + extra_top) / height, wspace=(legend_in + 0.85) / width_in,
                            hspace=0.55)
     grid = figure.subplots(rows, columns, squeeze=False)
     for axes in grid.flat[count:]:
