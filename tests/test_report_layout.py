@@ -44,13 +44,15 @@ def test_passes_fold_per_claim_kind_failures_come_first_and_each_rule_is_said_on
 
 
 def test_every_table_is_in_its_own_scrolling_box_with_its_first_column_in_view():
-    page = render("# T\n\n## A\n\n| case | energy_drift |\n|---|---|\n| gibbs_hamiltonian | 1e-3 |\n")
+    page = render("# T\n\n## A\n\n| case | ≤ 1e-12 | attitude_err_end |\n|---|---|---|\n"
+                  "| gibbs_hamiltonian | 1e-3 | 1e-4 |\n")
     assert '<div class="wide"><table>' in page and "</table></div>" in page
     css = page.split("<style>")[1].split("</style>")[0]
     assert re.search(r"div\.wide \{[^}]*overflow-x: auto", css)
     assert re.search(r"div\.wide th:first-child, div\.wide td:first-child \{[^}]*position: sticky; left: 0", css)
     # a name breaks after its underscores: a table is as wide as its numbers, not its longest name
-    assert "<th>energy_<wbr>drift</th>" in page and "gibbs_<wbr>hamiltonian</td>" in page
+    assert "<th>attitude_<wbr>err_<wbr>end</th>" in page and "gibbs_<wbr>hamiltonian</td>" in page
+    assert '<th class="n">≤ 1e-12</th>' in page  # a short header stays whole
 
 
 MEASURE = """<script>window.addEventListener('load', () => {

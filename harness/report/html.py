@@ -27,7 +27,7 @@ body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 110em; p
 h1 { border-bottom: 2px solid #444; } h2 { border-bottom: 1px solid #aaa; margin-top: 2em; }
 table { border-collapse: collapse; margin: 0.5em 0 1.2em; font-size: 0.85em; }
 th, td { border: 1px solid #bbb; padding: 0.15em 0.3em; text-align: right; white-space: nowrap; }
-th { background: #eee; white-space: normal; } td.t { text-align: left; white-space: normal; min-width: 6em; }
+th { background: #eee; white-space: normal; } th.n { white-space: nowrap; } td.t { text-align: left; white-space: normal; min-width: 6em; }
 div.wide { max-width: 100%; overflow-x: auto; }
 div.wide th:first-child, div.wide td:first-child { position: sticky; left: 0; z-index: 1; }
 div.wide td:first-child:not([class^="g"]):not([class^="s-"]) { background: #fff; }
@@ -48,7 +48,7 @@ SCRIPT = """
 document.querySelectorAll('table').forEach(function (table) {
   var rows = function () { return Array.prototype.slice.call(table.rows, 1); };
   Array.prototype.forEach.call(table.rows[0].cells, function (th, column) {
-    th.className = 'sortable'; th.title = 'sort';
+    th.classList.add('sortable'); th.title = 'sort';
     th.addEventListener('click', function () {
       var up = th.dataset.up !== '1'; th.dataset.up = up ? '1' : '0';
       var key = function (row) { var t = row.cells[column] ? row.cells[column].textContent.trim() : '';
@@ -132,13 +132,18 @@ def _cells(line: str) -> list[str]:
     return [cell.strip().replace("\\|", "|") for cell in re.split(r"(?<!\\)\|", inner)]
 
 
+# A header this short stays on one line ("≤ 1e-12" broke after its hyphen in a squeezed column); longer ones wrap.
+SHORT_HEADER = 12
+
+
 def _table(lines: list[str]) -> str:
     header = _cells(lines[0])
     body = [_cells(line) for line in lines[2:]]
     # a name may break after an underscore (energy_drift, gibbs_hamiltonian): a table's width is its numbers', not
     # its names'
     out = ['<div class="wide"><table>',
-           "<tr>" + "".join(f"<th>{_inline(h).replace('_', '_<wbr>')}</th>" for h in header) + "</tr>"]
+           "<tr>" + "".join(f"<th>{_inline(h).replace('_', '_<wbr>')}</th>" if len(h) > SHORT_HEADER
+                            else f'<th class="n">{_inline(h)}</th>' for h in header) + "</tr>"]
     for cells in body:
         row = []
         for name, cell in zip(header, cells):

@@ -28,9 +28,10 @@ def what_to_use_lines(answers: pd.DataFrame) -> list[str]:
              "to reach the target (section Step-size advice). "
              f"'{LISTED}': the cheapest of the runs the sweep and the ladders listed (pareto.csv); a larger dt "
              "may reach the target too. Where both exist for an engine, the cheaper is the answer. First per engine "
-             "(only that engine's runs: what its user can switch to), then over every engine (`any`: the cheapest "
-             "engine's answer). The truth is no contender: it is what the errors are measured against. Timings are "
-             "comparable within one report only; each run is timed alone (best of up to 3). Runs within the timing "
+             "(only that engine's runs: what its user can switch to; each table folds to a line of counts, open it), "
+             "then over every engine (`any`: the cheapest engine's answer). The truth is no contender: it is what the "
+             "errors are measured against. Timings are comparable within one report only; each run is timed alone "
+             "(best of up to 3). Runs within the timing "
              f"noise of the cheapest (the sum of their spreads, at least {TIE_RTOL:.0%}, never more than "
              f"{TIE_MAX_RATIO:g} x) are pareto.csv's `ties`; a run whose integrator failed a verdict, or whose timing "
              f"stayed disturbed, is no answer. '{SAME}': the answer of the cell to its left (it reaches this target "
@@ -41,7 +42,15 @@ def what_to_use_lines(answers: pd.DataFrame) -> list[str]:
         rows = answers[answers["scope"] == scope]
         own = scope != ANY
         title = f"### {scope}" if own else "### any engine"
-        lines += [title, "", *_table(rows, targets, own), ""]
+        table = _table(rows, targets, own)
+        if own:  # an engine's table folds to one line of counts: the page's height is the cases' figures, not this
+            at = rows[[shown(t) for t in rows["target"]]]
+            counts = at["source"].value_counts()
+            table = [f"<details><summary>{rows['case'].nunique()} cases × {len(targets)} targets: "
+                     f"{counts.get(SEARCHED, 0)} answers searched, {counts.get(LISTED, 0)} listed but not searched, "
+                     f"{int((at['engine'] == '').sum())} targets no run reached</summary>", "", *table, "",
+                     "</details>"]
+        lines += [title, "", *table, ""]
     return lines
 
 
