@@ -7,6 +7,7 @@ import functools
 import hashlib
 import importlib
 import inspect
+import os
 import platform
 import sys
 from importlib import metadata
@@ -207,6 +208,22 @@ def environment() -> dict[str, str]:
             "machine": platform.machine(),
             "platform": platform.platform(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
             "git commit": git_commit()}
+
+
+# runs.json's environment keys of the machine's load when the timing phase starts and ends (harness.run.sweep): the
+# timings are taken on whatever else the machine runs, and this says how busy it was.
+TIMING_START, TIMING_END = "load at timing start", "load at timing end"
+
+
+def load_snapshot() -> str:
+    """The load average (1, 5, 15 min), the number of CPUs, the CPU model and the time: one line for the report's
+    Environment section."""
+    try:
+        load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    except (OSError, AttributeError):  # not on this platform
+        load = "unknown"
+    now = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+    return f"load average {load} (1, 5, 15 min) on {os.cpu_count()} CPUs, {cpu_name()}, at {now}"
 
 
 def _version(package: str) -> str:

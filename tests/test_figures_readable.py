@@ -2,7 +2,8 @@
 1400 px wide window, shows its smallest text at >= 10 px, and every raster figure is drawn at >= 96 dpi.
 
 The text height is computed, not guessed: each PNG carries its resolution (pHYs) and the smallest font size drawn in
-it (harness.report.figures.FONT_KEY); Chromium gives the width it displays the image at. Skipped without chromium
+it (harness.report.figures.FONT_KEY; a mathtext exponent counts at its drawn size, 0.7 of its label's: issue 32);
+Chromium gives the width it displays the image at. Skipped without chromium
 (`apt-get install -y chromium`).
 """
 import base64

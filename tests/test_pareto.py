@@ -178,10 +178,12 @@ def test_the_report_shows_each_engines_table_before_any(tmp_path):
     assert heads == ["### reference", "### mujoco", "### pinocchio", "### any engine"]
     mujoco = section.split("### mujoco")[1].split("###")[0]
     row = [line for line in mujoco.splitlines() if line.startswith("| c |")][0].split(" | ")
-    # targets 1e-2 ... 1e-12: MuJoCo's rk4 (named without its engine) down to 1e-7, then nothing
-    assert row[1] == "rk4 dt=0.01 (400 µs/s)" and row[6] == "rk4 dt=0.01 (400 µs/s)" and row[7] == "-"
+    # targets shown 1e-2, 1e-3, 1e-4, 1e-6, 1e-8 ...: MuJoCo's rk4 (named without its engine) down to 1e-7 (the
+    # cells after the first say '=': the same answer), then nothing
+    assert row[1] == "rk4 dt=0.01: 1e-07 rad, 400 µs/s (listed, not searched)"
+    assert row[2:5] == ["=", "=", "="] and row[5] == "-"
     every = section.split("### any engine")[1]
-    assert "| c | reference taylor dt=0.01 (50 µs/s) |" in every
+    assert "| c | reference taylor dt=0.01: 1e-12 rad, 50 µs/s (listed, not searched) | = |" in every
 
 
 def test_an_engine_whose_rows_are_all_skipped_gets_no_scope_and_no_terminal_line(tmp_path):

@@ -175,3 +175,16 @@ def test_a_run_whose_worker_died_is_not_stored_and_is_retried(tmp_path, monkeypa
     monkeypatch.setattr(run_pool, "sweep_run", real)
     assert cli.main([*argv, "--resume"]) == 0
     assert set(pd.read_csv(tmp_path / "results.csv").status) == {"ok"} and len(store_mtimes(tmp_path)) == 2
+
+
+def test_runs_json_records_the_load_at_the_timing_phases_start_and_end(uninterrupted):
+    """Issue 32: timings come from a shared machine; runs.json's environment (the report's Environment section) says
+    how busy it was when the timing phase began and ended. Break-check: without the two snapshots in run_sweep this
+    fails."""
+    from stereodyn.harness.environment import TIMING_END, TIMING_START, cpu_name
+
+    environment = json.loads((uninterrupted / "runs.json").read_text())["environment"]
+    for key in (TIMING_START, TIMING_END):
+        assert environment[key].startswith("load average ") and cpu_name() in environment[key], environment[key]
+        load = [float(x) for x in environment[key].split("load average ")[1].split(" (")[0].split(", ")]
+        assert len(load) == 3 and min(load) >= 0.0

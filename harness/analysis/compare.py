@@ -14,6 +14,7 @@ import pandas as pd
 
 from . import gate
 from ..engines.base import FLOAT64
+from ..environment import TIMING_END, TIMING_START
 from ..run.results import with_precision
 from ..run.store import read_manifest
 
@@ -25,7 +26,7 @@ FLOOR = 1e-12
 GROUPS = ((1.0, "changed 10x or more"), (math.log10(2.0), "changed 2x to 10x"),
           (math.log10(1.1), "changed 1.1x to 2x"))
 # Environment keys that differ between any two runs (not a difference in what ran).
-EXPECTED = ("date", "report rendered")
+EXPECTED = ("date", "report rendered", TIMING_START, TIMING_END)
 TIMING = "us_per_step"
 DIFFERS = "DIFFERS"
 LISTED = 40      # rows listed per group (the output folder's compare.csv holds every row)

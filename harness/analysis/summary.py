@@ -22,18 +22,19 @@ TERMINAL_VERDICTS = 20
 
 
 def cheapest_lines(out_dir: Path, targets=TERMINAL_TARGETS) -> list[str]:
-    """Per engine scope of pareto.csv, then `any` (every run): per accuracy target, on how many cases some run of the
-    scope reaches it, the run named most often with the steps (or tolerances) it reached it at, and the case whose
-    cheapest run is the most expensive (the target's worst case); where no case is reached, why (pareto.csv's
-    `source`)."""
-    from . import workprecision
+    """Per engine scope of the answers (analysis.answers, the report's), then `any` (every run): per accuracy target,
+    on how many cases some run of the scope reaches it, the run named most often with the steps (or tolerances) it
+    reached it at, and the case whose answer is the most expensive (the target's worst case); where no case is
+    reached, why."""
+    from . import answers
     from .pareto import ANY, scope_rows, scopes, setting
 
-    table = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
-                                        ("formulation", "engine", "integrator", "scope", "source"))
+    # the report's one answer per case, engine and target (What to use, Step-size advice, Summary), not a fourth
+    table = answers.read(Path(out_dir))
     if table is None or table.empty:
         return []
-    lines = ["cheapest run reaching an accuracy (max attitude error), per engine and over all (pareto.csv):"]
+    table = table.assign(source=table["why_none"])  # why a cell has no answer, in pareto.csv's words
+    lines = ["cheapest run reaching an accuracy (max attitude error), per engine and over all (report: What to use):"]
     cases = table["case"].nunique()
     for scope in [*scopes(table), ANY]:
         rows = scope_rows(table, scope)

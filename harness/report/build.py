@@ -42,39 +42,51 @@ def _run_name(row) -> str:
     return figures.run_label(row) + dt
 
 
-def summary_lines(df: pd.DataFrame, failed: set = frozenset()) -> list[str]:
-    """Per case: the most accurate fixed-step run, and the cheapest one within SUMMARY_ACCURACY (adaptive runs are the
-    truth and its relatives, not contenders) whose integrator passed its verdicts, as pareto.csv chooses (failed:
-    harness.analysis.verdicts.failed_integrators); where only runs that failed a verdict reach it, pareto.csv's words
-    say so."""
-    from ..analysis.pareto import NONE_REACHED, ONLY_FAILED, is_failed
+def summary_lines(df: pd.DataFrame, failed: set = frozenset(), answer_table: pd.DataFrame | None = None) -> list[str]:
+    """Per case: the most accurate fixed-step run, and the answer at SUMMARY_ACCURACY over every engine: What to use's
+    (answer_table, harness.analysis.answers; without one, the answers of the results' own runs: pareto.csv's rule,
+    failed: harness.analysis.verdicts.failed_integrators); where none, why in pareto.csv's words."""
+    from ..analysis.answers import answer_setting, answers
+    from ..analysis.pareto import ANY, pareto
 
+    if answer_table is None:
+        runs = df.assign(**{c: df[c] if c in df else np.nan for c in ("us_per_step_spread", "steps", "tolerance")})
+        answer_table = answers(pareto(runs, pd.DataFrame(), set(failed)), None, failed)
+    at = answer_table[(answer_table["scope"] == ANY)
+                      & ((answer_table["target"] - SUMMARY_ACCURACY).abs() <= 1e-9 * SUMMARY_ACCURACY)]
     rows = []
     for case, group in df.groupby("case", sort=False):
         ok = group[(group["status"] == "ok") & np.isfinite(group["attitude_err"]) & np.isfinite(group["dt"])]
-        if ok.empty:
-            rows.append([case, "-", "-", "-", "-"])
-            continue
-        best = ok.loc[ok["attitude_err"].idxmin()]
-        timed = ok[(ok["attitude_err"] <= SUMMARY_ACCURACY) & np.isfinite(ok["wall_s"])]
-        passed = timed[[not is_failed(failed, r["engine"], r["formulation"] if isinstance(r["formulation"], str)
-                                      else "", r["integrator"]) for _, r in timed.iterrows()]] if failed else timed
-        cheap = passed.loc[(passed["wall_s"] / passed["t_end"]).idxmin()] if len(passed) else None
-        rows.append([case, _run_name(best), _num(best["attitude_err"]),
-                     (ONLY_FAILED if len(timed) else NONE_REACHED) if cheap is None else _run_name(cheap),
-                     "-" if cheap is None else _num(cheap["wall_s"] / cheap["t_end"] * 1e6, ".3g")])
+        best = ok.loc[ok["attitude_err"].idxmin()] if len(ok) else None
+        answer = at[at["case"] == case]
+        answer = answer.iloc[0] if len(answer) else None
+        if answer is None or not answer["engine"]:
+            cells = [answer["why_none"] if answer is not None and answer["why_none"] else "-", "-", "-"]
+        else:
+            cells = [f"{_answer_name(answer)} {answer_setting(answer)} ({answer['source']})", _num(answer["error"]),
+                     _num(answer["us_per_sim_s"], ".3g")]
+        rows.append([case, "-" if best is None else _run_name(best),
+                     "-" if best is None else _num(best["attitude_err"]), *cells])
     return _md_table(["case", "most accurate fixed-step run", "att_err",
-                      f"cheapest fixed-step run with att_err <= {SUMMARY_ACCURACY:g}", "us per simulated s"],
+                      f"answer for att_err <= {SUMMARY_ACCURACY:g} (What to use)", "its att_err", "µs/s"],
                      rows) + [""]
+
+
+def _answer_name(row) -> str:
+    return " ".join(x for x in (row["engine"], row["integrator"]) if x) + (
+        f" ({row['formulation']})" if row["formulation"] else "")
 
 
 @sections.register("summary", 20)
 def _summary(context: sections.Context) -> list[str]:
+    from ..analysis import answers
+
     df = context.results
     counts = df["status"].value_counts()
+    failed = failed_integrators(read_verdicts(context.out_dir) or [])
     return ["## Summary", "", f"{len(df)} runs over {df['case'].nunique()} cases: "
             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "",
-            *summary_lines(df, failed_integrators(read_verdicts(context.out_dir) or []))]
+            *summary_lines(df, failed, answers.read(context.out_dir, failed))]
 
 
 @sections.register("oracle-and-theory-checks", 80)

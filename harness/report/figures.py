@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import io
 import math
+import textwrap
 
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
-from matplotlib.ticker import NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from ...reference.integrals import INTEGRALS
 
@@ -26,7 +27,10 @@ MIN_FONT_PT = 8       # tick labels, legends
 LABEL_FONT_PT = 9     # axis labels
 TITLE_FONT_PT = 10    # panel titles
 SUPTITLE_FONT_PT = 11
-PALETTE = 32  # colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing
+# Colours of a figure's PNG: the integrators' colours, black, grey and their anti-aliasing. Median cut to 32 colours
+# moved rk4's blue 83 (of 255) towards grey and merged orange into red (issue 32: legends that reuse colours); a fast
+# octree to 64 keeps each within 2 at the same bytes (measured on a six-integrator figure: 10.2 kB against 10.2 kB).
+PALETTE = 64
 # Invariant plot rows: series name -> axis label. Only quantities some run of the case recorded are drawn.
 # (The registry's integrals with a label, reference.integrals, then the attitude error.)
 QUANTITIES = {**{name: i.label for name, i in INTEGRALS.items() if i.label is not None},
@@ -67,11 +71,31 @@ _MARKERS = ("o", "s", "^", "v", "D", "P", "*", "X", "<", ">", "h", "p", "d", "H"
 
 def integrator_style(integrator: str) -> tuple[str, str]:
     """(colour, marker) of an integrator: fixed for the built-in ones, from a hash of the name for the others."""
+    return _style(_style_index(integrator))
+
+
+def _style_index(integrator: str) -> int:
     if integrator in INTEGRATOR_STYLES:
-        i = INTEGRATOR_STYLES.index(integrator)
-    else:
-        i = sum(map(ord, integrator)) % len(_COLOURS)
+        return INTEGRATOR_STYLES.index(integrator)
+    return sum(map(ord, integrator)) % len(_COLOURS)
+
+
+def _style(i: int) -> tuple[str, str]:
     return _COLOURS[i % len(_COLOURS)], _MARKERS[i % len(_MARKERS)]
+
+
+def figure_styles(integrators) -> dict[str, tuple[str, str]]:
+    """(colour, marker) per integrator of one figure, distinct within it: each its integrator_style unless an
+    integrator before it took that colour (two names hashed alike: Drake's and MuJoCo's), then the next free one."""
+    taken: set[int] = set()
+    styles = {}
+    for name in dict.fromkeys(integrators):
+        i = _style_index(name)
+        while i % len(_COLOURS) in taken and len(taken) < len(_COLOURS):
+            i += 1
+        taken.add(i % len(_COLOURS))
+        styles[name] = _style(i)
+    return styles
 
 
 def _formulation(row) -> str:
@@ -95,15 +119,35 @@ def facets(rows: pd.DataFrame, key=None, limit: int = MAX_SERIES) -> list[tuple[
     return panels
 
 
-def _panel_grid(count: int, width_in: float, height_in: float, legend_in: float, extra_top: float = 0.0):
+# A panel's width at least and at most (in): a single panel is not stretched across the page into a strip.
+PANEL_MIN_IN, PANEL_MAX_IN = 3.2, 6.0
+SUPERSCRIPT_SHRINK = 0.7  # mathtext's superscript size (matplotlib's SHRINK_FACTOR): 8 pt ticks had 5.6 pt exponents
+
+
+def legend_width(labels, fontsize: float = MIN_FONT_PT) -> float:
+    """The width (in) a legend of these labels needs beside its line sample (a character ~0.6 em wide at most in
+    DejaVu Sans, the sample and padding ~0.45 in)."""
+    longest = max((len(str(label)) for label in labels), default=0)
+    return 0.45 + 0.6 * fontsize / 72.0 * longest
+
+
+def _panel_grid(count: int, height_in: float, legend_in: float, title: str):
     """A figure with `count` panels, as many a row as fit in MAX_WIDTH_IN (at most 3), each with room for its legend
-    on its right."""
-    columns = max(1, min(3, count, int(MAX_WIDTH_IN // (width_in + legend_in))))
+    on its right, the panels widened to use the width available (at most PANEL_MAX_IN each); its title wrapped to
+    its width."""
+    columns = max(1, min(3, count, int(MAX_WIDTH_IN // (PANEL_MIN_IN + legend_in))))
+    width_in = max(PANEL_MIN_IN, min(PANEL_MAX_IN, MAX_WIDTH_IN / columns - legend_in))
+    height_in = max(height_in, 0.62 * width_in)
     rows = math.ceil(count / columns)
-    width, height = columns * (width_in + legend_in), rows * height_in + 0.5 + extra_top
+    width = columns * (width_in + legend_in)
+    wrapped = _wrapped(title, width)
+    extra_top = 0.25 + 0.2 * wrapped.count("\n")
+    height = rows * height_in + 0.5 + extra_top
     figure = Figure(figsize=(width, height))
-    figure.subplots_adjust(left=0.6 / width, right=1 - legend_in / width, bottom=0.55 / height,
-                           top=1 - (0.45 + extra_top) / height, wspace=(legend_in + 0.55) / width_in,
+    figure.suptitle(wrapped, fontsize=SUPTITLE_FONT_PT)
+    # between two panels: the left one's legend, then the right one's plain-text y tick labels (0.0001: ~0.5 in)
+    figure.subplots_adjust(left=0.85 / width, right=1 - legend_in / width, bottom=0.55 / height,
+                           top=1 - (0.45 + extra_top) / height, wspace=(legend_in + 0.85) / width_in,
                            hspace=0.55)
     grid = figure.subplots(rows, columns, squeeze=False)
     for axes in grid.flat[count:]:
@@ -125,8 +169,8 @@ def png(figure: Figure) -> bytes:
     # how large the text is where the page shows the figure (tests/test_figures_readable.py)
     info = PngInfo()
     info.add_text(FONT_KEY, f"{smallest_font(figure):g}")
-    Image.open(buffer).convert("RGB").quantize(colors=PALETTE).save(small, format="png", optimize=True,
-                                                                     dpi=(DPI, DPI), pnginfo=info)
+    quantized = Image.open(buffer).convert("RGB").quantize(colors=PALETTE, method=Image.Quantize.FASTOCTREE)
+    quantized.save(small, format="png", optimize=True, dpi=(DPI, DPI), pnginfo=info)
     return small.getvalue()
 
 
@@ -137,9 +181,15 @@ def smallest_font(figure: Figure) -> float:
     """The smallest font size (pt) of the figure's visible, non-empty text (tick labels, legends, titles)."""
     from matplotlib.text import Text
 
-    sizes = [t.get_fontsize() for t in figure.findobj(Text) if t.get_visible() and t.get_text().strip()
+    sizes = [t.get_fontsize() * (SUPERSCRIPT_SHRINK if _superscript(t.get_text()) else 1.0)
+             for t in figure.findobj(Text) if t.get_visible() and t.get_text().strip()
              and (t.axes is None or t.axes.get_visible())]
     return min(sizes) if sizes else math.nan
+
+
+def _superscript(text: str) -> bool:
+    """Whether a text draws an exponent smaller than itself (mathtext: $10^{-13}$)."""
+    return text.count("$") >= 2 and ("^" in text or "_" in text.split("$")[1])
 
 
 def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
@@ -153,33 +203,59 @@ def work_precision(group: pd.DataFrame, case: str) -> bytes | None:
     if rows.empty:
         return None
     panels = facets(rows)
-    figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
-    for axes, (title, panel) in zip(grid.flat, panels):
+    styles = figure_styles(rows["integrator"])
+    title = f"{case}: work–precision (points along dt or tolerance, largest first)"
+    figure, grid = _panel_grid(len(panels), 2.9, legend_width(rows["integrator"]), title)
+    for axes, (title_, panel) in zip(grid.flat, panels):
         for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
             # along dt, an adaptive method's along its tolerance (tolerance ladders): no zig-zag
             keys = [k for k in ("dt", "tolerance") if k in runs]
             runs = runs.sort_values(keys, ascending=False, na_position="last", kind="stable")
-            colour, marker = integrator_style(runs["integrator"].iloc[0])
+            colour, marker = styles[runs["integrator"].iloc[0]]
             engine = runs["engine"].iloc[0]
             short = str(runs["integrator"].iloc[0])  # the panel's title names the engine and formulation
             axes.plot((runs["wall_s"] / runs["t_end"] * 1e6).to_numpy(), runs["attitude_err"].to_numpy(),
                       marker=marker, markersize=4, linestyle=linestyle(engine), color=colour,
                       linewidth=1.0, label=short)
-        _log_log(axes, title)
+        _log_log(axes, title_)
     _axis_labels(grid, "µs per simulated s", "max attitude error (rad)")
-    figure.suptitle(f"{case}: work–precision (points along dt or tolerance, largest first)", fontsize=SUPTITLE_FONT_PT)
     return png(figure)
+
+
+def _wrapped(title: str, width_in: float) -> str:
+    """A figure title broken into lines that fit its width (a character ~0.55 em at SUPTITLE_FONT_PT)."""
+    return textwrap.fill(title, max(20, int(width_in * 72.0 / (0.55 * SUPTITLE_FONT_PT))))
 
 
 def _log_log(axes, title: str) -> None:
     """A work–precision-style panel: log-log, light grid, its legend outside on the right."""
     axes.set_xscale("log")
     axes.set_yscale("log")
-    axes.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short decade range
+    log_ticks(axes.xaxis)
+    log_ticks(axes.yaxis)
     axes.set_title(title, fontsize=TITLE_FONT_PT)
     axes.tick_params(labelsize=MIN_FONT_PT)
     axes.grid(True, which="major", alpha=0.3)
     axes.legend(fontsize=MIN_FONT_PT, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+
+
+def _tick(x: float, _position=None) -> str:
+    """A log axis's tick label in plain text (1e-13, 0.01, 100): its exponent as large as its digits; matplotlib's
+    10^-13 draws the exponent at SUPERSCRIPT_SHRINK of the tick size."""
+    return f"{x:g}".replace("e-0", "e-").replace("e+0", "e").replace("e+", "e")
+
+
+def log_ticks(axis) -> None:
+    """Plain-text labels on a log axis; where the data span less than two labelled decades (a cost within one
+    decade), the minor ticks at 2 and 5 are labelled too, so that the axis always carries numbers."""
+    axis.set_major_formatter(FuncFormatter(_tick))
+    axis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a long range
+    axes = axis.axes
+    low, high = (axes.get_xlim() if axis is axes.xaxis else axes.get_ylim())
+    low, high = min(low, high), max(low, high)
+    if low > 0 and math.floor(math.log10(high)) - math.ceil(math.log10(low)) < 1:
+        axis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+        axis.set_minor_formatter(FuncFormatter(_tick))
 
 
 def _axis_labels(grid, xlabel: str, ylabel: str) -> None:
@@ -200,30 +276,33 @@ def tolerance(points: pd.DataFrame, case: str) -> bytes | None:
     if rows.empty:
         return None
     panels = facets(rows)
-    figure, grid = _panel_grid(len(panels), 3.6, 2.9, 1.5, extra_top=0.25)
-    for axes, (title, panel) in zip(grid.flat, panels):
+    styles = figure_styles(rows["integrator"])
+    title = f"{case}: error reached against tolerance requested"
+    figure, grid = _panel_grid(len(panels), 2.9, legend_width([*rows["integrator"], "error = tol"]),
+                               title)
+    for axes, (title_, panel) in zip(grid.flat, panels):
         for label, runs in panel.groupby(panel.apply(run_label, axis=1), sort=False):
             runs = runs.sort_values("tolerance", ascending=False, kind="stable")
-            colour, marker = integrator_style(runs["integrator"].iloc[0])
+            colour, marker = styles[runs["integrator"].iloc[0]]
             axes.plot(runs["tolerance"].to_numpy(float), runs["state_err"].to_numpy(float), marker=marker,
                       markersize=4, linestyle=linestyle(runs["engine"].iloc[0]), color=colour, linewidth=1.0,
                       label=str(runs["integrator"].iloc[0]))
         low, high = float(panel["tolerance"].min()), float(panel["tolerance"].max())
         axes.plot([low, high], [low, high], color="grey", linestyle="--", linewidth=0.8, label="error = tol")
-        _log_log(axes, title)
+        _log_log(axes, title_)
     _axis_labels(grid, "tolerance requested", "max state error")
-    figure.suptitle(f"{case}: error against tolerance", fontsize=SUPTITLE_FONT_PT)
     return png(figure)
 
 
-def _legend(frame: pd.DataFrame) -> tuple[list, list[str]]:
-    """Proxy handles: a colour and marker per integrator, a line style per engine, black for the truth."""
+def _legend(frame: pd.DataFrame, styles: dict[str, tuple[str, str]]) -> tuple[list, list[str]]:
+    """Proxy handles: a colour per integrator (styles: figure_styles; no marker: the lines have none), a line style
+    per engine, black for the truth."""
     from matplotlib.lines import Line2D
 
     handles, labels = [], []
     for integrator in dict.fromkeys(frame.loc[frame["dt"].notna(), "integrator"]):
-        colour, marker = integrator_style(integrator)
-        handles.append(Line2D([], [], color=colour, marker=marker, markersize=4))
+        colour, _ = styles[integrator]
+        handles.append(Line2D([], [], color=colour))
         labels.append(integrator)
     for engine in dict.fromkeys(frame["engine"]):
         handles.append(Line2D([], [], color="grey", linestyle=linestyle(engine)))
@@ -316,14 +395,23 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
     panels = facets(fixed, limit=MAX_SERIES - 1) if len(fixed) else [("adaptive", adaptive)]
     # columns of INVARIANT_COLUMN_IN beside a legend of INVARIANT_LEGEND_IN, as many as fit in MAX_WIDTH_IN; more
     # panels wrap into further blocks of rows below (a block: a row per quantity)
-    columns = max(1, min(len(panels), int((MAX_WIDTH_IN - INVARIANT_LEGEND_IN - 0.9) // INVARIANT_COLUMN_IN)))
+    styles = figure_styles(fixed["integrator"]) if len(fixed) else {}
+    legend_in = max(INVARIANT_LEGEND_IN, legend_width([*styles, *(f"engine {e}" for e in frame["engine"]),
+                                                       "truth (adaptive)"]))
+    columns = max(1, min(len(panels), int((MAX_WIDTH_IN - legend_in - 0.9) // INVARIANT_COLUMN_IN)))
     blocks = math.ceil(len(panels) / columns)
     rows = blocks * len(quantities)
-    width = columns * INVARIANT_COLUMN_IN + INVARIANT_LEGEND_IN + 0.9
-    height = 1.45 * rows + 0.45 * (blocks - 1) + 1.1
+    # the columns widened to use the width available (a panel at most PANEL_MAX_IN)
+    column_in = max(INVARIANT_COLUMN_IN, min(PANEL_MAX_IN, (MAX_WIDTH_IN - legend_in - 0.9) / columns))
+    width = columns * column_in + legend_in + 0.9
+    heading = _wrapped(f"{case}: invariants and attitude error against time ({when(dt)}; black: the adaptive truth)",
+                       width)
+    top_in = 0.45 + 0.2 * (heading.count("\n") + 1)
+    # every panel row has its own time tick labels: a row more of text under each
+    height = 1.6 * rows + 0.45 * (blocks - 1) + 0.55 + top_in
     figure = Figure(figsize=(width, height))
-    figure.subplots_adjust(left=0.9 / width, right=1 - INVARIANT_LEGEND_IN / width, bottom=0.55 / height,
-                           top=1 - 0.65 / height, wspace=0.12, hspace=0.2 if blocks == 1 else 0.45)
+    figure.subplots_adjust(left=0.9 / width, right=1 - legend_in / width, bottom=0.55 / height,
+                           top=1 - top_in / height, wspace=0.12, hspace=0.35 if blocks == 1 else 0.5)
     grid = figure.subplots(rows, columns, squeeze=False, sharex=True)
     for index in range(len(panels), blocks * columns):  # the last block's empty places
         for line in range(len(quantities)):
@@ -335,7 +423,7 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
         for _, row in members.iterrows():
             values = shown[int(row["_index"])][1]
             is_truth = not dt_key(row["dt"])
-            colour, _ = integrator_style(row["integrator"])
+            colour = "black" if is_truth else styles[row["integrator"]][0]
             t = np.asarray(values["t"], dtype=float)
             for line, quantity in enumerate(quantities):
                 if quantity not in values:
@@ -344,7 +432,7 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
                 y[~(y > 0)] = np.nan  # a log axis has no place for the exact zero at t = 0
                 if np.isfinite(y).any():
                     grid[top + line, column].plot(t, y, linestyle=linestyle(row["engine"]),
-                                                  color="black" if is_truth else colour, linewidth=1.0)
+                                                  color=colour, linewidth=1.0)
         grid[top, column].set_title(title, fontsize=TITLE_FONT_PT)
         grid[top + len(quantities) - 1, column].set_xlabel("t (s)", fontsize=LABEL_FONT_PT)
     for line, quantity in enumerate(quantities):  # one log y range per quantity, across the blocks
@@ -354,11 +442,16 @@ def invariants(group: pd.DataFrame, series: dict[tuple, dict], case: str) -> byt
             row[0].set_ylabel(QUANTITIES[quantity], fontsize=LABEL_FONT_PT)
         for axes in drawn:
             axes.grid(True, alpha=0.3)
-            axes.tick_params(labelsize=MIN_FONT_PT)
+            axes.tick_params(labelsize=MIN_FONT_PT, labelbottom=True)  # sharex hid all but the lowest row's
         _share_y(drawn, [row[1:] for row in panels_of])
-    figure.legend(*_legend(frame), fontsize=MIN_FONT_PT, frameon=False, loc="upper left",
-                  bbox_to_anchor=(1 - (INVARIANT_LEGEND_IN - 0.1) / width, 1 - 0.65 / height))
-    when = f"dt = {dt:g} s" if math.isfinite(dt) else "adaptive"
-    figure.suptitle(f"{case}: invariants and attitude error against time ({when}; black: the adaptive truth)",
-                    fontsize=SUPTITLE_FONT_PT)
+        for axes in drawn:
+            if axes.get_yscale() == "log":
+                log_ticks(axes.yaxis)
+    figure.legend(*_legend(frame, styles), fontsize=MIN_FONT_PT, frameon=False, loc="upper left",
+                  bbox_to_anchor=(1 - (legend_in - 0.1) / width, 1 - top_in / height))
+    figure.suptitle(heading, fontsize=SUPTITLE_FONT_PT)
     return png(figure)
+
+
+def when(dt: float) -> str:
+    return f"dt = {dt:g} s" if math.isfinite(dt) else "adaptive"

@@ -26,8 +26,12 @@ CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 110em; padding: 0 1em; color: #222; }
 h1 { border-bottom: 2px solid #444; } h2 { border-bottom: 1px solid #aaa; margin-top: 2em; }
 table { border-collapse: collapse; margin: 0.5em 0 1.2em; font-size: 0.85em; }
-th, td { border: 1px solid #bbb; padding: 0.15em 0.5em; text-align: right; white-space: nowrap; }
-th { background: #eee; } td.t { text-align: left; white-space: normal; }
+th, td { border: 1px solid #bbb; padding: 0.15em 0.3em; text-align: right; white-space: nowrap; }
+th { background: #eee; white-space: normal; } th.n { white-space: nowrap; } td.t { text-align: left; white-space: normal; min-width: 6em; }
+div.wide { max-width: 100%; overflow-x: auto; }
+div.wide th:first-child, div.wide td:first-child { position: sticky; left: 0; z-index: 1; }
+div.wide td:first-child:not([class^="g"]):not([class^="s-"]) { background: #fff; }
+details.fold > summary { font-weight: normal; font-size: 1em; }
 figure { margin: 0.5em 0 1.5em; } img { max-width: 100%; }
 code { background: #f3f3f3; padding: 0 0.2em; }
 .scale { display: inline-block; width: 16em; height: 0.9em; vertical-align: middle; border: 1px solid #999; }
@@ -44,7 +48,7 @@ SCRIPT = """
 document.querySelectorAll('table').forEach(function (table) {
   var rows = function () { return Array.prototype.slice.call(table.rows, 1); };
   Array.prototype.forEach.call(table.rows[0].cells, function (th, column) {
-    th.className = 'sortable'; th.title = 'sort';
+    th.classList.add('sortable'); th.title = 'sort';
     th.addEventListener('click', function () {
       var up = th.dataset.up !== '1'; th.dataset.up = up ? '1' : '0';
       var key = function (row) { var t = row.cells[column] ? row.cells[column].textContent.trim() : '';
@@ -128,10 +132,18 @@ def _cells(line: str) -> list[str]:
     return [cell.strip().replace("\\|", "|") for cell in re.split(r"(?<!\\)\|", inner)]
 
 
+# A header this short stays on one line ("≤ 1e-12" broke after its hyphen in a squeezed column); longer ones wrap.
+SHORT_HEADER = 12
+
+
 def _table(lines: list[str]) -> str:
     header = _cells(lines[0])
     body = [_cells(line) for line in lines[2:]]
-    out = ["<table>", "<tr>" + "".join(f"<th>{_inline(h)}</th>" for h in header) + "</tr>"]
+    # a name may break after an underscore (energy_drift, gibbs_hamiltonian): a table's width is its numbers', not
+    # its names'
+    out = ['<div class="wide"><table>',
+           "<tr>" + "".join(f"<th>{_inline(h).replace('_', '_<wbr>')}</th>" if len(h) > SHORT_HEADER
+                            else f'<th class="n">{_inline(h)}</th>' for h in header) + "</tr>"]
     for cells in body:
         row = []
         for name, cell in zip(header, cells):
@@ -147,9 +159,9 @@ def _table(lines: list[str]) -> str:
                     css_class = f' class="{grade_class(abs(value))}"'
             elif cell and not re.fullmatch(r"[-+0-9.eE]+", cell):
                 css_class = ' class="t"'
-            row.append(f"<td{css_class}{style}>{_inline(cell)}</td>")
+            row.append(f"<td{css_class}{style}>{_inline(cell).replace('_', '_<wbr>')}</td>")
         out.append("<tr>" + "".join(row) + "</tr>")
-    return "\n".join(out + ["</table>"])
+    return "\n".join(out + ["</table></div>"])
 
 
 def _image(alt: str, source: str, images: dict[str, bytes], base: Path | None, embed: bool = True) -> str:
@@ -215,7 +227,12 @@ def render(markdown: str, images: dict[str, bytes] | None = None, base: Path | N
         line = lines[i]
         heading = re.match(r"(#{1,6}) (.*)", line)
         image = re.fullmatch(r"!\[([^\]]*)\]\(([^)]+)\)", line.strip())
-        if heading:
+        fold = re.fullmatch(r"<details><summary>(.*)</summary>", line.strip())
+        if fold or line.strip() == "</details>":  # a section's own fold (the verdicts' passes), as GitHub shows it
+            flush()
+            body.append(f'<details class="fold"><summary>{_inline(fold.group(1))}</summary>' if fold
+                        else "</details>")
+        elif heading:
             flush()
             level, text = len(heading.group(1)), heading.group(2).strip()
             if level == 1:

@@ -1,11 +1,15 @@
-"""The report's "Verdicts" section, from DIR/verdicts.csv (harness.analysis.verdicts)."""
+"""The report's "Verdicts" section, from DIR/verdicts.csv (harness.analysis.verdicts): what did not pass first, in
+full; the passes folded into one line per claim kind (the rows in a <details>); each rule stated once."""
 from __future__ import annotations
 
 from pathlib import Path
 
-from ..analysis.verdicts import FAIL, FIXED, KNOWN, NO_REASON, NOT_ENOUGH, UNMEASURED, read, summary_lines
+from ..analysis.verdicts import (FAIL, FIXED, KNOWN, NO_REASON, NOT_ENOUGH, PASS, UNMEASURED, read,
+                                 summary_lines)
 from . import sections
 from .markdown import markdown_table
+
+ORDER = (FAIL, NO_REASON, NOT_ENOUGH, FIXED, KNOWN, UNMEASURED)
 
 
 def report_lines(out_dir: Path) -> list[str]:
@@ -17,13 +21,30 @@ def report_lines(out_dir: Path) -> list[str]:
              f"measured and no reason excuses, then misses found on too few points (`{NOT_ENOUGH}`), then known "
              "engine deviations "
              f"(`{KNOWN}`: declared by the engine with their upstream reference, not failures) and those "
-             f"that stopped matching (`{FIXED}`); each row states its rule.", ""]
-    ordered = sorted(verdicts, key=lambda v: (v.status != FAIL, v.status != NO_REASON, v.status != NOT_ENOUGH,
-                                              v.status != FIXED, v.status != KNOWN, v.status != UNMEASURED))
+             f"that stopped matching (`{FIXED}`); the passes follow, one line per kind of claim (open it for its "
+             "rows); the rules are stated once, below.", ""]
+    rank = {status: k for k, status in enumerate(ORDER)}
+    open_rows = sorted((v for v in verdicts if v.status != PASS), key=lambda v: rank.get(v.status, len(ORDER)))
     shown = {FAIL: "**FAIL**", NO_REASON: "**not measured, no reason**"}
-    if ordered:
-        rows = [[shown.get(v.status, v.status), v.verdict, v.subject, v.detail, v.rule] for v in ordered]
-        lines += markdown_table(["status", "verdict", "subject", "finding", "rule"], rows) + [""]
+    if open_rows:
+        rows = [[shown.get(v.status, v.status), v.verdict, v.subject, v.detail] for v in open_rows]
+        lines += markdown_table(["status", "verdict", "subject", "finding"], rows) + [""]
+    passes: dict[str, list] = {}
+    for v in verdicts:
+        if v.status == PASS:
+            passes.setdefault(v.verdict, []).append(v)
+    for kind, group in passes.items():
+        subjects = "integrators" if all(v.integrator for v in group) else "cases" if not any(
+            v.integrator for v in group) else "subjects"
+        lines += [f"<details><summary>{kind}: {len(group)} {subjects} passed</summary>", "",
+                  *markdown_table(["subject", "finding"], [[v.subject, v.detail] for v in group]), "", "</details>",
+                  ""]
+    rules: dict[str, list[str]] = {}
+    for v in verdicts:
+        if v.rule and v.rule not in rules.setdefault(v.verdict, []):
+            rules[v.verdict].append(v.rule)
+    if rules:
+        lines += ["Rules:", ""] + [f"- {kind}: {rule}" for kind, texts in rules.items() for rule in texts] + [""]
     return lines
 
 

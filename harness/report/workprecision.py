@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.fitting import ASYMPTOTIC_MAX, FIRST_PART, ROUNDOFF_MARGIN, SUPERCONVERGENT, _name, note_group
-from ..analysis import ladders as dt_ladders
-from ..analysis.workprecision import (ADVICE_FILE, CONVERGENCE_FILE, PARETO_FILE, SHORT_MAX_EVALS, SHORT_MAX_STEPS,
+from ..analysis import answers, ladders as dt_ladders
+from ..analysis.workprecision import (ADVICE_FILE, CONVERGENCE_FILE, SHORT_MAX_EVALS, SHORT_MAX_STEPS,
                                       TOLERANCE_FIT_FILE, read_optional)
 from ..analysis.ladders import SHORT_LADDER, STABLE_ENERGY_DRIFT
 from . import sections
@@ -23,11 +23,11 @@ def report_lines(out_dir: Path, tolerance_figures: dict[str, str] | None = None)
     and tolerance_fit.csv (each left out without its file). tolerance_figures: case -> the path of its
     tolerance-against-error figure (harness.report.build draws them)."""
     lines: list[str] = []
-    pareto_df = read_optional(Path(out_dir) / PARETO_FILE, ("formulation", "engine", "integrator", "source", "ties",
-                                                             "not_recommended", "scope"))
-    if pareto_df is not None and len(pareto_df):
-        lines += what_to_use_lines(pareto_df)
-    lines += advice_lines(read_optional(Path(out_dir) / ADVICE_FILE, ("formulation", "engine", "integrator", "note")))
+    answer_table = answers.read(out_dir)  # the one answer per case, engine and target that both sections show
+    if answer_table is not None and len(answer_table):
+        lines += what_to_use_lines(answer_table)
+    lines += advice_lines(read_optional(Path(out_dir) / ADVICE_FILE, ("formulation", "engine", "integrator", "note")),
+                          answer_table)
     convergence = read_optional(Path(out_dir) / CONVERGENCE_FILE, ("formulation", "note", "source"))
     if convergence is not None and len(convergence):
         ladders = convergence[convergence["source"] == "ladder"]
@@ -95,7 +95,7 @@ def tolerance_report_lines(out_dir: Path, figures: dict[str, str]) -> list[str]:
     lines += _md(["case", "method", "slope", "points", "tolerances fitted", "error <= tol", "max error/tol", "note"],
                  rows) + [""]
     for case, path in figures.items():
-        lines += [f"![{case}: tolerance against error]({path})", ""]
+        lines += [f"![{case}: error reached against tolerance requested]({path})", ""]
     return lines
 
 

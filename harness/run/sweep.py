@@ -18,6 +18,7 @@ import pandas as pd
 
 from .. import budget
 from ..engines import get_engine
+from ..environment import TIMING_END, TIMING_START, load_snapshot
 from ..environment import environment as current_environment
 from ..scenes import checks, scene_of
 from ..scenes.rigid_body import CaseTruth, compute_truth, truth_grid  # noqa: F401 (0.2.0's names here)
@@ -224,7 +225,10 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
             progress.stage(f"timing {_count(len(untimed), 'run')}, one at a time, in rounds")
+            environment[TIMING_START] = load_snapshot()  # how busy the machine was: the report's Environment
         timings = time_specs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed])
+        if untimed:
+            environment[TIMING_END] = load_snapshot()
         for spec, timed_columns in zip(untimed, timings):
             key = keys[id(spec)]
             row = stored[key]
