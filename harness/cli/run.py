@@ -12,7 +12,7 @@ def main(args) -> int:
     from ..run.progress import ProgressBar
     from ..report.build import write_reports
     from ..report.markdown import drift_table_text
-    from ..analysis import agreement, summary, verdicts, workprecision
+    from ..analysis import agreement, decisive, summary, verdicts, workprecision
     from ..run.sweep import SweepOptions, run_sweep, worker_pool
     from .. import budget
 
@@ -36,7 +36,9 @@ def main(args) -> int:
         # one pool for the sweep and the dt ladders; Ctrl-C anywhere in it ends its workers at once
         with worker_pool(options.jobs, options.engines) as pool:
             compared: list[dict] = []  # the states the cross-engine agreement compares (agreement.csv)
-            df = run_sweep(chosen, options, progress=progress, pool=pool, agreement=compared, final=False)
+            # only the runs whose time can change an answer are timed with repeats (analysis.decisive)
+            df = run_sweep(chosen, options, progress=progress, pool=pool, agreement=compared, final=False,
+                           decides=decisive.decisive)
             agreement.write(args.out, compared)
             del compared
             _work_precision(args, options, chosen, df, pool, progress)

@@ -12,6 +12,7 @@ import warnings
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -69,9 +70,9 @@ def execute(spec: RunSpec, truth, timed: bool = False, budgets: budget.Budgets |
     return row
 
 
-def time_specs(specs: list[RunSpec], steps: list[float]) -> list[dict]:
-    """The timing columns of finished ok runs (timing.time_runs)."""
-    return timing.time_runs(specs, steps, prepare)
+def time_specs(specs: list[RunSpec], steps: list[float], select=None) -> list[dict]:
+    """The timing columns of finished ok runs (timing.time_runs; select: which to time with repeats)."""
+    return timing.time_runs(specs, steps, prepare, select)
 
 
 def time_spec(spec: RunSpec, steps: float) -> dict:
@@ -85,7 +86,7 @@ _cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # 
 
 def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar | None = None,
               pool: WatchedPool | None = None, agreement: list | None = None, final: bool = True,
-              **legacy_options) -> pd.DataFrame:
+              decides: Callable[[pd.DataFrame], set] | None = None, **legacy_options) -> pd.DataFrame:
     """Run every case as `options` says and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -101,6 +102,9 @@ def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar
     out_dir/trajectories where it saved them, else it is left out.
     final: the sweep is all that writes the folder: mark it complete at the end (runs.json; harness.run.store
     mark_complete). `stereodyn run` marks it itself, after the work–precision tables and the report.
+    decides: which runs to time with repeats (harness.analysis.decisive.decisive: the ok rows of one timing group,
+    their us_per_sim_s a single timed run, in -> the index labels to repeat); the others keep their single time
+    (results.csv `timing`). None: every run is timed with repeats.
 
     0.2.0's form, run_sweep(cases, engines, integrators, out_dir, jobs=..., certify=..., resume=..., scheduler=...,
     save_trajectories=..., progress=..., pool=..., agreement=..., final=...), still runs, with a DeprecationWarning.
@@ -110,7 +114,7 @@ def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar
     elif legacy or legacy_options:
         raise TypeError(f"run_sweep(cases, options, ...): unexpected arguments "
                         f"{', '.join([repr(a) for a in legacy] + list(legacy_options))}")
-    return _sweep(cases, options, progress or ProgressBar(enabled=False), pool, final, agreement)
+    return _sweep(cases, options, progress or ProgressBar(enabled=False), pool, final, agreement, decides)
 
 
 def _legacy_options(engines, integrators, out_dir, jobs=None, certify=True, *, resume=False, scheduler=None,
@@ -123,7 +127,7 @@ def _legacy_options(engines, integrators, out_dir, jobs=None, certify=True, *, r
 
 
 def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: WatchedPool | None, final: bool,
-           agreement: list | None = None) -> pd.DataFrame:
+           agreement: list | None = None, decides: Callable[[pd.DataFrame], set] | None = None) -> pd.DataFrame:
     out_dir, engines = options.out_dir, options.engines
     out_dir.mkdir(parents=True, exist_ok=True)
     specs, skipped_rows = plan(cases, engines, options.integrators)
@@ -223,7 +227,15 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
             progress.stage(f"timing {len(untimed)} runs, one at a time, in rounds")
-        timings = time_specs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed])
+
+        def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() on one timing group's runs
+            rows = pd.DataFrame([stored[keys[id(untimed[i])]] for i in indices], index=indices)
+            rows = rows.reindex(columns=list(dict.fromkeys([*rows.columns, "dt", "attitude_err"])))
+            rows["us_per_sim_s"] = np.asarray(seconds, float) / rows["t_end"].to_numpy(float) * 1e6
+            return {int(label) for label in decides(rows)}
+
+        timings = time_specs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed],
+                             select if decides is not None else None)
         for spec, timed_columns in zip(untimed, timings):
             key = keys[id(spec)]
             row = stored[key]
