@@ -27,7 +27,8 @@ from . import timing
 from .distributed import run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
-from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
+from .pool import (cost, local_pool, run_local, startup_cost, sweep_run, worker_failed_row,  # noqa: F401 (worker_pool)
+                   worker_pool)
 from .workers import WatchedPool
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
@@ -213,7 +214,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
 
             truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
                                   progress.phase, truth_failed, budgets)
-            progress.start(len(pending), sum(cost(s) for s in pending), resumed=len(specs) - len(pending))
+            progress.start(len(pending), sum(cost(s) for s in pending) + startup_cost(pending, local_jobs),
+                           resumed=len(specs) - len(pending))
             try:
                 if options.scheduler:
                     run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
