@@ -110,3 +110,22 @@ def test_the_gate_checks_the_time_of_repeated_rows_only():
     table = pd.DataFrame([dict(slow, timing="best of 3")])
     assert [f.what for f in gate.compare(table, [base], tolerances)] == ["us_per_step"]
     assert gate.compare(pd.DataFrame([dict(slow, timing=SINGLE)]), [base], tolerances) == []
+
+
+def test_a_run_with_a_known_single_time_is_timed_only_if_selected(monkeypatch):
+    """known: the sweep's accuracy run gave it a single time (an engine whose first run is warm): it is neither
+    prepared nor timed unless select names it, and then timed afresh (its known time is no repeat)."""
+    specs, prepare, clock, calls = _fake_group({"fast": 0.01, "slow": 1.5, "mid": 0.02})
+    monkeypatch.setattr(timing.time, "perf_counter", lambda: clock[0])
+    monkeypatch.setattr(timing, "warm_up", lambda sim, grid, engine: sim.run(grid))
+    seen = []
+
+    def select(indices, seconds):
+        seen.append(dict(zip(indices, seconds)))
+        return {0}
+
+    rows = timing.time_runs(specs, [100, 100, 100], prepare, select, known=[0.012, 1.4, 0.025])
+    assert seen == [{0: 0.012, 1: 1.4, 2: 0.025}]
+    assert calls == {"fast": 4}  # warm-up + 3 repeats; the others not even prepared
+    assert rows[0]["timing"] == "best of 3" and rows[0]["us_per_step"] == pytest.approx(0.01 / 100 * 1e6)
+    assert rows[1] == {} and rows[2] == {}  # kept as they were

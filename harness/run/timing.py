@@ -91,8 +91,7 @@ def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS
     A run whose timing is disturbed (spread > best) is timed again once, in rounds over those runs; the second timing
     replaces the first, with `disturbed` set when it is disturbed too.
 
-    first: a timed run each run already had (s; None: it failed), counted as its first repeat (time_runs' single
-    round).
+    first: a timed run each run already had (s; None: none), counted as its first repeat (time_runs' single round).
     """
     measured = _rounds(runs, repeats, budget_s, min_repeats, first)
     again = [i for i, m in enumerate(measured) if m is not None and disturbed(m.best, m.spread)]
@@ -104,8 +103,8 @@ def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS
 def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min_repeats: int,
             first: list[float | None] | None = None) -> list[Timing | None]:
     """One timing of each run, in rounds (measure_interleaved without the re-time); first: a repeat each already has."""
-    times: list[list[float] | None] = [[] for _ in runs] if first is None else \
-        [None if f is None else [f] for f in first]
+    times: list[list[float] | None] = [[] if first is None or first[i] is None else [first[i]]
+                                       for i in range(len(runs))]
     runs = [_uncounted(run) for run in runs]
     enabled = gc.isenabled()
     gc.disable()
@@ -224,7 +223,8 @@ def step_columns(measured: Timing, steps: float) -> dict:
 
 
 def time_runs(runs: list, steps: list[float], prepare: Callable,
-              select: Callable[[list[int], list[float]], set[int]] | None = None) -> list[dict]:
+              select: Callable[[list[int], list[float]], set[int]] | None = None,
+              known: list[float | None] | None = None) -> list[dict]:
     """The sweep's timing phase: the step_columns of finished ok runs, in this process with no other run sharing the
     cores: each timing group (groups: by engine and precision where an engine's precision is process-global) prepared
     (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group (measure_interleaved),
@@ -233,26 +233,38 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
 
     select(indices, seconds) -> the indices to time with repeats: given, each group is first timed once (one round),
     and only the runs it names get the further rounds (their single run counts as their first repeat); the others
-    keep that single time (timing SINGLE, no spread, never re-timed as disturbed)."""
+    keep that single time (timing SINGLE, no spread, never re-timed as disturbed). known: a single time (s) a run
+    already has (the sweep's accuracy run: time_runs neither prepares nor times it unless select names it, and then
+    times it afresh); None: none. {} for a run it keeps as it was."""
     rows: list[dict] = [{} for _ in runs]
+    known = known or [None] * len(runs)
     for group in groups([(run.engine, run.precision) for run in runs]):
         warm = {}
-        for i in group:
-            try:
-                sim, grid = prepare(runs[i])
-                warm_up(sim, grid, runs[i].engine)
-                warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
-            except Exception as exc:
-                raise_unless_data(exc)
+
+        def warmed(indices) -> None:
+            for i in indices:
+                try:
+                    sim, grid = prepare(runs[i])
+                    warm_up(sim, grid, runs[i].engine)
+                    warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
+                except Exception as exc:
+                    raise_unless_data(exc)
+
         if select is None:
+            warmed(group)
             measured = dict(zip(warm, measure_interleaved(list(warm.values()))))
         else:
+            warmed([i for i in group if known[i] is None])
             once = dict(zip(warm, _rounds(list(warm.values()), 1, BUDGET_S, 1)))
-            timed_once = [i for i in warm if once[i] is not None]
-            repeat = set(select(timed_once, [once[i].best for i in timed_once])) & set(timed_once)
-            order = [i for i in timed_once if i in repeat]
-            measured = {**once, **dict(zip(order, measure_interleaved([warm[i] for i in order],
-                                                                      first=[once[i].best for i in order])))}
+            single = {i: m.best for i, m in once.items() if m is not None} | {
+                i: known[i] for i in group if known[i] is not None}
+            repeat = set(select(list(single), list(single.values()))) & set(single)
+            warmed([i for i in group if i in repeat and i not in warm])
+            order = [i for i in group if i in repeat and i in warm]
+            measured = {**{i: m for i, m in once.items() if i not in repeat or m is None},
+                        **dict(zip(order, measure_interleaved([warm[i] for i in order],
+                                                              first=[single[i] if i in once else None
+                                                                     for i in order])))}
         for i, m in measured.items():
             if m is not None:
                 rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
