@@ -1,7 +1,9 @@
 """Stepping time, measured apart from accuracy (DESIGN §6.4): best of N timed runs after a warm-up, metrics off, with
 the spread of the N recorded so that a ranking can tell a difference from noise. The sweep and the dt ladders time
 their runs in a phase of their own, one run at a time, after every accuracy run (harness.run.sweep,
-harness.analysis.workprecision): a timed run never shares the machine's cores with another run."""
+harness.analysis.workprecision): a timed run never shares the machine's cores with another run. Under `stereodyn run`
+only the runs whose time decides something get repeats (time_runs' select, harness.analysis.decisive); the others keep
+one timed run, or for an engine whose first run is warm (Engine.short_warm_up) the sweep's accuracy run."""
 from __future__ import annotations
 
 import gc
