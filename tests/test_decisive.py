@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -129,3 +130,28 @@ def test_a_run_with_a_known_single_time_is_timed_only_if_selected(monkeypatch):
     assert calls == {"fast": 4}  # warm-up + 3 repeats; the others not even prepared
     assert rows[0]["timing"] == "best of 3" and rows[0]["us_per_step"] == pytest.approx(0.01 / 100 * 1e6)
     assert rows[1] == {} and rows[2] == {}  # kept as they were
+
+
+@pytest.mark.parametrize("repeat", [False, True])
+def test_the_sweep_keeps_the_accuracy_runs_time_of_a_warm_engine_unless_it_decides(tmp_path, monkeypatch, repeat):
+    """decides() names nothing: the reference's runs (Engine.short_warm_up) keep their accuracy run's stepping as
+    their single time, never prepared again; MuJoCo's (it builds on a first run) are prepared, warmed up and timed
+    once. decides() names everything: every ok run is timed with repeats."""
+    from helpers import case_file, tiny_case
+    from stereodyn.harness.run import sweep
+    from stereodyn.harness.scenes.cases import load_case
+
+    case = load_case(case_file(tmp_path, tiny_case(dt="1e-2, 5e-3")))
+    prepared = []
+    real = sweep.prepare
+    monkeypatch.setattr(sweep, "prepare", lambda run: prepared.append(run.engine) or real(run))
+    df = sweep.run_sweep([case], sweep.SweepOptions(["mujoco", "reference"], tmp_path / "out", ["euler", "rk4"],
+                                                    jobs=1, certify=False),
+                         decides=lambda rows: set(rows.index) if repeat else set())
+    ok = df[(df["status"] == "ok") & df["dt"].notna()]
+    assert set(ok["engine"]) == {"mujoco", "reference"} and np.isfinite(ok["wall_s"]).all()
+    if repeat:
+        assert set(ok["timing"]) <= {"best of 2", "best of 3"} and len(prepared) == len(ok)
+    else:
+        assert set(ok["timing"]) == {SINGLE} and ok["us_per_step_spread"].isna().all()
+        assert prepared == ["mujoco"] * int((ok["engine"] == "mujoco").sum())
