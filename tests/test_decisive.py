@@ -155,3 +155,24 @@ def test_the_sweep_keeps_the_accuracy_runs_time_of_a_warm_engine_unless_it_decid
     else:
         assert set(ok["timing"]) == {SINGLE} and ok["us_per_step_spread"].isna().all()
         assert prepared == ["mujoco"] * int((ok["engine"] == "mujoco").sum())
+
+
+def test_the_advice_does_not_report_a_single_time():
+    """An advised setting that is a sweep run timed once is timed with repeats by the advice itself (its known point
+    carries no time); a sweep run timed with repeats lends its time."""
+    from stereodyn.harness.analysis import advice
+    from stereodyn.harness.run.spec import Family
+
+    case = SimpleNamespace(name="c")
+    family = Family(case, "mujoco", "", "rk4")
+    base = {"case": "c", "engine": "mujoco", "formulation": "", "integrator": "rk4", "precision": "float64",
+            "t_end": 10.0, "steps": 1000, "status": "ok", "attitude_err": 1e-6, "omega_err": 1e-6,
+            "casimir_drift": 0.0}
+    results = pd.DataFrame([dict(base, dt=1e-2, wall_s=0.01, timing="best of 3"),
+                            dict(base, dt=5e-3, wall_s=0.03, timing=SINGLE)])
+    convergence = pd.DataFrame([{"case": "c", "engine": "mujoco", "formulation": "", "integrator": "rk4",
+                                 "precision": "float64", "order": 4.0}])
+    empty = pd.DataFrame()
+    (task,) = advice.advice_tasks([family], [], results, empty, empty, convergence, empty)
+    times = {p["dt"]: p["us_per_sim_s"] for p in task[2]}
+    assert times[1e-2] == pytest.approx(1000.0) and math.isnan(times[5e-3])
