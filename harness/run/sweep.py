@@ -157,6 +157,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
             return frame(skipped_rows + [{**stored[keys[id(s)]], **_ranks(s)} for s in done])
 
         last_publish = [time.monotonic()]
+        ran: set[str] = set()  # the keys run by this sweep (a resumed run's timing is kept as stored)
 
         def publish() -> None:
             last_publish[0] = time.monotonic()
@@ -182,6 +183,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
                     store.put_states(key, row, states)
                 store.put(key, identities[id(spec)], row, series, row.get("_budget"))
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
+            ran.add(key)
             # The run is safe in the store already; re-assembling the tables after every run was quadratic in the
             # sweep (seconds per run at ~1000 rows), so refresh them at most every PUBLISH_EVERY_S and at the end.
             if time.monotonic() - last_publish[0] >= PUBLISH_EVERY_S:
@@ -230,7 +232,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
                 progress.close()
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs
-                   if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]], decides is not None)]
+                   if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]],
+                                                              decides is not None and keys[id(s)] in ran)]
         if untimed:
             progress.stage(f"timing {len(untimed)} runs, one at a time, in rounds")
 
