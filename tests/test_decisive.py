@@ -113,48 +113,32 @@ def test_the_gate_checks_the_time_of_repeated_rows_only():
     assert gate.compare(pd.DataFrame([dict(slow, timing=SINGLE)]), [base], tolerances) == []
 
 
-def test_a_run_with_a_known_single_time_is_timed_only_if_selected(monkeypatch):
-    """known: the sweep's accuracy run gave it a single time (an engine whose first run is warm): it is neither
-    prepared nor timed unless select names it, and then timed afresh (its known time is no repeat)."""
-    specs, prepare, clock, calls = _fake_group({"fast": 0.01, "slow": 1.5, "mid": 0.02})
-    monkeypatch.setattr(timing.time, "perf_counter", lambda: clock[0])
-    monkeypatch.setattr(timing, "warm_up", lambda sim, grid, engine: sim.run(grid))
-    seen = []
-
-    def select(indices, seconds):
-        seen.append(dict(zip(indices, seconds)))
-        return {0}
-
-    rows = timing.time_runs(specs, [100, 100, 100], prepare, select, known=[0.012, 1.4, 0.025])
-    assert seen == [{0: 0.012, 1: 1.4, 2: 0.025}]
-    assert calls == {"fast": 4}  # warm-up + 3 repeats; the others not even prepared
-    assert rows[0]["timing"] == "best of 3" and rows[0]["us_per_step"] == pytest.approx(0.01 / 100 * 1e6)
-    assert rows[1] == {} and rows[2] == {}  # kept as they were
-
-
 @pytest.mark.parametrize("repeat", [False, True])
-def test_the_sweep_keeps_the_accuracy_runs_time_of_a_warm_engine_unless_it_decides(tmp_path, monkeypatch, repeat):
-    """decides() names nothing: the reference's runs (Engine.short_warm_up) keep their accuracy run's stepping as
-    their single time, never prepared again; MuJoCo's (it builds on a first run) are prepared, warmed up and timed
-    once. decides() names everything: every ok run is timed with repeats."""
+def test_the_sweep_times_once_what_decides_nothing(tmp_path, monkeypatch, repeat):
+    """decides() names nothing: every ok run is prepared, warmed up and timed once (its accuracy run is no timing);
+    names everything: every ok run is timed with repeats. Either way each run is prepared once in the timing phase."""
     from helpers import case_file, tiny_case
     from stereodyn.harness.run import sweep
     from stereodyn.harness.scenes.cases import load_case
 
     case = load_case(case_file(tmp_path, tiny_case(dt="1e-2, 5e-3")))
-    prepared = []
+    prepared, seen = [], []
     real = sweep.prepare
     monkeypatch.setattr(sweep, "prepare", lambda run: prepared.append(run.engine) or real(run))
+
+    def decides(rows):
+        seen.append(sorted(rows["engine"]))
+        return set(rows.index) if repeat else set()
+
     df = sweep.run_sweep([case], sweep.SweepOptions(["mujoco", "reference"], tmp_path / "out", ["euler", "rk4"],
-                                                    jobs=1, certify=False),
-                         decides=lambda rows: set(rows.index) if repeat else set())
-    ok = df[(df["status"] == "ok") & df["dt"].notna()]
+                                                    jobs=1, certify=False), decides=decides)
+    ok = df[df["status"] == "ok"]
     assert set(ok["engine"]) == {"mujoco", "reference"} and np.isfinite(ok["wall_s"]).all()
+    assert sorted(prepared) == sorted(ok["engine"]) and sorted(sum(seen, [])) == sorted(ok["engine"])
     if repeat:
-        assert set(ok["timing"]) <= {"best of 2", "best of 3"} and len(prepared) == len(ok)
+        assert set(ok["timing"]) <= {"best of 2", "best of 3"} and ok["us_per_step_spread"].notna().all()
     else:
         assert set(ok["timing"]) == {SINGLE} and ok["us_per_step_spread"].isna().all()
-        assert prepared == ["mujoco"] * int((ok["engine"] == "mujoco").sum())
 
 
 def test_the_advice_does_not_report_a_single_time():

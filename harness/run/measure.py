@@ -44,8 +44,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
     """One run's row: base columns, the untimed accuracy run, the scene's metrics (against truth: the scene's truth
     on a set of grids that holds the run's, or None for no errors), with full the sweep's extras (checks, series).
     timed(simulation, grid) -> timing columns, when given, times the run after the accuracy run (its warm-up).
-    `_accuracy_s` is the prepare-and-run wall time (a budget's measure, not a timing), `_run_s` the run's stepping
-    alone (sim.run, beside whatever else runs on the machine: harness.run.sweep's single time). budgets (default this
+    `_accuracy_s` is the prepare-and-run wall time (a budget's measure, not a timing). budgets (default this
     process's, harness.budget): prepare under its prepare budget (prepare_budget), the run with its metrics and checks
     under its run budget; past one, a failed row naming it (and `_budget`, which the store keeps). Never raises: a
     run that breaks is a failed row."""
@@ -58,10 +57,8 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance,
                                                     **precision_keyword(run)), prepare_budget(run, budgets))
         with budget.within("run", budgets.run_s):
-            stepping = time.perf_counter()
             traj = sim.run(grid)
             row["_accuracy_s"] = time.perf_counter() - start
-            row["_run_s"] = row["_accuracy_s"] - (stepping - start)  # the accuracy run's stepping alone
             row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
 
             def rerun(case):

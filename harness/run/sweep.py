@@ -31,7 +31,7 @@ from .pool import (cost, local_pool, run_local, startup_cost, sweep_run, worker_
                    worker_pool)
 from .workers import WatchedPool
 from .progress import ProgressBar
-from .results import SINGLE, frame, row_order, write_results
+from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
 from .truth import sweep_truths
 
@@ -157,7 +157,6 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
             return frame(skipped_rows + [{**stored[keys[id(s)]], **_ranks(s)} for s in done])
 
         last_publish = [time.monotonic()]
-        ran: set[str] = set()  # the keys run by this sweep (a resumed run's timing is kept as stored)
 
         def publish() -> None:
             last_publish[0] = time.monotonic()
@@ -171,9 +170,6 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
 
         def finished(spec: RunSpec, row: dict) -> None:
             key = keys[id(spec)]
-            if decides is not None and _warm_first_run(spec.engine) and row.get("status") == Status.OK.value \
-                    and math.isfinite(row.get("_run_s", math.nan)):  # its single time; the timing phase may repeat it
-                row.update(timing.step_columns(timing.Timing(row["_run_s"], math.nan, 1), row.get("steps", math.nan)))
             series = row.pop("_series", None)
             states = row.pop("_states", None)
             if states is not None and spec.compared and row.get("status") == Status.OK.value:
@@ -183,7 +179,6 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
                     store.put_states(key, row, states)
                 store.put(key, identities[id(spec)], row, series, row.get("_budget"))
             stored[key] = {k: v for k, v in row.items() if not k.startswith("_")}
-            ran.add(key)
             # The run is safe in the store already; re-assembling the tables after every run was quadratic in the
             # sweep (seconds per run at ~1000 rows), so refresh them at most every PUBLISH_EVERY_S and at the end.
             if time.monotonic() - last_publish[0] >= PUBLISH_EVERY_S:
@@ -231,9 +226,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
                 publish()
                 progress.close()
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
-        untimed = [s for s in specs
-                   if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]],
-                                                              decides is not None and keys[id(s)] in ran)]
+        untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
             progress.stage(f"timing {len(untimed)} runs, one at a time, in rounds")
 
@@ -243,14 +236,10 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
             rows["us_per_sim_s"] = np.asarray(seconds, float) / rows["t_end"].to_numpy(float) * 1e6
             return {int(label) for label in decides(rows)}
 
-        known = [stored[keys[id(s)]]["wall_s"] if stored[keys[id(s)]].get("timing") == SINGLE else None
-                 for s in untimed]
         timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed], prepare,
-                                   select if decides is not None else None, known)
+                                   select if decides is not None else None)
         for spec, timed_columns in zip(untimed, timings):
             key = keys[id(spec)]
-            if not timed_columns:  # kept as it was: its single time, or untimed
-                continue
             row = stored[key]
             mark = timed_columns.pop("_disturbed", None)
             row.update(timed_columns)
@@ -265,21 +254,11 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         return table()
 
 
-def _needs_timing(row: dict, single_too: bool = False) -> bool:
-    """An ok row without a timing, or (single_too) with a single one the timing phase may repeat."""
+def _needs_timing(row: dict) -> bool:
     wall = row.get("wall_s", math.nan)
-    return row.get("status") == Status.OK.value and not row.get("_lost") and (
-        not (isinstance(wall, float) and math.isfinite(wall)) or (single_too and row.get("timing") == SINGLE))
+    return row.get("status") == Status.OK.value and not row.get("_lost") and not (
+        isinstance(wall, float) and math.isfinite(wall))
 
-
-def _warm_first_run(engine: str) -> bool:
-    """Whether an engine's first run of a model is already warm (Engine.short_warm_up: nothing is built per grid
-    length, the Python-stepped engines), so the sweep's accuracy run gives it a single time; an engine that builds or
-    compiles on its first run gets its single time in the timing phase, after a warm-up."""
-    try:
-        return bool(get_engine(engine).short_warm_up)
-    except (KeyError, ValueError):
-        return False
 
 
 def _ranks(spec: RunSpec) -> dict:

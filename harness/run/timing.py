@@ -3,7 +3,8 @@ the spread of the N recorded so that a ranking can tell a difference from noise.
 their runs in a phase of their own, one run at a time, after every accuracy run (harness.run.sweep,
 harness.analysis.workprecision): a timed run never shares the machine's cores with another run. Under `stereodyn run`
 only the runs whose time decides something get repeats (time_runs' select, harness.analysis.decisive); the others keep
-one timed run, or for an engine whose first run is warm (Engine.short_warm_up) the sweep's accuracy run."""
+one timed run, after the warm-up (the sweep's accuracy run is no timing: in a worker beside another, and with its
+first-call costs, it measured Pinocchio's and the reference's runs 2-3x slower than their best of 3, up to 20x)."""
 from __future__ import annotations
 
 import gc
@@ -225,8 +226,7 @@ def step_columns(measured: Timing, steps: float) -> dict:
 
 
 def time_runs(runs: list, steps: list[float], prepare: Callable,
-              select: Callable[[list[int], list[float]], set[int]] | None = None,
-              known: list[float | None] | None = None) -> list[dict]:
+              select: Callable[[list[int], list[float]], set[int]] | None = None) -> list[dict]:
     """The sweep's timing phase: the step_columns of finished ok runs, in this process with no other run sharing the
     cores: each timing group (groups: by engine and precision where an engine's precision is process-global) prepared
     (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group (measure_interleaved),
@@ -235,38 +235,26 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
 
     select(indices, seconds) -> the indices to time with repeats: given, each group is first timed once (one round),
     and only the runs it names get the further rounds (their single run counts as their first repeat); the others
-    keep that single time (timing SINGLE, no spread, never re-timed as disturbed). known: a single time (s) a run
-    already has (the sweep's accuracy run: time_runs neither prepares nor times it unless select names it, and then
-    times it afresh); None: none. {} for a run it keeps as it was."""
+    keep that single time (timing SINGLE, no spread, never re-timed as disturbed)."""
     rows: list[dict] = [{} for _ in runs]
-    known = known or [None] * len(runs)
     for group in groups([(run.engine, run.precision) for run in runs]):
         warm = {}
-
-        def warmed(indices) -> None:
-            for i in indices:
-                try:
-                    sim, grid = prepare(runs[i])
-                    warm_up(sim, grid, runs[i].engine)
-                    warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
-                except Exception as exc:
-                    raise_unless_data(exc)
-
+        for i in group:
+            try:
+                sim, grid = prepare(runs[i])
+                warm_up(sim, grid, runs[i].engine)
+                warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
+            except Exception as exc:
+                raise_unless_data(exc)
         if select is None:
-            warmed(group)
             measured = dict(zip(warm, measure_interleaved(list(warm.values()))))
         else:
-            warmed([i for i in group if known[i] is None])
             once = dict(zip(warm, _rounds(list(warm.values()), 1, BUDGET_S, 1)))
-            single = {i: m.best for i, m in once.items() if m is not None} | {
-                i: known[i] for i in group if known[i] is not None}
-            repeat = set(select(list(single), list(single.values()))) & set(single)
-            warmed([i for i in group if i in repeat and i not in warm])
-            order = [i for i in group if i in repeat and i in warm]
-            measured = {**{i: m for i, m in once.items() if i not in repeat or m is None},
-                        **dict(zip(order, measure_interleaved([warm[i] for i in order],
-                                                              first=[single[i] if i in once else None
-                                                                     for i in order])))}
+            timed_once = [i for i in warm if once[i] is not None]
+            repeat = set(select(timed_once, [once[i].best for i in timed_once])) & set(timed_once)
+            order = [i for i in timed_once if i in repeat]
+            measured = {**once, **dict(zip(order, measure_interleaved([warm[i] for i in order],
+                                                                      first=[once[i].best for i in order])))}
         for i, m in measured.items():
             if m is not None:
                 rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
