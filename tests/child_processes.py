@@ -48,3 +48,17 @@ def alive_in(*, session: int | None = None, group: int | None = None) -> list[in
             if int(fields[field]) == value and fields[0] != "Z":
                 alive.append(int(entry.name))
     return alive
+
+
+_PAID: set = set()
+
+
+def pay(key: str, startup_s: float, run_s: float) -> tuple[int, str, bool]:
+    """A fake engine's run on a pool worker (tests/test_engine_affinity.py): its start-up (startup_s) the first time
+    this process sees the key, then the run (run_s). (pid, key, whether it paid the start-up)."""
+    first = key not in _PAID
+    if first:
+        time.sleep(startup_s)
+        _PAID.add(key)
+    time.sleep(run_s)
+    return os.getpid(), key, first

@@ -14,7 +14,7 @@ from stereodyn.harness.run.timing import DISTURBED
 
 # The options of a fast sweep: one engine, one integrator, one process, no progress bar.
 FAST = ["--engines", "mujoco", "--integrators", "rk4", "--jobs", "1", "--quiet"]
-TIMINGS = ["wall_s", "us_per_step", "us_per_step_spread"]  # results.csv's timing columns (the noise too)
+TIMINGS = ["wall_s", "us_per_step", "us_per_step_spread", "timing"]  # results.csv's timing columns (the noise too)
 
 
 def tiny_case(name: str = "base", t_end: float = 0.1, dt: str = "1e-2", samples: int = 11, extra: str = "") -> str:

@@ -5,7 +5,9 @@ A row is identified by (case, engine, formulation, integrator, precision, dt). I
 - its status got worse (ok < diverged < failed, skipped: a run that no longer completes);
 - one of its drifts or errors (every *_drift, *_err, *_err_end column), on a row that was ok and still is, exceeds
   factor * baseline + floor, or became NaN where the baseline had a number;
-- with a time factor only: us_per_step exceeds time_factor * baseline (timings differ between machines and runs).
+- with a time factor only: us_per_step exceeds time_factor * baseline (timings differ between machines and runs), on
+  a row timed with repeats now (results.csv `timing` not "single": a run whose time decides nothing keeps one timed
+  run, harness.analysis.decisive; each engine's fastest runs of a case are always timed with repeats).
 A convergence row (convergence.csv: case, engine, formulation, integrator, precision) fails when its order fell more than
 ORDER_DROP below the baseline's, or became NaN where the baseline had a number.
 
@@ -33,7 +35,7 @@ import pandas as pd
 
 from ..engines.base import FLOAT64
 from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
-from ..run.results import (KEY, METRIC_SUFFIXES, NAMED, STATUSES, TableError, describe_key, dt_key, duplicate,
+from ..run.results import (KEY, METRIC_SUFFIXES, NAMED, SINGLE, STATUSES, TableError, describe_key, dt_key, duplicate,
                            metric_names, read_csv_table, read_results, sign_rule, with_precision, write_atomic)
 
 # KEY: (case, engine, formulation, integrator, precision, dt); precision: a baseline or table of stereodyn 0.2.0 has
@@ -390,7 +392,7 @@ def compare(current: pd.DataFrame, baseline: list[dict], tolerances: Tolerances 
             if math.isnan(after) or after > limit:
                 ratio = after / before if before > 0 else math.inf if after > 0 else math.nan
                 findings.append(Finding(key, metric, _fmt(before), _fmt(after), f"<= {_fmt(limit)}", ratio))
-        if tolerances.time_factor is not None:
+        if tolerances.time_factor is not None and new.get("timing") != SINGLE:
             before, after = _number(old.get("us_per_step")), _number(new.get("us_per_step"))
             if not math.isnan(before) and not math.isnan(after) and after > tolerances.time_factor * before:
                 findings.append(Finding(key, "us_per_step", f"{before:.3g}", f"{after:.3g}",

@@ -49,12 +49,13 @@ class Phase:
 
 def _sweep(request: Request, values: dict, pool, progress: ProgressBar) -> dict:
     """Each case's truth, then its runs (harness.run.sweep), and agreement.csv from the states the runs compared."""
-    from ..analysis import agreement
+    from ..analysis import agreement, decisive
     from ..run.sweep import run_sweep
 
     compared: list[dict] = []  # the states the cross-engine agreement compares (agreement.csv)
+    # only the runs whose time can change an answer are timed with repeats (analysis.decisive)
     results = run_sweep(request.cases, request.options, progress=progress, pool=pool, agreement=compared,
-                        final=False)
+                        final=False, decides=decisive.decisive)
     agreement.write(request.options.out_dir, compared)
     return {"results": results}
 

@@ -37,9 +37,10 @@ DEFINITIONS_TEMPLATE = """\
   every right-hand-side call, the implicit methods' finite-difference Jacobians included. tolerance.csv runs them at
   1e-3 ... 1e-13 (section Tolerance ladders).
 - us_per_step: stepping time only, best of 2 or 3 timed runs after an untimed warm-up run, metrics off; every run is
-  timed alone, in a phase after all the accuracy runs, so no timed run shares the cores with another run. Compare
-  timings within one report. us_per_step_spread: the second-best timed run minus the best (µs per step), the noise of
-  the figure. rhs_per_sim_s: right-hand-side evaluations per simulated second, a cost noise cannot touch (steps x
+  timed alone, in a phase after all the accuracy runs, so no timed run shares the cores with another run. A run whose
+  time can change no "What to use" answer (more than 3x slower than its engine's fastest run at its accuracy) keeps
+  one timed run: results.csv's `timing` says which. Compare timings within one report. us_per_step_spread: the second-best timed
+  run minus the best (µs per step), the noise of the figure. rhs_per_sim_s: right-hand-side evaluations per simulated second, a cost noise cannot touch (steps x
   stages for an engine that does not count them; empty for an adaptive run that does not).
 - formulation (engine reference): the state and equations integrated. quaternion: Euler-Poisson with a quaternion;
   gibbs: Ferrarese's Lagrangian in the Gibbs vector, with Christoffel symbols; gibbs_hamiltonian: his Hamiltonian form;

@@ -17,7 +17,7 @@ from . import timing
 from .measure import measure
 from .processes import exit_with_parent, raise_unless_data
 from .spec import RunSpec, base_row
-from .workers import WatchedPool
+from .workers import Affinity, WatchedPool
 
 # The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
 # Measured on the suite's four general cases (t_end 5 and 20, every engine, 2-core AMD EPYC): one simulation pass
@@ -26,6 +26,32 @@ from .workers import WatchedPool
 # plus ~6-25 ms. Only the ranking matters, so rough constants are enough: each engine declares its own (pass_us).
 RUN_OVERHEAD_S = 0.01   # prepare, metrics and the row, s
 CHECK_PASSES = 0.3      # mean extra passes of metrics and the checks' perturbed reruns
+
+
+def startup_s(engine: str) -> float:
+    """The start-up a worker pays once for an engine before its first run (SDK import, compilations), s: the engine's
+    declaration (Engine.startup_s, or Engine.timing.startup_s), 0.0 where it declares none or cannot be loaded."""
+    try:
+        adapter = get_engine(engine)
+    except Exception:  # its runs say why; nothing to schedule around
+        return 0.0
+    declared = getattr(adapter, "startup_s", None)
+    if declared is None:
+        declared = getattr(getattr(adapter, "timing", None), "startup_s", 0.0)
+    try:
+        declared = float(declared)
+    except (TypeError, ValueError):
+        return 0.0
+    return declared if math.isfinite(declared) and declared > 0.0 else 0.0
+
+
+def startup_cost(specs: list[RunSpec], jobs: int = 1) -> float:
+    """The start-ups a sweep of specs pays, s: each engine's startup_s once per worker that needs it (the engine-
+    affine pool gives an engine's runs to as few workers as keep the cores busy: at most min(jobs, its runs))."""
+    runs: dict[str, int] = {}
+    for spec in specs:
+        runs[spec.engine] = runs.get(spec.engine, 0) + 1
+    return sum(startup_s(engine) * min(max(1, jobs), count) for engine, count in runs.items())
 
 
 def cost(spec: RunSpec) -> float:
@@ -51,20 +77,30 @@ def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
 
 
 def _init_worker(engines: tuple[str, ...], budgets: budget.Budgets | None = None) -> None:
-    """A pool worker's start-up: ignore Ctrl-C, take the parent's budgets (for the ladders' points, which run here
-    too) and load the engines' adapters now, while the parent computes the truths, rather than in the worker's first
-    run (an adapter whose SDK takes seconds to import, base.require_modules, imports it on its first prepare)."""
+    """A pool worker's start-up: ignore Ctrl-C and take the parent's budgets (for the ladders' points, which run here
+    too). The engines' adapters load on their first run here (get_engine, cached per process): a worker the
+    engine-affine pool never gives an engine's run never pays for its SDK (issue 29: every worker paid for every
+    engine). `engines` stays for the pools built with 0.2.0's arguments."""
     if budgets is not None:
         budget.configure(budgets)
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
     # must not die mid-run on it and send back a traceback instead of a row.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     exit_with_parent()
-    for name in engines:
-        try:
-            get_engine(name)
-        except Exception:  # the runs that need the engine record why
-            pass
+
+
+_STARTED: dict[str, int] = {}  # engine -> runs of it in this process: the first one paid its start-up
+
+
+def started_engines() -> dict[str, int]:
+    """The engines this process has run (sweep_run), with how many runs each: a worker's first run of an engine pays
+    its start-up (the counter the tests read per worker)."""
+    return dict(_STARTED)
+
+
+def affinity(spec: RunSpec) -> Affinity:
+    """A run's affinity (harness.run.workers): its engine, the engine's start-up and the run's estimated cost."""
+    return Affinity(spec.engine, startup_s(spec.engine), cost(spec))
 
 
 IN_PROCESS_ENV = "STEREODYN_IN_PROCESS"  # "1": --jobs 1 runs in the command's own process (in_process)
@@ -107,6 +143,7 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Watch
 def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> dict:
     """A sweep's run on a worker: measure() with the sweep's extras (checks, series, --save-trajectories' states),
     within the budgets (default this process's)."""
+    _STARTED[spec.engine] = _STARTED.get(spec.engine, 0) + 1
     return measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, budgets=budgets)
 
 
@@ -118,7 +155,8 @@ def run_local(specs: list[RunSpec], truths: dict, pool: WatchedPool | None,
         for spec in specs:
             finished(spec, sweep_run(spec, truths.get(spec.case.name)))  # this process's budgets
         return
-    futures: dict[Future, RunSpec] = {pool.submit(sweep_run, s, truths.get(s.case.name), budgets): s for s in specs}
+    futures: dict[Future, RunSpec] = {pool.submit(sweep_run, s, truths.get(s.case.name), budgets,
+                                                  affinity=affinity(s)): s for s in specs}
     for future in as_completed(futures):
         spec = futures[future]
         try:

@@ -15,7 +15,7 @@ from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
-           "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
+           "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "timing", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
            "truth_err", "truth_omega_err", "chart_changes", "torque_mode", *TORQUE_COLUMNS)
 
 # Row order in the table and the report: the truth first, then engines as listed, integrators as each engine lists
@@ -54,6 +54,9 @@ def write_results(df: pd.DataFrame, path: Path) -> None:
 
 
 REQUIRED_COLUMNS = ("case", "engine", "integrator", "status")
+# `timing`: how wall_s was measured: "best of N" timed runs (N 2 or 3), or SINGLE, one timed run: a run whose time
+# decides nothing (harness.analysis.decisive); empty for a run not timed (and in a table of an older version).
+SINGLE = "single"
 
 
 def with_precision(df: pd.DataFrame) -> pd.DataFrame:
@@ -63,7 +66,8 @@ def with_precision(df: pd.DataFrame) -> pd.DataFrame:
     return df.fillna({"precision": FLOAT64}).replace({"precision": {"": FLOAT64}}).astype({"precision": str})
 
 
-TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "torque_mode")
+TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "timing",
+                "torque_mode")
 NAMED = ("case", "engine")  # never empty (the integrator is, on a skipped row of an engine that cannot run a case)
 # The accuracy metrics the gate, baselines and compare read (every column with one of these suffixes), the timing,
 # and the step of a row's key: finite or empty. Elsewhere a number may be inf (as the store writes it).

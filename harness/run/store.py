@@ -175,7 +175,7 @@ def run_key(identity: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
-_TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message")
+_TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "timing")
 _IDENTITY_COLUMNS = ("engine", "formulation", "integrator", "precision")  # in both the identity and the row
 _STATUSES = frozenset(s.value for s in Status)
 

@@ -12,6 +12,7 @@ import warnings
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -27,7 +28,8 @@ from . import timing
 from .distributed import run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
-from .pool import cost, local_pool, run_local, sweep_run, worker_failed_row, worker_pool  # noqa: F401 (worker_pool)
+from .pool import (cost, local_pool, run_local, startup_cost, sweep_run, worker_failed_row,  # noqa: F401 (worker_pool)
+                   worker_pool)
 from .workers import WatchedPool
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
@@ -86,7 +88,7 @@ _cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # 
 
 def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar | None = None,
               pool: WatchedPool | None = None, agreement: list | None = None, final: bool = True,
-              **legacy_options) -> pd.DataFrame:
+              decides: Callable[[pd.DataFrame], set] | None = None, **legacy_options) -> pd.DataFrame:
     """Run every case as `options` says and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -102,6 +104,9 @@ def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar
     out_dir/trajectories where it saved them, else it is left out.
     final: the sweep is all that writes the folder: mark it complete at the end (runs.json; harness.run.store
     mark_complete). `stereodyn run` marks it itself, after the work–precision tables and the report.
+    decides: which runs to time with repeats (harness.analysis.decisive.decisive: the ok rows of one timing group,
+    their us_per_sim_s a single timed run, in -> the index labels to repeat); the others keep their single time
+    (results.csv `timing`). None: every run is timed with repeats.
 
     0.2.0's form, run_sweep(cases, engines, integrators, out_dir, jobs=..., certify=..., resume=..., scheduler=...,
     save_trajectories=..., progress=..., pool=..., agreement=..., final=...), still runs, with a DeprecationWarning.
@@ -111,7 +116,7 @@ def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar
     elif legacy or legacy_options:
         raise TypeError(f"run_sweep(cases, options, ...): unexpected arguments "
                         f"{', '.join([repr(a) for a in legacy] + list(legacy_options))}")
-    return _sweep(cases, options, progress or ProgressBar(enabled=False), pool, final, agreement)
+    return _sweep(cases, options, progress or ProgressBar(enabled=False), pool, final, agreement, decides)
 
 
 def _legacy_options(engines, integrators, out_dir, jobs=None, certify=True, *, resume=False, scheduler=None,
@@ -124,7 +129,7 @@ def _legacy_options(engines, integrators, out_dir, jobs=None, certify=True, *, r
 
 
 def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: WatchedPool | None, final: bool,
-           agreement: list | None = None) -> pd.DataFrame:
+           agreement: list | None = None, decides: Callable[[pd.DataFrame], set] | None = None) -> pd.DataFrame:
     out_dir, engines = options.out_dir, options.engines
     out_dir.mkdir(parents=True, exist_ok=True)
     specs, skipped_rows = plan(cases, engines, options.integrators)
@@ -211,7 +216,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
 
             truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
                                   progress.phase, truth_failed, budgets)
-            progress.start(len(pending), sum(cost(s) for s in pending), resumed=len(specs) - len(pending))
+            progress.start(len(pending), sum(cost(s) for s in pending) + startup_cost(pending, local_jobs),
+                           resumed=len(specs) - len(pending))
             try:
                 if options.scheduler:
                     run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
@@ -226,7 +232,15 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         if untimed:
             progress.stage(f"timing {_count(len(untimed), 'run')}, one at a time, in rounds")
             environment[TIMING_START] = load_snapshot()  # how busy the machine was: the report's Environment
-        timings = time_specs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed])
+
+        def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() on one timing group's runs
+            rows = pd.DataFrame([stored[keys[id(untimed[i])]] for i in indices], index=indices)
+            rows = rows.reindex(columns=list(dict.fromkeys([*rows.columns, "dt", "attitude_err"])))
+            rows["us_per_sim_s"] = np.asarray(seconds, float) / rows["t_end"].to_numpy(float) * 1e6
+            return {int(label) for label in decides(rows)}
+
+        timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed], prepare,
+                                   select if decides is not None else None)
         if untimed:
             environment[TIMING_END] = load_snapshot()
         for spec, timed_columns in zip(untimed, timings):
@@ -254,6 +268,7 @@ def _needs_timing(row: dict) -> bool:
     wall = row.get("wall_s", math.nan)
     return row.get("status") == Status.OK.value and not row.get("_lost") and not (
         isinstance(wall, float) and math.isfinite(wall))
+
 
 
 def _ranks(spec: RunSpec) -> dict:

@@ -1,10 +1,14 @@
 """Stepping time, measured apart from accuracy (DESIGN §6.4): best of N timed runs after a warm-up, metrics off, with
 the spread of the N recorded so that a ranking can tell a difference from noise. The sweep and the dt ladders time
 their runs in a phase of their own, one run at a time, after every accuracy run (harness.run.sweep,
-harness.analysis.workprecision): a timed run never shares the machine's cores with another run."""
+harness.analysis.workprecision): a timed run never shares the machine's cores with another run. Under `stereodyn run`
+only the runs whose time decides something get repeats (time_runs' select, harness.analysis.decisive); the others keep
+one timed run, after the warm-up (the sweep's accuracy run is no timing: in a worker beside another, and with its
+first-call costs, it measured Pinocchio's and the reference's runs 2-3x slower than their best of 3, up to 20x)."""
 from __future__ import annotations
 
 import gc
+import math
 import time
 from typing import Callable, NamedTuple
 
@@ -17,6 +21,7 @@ from ..precision import FLOAT64
 from ..trajectory import Status
 from .processes import raise_unless_data
 from .results import disturbed  # noqa: F401 (its home is the results table's module since issue 29: analysis reads it)
+from .results import SINGLE
 
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
@@ -71,7 +76,7 @@ def best_time(run: Callable[[], object], repeats: int = REPEATS, budget_s: float
 
 
 def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS, budget_s: float = BUDGET_S,
-                        min_repeats: int = MIN_REPEATS) -> list[Timing | None]:
+                        min_repeats: int = MIN_REPEATS, first: list[float | None] | None = None) -> list[Timing | None]:
     """measure() for many runs at once (each already warmed up), in rounds: round r times every run still short of
     its repeats once, so the repeats of one run lie a whole round apart. A run drops out of later rounds once it has
     `min_repeats` repeats and has spent `budget_s`. A run that raises is dropped: its entry is None.
@@ -83,17 +88,21 @@ def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS
 
     A run whose timing is disturbed (spread > best) is timed again once, in rounds over those runs; the second timing
     replaces the first, with `disturbed` set when it is disturbed too.
+
+    first: a timed run each run already had (s; None: none), counted as its first repeat (time_runs' single round).
     """
-    measured = _rounds(runs, repeats, budget_s, min_repeats)
+    measured = _rounds(runs, repeats, budget_s, min_repeats, first)
     again = [i for i, m in enumerate(measured) if m is not None and disturbed(m.best, m.spread)]
     for i, m in zip(again, _rounds([runs[i] for i in again], repeats, budget_s, min_repeats) if again else []):
         measured[i] = None if m is None else m._replace(disturbed=bool(disturbed(m.best, m.spread)))
     return measured
 
 
-def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min_repeats: int) -> list[Timing | None]:
-    """One timing of each run, in rounds (measure_interleaved without the re-time)."""
-    times: list[list[float] | None] = [[] for _ in runs]
+def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min_repeats: int,
+            first: list[float | None] | None = None) -> list[Timing | None]:
+    """One timing of each run, in rounds (measure_interleaved without the re-time); first: a repeat each already has."""
+    times: list[list[float] | None] = [[] if first is None or first[i] is None else [first[i]]
+                                       for i in range(len(runs))]
     runs = [_uncounted(run) for run in runs]
     enabled = gc.isenabled()
     gc.disable()
@@ -101,7 +110,7 @@ def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min
         for round_ in range(max(1, repeats)):
             for i, run in enumerate(runs):
                 ts = times[i]
-                if ts is None or (round_ >= min_repeats and sum(ts) >= budget_s):
+                if ts is None or len(ts) > round_ or (round_ >= min_repeats and sum(ts) >= budget_s):
                     continue
                 start = time.perf_counter()
                 try:
@@ -203,18 +212,25 @@ def columns(measured: Timing, t_end: float) -> dict:
 
 
 def step_columns(measured: Timing, steps: float) -> dict:
-    """A sweep row's timing columns (results.csv): wall_s (s), us_per_step and us_per_step_spread (µs per step)."""
+    """A sweep row's timing columns (results.csv): wall_s (s), us_per_step and us_per_step_spread (µs per step; NaN
+    for a single timed run: one run has no spread) and timing ("best of N", or SINGLE)."""
     per_step = 1e6 / max(1, steps)
     return {"wall_s": measured.best, "us_per_step": measured.best * per_step,
-            "us_per_step_spread": measured.spread * per_step}
+            "us_per_step_spread": measured.spread * per_step if measured.repeats > 1 else math.nan,
+            "timing": f"best of {measured.repeats}" if measured.repeats > 1 else SINGLE}
 
 
-def time_runs(runs: list, steps: list[float], prepare: Callable) -> list[dict]:
+def time_runs(runs: list, steps: list[float], prepare: Callable,
+              select: Callable[[list[int], list[float]], set[int]] | None = None) -> list[dict]:
     """The sweep's timing phase: the step_columns of finished ok runs, in this process with no other run sharing the
     cores: each timing group (groups: by engine and precision where an engine's precision is process-global) prepared
     (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group (measure_interleaved),
     before the next group is prepared. {} for a run that fails here (it ran ok untimed: the row is then left untimed); a
-    timing still disturbed when re-timed carries it as `_disturbed`."""
+    timing still disturbed when re-timed carries it as `_disturbed`.
+
+    select(indices, seconds) -> the indices to time with repeats: given, each group is first timed once (one round),
+    and only the runs it names get the further rounds (their single run counts as their first repeat); the others
+    keep that single time (timing SINGLE, no spread, never re-timed as disturbed)."""
     rows: list[dict] = [{} for _ in runs]
     for group in groups([(run.engine, run.precision) for run in runs]):
         warm = {}
@@ -225,7 +241,16 @@ def time_runs(runs: list, steps: list[float], prepare: Callable) -> list[dict]:
                 warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
             except Exception as exc:
                 raise_unless_data(exc)
-        for i, m in zip(warm, measure_interleaved(list(warm.values()))):
+        if select is None:
+            measured = dict(zip(warm, measure_interleaved(list(warm.values()))))
+        else:
+            once = dict(zip(warm, _rounds(list(warm.values()), 1, BUDGET_S, 1)))
+            timed_once = [i for i in warm if once[i] is not None]
+            repeat = set(select(timed_once, [once[i].best for i in timed_once])) & set(timed_once)
+            order = [i for i in timed_once if i in repeat]
+            measured = {**once, **dict(zip(order, measure_interleaved([warm[i] for i in order],
+                                                                      first=[once[i].best for i in order])))}
+        for i, m in measured.items():
             if m is not None:
                 rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
         warm.clear()  # this group's models go before the next group's are built

@@ -24,6 +24,7 @@ import threading
 import time
 from collections import deque
 from concurrent.futures import Future
+from dataclasses import dataclass
 from multiprocessing.connection import wait
 
 from .. import budget
@@ -44,9 +45,20 @@ class WorkerDied(RuntimeError):
     """A task whose worker process died under it (a crash inside an SDK, the memory killer)."""
 
 
+@dataclass(frozen=True)
+class Affinity:
+    """What a task needs a worker to have paid for (an engine: its SDK imported, its models compiled) and what that
+    costs: key (the engine's name), startup_s (s, the start-up a worker pays once for the key; 0: nothing worth
+    keeping a worker for), cost_s (s, the task's own estimated run time)."""
+
+    key: str
+    startup_s: float = 0.0
+    cost_s: float = 0.0
+
+
 class _Worker:
-    """A worker process, the parent's end of its pipe, whether it is ready (initialized), its task (future) and the
-    deadline it reported."""
+    """A worker process, the parent's end of its pipe, whether it is ready (initialized), its task (future), the
+    deadline it reported and the affinity keys of the tasks it was given (paid: the start-ups it has paid for)."""
 
     def __init__(self, context, initializer, initargs):
         self.conn, child = context.Pipe()
@@ -56,6 +68,7 @@ class _Worker:
         self.ready = False
         self.future: Future | None = None
         self.deadline: tuple[float, str, float] | None = None  # (parent's monotonic time, what, seconds)
+        self.paid: set[str] = set()
 
     def ends(self) -> float | None:
         """When the parent ends it: its deadline plus the budget's grace (None: no deadline holds)."""
@@ -69,7 +82,7 @@ class WatchedPool:
     def __init__(self, jobs: int, initializer, initargs: tuple = ()):
         self._context = multiprocessing.get_context("spawn")  # the parent holds threads and LLVM state: no fork
         self._jobs, self._initializer, self._initargs = jobs, initializer, initargs
-        self._queue: deque[tuple[Future, object, tuple]] = deque()
+        self._queue: deque[tuple[Future, object, tuple, Affinity | None]] = deque()
         self._lock = threading.Lock()
         self._wake_r, self._wake_w = self._context.Pipe(duplex=False)
         self._closing = False
@@ -83,12 +96,14 @@ class WatchedPool:
         """The workers' process ids, now."""
         return [w.process.pid for w in list(self._workers)]
 
-    def submit(self, fn, *args) -> Future:
+    def submit(self, fn, *args, affinity: Affinity | None = None) -> Future:
+        """fn(*args) on a worker; affinity: the start-up the task needs (_take: a task goes preferably to a worker
+        that has paid for it)."""
         future = Future()
         with self._lock:
             if self._closing:
                 raise RuntimeError("submit on a pool that was shut down")
-            self._queue.append((future, fn, args))
+            self._queue.append((future, fn, args, affinity))
         self._wake()
         return future
 
@@ -133,7 +148,7 @@ class WatchedPool:
 
     def _fail_all(self, exc: BaseException) -> None:
         with self._lock:
-            queued, self._queue = [future for future, _, _ in self._queue], deque()
+            queued, self._queue = [future for future, *_ in self._queue], deque()
         for future in queued + [w.future for w in self._workers if w.future is not None]:
             if not future.cancel() and not future.done():
                 future.set_exception(exc)
@@ -180,7 +195,11 @@ class WatchedPool:
                 self._start_workers(self._jobs - len(self._workers))
             for worker in self._workers:
                 while worker.ready and worker.future is None and self._queue:
-                    future, fn, args = self._queue.popleft()
+                    index = self._take(worker)
+                    if index is None:  # what is left is better served by the workers that paid for it
+                        break
+                    future, fn, args, affinity = self._queue[index]
+                    del self._queue[index]
                     if not future.set_running_or_notify_cancel():
                         continue
                     try:
@@ -189,6 +208,23 @@ class WatchedPool:
                         future.set_exception(exc)
                         continue
                     worker.future, worker.deadline = future, None
+                    if affinity is not None:
+                        worker.paid.add(affinity.key)
+
+    def _take(self, worker: _Worker) -> int | None:
+        """The index of the queued task an idle worker takes: the first (the queue is in submission order, the
+        longest runs first) that costs it no start-up another worker has paid for: no affinity or none worth keeping
+        (startup_s 0), one it has paid for, or one no worker has paid for yet. Failing that, the first task anyway
+        when the queued work of its key exceeds a start-up (both cores busy beat one start-up saved), else None: the
+        worker waits, and the key's tasks go to the workers that paid for it."""
+        others = set().union(*(w.paid for w in self._workers if w is not worker))
+        for index, (_, _, _, affinity) in enumerate(self._queue):
+            if affinity is None or affinity.startup_s <= 0.0 or affinity.key in worker.paid \
+                    or affinity.key not in others:
+                return index
+        head = self._queue[0][3]
+        left = sum(a.cost_s for *_, a in self._queue if a is not None and a.key == head.key)
+        return 0 if left > head.startup_s else None
 
     def _hear(self, worker: _Worker) -> None:
         """Read every message the worker has sent: ("ready",) once initialized, a deadline ("deadline", (seconds
@@ -226,7 +262,7 @@ class WatchedPool:
             worker.future.set_exception(failure)
         if not worker.ready and not any(w.ready for w in self._workers):
             with self._lock:
-                queued, self._queue = [future for future, _, _ in self._queue], deque()
+                queued, self._queue = [future for future, *_ in self._queue], deque()
             for future in queued:
                 if future.set_running_or_notify_cancel():
                     future.set_exception(WorkerDied(f"a worker process died while starting (exit code "
