@@ -144,7 +144,7 @@ def test_the_sweep_times_once_what_decides_nothing(tmp_path, monkeypatch, repeat
 def test_the_advice_does_not_report_a_single_time():
     """An advised setting that is a sweep run timed once is timed with repeats by the advice itself (its known point
     carries no time); a sweep run timed with repeats lends its time."""
-    from stereodyn.harness.analysis import advice
+    from stereodyn.harness.analysis import step_advice as advice  # advice_tasks: its pure home
     from stereodyn.harness.run.spec import Family
 
     case = SimpleNamespace(name="c")
