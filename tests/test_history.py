@@ -66,7 +66,7 @@ def test_a_step_in_the_third_run_is_flagged_on_exactly_that_row_and_metric(tmp_p
     assert (table["step"] != "").sum() == 1
     points = pd.read_csv(out / "history_points.csv", keep_default_na=False)
     assert points["label"].tolist() == list("abcd") and points["worse"].tolist() == [0, 0, 1, 0]
-    page = (out / "history.html").read_text()
+    page = (out / "history.html").read_text().replace("<wbr>", "")  # names may break after underscores
     assert "attitude_err" in page and "figures/history-steps.png" in page
     assert (out / "figures" / "history-steps.png").stat().st_size > 1000
 

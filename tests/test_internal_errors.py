@@ -54,7 +54,10 @@ def test_an_internal_error_crosses_the_pool_and_is_no_row():
 
     from stereodyn.harness.run.pool import local_pool, run_local
 
-    broken = SimpleNamespace(case=SimpleNamespace(name="x"))  # no grid, no engine: measure() breaks on it
+    # enough for the parent's scheduling (pool.affinity: engine, dt, integrator, case.t_end), no grid: measure()
+    # breaks on it in the worker
+    broken = SimpleNamespace(case=SimpleNamespace(name="x", t_end=1.0, dt=[0.01]), engine="mujoco", dt=0.01,
+                             integrator="rk4")
     rows = []
     with pytest.raises(errors.InternalError, match="AttributeError") as raised:
         with local_pool(2, 2, ()) as pool:  # the sweep's watched pool

@@ -112,7 +112,8 @@ def render(table: list[EngineRow], wide: bool = True) -> str:
         status = row.status
         if not wide and status.startswith("not installed: ") and "install the extra: " in status:
             status = "not installed: " + status.split("install the extra: ", 1)[1]
-        lines += _wrapped(f"{row.name}: {row.origin}; {status}", wide, "    ")
+        # a plug-in that does not load is named on one line, however long (the one-line rule of a failed load)
+        lines += _wrapped(f"{row.name}: {row.origin}; {status}", wide or status.startswith("not usable"), "    ")
         if row.models:
             lines += _wrapped(f"  models: {', '.join(row.models)}", wide, "    ")
         if row.integrators:

@@ -105,6 +105,7 @@ def figure(table: pd.DataFrame, steps: pd.DataFrame, labels: list[str]) -> bytes
                   color="#d62728" if step["direction"] == "worse" else "#2ca02c")
         if step["quantity"] != ORDER:
             axes.set_yscale("log")
+            figures.log_ticks(axes.yaxis)  # plain-text ticks: no exponent smaller than the digits
         axes.set_xticks(range(1, len(labels) + 1), [str(i) for i in range(1, len(labels) + 1)])
         axes.tick_params(labelsize=figures.MIN_FONT_PT)
         axes.set_xlabel("run (history_points.csv)", fontsize=figures.LABEL_FONT_PT)
