@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .text import grouped_reasons, plural, reason  # noqa: F401 (reason: part of this API)
+from ..words import plural
+from .text import grouped_reasons, reason  # noqa: F401 (reason: part of this API)
 
 # Accuracy targets (max attitude error, rad) of the terminal's "cheapest run" lines: three decades of pareto.csv's.
 TERMINAL_TARGETS = (1e-3, 1e-6, 1e-9)

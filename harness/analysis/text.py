@@ -37,11 +37,6 @@ def _subject(row) -> str:
     return f"{row['case']} {row['engine']}{formulation}{integrator}{dt}"
 
 
-def plural(count: int, word: str, words: str | None = None) -> str:
-    """'1 run', '2 runs' ('1 more reason', '3 more reasons')."""
-    return f"{count} {word if count == 1 else words or word + 's'}"
-
-
 def grouped_reasons(df: pd.DataFrame, statuses=("failed", "diverged", "skipped")) -> list[dict]:
     """Runs that did not complete, one entry per (status, reason): count, the runs, and the first run's own message
     (`example`, its numbers kept), most frequent first (failures before divergences before skips on a tie)."""

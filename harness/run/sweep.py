@@ -31,6 +31,7 @@ from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import (cost, local_pool, run_local, startup_cost, sweep_run, worker_failed_row,  # noqa: F401 (worker_pool)
                    worker_pool)
 from .workers import WatchedPool
+from ..words import plural
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
@@ -205,8 +206,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
             local_pool(local_jobs, len(pending), tuple(engines))
         with own_pool as pool:
-            progress.stage(f"truths of {_count(len(cases), 'case')}, then {_count(len(pending), 'run')} on "
-                           f"{_count(local_jobs, 'worker')}")
+            progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
+                           f"{plural(local_jobs, 'worker')}")
 
             def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
                 nonlocal pending
@@ -230,7 +231,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
-            progress.stage(f"timing {_count(len(untimed), 'run')}, one at a time, in rounds")
+            progress.stage(f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
             environment[TIMING_START] = load_snapshot()  # how busy the machine was: the report's Environment
 
         def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() on one timing group's runs
@@ -257,11 +258,6 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         if final:
             mark_complete(out_dir)
         return table()
-
-
-def _count(count: int, word: str) -> str:
-    """'1 case', '26 cases' (analysis.text.plural is a layer above)."""
-    return f"{count} {word}{'s' * (count != 1)}"
 
 
 def _needs_timing(row: dict) -> bool:
