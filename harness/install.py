@@ -9,14 +9,30 @@ from pathlib import Path
 
 @functools.lru_cache(maxsize=1)
 def checkout() -> Path | None:
-    """The source tree stereodyn runs from, or None for an installed distribution: the folder above the package
-    holding a pyproject.toml that names the project (an editable install or a checkout on sys.path)."""
-    root = Path(__file__).resolve().parents[1]  # harness/ sits at the top of the tree (pyproject's package-dir)
-    project = root / "pyproject.toml"
+    """The source tree stereodyn was installed from, or None for a distribution: the folder above the package holding
+    a pyproject.toml that names the project (an editable install, a checkout on sys.path), or the local folder a
+    plain `pip install .` recorded (the README's main command)."""
+    for root in (Path(__file__).resolve().parents[1], _installed_from()):  # harness/ tops the tree (package-dir)
+        try:
+            if root is not None and 'name = "stereodyn"' in (root / "pyproject.toml").read_text():
+                return root
+        except OSError:
+            continue
+    return None
+
+
+def _installed_from() -> Path | None:
+    """The local folder a non-editable `pip install .` took stereodyn from (PEP 610's direct_url.json), or None."""
+    import json
+    from importlib import metadata
+    from urllib.parse import unquote, urlparse
+
     try:
-        return root if project.is_file() and 'name = "stereodyn"' in project.read_text() else None
-    except OSError:
+        url = json.loads(metadata.distribution("stereodyn").read_text("direct_url.json") or "{}").get("url", "")
+    except (metadata.PackageNotFoundError, ValueError, AttributeError):
         return None
+    parsed = urlparse(url)
+    return Path(unquote(parsed.path)) if parsed.scheme == "file" else None
 
 
 def hint(extra: str) -> str:
