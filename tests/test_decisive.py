@@ -113,10 +113,28 @@ def test_the_gate_checks_the_time_of_repeated_rows_only():
     assert gate.compare(pd.DataFrame([dict(slow, timing=SINGLE)]), [base], tolerances) == []
 
 
+def test_a_ladder_point_decides_against_the_sweeps_runs_as_rivals():
+    """deciding_points: the ladders' points, each with its single time, decide with the sweep's runs (their wall_s
+    over t_end) as the rivals in their cells; the indices are the points' own."""
+    sweep = pd.DataFrame([  # one mujoco run reaching 1e-3 at 100 µs per simulated second (1e-4 s over 1 s)
+        {"case": "c", "engine": "mujoco", "dt": 1e-2, "status": "ok", "attitude_err": 5e-4, "wall_s": 1e-4,
+         "t_end": 1.0}])
+    point = {"case": "c", "engine": "mujoco", "dt": 5e-3, "status": "ok"}
+    points = [dict(point, attitude_err=4e-4, us_per_sim_s=250.0),   # 0: 2.5x the sweep's run: within MARGIN
+              dict(point, attitude_err=4e-4, us_per_sim_s=400.0),   # 1: 4x: can neither win nor tie
+              dict(point, attitude_err=1e-7, us_per_sim_s=900.0),   # 2: the only one reaching 1e-7
+              dict(point, attitude_err=1e-7, us_per_sim_s=NAN),     # 3: untimed
+              dict(point, engine="pinocchio", attitude_err=4e-4, us_per_sim_s=5000.0)]  # 4: its own engine's fastest
+    assert decisive.deciding_points(sweep, points) == {0, 2, 4}
+    assert decisive.deciding_points(sweep.iloc[:0], points) == {0, 1, 2, 4}  # without the sweep's rival
+    assert decisive.deciding_points(sweep, []) == set()
+
+
 @pytest.mark.parametrize("repeat", [False, True])
 def test_the_sweep_times_once_what_decides_nothing(tmp_path, monkeypatch, repeat):
-    """decides() names nothing: every ok run is prepared, warmed up and timed once (its accuracy run is no timing);
-    names everything: every ok run is timed with repeats. Either way each run is prepared once in the timing phase."""
+    """Every ok run is timed once in its worker, after its accuracy run, and decides() sees every one. It names
+    nothing: no run is prepared again, each keeps its single time; names everything: each is prepared once in the
+    timing phase and timed with repeats."""
     from helpers import case_file, tiny_case
     from stereodyn.harness.run import sweep
     from stereodyn.harness.scenes.cases import load_case
@@ -134,7 +152,8 @@ def test_the_sweep_times_once_what_decides_nothing(tmp_path, monkeypatch, repeat
                                                     jobs=1, certify=False), decides=decides)
     ok = df[df["status"] == "ok"]
     assert set(ok["engine"]) == {"mujoco", "reference"} and np.isfinite(ok["wall_s"]).all()
-    assert sorted(prepared) == sorted(ok["engine"]) and sorted(sum(seen, [])) == sorted(ok["engine"])
+    assert sorted(prepared) == (sorted(ok["engine"]) if repeat else []) and \
+        sorted(sum(seen, [])) == sorted(ok["engine"])
     if repeat:
         assert set(ok["timing"]) <= {"best of 2", "best of 3"} and ok["us_per_step_spread"].notna().all()
     else:

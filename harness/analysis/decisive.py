@@ -58,3 +58,16 @@ def decisive(runs: pd.DataFrame, margin: float = MARGIN) -> set:
             if cost[i] <= margin * cost[rivals].min():
                 chosen.add(runs.index[i])
     return chosen
+
+
+def deciding_points(results: pd.DataFrame, points: list[dict], margin: float = MARGIN) -> set[int]:
+    """The indices of the ladder points (ladder.csv's and tolerance.csv's rows, each with the single time of its
+    worker: us_per_sim_s) whose time can change a "What to use" cell, pareto's other candidates, the sweep's runs
+    (results.csv: wall_s, single or best of N), being their rivals."""
+    if not points:
+        return set()
+    own = pd.DataFrame([{c: p.get(c, math.nan) for c in _NEEDED} for p in points], columns=list(_NEEDED))
+    sweep = results.reindex(columns=[*_NEEDED[:-1], "wall_s", "t_end"])
+    sweep = sweep.assign(us_per_sim_s=sweep["wall_s"].astype(float) / sweep["t_end"].astype(float) * 1e6)
+    both = pd.concat([own, sweep[list(_NEEDED)]], ignore_index=True)  # the points first: labels 0 .. len(points) - 1
+    return {int(label) for label in decisive(both, margin) if label < len(points)}

@@ -20,9 +20,11 @@ from ..run.spec import Family
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..trajectory import Status
 
+# timing: how wall_s was measured, as results.csv's column: SINGLE (once, in the worker) or "best of N" (alone)
 LADDER_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "rhs_evals",
                   "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift", "energy_drift",
-                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "source")
+                  "state_err", "wall_s", "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "source",
+                  "timing")
 LADDER, SHORT_LADDER = "ladder", "short-ladder"   # the `source` of a ladder's points and convergence row
 LADDER_POINTS = 10
 STABLE_ENERGY_DRIFT = 1.0    # energy off by its whole scale: the run has blown up even if |ω| is not yet 1e6 x
@@ -214,7 +216,7 @@ def families(cases: list[Case], engines: list[str], integrators: list[str] | Non
 TOLERANCE_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "tolerance", "t_end", "steps", "rhs_evals",
                      "status", "message", "attitude_err", "attitude_err_end", "omega_err", "casimir_drift",
                      "energy_drift", "state_err", "err_over_tol", "wall_s", "us_per_sim_s", "us_per_sim_s_spread",
-                     "rhs_per_sim_s", "steps_per_sim_s")
+                     "rhs_per_sim_s", "steps_per_sim_s", "timing")
 
 
 TOLERANCES = tuple(10.0 ** -k for k in range(3, 14))  # --dt-ladder: every decade

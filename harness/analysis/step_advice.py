@@ -256,6 +256,7 @@ def advice_tasks(fixed: list[Family], adaptive: list[Family], results: pd.DataFr
         sweep["us_per_sim_s"] = sweep["wall_s"] / sweep["t_end"] * 1e6
         if "timing" in sweep:  # a run timed once (analysis.decisive): an advised one is timed with repeats here
             sweep.loc[sweep["timing"] == SINGLE, "us_per_sim_s"] = math.nan
+    ladder, tolerance = (_repeated_times(t) for t in (ladder, tolerance))
     columns = ["dt", "steps", "status", "state_err", "attitude_err", "us_per_sim_s"]
     by_family: dict[tuple, list[dict]] = {}
     for frame_ in (sweep, ladder):
@@ -272,6 +273,15 @@ def advice_tasks(fixed: list[Family], adaptive: list[Family], results: pd.DataFr
     tasks += [(f, True, points.get(f.key, []), slopes[f.key]) for f in adaptive
               if math.isfinite(slopes.get(f.key, math.nan))]
     return tasks
+
+
+def _repeated_times(points: pd.DataFrame) -> pd.DataFrame:
+    """Ladder points with us_per_sim_s only where timed with repeats: a point timed once (SINGLE) that is advised is
+    timed with repeats by run_advice, as a sweep's run is."""
+    if len(points) and "timing" in points:
+        points = points.copy()
+        points.loc[points["timing"] == SINGLE, "us_per_sim_s"] = math.nan
+    return points
 
 
 def families_to_advise(case, engine_name: str, integrators: list[str] | None,

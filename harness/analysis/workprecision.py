@@ -44,7 +44,7 @@ ADVICE_FILE = "advice.csv"
 # 117 check runs; 1e-6 alone 20 s; with 1e-9 as well 91 s (Drake's and scipy's BDF/Radau tight runs: seconds each).
 DEFAULT_ADVICE_TARGETS = (1e-3, 1e-6)
 TOLERANCE_FILE, TOLERANCE_FIT_FILE = "tolerance.csv", "tolerance_fit.csv"
-TEXT_COLUMNS = ("formulation", "engine", "integrator", "precision", "message")
+TEXT_COLUMNS = ("formulation", "engine", "integrator", "precision", "message", "timing")
 FULL_MAX_STEPS = 200_000     # --dt-ladder: rk4 reaches its round-off floor on the suite's cases well before this
 DEFAULT_MAX_STEPS = 40_000   # the default run's small ladder (see DEFAULT_LADDER)
 # The default run ladders these cases only, on the quaternion formulation of the reference engine: one free body and

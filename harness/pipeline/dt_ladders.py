@@ -61,7 +61,8 @@ TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
 
 def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = True) -> dict:
     """One ladder point (measure.measure): accuracy run, errors against the truth when with_truth (computed on the
-    point's grid), then timed runs when timed. Never raises."""
+    point's grid), then one timed run when timed (timing SINGLE; time_points repeats those that decide). Never
+    raises."""
     run = family.run(dt=float(dt))
     try:
         with budget.within("run", budget.configured().run_s):  # the point's truth under a run's budget, as before
@@ -87,13 +88,14 @@ def case_truth_on(run) -> object:
 
 
 def _timed(sim, grid) -> dict:
-    return timing.columns(timing.measure(lambda: sim.run(grid), TIMING_REPEATS, TIMING_BUDGET_S), grid.t_end)
+    """A point timed once in its worker, right after its accuracy run (timing.once): timing SINGLE."""
+    return timing.columns(timing.Timing(timing.once(lambda: sim.run(grid)), 0.0, 1), grid.t_end)
 
 
 def time_points(points: list[dict], families_by_key: dict[tuple, Family], setting: str = "dt") -> None:
     """The timing phase of the dt ladders, the tolerance ladders and the advice, its one home (harness.run.timing.
-    time_points: a timed run shares the cores with no other run): each point's run prepared again from its family
-    (families_by_key: Family.key -> Family) at the point's setting, "dt" or "tolerance"."""
+    time_points: a timed run shares the cores with no other run; best of TIMING_REPEATS): each point's run prepared
+    again from its family (families_by_key: Family.key -> Family) at the point's setting, "dt" or "tolerance"."""
     def prepare(row: dict):
         family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"],
                                   row["precision"])]
@@ -118,7 +120,8 @@ def run_ladder(family: Family, max_steps: int) -> tuple[list[dict], dict]:
     start = max(case.dt)
     stable_dt, stability_note = stability_limit(is_stable, start, cap, floor)
     top = stable_dt if math.isfinite(stable_dt) else (cap if "stable up to" in stability_note else start)
-    points = [measure(family, dt, timed=False) for dt in ladder_dts(top, floor)]  # timed later (time_points)
+    # each timed once here; those whose time decides are timed again, alone, later (time_points)
+    points = [measure(family, dt) for dt in ladder_dts(top, floor)]
     frame = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     row = {**family.columns, "stable_dt_max": stable_dt, "source": LADDER,
            **fit(frame, declared, family.precision)}
@@ -179,11 +182,13 @@ def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> 
 def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None = None,
                 progress: Callable[[str], None] | None = None,
                 short: list[tuple[Family, list[dict], int]] = (),
-                first_parts: list[tuple[Family, list[dict], int, dict]] = ()) -> tuple[list[dict], list[dict]]:
+                first_parts: list[tuple[Family, list[dict], int, dict]] = (),
+                timed: bool = True) -> tuple[list[dict], list[dict]]:
     """Every family's ladder, every short ladder (short: (family, its sweep runs, its steps cap), run_short_ladder)
     and every first part (first_parts: (family, its points, its steps cap, its row), run_first_part), their accuracy
-    runs in this process (pool None) or on the sweep's pool, then the ladders' points timed here (time_points; the
-    short ladders' points stay untimed). Returns (points, convergence rows): the ladders' in the order of `chosen`,
+    runs in this process (pool None) or on the sweep's pool, each ladder point timed once there, then with timed the
+    ladders' points timed again here (time_points; the short ladders' points stay untimed; timed False leaves that to
+    the caller: pipeline.work_precision times only those that decide). Returns (points, convergence rows): the ladders' in the order of `chosen`,
     then the short ladders' in the order of `short`, then the first parts', whatever order the families finish in."""
     tasks = [(run_ladder, family, (family, max_steps), LADDER) for family in chosen]
     tasks += [(run_short_ladder, family, (family, known, steps), SHORT_LADDER) for family, known, steps in short]
@@ -210,7 +215,6 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None =
     for index in range(len(tasks)):
         points += results[index][0]
         rows.append(results[index][1])
-    # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
-    time_points([p for p in points if p.get("source") == LADDER],
-                {f.key: f for f in chosen})
+    if timed:  # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
+        time_points([p for p in points if p.get("source") == LADDER], {f.key: f for f in chosen})
     return points, rows

@@ -35,7 +35,7 @@ from ..trajectory import Status
 from ..run.measure import measure as run_measure, rate
 from ..run.processes import raise_unless_data
 from ..run.workers import WatchedPool
-from .dt_ladders import case_truth_on, time_points as _time_points
+from .dt_ladders import _timed, case_truth_on, time_points as _time_points
 
 # 0.2.0's name: the one timing phase (dt_ladders.time_points) at the points' tolerances
 time_points = functools.partial(_time_points, setting="tolerance")
@@ -43,10 +43,11 @@ time_points = functools.partial(_time_points, setting="tolerance")
 
 # ------------------------------------------------------------------------------------------------ one point
 
-def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
-    """One ladder point's accuracy run (measure.measure, untimed): errors against the truth (the case's truth on the
-    family's grid, dt_ladders.case_truth_on; computed here when None), drifts, steps and evaluations. Never raises;
-    the run's wall time goes to `_accuracy_s` (for the ladder's budget, not a timing)."""
+def measure(family: AdaptiveFamily, tolerance: float, truth=None, timed: bool = False) -> dict:
+    """One ladder point's accuracy run (measure.measure): errors against the truth (the case's truth on the family's
+    grid, dt_ladders.case_truth_on; computed here when None), drifts, steps and evaluations, then with timed one timed
+    run (timing SINGLE). Never raises; the accuracy run's wall time goes to `_accuracy_s` (for the ladder's budget,
+    not a timing)."""
     run = family.run(tolerance=float(tolerance))
     row = {"tolerance": float(tolerance)}
     try:
@@ -58,7 +59,7 @@ def measure(family: AdaptiveFamily, tolerance: float, truth=None) -> dict:
     except Exception as exc:
         raise_unless_data(exc)
         return {**failed_point(family, tolerance, f"truth failed: {type(exc).__name__}: {exc}"), "_accuracy_s": 0.0}
-    measured = run_measure(run, truth, full=False)
+    measured = run_measure(run, truth, full=False, timed=_timed if timed else None)
     row.update({k: v for k, v in measured.items() if k in TOLERANCE_COLUMNS or k == "_accuracy_s"})
     row.pop("dt", None)
     if measured.get("status") != Status.FAILED.value:
@@ -88,7 +89,7 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
         return [failed_point(family, tolerances[0], f"truth failed: {type(exc).__name__}: {exc}")]
     points = []
     for tolerance in sorted(tolerances, reverse=True):
-        row = measure(family, tolerance, truth)
+        row = measure(family, tolerance, truth, timed=True)
         points.append(row)
         if row["_accuracy_s"] > budget_s and tolerance != min(tolerances):
             stop = f"ladder stopped after this point: its run took {row['_accuracy_s']:.3g} s (> {budget_s:g} s)"
@@ -99,10 +100,12 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
 
 def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 progress: Callable[[str], None] | None = None,
-                tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S) -> list[dict]:
-    """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, then its points
-    timed here (time_points). Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose
-    to tight. budget_s: run_ladder's point budget."""
+                tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S,
+                timed: bool = True) -> list[dict]:
+    """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, each point timed
+    once there, then with timed its points timed again here (time_points; timed False leaves that to the caller).
+    Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose to tight. budget_s:
+    run_ladder's point budget."""
     results: dict[int, list[dict]] = {}
     order = sorted(range(len(chosen)), key=lambda i: adaptive_cost(chosen[i]), reverse=True)
     if pool is None:
@@ -123,7 +126,8 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
             if progress:
                 progress(chosen[index].label)
     points = [point for index in range(len(chosen)) for point in results[index]]
-    time_points(points, {f.key: f for f in chosen})
+    if timed:
+        time_points(points, {f.key: f for f in chosen})
     return [{k: v for k, v in point.items() if not k.startswith("_")} for point in points]
 
 

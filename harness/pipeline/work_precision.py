@@ -16,14 +16,14 @@ from typing import Callable
 
 import pandas as pd
 
-from ..analysis import workprecision
+from ..analysis import decisive, workprecision
 from ..analysis.fitting import tolerance_fits
-from ..analysis.ladders import LADDER_COLUMNS, tolerance_frame
+from ..analysis.ladders import LADDER, LADDER_COLUMNS, tolerance_frame
 from ..analysis.step_advice import ADVICE_COLUMNS, advice_tasks
 from ..run.workers import WatchedPool
 from ..scenes.cases import Case
 from .advice import run_advice
-from .dt_ladders import run_ladders
+from .dt_ladders import run_ladders, time_points
 from .tolerance_ladders import run_ladders as run_tolerance_ladders
 
 
@@ -46,20 +46,34 @@ def ladders(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     """The dt, short and tolerance ladders of plan_ladders(ladder) on the sweep's pool (None: in this process), then
     their tables written and the orders appended to checks.csv."""
     plan = workprecision.plan_ladders(results, cases, engines, integrators, ladder, max_steps)
-    points, ladder_rows = run_ladders(plan.chosen, plan.max_steps, pool, progress, plan.short) \
+    points, ladder_rows = run_ladders(plan.chosen, plan.max_steps, pool, progress, plan.short, timed=False) \
         if plan.chosen or plan.short else ([], [])
     first_parts = workprecision.first_part_families(plan.short, points, ladder_rows, plan.sweep_rows, plan.rigid)
     if first_parts:  # a long horizon: the order over the case's first part, where the verdict needs it
-        more, parts = run_ladders([], plan.max_steps, pool, progress, first_parts=first_parts)
+        more, parts = run_ladders([], plan.max_steps, pool, progress, first_parts=first_parts, timed=False)
         points += more
         ladder_rows = workprecision.with_first_parts(ladder_rows, parts)
     convergence = workprecision.convergence_rows(ladder_rows, plan.sweep_rows)
+    tolerance_points = run_tolerance_ladders(plan.adaptive, pool, progress, plan.tolerances, timed=False) \
+        if plan.adaptive else []
+    _time_deciding(results, points, tolerance_points, plan)
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
-    tolerance_df = tolerance_frame(run_tolerance_ladders(plan.adaptive, pool, progress, plan.tolerances)
-                                   if plan.adaptive else [])
+    tolerance_df = tolerance_frame(tolerance_points)
     paths = workprecision.write_tables(out_dir, results, ladder_df, convergence, tolerance_df, write_pareto)
     workprecision.write_order_checks(out_dir, convergence)
     return Ladders(plan, ladder_df, tolerance_df, convergence, paths)
+
+
+def _time_deciding(results: pd.DataFrame, points: list[dict], tolerance_points: list[dict],
+                   plan: workprecision.LadderPlan) -> None:
+    """The ladders' timing phase: of the points their workers timed once, those whose time can change a "What to use"
+    cell (analysis.decisive, among the sweep's runs and every ladder point) timed again here, alone, best of
+    dt_ladders.TIMING_REPEATS (the others keep their single time: `timing` SINGLE). In place."""
+    dt_points = [p for p in points if p.get("source") == LADDER]
+    chosen = decisive.deciding_points(results, dt_points + tolerance_points)
+    time_points([p for i, p in enumerate(dt_points) if i in chosen], {f.key: f for f in plan.chosen})
+    time_points([p for i, p in enumerate(tolerance_points, len(dt_points)) if i in chosen],
+                {f.key: f for f in plan.adaptive}, "tolerance")
 
 
 def advice(out_dir: Path, results: pd.DataFrame, measured: Ladders, pool: WatchedPool | None = None,

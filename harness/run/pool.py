@@ -63,9 +63,8 @@ def cost(spec: RunSpec) -> float:
     steps = math.ceil(spec.case.t_end / dt - 1e-9)
     # at least one pass a step: moser_veselov declares 0 stages (it calls no accel) yet costs a solve a step
     one_pass = steps * max(1, integrator_registry.stages(spec.integrator)) * get_engine(spec.engine).pass_us * 1e-6
-    # the timing phase (timing.time_runs) repeats the run at most REPEATS times within BUDGET_S
-    timed = min(timing.REPEATS * one_pass, timing.BUDGET_S + one_pass)
-    return RUN_OVERHEAD_S + (1 + CHECK_PASSES) * one_pass + timed
+    # the accuracy run with its metrics and checks, then the worker's single timed run (timing.timed_once)
+    return RUN_OVERHEAD_S + (2 + CHECK_PASSES) * one_pass
 
 
 def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
@@ -142,9 +141,14 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Watch
 
 def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> dict:
     """A sweep's run on a worker: measure() with the sweep's extras (checks, series, --save-trajectories' states),
-    within the budgets (default this process's)."""
+    within the budgets (default this process's), then timed once (timing.timed_once: results.csv's timing SINGLE)."""
     _STARTED[spec.engine] = _STARTED.get(spec.engine, 0) + 1
-    return measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, budgets=budgets)
+    row = measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, timed=timing.timed_once,
+                  budgets=budgets)
+    once = row.pop(timing.ONCE, None)
+    if once is not None:  # timed once here, after its accuracy run; the timing phase repeats it if it decides
+        row.update(timing.step_columns(timing.Timing(once, 0.0, 1), row.get("steps", math.nan)))
+    return row
 
 
 def run_local(specs: list[RunSpec], truths: dict, pool: WatchedPool | None,

@@ -33,7 +33,7 @@ from .pool import (cost, local_pool, run_local, startup_cost, sweep_run, worker_
 from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
-from .results import frame, row_order, write_results
+from .results import SINGLE, frame, row_order, write_results
 from .store import Store, mark_complete, run_key
 from .truth import sweep_truths
 
@@ -231,7 +231,9 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
-            progress.stage(f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
+            progress.stage(f"timing: of {plural(len(untimed), 'run')} timed once, those whose time decides an answer, "
+                           f"best of {timing.REPEATS}, one at a time" if decides is not None else
+                           f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
             environment[TIMING_START] = load_snapshot()  # how busy the machine was: the report's Environment
 
         def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() on one timing group's runs
@@ -241,7 +243,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
             return {int(label) for label in decides(rows)}
 
         timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed], prepare,
-                                   select if decides is not None else None)
+                                   select if decides is not None else None,
+                                   [_single(stored[keys[id(s)]]) for s in untimed])
         if untimed:
             environment[TIMING_END] = load_snapshot()
         for spec, timed_columns in zip(untimed, timings):
@@ -261,9 +264,19 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
 
 
 def _needs_timing(row: dict) -> bool:
-    wall = row.get("wall_s", math.nan)
-    return row.get("status") == Status.OK.value and not row.get("_lost") and not (
-        isinstance(wall, float) and math.isfinite(wall))
+    """An ok row with no time, or only the single time of its worker (timing.timed_once: it may decide an answer)."""
+    return row.get("status") == Status.OK.value and not row.get("_lost") and (
+        _single(row) is not None or not _finite(row.get("wall_s")))
+
+
+def _single(row: dict) -> float | None:
+    """The row's single time (s), when that is all it has; else None."""
+    wall = row.get("wall_s")
+    return float(wall) if row.get("timing") == SINGLE and _finite(wall) else None
+
+
+def _finite(value) -> bool:
+    return isinstance(value, (int, float)) and math.isfinite(value)
 
 
 

@@ -1,10 +1,11 @@
-"""Stepping time, measured apart from accuracy (DESIGN §6.4): best of N timed runs after a warm-up, metrics off, with
-the spread of the N recorded so that a ranking can tell a difference from noise. The sweep and the dt ladders time
-their runs in a phase of their own, one run at a time, after every accuracy run (harness.run.sweep,
-harness.analysis.workprecision): a timed run never shares the machine's cores with another run. Under `stereodyn run`
-only the runs whose time decides something get repeats (time_runs' select, harness.analysis.decisive); the others keep
-one timed run, after the warm-up (the sweep's accuracy run is no timing: in a worker beside another, and with its
-first-call costs, it measured Pinocchio's and the reference's runs 2-3x slower than their best of 3, up to 20x)."""
+"""Stepping time, measured apart from accuracy (DESIGN §6.4). Every ok run is timed once in its worker, right after its
+accuracy run, which is its warm-up (once: the sweep's runs, the ladders' points); only the runs whose time decides
+something are then timed again, best of N in rounds, in the parent with no other run on the machine (time_runs,
+time_points, their `select`: harness.analysis.decisive), with the spread of the N recorded so that a ranking can tell a
+difference from noise. The others keep their single time, and say so (results.csv's and the ladders' `timing`
+column). Why a time once, in the worker: issue 29 (the timing phase, every run timed alone, was a third of the default
+run); why the accuracy run itself is no timing: with its counting and its first-call costs it measured Pinocchio's and
+the reference's runs 2-3x slower than their best of 3, up to 20x."""
 from __future__ import annotations
 
 import gc
@@ -33,6 +34,7 @@ WARM_UP_STEPS = 256
 # its row's message says DISTURBED and the Pareto table names it nowhere (issue 21: a spread of 2030 µs/s on a best of
 # 1690 made scipy_rk45 "tie" with runs six times faster).
 DISTURBED = "timing disturbed"
+ONCE = "_once_s"   # a row's single timed run in its worker (s), before the row is stored (timed_once)
 
 
 class Timing(NamedTuple):
@@ -68,6 +70,17 @@ def measure(run: Callable[[], object], repeats: int = REPEATS, budget_s: float =
         if enabled:
             gc.enable()
     return _timing(times)
+
+
+def once(run: Callable[[], object]) -> float:
+    """One timed call of run() (s), uncounted, with the collector off: a single time. The caller has warmed it up."""
+    return measure(run, repeats=1, budget_s=0.0, min_repeats=1).best
+
+
+def timed_once(sim, grid) -> dict:
+    """measure()'s `timed` hook of a worker's run: one bare run right after the accuracy run (its warm-up), s, under
+    ONCE; the sweep and the ladders turn it into their timing columns (step_columns, columns) with timing SINGLE."""
+    return {ONCE: once(lambda: sim.run(grid))}
 
 
 def best_time(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S) -> float:
@@ -140,30 +153,40 @@ def _timing(times: list[float]) -> Timing:
     return Timing(ordered[0], (ordered[1] if len(ordered) > 1 else ordered[0]) - ordered[0], len(ordered))
 
 
-def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: int, budget_s: float) -> None:
-    """A ladder's timing phase (dt ladders, tolerance ladders): every ok point timed in this process after all the
-    accuracy runs, in rounds over the points of each timing group (measure_interleaved, groups). prepare(point) ->
-    (simulation, grid). Sets wall_s (s), us_per_sim_s and us_per_sim_s_spread (µs of stepping per simulated second)
-    on each timed point, in place; a point that fails here is left untimed."""
+def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: int, budget_s: float,
+                select: Callable[[list[int]], set[int]] | None = None) -> None:
+    """A ladder's timing phase (dt ladders, tolerance ladders, the advised runs): the ok points timed in this process
+    after all the accuracy runs, best of `repeats` in rounds over the points of each timing group (measure_interleaved,
+    groups). prepare(point) -> (simulation, grid). select(indices of the ok points) -> those to time here (None: all);
+    the others keep the single time their worker took (timing SINGLE). Sets wall_s (s), us_per_sim_s,
+    us_per_sim_s_spread (µs of stepping per simulated second) and timing on each timed point, in place; a point that
+    fails here keeps what it had."""
     ok = [p for p in points if p.get("status") == Status.OK.value]
+    chosen = sorted(select(list(range(len(ok))))) if select is not None else range(len(ok))
+    ok = [ok[i] for i in chosen]
     for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok]):
-        runs, grids, timed = [], [], []
-        for point in (ok[i] for i in group):
-            try:
-                sim, grid = prepare(point)
-                warm_up(sim, grid, point["engine"])
-            except Exception as exc:  # it ran ok untimed: left untimed rather than breaking the phase
-                raise_unless_data(exc)
-                continue
-            runs.append(lambda sim=sim, grid=grid: sim.run(grid))
-            grids.append(grid)
-            timed.append(point)
-        for point, grid, measured in zip(timed, grids, measure_interleaved(runs, repeats, budget_s)):
+        warm = _warmed({i: ok[i] for i in group}, prepare, lambda point: point["engine"])
+        for i, measured in zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s)):
             if measured is not None:
-                point.update(columns(measured, grid.t_end))
+                ok[i].update(columns(measured, warm[i][1].t_end))
                 if measured.disturbed:
-                    point["message"] = with_disturbed(point.get("message"), measured)
-        runs.clear()  # this group's models go before the next group's are built
+                    ok[i]["message"] = with_disturbed(ok[i].get("message"), measured)
+        warm.clear()  # this group's models go before the next group's are built
+
+
+def _warmed(items: dict, prepare: Callable, engine_of: Callable) -> dict:
+    """{key: (run, grid)} for each item prepared (prepare(item) -> (simulation, grid)) and warmed up (warm_up), in the
+    order given; an item that fails here is left out (it ran ok untimed: left untimed rather than breaking the phase)."""
+    warm = {}
+    for key, item in items.items():
+        try:
+            sim, grid = prepare(item)
+            warm_up(sim, grid, engine_of(item))
+        except Exception as exc:
+            raise_unless_data(exc)
+            continue
+        warm[key] = (lambda sim=sim, grid=grid: sim.run(grid)), grid
+    return warm
 
 
 def warm_up(sim, grid: TimeGrid, engine: str) -> None:
@@ -206,9 +229,16 @@ def with_disturbed(message, measured: Timing) -> str:
 
 
 def columns(measured: Timing, t_end: float) -> dict:
-    """A timed run's columns: wall_s (s), us_per_sim_s and its spread (µs per simulated second)."""
+    """A ladder point's timing columns: wall_s (s), us_per_sim_s and its spread (µs per simulated second; NaN for a
+    single timed run: one run has no spread) and timing ("best of N", or SINGLE)."""
     return {"wall_s": measured.best, "us_per_sim_s": measured.best / t_end * 1e6,
-            "us_per_sim_s_spread": measured.spread / t_end * 1e6}
+            "us_per_sim_s_spread": measured.spread / t_end * 1e6 if measured.repeats > 1 else math.nan,
+            "timing": label(measured)}
+
+
+def label(measured: Timing) -> str:
+    """How a time was measured: "best of N", or SINGLE for one timed run."""
+    return f"best of {measured.repeats}" if measured.repeats > 1 else SINGLE
 
 
 def step_columns(measured: Timing, steps: float) -> dict:
@@ -217,40 +247,38 @@ def step_columns(measured: Timing, steps: float) -> dict:
     per_step = 1e6 / max(1, steps)
     return {"wall_s": measured.best, "us_per_step": measured.best * per_step,
             "us_per_step_spread": measured.spread * per_step if measured.repeats > 1 else math.nan,
-            "timing": f"best of {measured.repeats}" if measured.repeats > 1 else SINGLE}
+            "timing": label(measured)}
 
 
 def time_runs(runs: list, steps: list[float], prepare: Callable,
-              select: Callable[[list[int], list[float]], set[int]] | None = None) -> list[dict]:
+              select: Callable[[list[int], list[float]], set[int]] | None = None,
+              singles: list[float | None] | None = None) -> list[dict]:
     """The sweep's timing phase: the step_columns of finished ok runs, in this process with no other run sharing the
     cores: each timing group (groups: by engine and precision where an engine's precision is process-global) prepared
     (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group (measure_interleaved),
-    before the next group is prepared. {} for a run that fails here (it ran ok untimed: the row is then left untimed); a
-    timing still disturbed when re-timed carries it as `_disturbed`.
+    before the next group is prepared. {} for a run that fails here (the row keeps what it had); a timing still
+    disturbed when re-timed carries it as `_disturbed`.
 
-    select(indices, seconds) -> the indices to time with repeats: given, each group is first timed once (one round),
-    and only the runs it names get the further rounds (their single run counts as their first repeat); the others
-    keep that single time (timing SINGLE, no spread, never re-timed as disturbed)."""
+    singles: each run's single time from its worker (s; None: none, then it is timed once here first, alone, and that
+    time counts as its first repeat). select(indices, seconds) -> the indices to time with repeats, from the single
+    times (None: every run); the others keep their single time (timing SINGLE, no spread, never re-timed as
+    disturbed): {} for a run whose single time came from its worker, which its row has already."""
+    singles = list(singles) if singles is not None else [None] * len(runs)
     rows: list[dict] = [{} for _ in runs]
     for group in groups([(run.engine, run.precision) for run in runs]):
-        warm = {}
-        for i in group:
-            try:
-                sim, grid = prepare(runs[i])
-                warm_up(sim, grid, runs[i].engine)
-                warm[i] = lambda sim=sim, grid=grid: sim.run(grid)
-            except Exception as exc:
-                raise_unless_data(exc)
-        if select is None:
-            measured = dict(zip(warm, measure_interleaved(list(warm.values()))))
-        else:
-            once = dict(zip(warm, _rounds(list(warm.values()), 1, BUDGET_S, 1)))
-            timed_once = [i for i in warm if once[i] is not None]
-            repeat = set(select(timed_once, [once[i].best for i in timed_once])) & set(timed_once)
-            order = [i for i in timed_once if i in repeat]
-            measured = {**once, **dict(zip(order, measure_interleaved([warm[i] for i in order],
-                                                                      first=[once[i].best for i in order])))}
-        for i, m in measured.items():
+        alone = [i for i in group if singles[i] is None]
+        warm = _warmed({i: runs[i] for i in alone}, prepare, lambda run: run.engine)
+        once = dict(zip(warm, _rounds([run for run, _ in warm.values()], 1, BUDGET_S, 1)))
+        seconds = {i: singles[i] for i in group if singles[i] is not None}
+        seconds |= {i: m.best for i, m in once.items() if m is not None}
+        known = [i for i in group if i in seconds]
+        repeat = set(known) if select is None else set(select(known, [seconds[i] for i in known])) & set(known)
+        warm |= _warmed({i: runs[i] for i in known if i in repeat and i not in warm}, prepare, lambda run: run.engine)
+        order = [i for i in known if i in repeat and i in warm]
+        first = [once[i].best if once.get(i) is not None else None for i in order]  # a single time taken alone
+        measured = dict(zip(order, measure_interleaved([warm[i][0] for i in order], first=first)))
+        for i in known:
+            m = measured.get(i) or once.get(i)  # repeated, else the single time taken here (if any)
             if m is not None:
                 rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
         warm.clear()  # this group's models go before the next group's are built
