@@ -72,8 +72,8 @@ def uniform_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> str
     momentum = body.inertia @ omega0
     torque = body.body_torque
     residual = np.cross(momentum, omega0) + np.array(body_torque_components(torque.axis, torque.a, torque.b, omega0))
-    scale = float(np.linalg.norm(momentum) * np.linalg.norm(omega0)) + abs(body.body_torque.a) \
-        + abs(body.body_torque.b) * float(omega0 @ omega0)
+    scale = float(np.linalg.norm(momentum) * np.linalg.norm(omega0)) + abs(torque.a) \
+        + abs(torque.b) * float(omega0 @ omega0)
     if np.linalg.norm(residual) > CONDITION_RTOL * scale:
         return (f"not a uniform rotation: |sigma omega0 x omega0 + M(omega0)| = {np.linalg.norm(residual):.3g} "
                 f"(needs <= {CONDITION_RTOL:g} x {scale:.3g})")
