@@ -6,8 +6,10 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
+from .precision import FLOAT64
 from .readers import MAX_TABLE_BYTES, ReadError, must_be_regular
 
 
@@ -82,3 +84,17 @@ def _ends_its_line(path: Path) -> bool:
             return True
         handle.seek(-1, 2)
         return handle.read(1) in (b"\n", b"\r")
+
+
+def with_precision(df: pd.DataFrame) -> pd.DataFrame:
+    """The table with a `precision` column: a table of stereodyn 0.2.0 has none, and its runs were all float64."""
+    if "precision" not in df:
+        df = df.assign(precision=FLOAT64)
+    return df.fillna({"precision": FLOAT64}).replace({"precision": {"": FLOAT64}}).astype({"precision": str})
+
+
+def disturbed(best, spread):
+    """Whether a timing is disturbed: its spread is larger than its best time (element-wise for arrays; a NaN spread is
+    not). Here, not in run.timing or run.results (both re-export it), so that the Pareto table (analysis) reads it
+    without the timing machinery or the results table's columns."""
+    return np.asarray(spread, dtype=float) > np.asarray(best, dtype=float)

@@ -5,7 +5,15 @@ from dataclasses import InitVar, dataclass
 
 import numpy as np
 
-from .torque_models import BodyTorque, CentralField, PrecessionTorque, TorqueModel, merged
+# The torque models' own modules, not the package's registry: the body and the exact solutions that read it need the
+# three 0.2.0 terms and the merge rule only (the package imports every model on its first import all the same).
+from .torque_models.base import TorqueModel, merged
+from .torque_models.body_torque import BodyTorque
+from .torque_models.central_field import CentralField
+from .torque_models.precession import PrecessionTorque
+
+# Relative tolerance of "u is a principal axis" and "σ is diagonal": case numbers are exact or far off.
+PRINCIPAL_RTOL = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,3 +84,20 @@ RigidBody.body_torque = property(lambda self: self.torque(BodyTorque), doc="The 
 RigidBody.central_field = property(lambda self: self.torque(CentralField), doc="The CentralField term, or None.")
 RigidBody.precession_torque = property(lambda self: self.torque(PrecessionTorque),
                                        doc="The PrecessionTorque term, or None.")
+
+
+def principal_frame_for(sigma: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(moments (A1, A2, A3), frame (3, 3) columns e1, e2, e3 = axis, right-handed) when axis is a principal axis of
+    σ, else None."""
+    sigma = np.asarray(sigma, dtype=float)
+    axis = np.asarray(axis, dtype=float)
+    moments, vectors = np.linalg.eigh(sigma)
+    along = np.abs(vectors.T @ axis)
+    k = int(np.argmax(along))
+    if along[k] < 1.0 - PRINCIPAL_RTOL * 10:
+        return None
+    others = [i for i in range(3) if i != k]
+    e1 = vectors[:, others[0]]
+    e2 = np.cross(axis, e1)
+    frame = np.column_stack([e1, e2, axis])
+    return np.array([moments[others[0]], moments[others[1]], moments[k]]), frame

@@ -21,7 +21,9 @@ import math
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from .body import RigidBody
+# principal_frame_for, PRINCIPAL_RTOL: the body's (reference.body, which the exact solutions read without the
+# torques' sums); imported from here too.
+from .body import PRINCIPAL_RTOL, RigidBody, principal_frame_for  # noqa: F401
 from .rotations import quat_to_matrix
 # The torques' parameters and formulas (defined once in reference.torque_models; re-exported here, where 0.1 code
 # imports them from).
@@ -36,8 +38,6 @@ from .torque_models.precession import (PRECESSION_SINGULAR_ANGLE, precession_axi
 # Degree of the spline through the samples of M·ω whose antiderivative is the work: error O(h^8) on smooth samples,
 # far below the 1e-12 the truth's balance is judged against for the suite's sample spacings (h |ω| <= 0.05).
 WORK_SPLINE_DEGREE = 7
-# Relative tolerance of "u is a principal axis" and "σ is diagonal": case numbers are exact or far off.
-PRINCIPAL_RTOL = 1e-12
 
 
 # --- evaluation ---------------------------------------------------------------------------------------------------
@@ -184,23 +184,6 @@ def energy_balance(body: RigidBody, times: np.ndarray, quat: np.ndarray, omega: 
     done = work(body, times, quat, omega) if has_nonpotential_torque(body) else np.zeros_like(value)
     scale = sum(abs(float(term[0])) for term in terms.values()) + float(np.max(np.abs(done)))
     return np.abs(value - value[0] - done), (scale if scale != 0.0 else 1.0)
-
-
-def principal_frame_for(sigma: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """(moments (A1, A2, A3), frame (3, 3) columns e1, e2, e3 = axis, right-handed) when axis is a principal axis of
-    σ, else None."""
-    sigma = np.asarray(sigma, dtype=float)
-    axis = np.asarray(axis, dtype=float)
-    moments, vectors = np.linalg.eigh(sigma)
-    along = np.abs(vectors.T @ axis)
-    k = int(np.argmax(along))
-    if along[k] < 1.0 - PRINCIPAL_RTOL * 10:
-        return None
-    others = [i for i in range(3) if i != k]
-    e1 = vectors[:, others[0]]
-    e2 = np.cross(axis, e1)
-    frame = np.column_stack([e1, e2, axis])
-    return np.array([moments[others[0]], moments[others[1]], moments[k]]), frame
 
 
 def self_excited_applies(body: RigidBody) -> bool:

@@ -175,7 +175,7 @@ def test_torques_are_modelled_by_every_engine(feature, value):
 
 
 def test_pinocchio_runs_a_plugin_integrator(monkeypatch):
-    monkeypatch.setattr(integrators, "_registry", dict(integrators._registry))
+    monkeypatch.setattr(integrators.registry, "_registry", dict(integrators.registry._registry))
 
     @integrators.register
     class Heun(ExplicitRK):

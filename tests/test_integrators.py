@@ -77,8 +77,8 @@ def final_errors(integrator: Integrator, dts, t_end: float) -> list[float]:
 @pytest.fixture
 def scratch_registry(monkeypatch):
     """A registry that tests may add to; restored afterwards."""
-    monkeypatch.setattr(integrators, "_registry", dict(integrators._registry))
-    return integrators._registry
+    monkeypatch.setattr(integrators.registry, "_registry", dict(integrators.registry._registry))
+    return integrators.registry._registry
 
 
 # ------------------------------------------------------------------------------------------------------ registry
@@ -159,8 +159,8 @@ def test_entry_point_plugins_load_lazily(scratch_registry, monkeypatch, tmp_path
         seen.append(group)
         return plugins
 
-    monkeypatch.setattr(integrators, "entry_points", fake_entry_points)
-    monkeypatch.setattr(integrators, "_plugins_loaded", False)
+    monkeypatch.setattr(integrators.registry, "entry_points", fake_entry_points)
+    monkeypatch.setattr(integrators.registry, "_plugins_loaded", False)
     with pytest.warns(UserWarning, match="broken"):
         available = names()
     assert seen == [integrators.ENTRY_POINT_GROUP]

@@ -63,11 +63,11 @@ def plugged(monkeypatch, tmp_path):
         (tmp_path / path).write_text(textwrap.dedent(text))
     monkeypatch.syspath_prepend(str(tmp_path))
     entries = [EntryPoint(name, value, integrators.ENTRY_POINT_GROUP) for name, value in ENTRIES.items()]
-    monkeypatch.setattr(integrators, "entry_points", lambda group: entries)
-    monkeypatch.setattr(integrators, "_registry", dict(integrators._registry))
-    monkeypatch.setattr(integrators, "_from_entry_points", set())
-    monkeypatch.setattr(integrators, "_failed", {})
-    monkeypatch.setattr(integrators, "_plugins_loaded", False)
+    monkeypatch.setattr(integrators.registry, "entry_points", lambda group: entries)
+    monkeypatch.setattr(integrators.registry, "_registry", dict(integrators.registry._registry))
+    monkeypatch.setattr(integrators.registry, "_from_entry_points", set())
+    monkeypatch.setattr(integrators.registry, "_failed", {})
+    monkeypatch.setattr(integrators.registry, "_plugins_loaded", False)
     for module in [m for m in sys.modules if m.startswith(PACKAGE)]:
         monkeypatch.delitem(sys.modules, module)
     with pytest.warns(UserWarning):  # the two broken entries, one PluginWarning each

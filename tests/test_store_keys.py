@@ -89,7 +89,7 @@ def test_an_edited_plugin_redoes_only_its_runs_under_resume(tmp_path, monkeypatc
     monkeypatch.delitem(sys.modules, "stereodyn_fingerprint_plugin", raising=False)
     from stereodyn_fingerprint_plugin import HeunFingerprint
 
-    monkeypatch.setitem(registry._registry, ("lie", "heun_fingerprint"), HeunFingerprint)
+    monkeypatch.setitem(registry.registry._registry, ("lie", "heun_fingerprint"), HeunFingerprint)
     environment.clear_fingerprints()
     out = tmp_path / "out"
     argv = ["run", *SWEEP, "--integrators", "euler,heun_fingerprint", "--out", str(out)]

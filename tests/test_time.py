@@ -205,8 +205,8 @@ def test_run_central_field_turning_has_no_skipped_pinocchio_or_quaternion_row(tm
 
 @pytest.fixture
 def scratch_registry(monkeypatch):
-    monkeypatch.setattr(integrators, "_registry", dict(integrators._registry))
-    return integrators._registry
+    monkeypatch.setattr(integrators.registry, "_registry", dict(integrators.registry._registry))
+    return integrators.registry._registry
 
 
 class OldStep(Integrator):
@@ -237,7 +237,7 @@ def test_a_plugin_with_the_old_step_is_refused_saying_what_changed(scratch_regis
 
 
 def test_a_plugin_with_an_old_stepper_is_refused_when_it_runs():
-    register_ok = integrators._check(OldStepper)  # stepper(system, h) kept its signature: only its step changed
+    register_ok = integrators.registry._check(OldStepper)  # stepper(system, h) kept its signature: only step changed
     assert register_ok is OldStepper
     with pytest.raises(TypeError, match=r"OldStepper\.stepper\(system, h\) returns a step\(g, v\): stereodyn 0\.2\.0 "
                                         r"passes time: step\(t, g, v\)"):
@@ -254,8 +254,8 @@ def test_an_old_entry_point_plugin_is_not_loaded_and_the_warning_says_why(scratc
         "        return system.retract(g, h * v), v + h * system.accel(g, v)\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     plugin = EntryPoint("test_old", "stereodyn_old_plugin:OldEuler", integrators.ENTRY_POINT_GROUP)
-    monkeypatch.setattr(integrators, "entry_points", lambda group: [plugin])
-    monkeypatch.setattr(integrators, "_plugins_loaded", False)
+    monkeypatch.setattr(integrators.registry, "entry_points", lambda group: [plugin])
+    monkeypatch.setattr(integrators.registry, "_plugins_loaded", False)
     with pytest.warns(UserWarning, match=r"'test_old'.*not loaded.*step\(system, g, v, h\): stereodyn 0\.2\.0 passes "
                                          r"time: step\(system, t, g, v, h\)"):
         available = integrators.names()

@@ -57,7 +57,7 @@ def plugins(monkeypatch):
     """The classes in the registry for this test only (the run is in-process: --jobs 1, no worker to tell)."""
     registry.names()  # load the entry-point plug-ins first, as a run would
     for cls in (HeunClaimsFour, Kutta3, RK4ClaimsSix):
-        monkeypatch.setitem(registry._registry, (cls.state_space, cls.name), cls)
+        monkeypatch.setitem(registry.registry._registry, (cls.state_space, cls.name), cls)
 
 
 def _run(out, integrators, extra=()):
@@ -160,7 +160,7 @@ def test_strict_measures_a_long_horizon_over_its_first_part(plugins, tmp_path, c
     span; a false claim still fails there. Scaled down: free-asymmetric over 40 s, dt 0.05 and 0.025, a cap of 1600
     steps (dt >= 0.025). Measured (Pinocchio moser_veselov, 100 s): 1.42, 0.35, 0.087 rad at dt 0.1, 0.05, 0.025,
     i.e. ~1.4 t dt^2: over 40 s 0.035 at the cap, above 0.03; the first 10 s from dt 0.025 down to 0.00625."""
-    monkeypatch.setitem(registry._registry, (MoserVeselovClaimsFour.state_space, MoserVeselovClaimsFour.name),
+    monkeypatch.setitem(registry.registry._registry, (MoserVeselovClaimsFour.state_space, MoserVeselovClaimsFour.name),
                         MoserVeselovClaimsFour)
     monkeypatch.setattr(workprecision, "SHORT_MAX_STEPS", 1600)
     monkeypatch.setattr(workprecision, "SHORT_MAX_EVALS", 1600)
@@ -306,7 +306,7 @@ def test_energy_verdict_passes_methods_at_round_off_and_fails_a_small_drift(monk
     the steps (measured 3.1e-15 -> 1.2e-14 and 2.3e-15 -> 3.1e-14 over 200 -> 4000 steps: over the old fixed 8 eps
     floor's 2x); the floor testing.energy_noise grows with them. A drift of 8 eps a step still fails."""
     registry.names()
-    monkeypatch.setitem(registry._registry, ("lie", StrangDrifting.name), StrangDrifting)
+    monkeypatch.setitem(registry.registry._registry, ("lie", StrangDrifting.name), StrangDrifting)
     found = checks.energy_verdicts(pd.DataFrame([{"integrator": name, "status": "ok"} for name in
                                                    ("strang_free_flow", "moser_veselov", "strang_drifting")]))
     status = {v.integrator: v for v in found}

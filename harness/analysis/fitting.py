@@ -25,7 +25,7 @@ from ..scenes import checks
 from ..scenes.metrics import state_err
 from ..engines import EngineError, get_engine
 from ..engines.base import EPS as PRECISION_EPS, FLOAT64
-from ..run.results import with_precision
+from ..tables import with_precision
 from ..trajectory import Status
 # The Pareto table has its own module; its names stay importable from here.
 from .pareto import (ACCURACY_TARGETS, PARETO_COLUMNS, SOURCE_LADDER, SOURCE_SWEEP,  # noqa: F401

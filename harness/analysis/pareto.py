@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from ..run.results import disturbed
+from ..tables import disturbed
 from ..trajectory import Status
 from .text import number as _num
 

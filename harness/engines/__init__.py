@@ -13,14 +13,12 @@ from importlib.metadata import EntryPoint
 from ...reference import plugins
 from ...reference.registry import Registry
 from .base import Engine, RigidBodyModel
+from .truth import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
 # The engines' discovery (reference.registry): every engine, stereodyn's own included, is an entry point (no built-in
 # table: pyproject.toml registers the built-ins), listed without importing and loaded one by one on first use (_load).
 ENGINES = Registry("engine plug-in", ENTRY_POINT_GROUP)
-# The truth of every case: this engine's formulation and adaptive integrator (the one spelling of its engine's name
-# outside its adapter).
-TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR = "reference", "quaternion", "taylor"
 
 
 class EngineError(ValueError):

@@ -250,9 +250,9 @@ class Engine:
         declared = self.offer(integrator).default_sweep
         if declared is not None:
             return bool(declared)
-        from .. import integrators
+        from ..integrators.registry import in_default_sweep  # the table, not the methods' modules
 
-        return integrators.in_default_sweep(integrator)
+        return in_default_sweep(integrator)
 
     def precisions(self, integrator: str) -> tuple[str, ...]:
         return tuple(self.offer(integrator).precisions)
@@ -272,10 +272,10 @@ class Engine:
         order = float(self.offer(integrator).order)
         if not math.isnan(order):
             return order
-        from .. import integrators
+        from ..integrators.registry import get
 
         try:
-            return float(integrators.get(integrator, self.state_space or "lie").order)
+            return float(get(integrator, self.state_space or "lie").order)
         except KeyError:
             return math.nan
 

@@ -26,7 +26,7 @@ import numpy as np
 from .base import Integrator, LieSystem, Stepper, StepperIntegrator
 from .vector import VectorRK, VectorSystem
 from ...reference.body import RigidBody
-from ...reference.exact import free_motion
+from ...reference.exact.euler_poinsot import free_motion  # its module, not every exact solution's
 
 # Fixed-point iteration: stop when the increment changes by at most this many ulps of its size (round-off); give up
 # after MAX_ITERATIONS (the contraction factor is ~h |∂a/∂v| / 2: well below 1/2 wherever the step resolves the

@@ -5,12 +5,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from ..atomic import write_atomic  # noqa: F401 (imported from here too)
-from ..precision import FLOAT64
 from ..tables import TableError, read_csv_table  # noqa: F401 (imported from here too)
+# (home: harness/tables.py, so that analysis reads them without the columns here, which need the integrals)
+from ..tables import disturbed, with_precision  # noqa: F401 (imported from here too)
 from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 
@@ -57,13 +57,6 @@ REQUIRED_COLUMNS = ("case", "engine", "integrator", "status")
 # `timing`: how wall_s was measured: "best of N" timed runs (N 2 or 3), or SINGLE, one timed run: a run whose time
 # decides nothing (harness.analysis.decisive); empty for a run not timed (and in a table of an older version).
 SINGLE = "single"
-
-
-def with_precision(df: pd.DataFrame) -> pd.DataFrame:
-    """The table with a `precision` column: a table of stereodyn 0.2.0 has none, and its runs were all float64."""
-    if "precision" not in df:
-        df = df.assign(precision=FLOAT64)
-    return df.fillna({"precision": FLOAT64}).replace({"precision": {"": FLOAT64}}).astype({"precision": str})
 
 
 TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "timing",
@@ -168,9 +161,3 @@ def read_results(path: Path) -> pd.DataFrame:
         raise TableError(f"{path}: row {twice[1] + 1}: duplicate key {describe_key(keys[twice[1]])} (also row "
                          f"{twice[0] + 1}): one row per key")
     return df
-
-
-def disturbed(best, spread):
-    """Whether a timing is disturbed: its spread is larger than its best time (element-wise for arrays; a NaN spread is
-    not). Here, not in run.timing, so that the Pareto table (analysis) reads it without the timing machinery."""
-    return np.asarray(spread, dtype=float) > np.asarray(best, dtype=float)

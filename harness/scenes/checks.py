@@ -28,6 +28,7 @@ from scipy.optimize import brentq
 from .cases import Case
 from ..atomic import write_atomic
 from ..errors import raise_if_internal
+from ..engines.truth import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
 from ..tables import read_csv_table
 from ..trajectory import Status, Trajectory
 from ..precision import FLOAT64
@@ -421,8 +422,6 @@ def read_checks(path: Path) -> pd.DataFrame:
 # ------------------------------------------------------------------------------------------------- the report
 
 def _truth_mask(df: pd.DataFrame) -> pd.Series:
-    from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
-
     return ((df["engine"] == TRUTH_ENGINE) & (df["formulation"] == TRUTH_FORMULATION)
             & (df["integrator"] == TRUTH_INTEGRATOR))
 

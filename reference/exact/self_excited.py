@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 
-from ..body import RigidBody
+from ..body import RigidBody, principal_frame_for
 from ._util import CONDITION_RTOL
 from ..rotations import quat_exp, quat_mul
-from ..torques import body_torque, principal_frame_for
+from ..torque_models.body_torque import body_torque_components
 
 
 def _only_body_torque(body: RigidBody) -> str | None:
@@ -70,9 +70,10 @@ def uniform_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> str
         return reason
     omega0 = np.asarray(omega0, dtype=float)
     momentum = body.inertia @ omega0
-    residual = np.cross(momentum, omega0) + body_torque(body.body_torque, omega0)
-    scale = float(np.linalg.norm(momentum) * np.linalg.norm(omega0)) + abs(body.body_torque.a) \
-        + abs(body.body_torque.b) * float(omega0 @ omega0)
+    torque = body.body_torque
+    residual = np.cross(momentum, omega0) + np.array(body_torque_components(torque.axis, torque.a, torque.b, omega0))
+    scale = float(np.linalg.norm(momentum) * np.linalg.norm(omega0)) + abs(torque.a) \
+        + abs(torque.b) * float(omega0 @ omega0)
     if np.linalg.norm(residual) > CONDITION_RTOL * scale:
         return (f"not a uniform rotation: |sigma omega0 x omega0 + M(omega0)| = {np.linalg.norm(residual):.3g} "
                 f"(needs <= {CONDITION_RTOL:g} x {scale:.3g})")

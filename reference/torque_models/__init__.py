@@ -9,9 +9,9 @@ engines' per-stage closure, energies and work), reference.truth concatenates the
     precession.py      PrecessionTorque: Grioli's torque (41) (G14)
 
 The built-ins register in this order (the order of the truth's parameter blocks), then every other module of this
-folder in name order: a new model is its file, nothing else. reference.body imports this package and nothing else
-of the torques, so the body and the torque sums (reference.torques) do not import each other. 0.2.0's names (the
-three dataclasses and their *_components formulas) stay importable from here.
+folder in name order: a new model is its file, nothing else. reference.body imports the three built-ins' modules and
+nothing else of the torques, so the body and the torque sums (reference.torques) do not import each other. 0.2.0's
+names (the three dataclasses and their *_components formulas) stay importable from here.
 """
 from __future__ import annotations
 
