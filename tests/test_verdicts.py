@@ -428,8 +428,9 @@ def test_measure_interleaved_times_in_rounds_and_drops_what_fails(monkeypatch):
 
 
 def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypatch):
-    """A run's row is measured untimed in the sweep (measure.measure, timed None); the timing phase then times each ok
-    run in the parent, one at a time."""
+    """A run's row is measured in its worker and timed once there, after its accuracy run (measure.measure's timed
+    hook, timing.timed_once); without a decides() the timing phase then times each ok run again in the parent, one at
+    a time, best of N with a spread."""
     timed_in_execute = []
     real_measure = run_pool.measure
 
@@ -440,17 +441,19 @@ def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypat
     monkeypatch.setattr(run_pool, "measure", spy)
     case = find_case("free-asymmetric")
     df = run_sweep([case], SweepOptions(["pinocchio"], tmp_path, ["rk4", "euler"], jobs=1))
-    assert timed_in_execute and not any(timed_in_execute)
+    assert timed_in_execute and all(timed_in_execute)
     ok = df[df.status == "ok"]
     assert np.isfinite(ok.wall_s).all() and (ok.us_per_step_spread >= 0).all()
+    assert ok.timing.str.startswith("best of").all()
     # evaluations per simulated second: exactly stages / dt, whatever the machine's load
     expected = ok.integrator.map({"rk4": 4, "euler": 1}) / ok.dt
     np.testing.assert_allclose(ok.rhs_per_sim_s, expected, rtol=1e-12)
 
 
 def test_ladder_points_are_timed_after_the_accuracy_runs(monkeypatch):
-    """The ladder's points run untimed (in the pool, when there is one); time_points then times each ok point alone,
-    with its spread, and rhs_per_sim_s is exactly stages / dt (the engine counts its evaluations)."""
+    """The ladder's points are timed once where they run (in the pool, when there is one), its stability probes not
+    at all; run_ladders' time_points then times each ok point again alone, with its spread, and rhs_per_sim_s is
+    exactly stages / dt (the engine counts its evaluations)."""
     timed_flags = []
     real_measure = dt_ladders.measure
 
@@ -462,8 +465,9 @@ def test_ladder_points_are_timed_after_the_accuracy_runs(monkeypatch):
     case = with_overrides(find_case("free-asymmetric"), t_end=1.0)
     family = workprecision.Family(case, "pinocchio", "", "rk4")
     points, rows = dt_ladders.run_ladders([family], max_steps=200)
-    assert timed_flags and not any(timed_flags)
+    assert timed_flags.count(True) == len(points) and False in timed_flags  # the probes: untimed
     ladder = pd.DataFrame(points)
     ok = ladder[ladder.status == "ok"]
     assert len(ok) >= 5 and np.isfinite(ok.us_per_sim_s).all() and (ok.us_per_sim_s_spread >= 0).all()
+    assert ok.timing.str.startswith("best of").all()
     np.testing.assert_allclose(ok.rhs_per_sim_s, 4 * ok.steps / ok.t_end, rtol=1e-12)

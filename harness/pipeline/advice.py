@@ -65,7 +65,7 @@ def advise_family(family: Family, adaptive: bool, known: list[dict], order: floa
         if ran is not None and not math.isfinite(row["us_per_sim_s"]):  # timed later, in the parent (run_advice)
             untimed[advice.setting] = {k: v for k, v in ran.items() if not k.startswith("_")} | {
                 "case": case.name, "engine": family.engine, "formulation": family.formulation,
-                "integrator": family.integrator, what: advice.setting}
+                "integrator": family.integrator, "precision": family.precision, what: advice.setting}
         rows.append(row)
     return rows, list(untimed.values())
 

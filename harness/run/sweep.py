@@ -231,16 +231,22 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
-            progress.stage(f"timing: of {plural(len(untimed), 'run')} timed once, those whose time decides an answer, "
-                           f"best of {timing.REPEATS}, one at a time" if decides is not None else
+            progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, one "
+                           f"at a time, those whose time decides an answer" if decides is not None else
                            f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
             environment[TIMING_START] = load_snapshot()  # how busy the machine was: the report's Environment
 
-        def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() on one timing group's runs
-            rows = pd.DataFrame([stored[keys[id(untimed[i])]] for i in indices], index=indices)
-            rows = rows.reindex(columns=list(dict.fromkeys([*rows.columns, "dt", "attitude_err"])))
-            rows["us_per_sim_s"] = np.asarray(seconds, float) / rows["t_end"].to_numpy(float) * 1e6
-            return {int(label) for label in decides(rows)}
+        def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() for one timing group's runs
+            # every run of the sweep is a rival, with its time (best of N, or single), the group's with `seconds`:
+            # a run timed with repeats before (--resume) is the fastest of its cell as much as a new one
+            given = {keys[id(untimed[i])]: second for i, second in zip(indices, seconds)}
+            names = [keys[id(s)] for s in specs if keys[id(s)] in stored]
+            rows = pd.DataFrame([stored[name] for name in names], index=names)
+            rows = rows.reindex(columns=list(dict.fromkeys([*rows.columns, "dt", "attitude_err", "wall_s", "t_end"])))
+            wall = pd.Series(given, dtype=float).reindex(names).fillna(rows["wall_s"].astype(float))
+            rows["us_per_sim_s"] = wall.to_numpy(float) / rows["t_end"].to_numpy(float) * 1e6
+            chosen = set(decides(rows))
+            return {i for i in indices if keys[id(untimed[i])] in chosen}
 
         timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed], prepare,
                                    select if decides is not None else None,
@@ -248,6 +254,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         if untimed:
             environment[TIMING_END] = load_snapshot()
         for spec, timed_columns in zip(untimed, timings):
+            if not timed_columns:  # it keeps what it has: its single time (and its record, untouched for --resume)
+                continue
             key = keys[id(spec)]
             row = stored[key]
             mark = timed_columns.pop("_disturbed", None)
