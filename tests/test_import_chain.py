@@ -4,12 +4,12 @@ since they never run). Issue 29 asks for at most 15 modules; LIMIT is what the t
 that the chain can shorten and never grow unnoticed."""
 from test_import_cycles import graph, imports
 
-# 19 modules, counting the packages that an import from outside runs first (cli.run -> pipeline.phases ->
-# pipeline.work_precision -> pipeline.advice -> pipeline.tolerance_ladders -> pipeline.dt_ladders -> analysis.ladders ->
-# analysis.fitting -> scenes.checks -> engines -> engines.base -> integrators -> integrators.geometric -> reference.exact
-# -> reference.exact.euler_poinsot -> reference.body -> reference.torque_models -> reference.registry -> reference).
-# Issue 29 asks for at most 15.
-LIMIT = 19
+# 18 modules, counting the packages that an import from outside runs first (cli.matrix -> cli.history ->
+# report.history -> analysis.history -> analysis.compare -> run.store -> environment -> engines.catalog -> engines ->
+# engines.base -> integrators -> integrators.geometric -> reference.exact -> reference.exact.euler_poinsot ->
+# reference.body -> reference.torque_models -> reference.registry -> reference), from 19: the truth's names in
+# harness/truth_names.py, outside the engines package (scenes.checks, run.spec). Issue 29 asks for at most 15.
+LIMIT = 18
 
 
 def longest_chain(edges: dict[str, set[str]]) -> list[str]:
