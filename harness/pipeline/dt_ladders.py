@@ -51,7 +51,7 @@ from ..run import timing
 from ..run.processes import raise_unless_data
 from ..run.measure import measure as run_measure, prepare as prepare_run, rate
 from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
-from ..engines.base import EPS
+from ..precision import EPS
 from ..run.workers import WatchedPool
 
 TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
