@@ -10,13 +10,13 @@ from test_import_cycles import graph, imports
 # analysis.history -> analysis.compare -> analysis.verdicts -> analysis.fitting -> engines -> engines.base ->
 # integrators -> integrators.geometric -> reference.exact -> reference.exact.euler_poinsot -> reference.body ->
 # reference.torque_models -> reference.registry -> reference. From 19 (this count, before): the truth's names in
-# harness/truth_names.py (scenes.checks, run.spec: not through the engine registry package); FLOAT64/EPS read from
-# harness/precision.py, not engines.base; a ladder point's truth, single time and timing phase in pipeline/points.py,
-# beside both ladders (tolerance_ladders no longer above dt_ladders); plugin_distributions in harness/environment.py,
-# not engines.catalog. The floor under engines is 10 modules of real needs (the registry checks Engine; Engine's
-# defaults look integrators up in the table the integrators package fills with its built-ins, geometric's splitting
-# steps the exact free flow of reference.exact), so every chain through engines must have at most 5 modules above it for
-# issue 29's 15.
+# harness/truth_names.py (scenes.checks, run.spec: not through the engine registry package); a ladder point's truth,
+# single time and timing phase in pipeline/points.py, beside both ladders (tolerance_ladders no longer above
+# dt_ladders); plugin_distributions in harness/environment.py, not engines.catalog. (FLOAT64/EPS are read from
+# harness/precision.py, not engines.base, which runs the registry package; that alone shortens nothing.) The floor under
+# engines is 10 modules of real needs (the registry checks Engine; Engine's defaults look integrators up in the table
+# the integrators package fills with its built-ins, geometric's splitting steps the exact free flow of reference.exact),
+# so every chain through engines must have at most 5 modules above it for issue 29's 15.
 LIMIT = 17
 
 
