@@ -199,11 +199,39 @@ def git_commit(start: Path | None = None) -> str:
     return "unknown"
 
 
+OWN_DISTRIBUTION = "stereodyn"
+
+
+def entry_distribution(entry) -> tuple[str, str]:
+    """(name, version) of the distribution that registers an entry point ("", "") where none does."""
+    dist = getattr(entry, "dist", None)
+    if dist is None:
+        return "", ""
+    name = dist.metadata["Name"] or ""
+    return name, dist.version or ""
+
+
+def plugin_distributions() -> dict[str, str]:
+    """{distribution: "VERSION (engine NAME, ...; integrators)"} of every installed distribution other than stereodyn
+    that registers an engine or integrator plug-in (read from the entry points; nothing is imported): the sweep's
+    environment, so the report and `compare` show them."""
+    from importlib.metadata import entry_points
+
+    found: dict[str, list[str]] = {}
+    versions: dict[str, str] = {}
+    for group, what in (("stereodyn.engines", "engine"), ("stereodyn.integrators", "integrators")):
+        for entry in entry_points(group=group):
+            dist, dist_version = entry_distribution(entry)
+            if not dist or dist.lower() == OWN_DISTRIBUTION:
+                continue
+            versions[dist] = dist_version
+            found.setdefault(dist, []).append(f"{what} {entry.name}")
+    return {dist: f"{versions[dist]} (plug-in: {', '.join(found[dist])})" for dist in sorted(found)}
+
+
 def environment() -> dict[str, str]:
     """Everything a report's footer states about where the numbers came from: the libraries, every installed plug-in
-    distribution (engines and integrators: harness.engines.catalog.plugin_distributions), the machine."""
-    from .engines.catalog import plugin_distributions
-
+    distribution (engines and integrators: plugin_distributions), the machine."""
     return {**library_versions(), "pandas": _version("pandas"), **plugin_distributions(), "cpu": cpu_name(),
             "machine": platform.machine(),
             "platform": platform.platform(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),

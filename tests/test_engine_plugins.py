@@ -172,9 +172,9 @@ def test_engine_error_is_a_value_error():
 _OWN = {entry.name: entry.value.split(":")[0] for entry in importlib.metadata.entry_points(group="stereodyn.engines")
         if entry.value.startswith("stereodyn.harness.engines.")}
 ENGINE_NAMES = set(_OWN)
-# Where an engine name may be spelled: its adapter and the registry, with the truth's names (harness/engines/truth.py,
+# Where an engine name may be spelled: its adapter and the registry, with the truth's names (harness/truth_names.py,
 # which the registry re-exports), and tests, outside harness/.
-ALLOWED = {Path("harness/engines/__init__.py"), Path("harness/engines/truth.py")} | {
+ALLOWED = {Path("harness/engines/__init__.py"), Path("harness/truth_names.py")} | {
     Path("harness/engines", module.rsplit(".", 1)[1] + ".py") for module in _OWN.values()}
 
 

@@ -1,5 +1,7 @@
 """The package's modules import each other without a cycle: every `import` and `from ... import` in the source, at
-module level and inside functions (static, by ast; TYPE_CHECKING blocks left out, since they never run)."""
+module level and inside functions (static, by ast; TYPE_CHECKING blocks left out, since they never run), plus the
+enclosing packages that such an import runs first (`from ..integrators.registry import get` runs
+integrators/__init__)."""
 import ast
 import functools
 from pathlib import Path
@@ -54,6 +56,13 @@ def imports(name: str, path: Path, known: set[str]) -> set[str]:
             visit(child)
 
     visit(ast.parse(path.read_text(), filename=str(path)))
+    # importing P.m from outside P runs P/__init__.py first: the importer depends on each enclosing package it is not in
+    for edge in list(edges):
+        parts = edge.split(".")
+        for cut in range(1, len(parts)):
+            parent = ".".join(parts[:cut])
+            if name != parent and not name.startswith(parent + "."):
+                edges.add(parent)
     return {edge for edge in edges if edge in known and edge != name}
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..run.results import read_csv_table, write_atomic
 from ..scenes.metrics import errors
 from ..trajectory import Trajectory

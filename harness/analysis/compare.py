@@ -13,7 +13,7 @@ from pathlib import Path
 import pandas as pd
 
 from . import gate
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..environment import TIMING_END, TIMING_START
 from ..run.results import with_precision
 from ..run.store import read_manifest

@@ -24,7 +24,7 @@ import pandas as pd
 from ..scenes import checks
 from ..scenes.metrics import state_err
 from ..engines import EngineError, get_engine
-from ..engines.base import EPS as PRECISION_EPS, FLOAT64
+from ..precision import EPS as PRECISION_EPS, FLOAT64
 from ..tables import with_precision
 from ..trajectory import Status
 # The Pareto table has its own module; its names stay importable from here.

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
 from ..run.results import (KEY, METRIC_SUFFIXES, NAMED, SINGLE, STATUSES, TableError, describe_key, dt_key, duplicate,
                            metric_names, read_csv_table, read_results, sign_rule, with_precision, write_atomic)

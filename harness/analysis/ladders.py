@@ -15,7 +15,7 @@ import pandas as pd
 
 from . import fitting
 from ..engines import get_engine
-from ..engines.base import EPS, FLOAT64
+from ..precision import EPS, FLOAT64
 from ..run.spec import Family
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from ..trajectory import Status

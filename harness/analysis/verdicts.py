@@ -38,7 +38,8 @@ from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import read_csv_table, with_precision, write_atomic
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
 from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, get_engine
-from ..engines.base import FLOAT64, KnownDeviation
+from ..engines.base import KnownDeviation
+from ..precision import FLOAT64
 
 VERDICTS_FILE = "verdicts.csv"
 COLUMNS = ("verdict", "engine", "formulation", "integrator", "precision", "case", "status", "detail", "rule")

@@ -27,7 +27,7 @@ from ..engines import get_engine
 from .pareto import ACCURACY_TARGETS
 from .fitting import (CONVERGENCE_FILE, FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
                       pareto_table, sweep_orders, tolerance_fits, with_state_err)
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from ..run.plan import Selection
 from ..run.results import read_csv_table, with_precision, write_atomic  # noqa: F401 (read_csv_table: this API)
 from ..run.spec import Family

@@ -13,7 +13,7 @@ from importlib.metadata import EntryPoint
 from ...reference import plugins
 from ...reference.registry import Registry
 from .base import Engine, RigidBodyModel
-from .truth import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
+from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
 # The engines' discovery (reference.registry): every engine, stereodyn's own included, is an entry point (no built-in

@@ -12,8 +12,9 @@ from functools import cache
 from importlib.metadata import PackageNotFoundError, distribution, version
 
 from . import BrokenEngine, UnavailableEngine, _entry_points, loaded
-
-OWN_DISTRIBUTION = "stereodyn"
+# who registers an entry point, and the plug-in distributions of a run's environment: read there, no engine loaded;
+# importable from here as before
+from ..environment import OWN_DISTRIBUTION, entry_distribution as _distribution, plugin_distributions  # noqa: F401
 
 
 @dataclass(frozen=True)
@@ -27,15 +28,6 @@ class EngineRow:
     models: tuple[str, ...]
     integrators: tuple[str, ...]
     precisions: tuple[str, ...]
-
-
-def _distribution(entry) -> tuple[str, str]:
-    """(name, version) of the distribution that registers an entry point ("", "") where none does."""
-    dist = getattr(entry, "dist", None)
-    if dist is None:
-        return "", ""
-    name = dist.metadata["Name"] or ""
-    return name, dist.version or ""
 
 
 def _version(package: str) -> str:
@@ -63,24 +55,6 @@ def origin(name: str) -> str:
     if dist:
         return f"plug-in from {dist} {dist_version}"
     return f"plug-in ({entry.value}, no distribution)"
-
-
-def plugin_distributions() -> dict[str, str]:
-    """{distribution: "VERSION (engine NAME, ...; integrators)"} of every installed distribution other than stereodyn
-    that registers an engine or integrator plug-in (read from the entry points; nothing is imported): the sweep's
-    environment, so the report and `compare` show them."""
-    from importlib.metadata import entry_points
-
-    found: dict[str, list[str]] = {}
-    versions: dict[str, str] = {}
-    for group, what in (("stereodyn.engines", "engine"), ("stereodyn.integrators", "integrators")):
-        for entry in entry_points(group=group):
-            dist, dist_version = _distribution(entry)
-            if not dist or dist.lower() == OWN_DISTRIBUTION:
-                continue
-            versions[dist] = dist_version
-            found.setdefault(dist, []).append(f"{what} {entry.name}")
-    return {dist: f"{versions[dist]} (plug-in: {', '.join(found[dist])})" for dist in sorted(found)}
 
 
 def rows() -> list[EngineRow]:

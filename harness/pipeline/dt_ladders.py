@@ -43,18 +43,17 @@ from ..analysis.ladders import (FIRST_PART_HALVINGS, FIRST_PART_MARGIN, LADDER, 
                                 LADDER_POINTS, MIN_STEPS, SHORT_LADDER, SHORT_POINTS, SHORT_TARGET, STABILITY_RTOL,
                                 STABLE_ENERGY_DRIFT, families, first_part_span, ladder_dts, short_ladder,
                                 short_reason, stability_limit, stable, walk)  # (F401: re-exported, this module's API before issue 29)
-from ..scenes import scene_of
 from ..scenes.cases import CHAOTIC_TAGS, Case, with_overrides  # noqa: F401 (part of this API)
 from ..scenes.metrics import state_err
 from ..trajectory import Status
-from ..run import timing
 from ..run.processes import raise_unless_data
-from ..run.measure import measure as run_measure, prepare as prepare_run, rate
+from ..run.measure import measure as run_measure, rate
 from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
-from ..engines.base import EPS
+from ..precision import EPS
 from ..run.workers import WatchedPool
-
-TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
+# a point's truth, its single time and the ladders' timing phase (points.py, beside this module: tolerance_ladders
+# reads them there); importable from here as before
+from .points import TIMING_BUDGET_S, TIMING_REPEATS, _timed, case_truth_on, time_points  # noqa: F401
 
 
 # ------------------------------------------------------------------------------------------------ one point
@@ -80,28 +79,6 @@ def measure(family: Family, dt: float, timed: bool = True, with_truth: bool = Tr
     if with_truth and "attitude_err" in row:
         row["state_err"] = state_err(row)
     return {k: v for k, v in row.items() if k in LADDER_COLUMNS}
-
-
-def case_truth_on(run) -> object:
-    """The truth of a run's case on the run's own grid (its scene's Scene.truth), uncertified."""
-    return scene_of(run.case).truth(run.case, [run.grid], False)
-
-
-def _timed(sim, grid) -> dict:
-    """A point timed once in its worker, right after its accuracy run (timing.once): timing SINGLE."""
-    return timing.columns(timing.Timing(timing.once(lambda: sim.run(grid)), 0.0, 1), grid.t_end)
-
-
-def time_points(points: list[dict], families_by_key: dict[tuple, Family], setting: str = "dt") -> None:
-    """The timing phase of the dt ladders, the tolerance ladders and the advice, its one home (harness.run.timing.
-    time_points: a timed run shares the cores with no other run; best of TIMING_REPEATS): each point's run prepared
-    again from its family (families_by_key: Family.key -> Family) at the point's setting, "dt" or "tolerance"."""
-    def prepare(row: dict):
-        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"],
-                                  row["precision"])]
-        return prepare_run(family.run(**{setting: row[setting]}))
-
-    timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
 
 
 # ------------------------------------------------------------------------------------------------ ladders

@@ -8,7 +8,7 @@ with Engine.prepare(..., tolerance=tol) (the contract of harness.engines.base: r
 grid of the sweep's adaptive rows (RunKey.grid, harness.run.spec). Each point is one untimed accuracy run (errors
 against the truth on the same sample times, as the dt ladders define them: state_err = max(attitude_err, omega_err,
 casimir_drift)) and separate timed runs, taken in rounds over all the points after every accuracy run
-(harness.pipeline.dt_ladders.time_points, the one timing phase of the ladders and the advice), costed as µs of
+(harness.pipeline.points.time_points, the one timing phase of the ladders and the advice), costed as µs of
 stepping per simulated second, right-hand-side evaluations and steps per simulated second. The truth row itself
 (heyoka's taylor on the quaternion at its default, truth-grade tolerance) is not a ladder point: every point names its
 tolerance, and heyoka's taylor joins at the loose ones like any other adaptive method.
@@ -35,9 +35,9 @@ from ..trajectory import Status
 from ..run.measure import measure as run_measure, rate
 from ..run.processes import raise_unless_data
 from ..run.workers import WatchedPool
-from .dt_ladders import _timed, case_truth_on, time_points as _time_points
+from .points import _timed, case_truth_on, time_points as _time_points
 
-# 0.2.0's name: the one timing phase (dt_ladders.time_points) at the points' tolerances
+# 0.2.0's name: the one timing phase (points.time_points) at the points' tolerances
 time_points = functools.partial(_time_points, setting="tolerance")
 
 

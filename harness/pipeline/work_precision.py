@@ -68,7 +68,7 @@ def _time_deciding(results: pd.DataFrame, points: list[dict], tolerance_points: 
                    plan: workprecision.LadderPlan) -> None:
     """The ladders' timing phase: of the points their workers timed once, those whose time can change a "What to use"
     cell (analysis.decisive, among the sweep's runs and every ladder point) timed again here, alone, best of
-    dt_ladders.TIMING_REPEATS (the others keep their single time: `timing` SINGLE). In place."""
+    points.TIMING_REPEATS (the others keep their single time: `timing` SINGLE). In place."""
     dt_points = [p for p in points if p.get("source") == LADDER]
     chosen = decisive.deciding_points(results, dt_points + tolerance_points)
     time_points([p for i, p in enumerate(dt_points) if i in chosen], {f.key: f for f in plan.chosen})

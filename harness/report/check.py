@@ -5,7 +5,7 @@ from __future__ import annotations
 from xml.etree import ElementTree
 
 from ..analysis import gate
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from .markdown import markdown_table
 
 STEP_SUMMARY_ROWS = 30  # findings listed in the step summary; the log and the JUnit file have every one

@@ -13,7 +13,7 @@ from ..analysis import gate
 from ..analysis.compare import (DIFFERS, FIGURE_ROWS, FLOOR, GROUPS, LISTED, ORDER_CHANGE, PR_RATIO, TIMING,
                                 CompareError, environment_rows, group, identical, label, load, load_orders,
                                 metric_signs, order_changes, row_changes, verdict_changes)
-from ..engines.base import FLOAT64
+from ..precision import FLOAT64
 from .markdown import markdown_table
 
 

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..engines.truth import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
+from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
 from ..precision import FLOAT64
 from ..grid import TimeGrid, time_grid
 from ..trajectory import Status

@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 from .cases import Case
 from ..atomic import write_atomic
 from ..errors import raise_if_internal
-from ..engines.truth import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
+from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR
 from ..tables import read_csv_table
 from ..trajectory import Status, Trajectory
 from ..precision import FLOAT64
