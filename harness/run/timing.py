@@ -166,12 +166,20 @@ def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: i
     ok = [ok[i] for i in chosen]
     for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok]):
         warm = _warmed({i: ok[i] for i in group}, prepare, lambda point: point["engine"])
-        for i, measured in zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s)):
+        first = [_single(ok[i]) for i in warm]  # its worker's single time is its first repeat, as in time_runs
+        for i, measured in zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s,
+                                                         first=first)):
             if measured is not None:
                 ok[i].update(columns(measured, warm[i][1].t_end))
                 if measured.disturbed:
                     ok[i]["message"] = with_disturbed(ok[i].get("message"), measured)
         warm.clear()  # this group's models go before the next group's are built
+
+
+def _single(point: dict) -> float | None:
+    """A point's single time from its worker (s; timing SINGLE), else None."""
+    wall = point.get("wall_s")
+    return float(wall) if point.get("timing") == SINGLE and isinstance(wall, float) and math.isfinite(wall) else None
 
 
 def _warmed(items: dict, prepare: Callable, engine_of: Callable) -> dict:
@@ -259,8 +267,8 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
     before the next group is prepared. {} for a run that fails here (the row keeps what it had); a timing still
     disturbed when re-timed carries it as `_disturbed`.
 
-    singles: each run's single time from its worker (s; None: none, then it is timed once here first, alone, and that
-    time counts as its first repeat). select(indices, seconds) -> the indices to time with repeats, from the single
+    singles: each run's single time from its worker (s; None: none, then it is timed once here first, alone); a run
+    timed with repeats counts its single time as its first repeat. select(indices, seconds) -> the indices to time with repeats, from the single
     times (None: every run); the others keep their single time (timing SINGLE, no spread, never re-timed as
     disturbed): {} for a run whose single time came from its worker, which its row has already."""
     singles = list(singles) if singles is not None else [None] * len(runs)
@@ -275,7 +283,9 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
         repeat = set(known) if select is None else set(select(known, [seconds[i] for i in known])) & set(known)
         warm |= _warmed({i: runs[i] for i in known if i in repeat and i not in warm}, prepare, lambda run: run.engine)
         order = [i for i in known if i in repeat and i in warm]
-        first = [once[i].best if once.get(i) is not None else None for i in order]  # a single time taken alone
+        # its single time counts as its first repeat, whether taken here or in its worker right after its accuracy
+        # run: beside another run it can be no faster, so it lowers neither the best nor, the slowest, the spread
+        first = [seconds[i] for i in order]
         measured = dict(zip(order, measure_interleaved([warm[i][0] for i in order], first=first)))
         for i in known:
             m = measured.get(i) or once.get(i)  # repeated, else the single time taken here (if any)
