@@ -107,3 +107,42 @@ def test_rk4_is_second_order_on_a_ball_joint_the_known_deviation(mjx):
         errors.append(np.max(np.abs(traj.quat - fine.quat)))
     slopes = np.diff(np.log(errors)) / np.diff(np.log([0.02, 0.01, 0.005]))
     assert np.all(np.abs(slopes - 2.0) < 0.3), slopes
+
+
+def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mjx, tmp_path, monkeypatch):
+    """Issue 29, one start-up per worker: a sweep of MJX rows (euler and rk4, float64 and float32, dt 0.01 and 0.005)
+    of two cases that share one model structure (lagrange-top and kovalevskaya: a symmetric body whose centre of mass
+    lies on its axis) on a pool of 2 workers. Each worker appends its SDK imports and rollout compilations to the file
+    STEREODYN_MJX_STARTUP_LOG names (mjx.startups, counted where they happen). 65 samples: the timed run's rollout (the
+    grid's 64 intervals) is the accuracy run's chunk, so one compilation per integrator and precision serves every
+    run. In each worker the SDK is imported at most once and each (precision, integrator, structure, intervals) is
+    compiled once, and the two cases share it. MJX's declared start-up (Timing.startup_s, 10 s) outweighs these short
+    runs, so a single worker serves them all (harness.run.workers); the parent, which repeats no timing here, none.
+    Cold JAX cache ~40 s of CPU, warm ~15 s."""
+    import json
+
+    from stereodyn.harness.engines.mjx import STARTUP_LOG_ENV
+    from stereodyn.harness.run.pool import local_pool
+    from stereodyn.harness.run.sweep import SweepOptions, run_sweep
+
+    log = tmp_path / "startups.jsonl"
+    monkeypatch.setenv(STARTUP_LOG_ENV, str(log))  # the spawned workers inherit it
+    cases = [dataclasses.replace(with_overrides(find_case(name), t_end=1.0, dt=[0.01, 0.005]), samples=65)
+             for name in ("lagrange-top", "kovalevskaya")]
+    with local_pool(2, 16, ("mjx",)) as pool:
+        workers = set(pool.pids)
+        table = run_sweep(cases, SweepOptions(["mjx"], tmp_path / "out", ["euler", "rk4"], jobs=2, certify=False),
+                          pool=pool, decides=lambda rows: set())
+        assert set(pool.pids) == workers and len(workers) == 2  # no worker was replaced
+    assert len(table) == 16 and set(table["status"]) == {"ok"}, table[["case", "integrator", "status", "message"]]
+    events = [json.loads(line) for line in log.read_text().splitlines()]
+    assert {e["pid"] for e in events} <= workers  # none in the parent
+    imports = [e["pid"] for e in events if e["event"] == "import"]
+    assert len(imports) == len(set(imports)) == 1, events  # one worker imported the SDK, once
+    compilations = [(e["pid"], *e["key"]) for e in events if e["event"] == "compilation"]
+    assert len(compilations) == len(set(compilations)), compilations  # each structure once per worker
+    by_program = {}  # (pid, precision, integrator, intervals) -> structures compiled: both cases share one
+    for pid, precision, integrator, structure, intervals in compilations:
+        by_program.setdefault((pid, precision, integrator, intervals), []).append(structure)
+    assert all(len(structures) == 1 for structures in by_program.values()), by_program
+    assert {key[1:] for key in by_program} == {(p, i, 64) for p in ("float64", "float32") for i in ("euler", "rk4")}

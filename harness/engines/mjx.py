@@ -20,8 +20,10 @@ default sweep and `skipped` with the reason when named.
 from __future__ import annotations
 
 import functools
+import json
 import math
 import os
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -94,12 +96,51 @@ def compiled_model(case: Case, integrator: str, dt: float) -> tuple:
     return scene_state(case, integrator, dt, MODEL_NAME, energy=False)
 
 
+# This process's start-up as it happens (issue 29: one start-up per worker): SDK imports and rollout compilations,
+# counted inside the code paths that do them (_sdk's body, _compiled's miss), not read off the caches. startups()
+# returns them; where the environment names a file (STARTUP_LOG_ENV, inherited by the pool's spawned workers), each
+# one also appends a JSON line there: {"pid", "event": "import" | "compilation", "key", "seconds"}, so a test or a
+# user can count them per worker process (tests/test_mjx.py).
+STARTUP_LOG_ENV = "STEREODYN_MJX_STARTUP_LOG"
+_IMPORTS: list[int] = [0]
+_COMPILATIONS: dict[tuple, int] = {}  # (precision, integrator, structure number, intervals) -> compilations
+_STRUCTURES: list = []  # the pytree structures this process compiled for, in order: a structure's number (the
+# structure's text holds object addresses, so it names nothing across processes; its number is this process's)
+
+
+def startups() -> dict:
+    """What this process has paid for MJX so far: {"imports": times the SDK was imported (jax, mujoco.mjx and the
+    rollout's definition: 1 after the first prepare, 0 before), "compilations": {(precision, integrator, structure
+    number, sample intervals): times that rollout was traced and compiled}}. The structure number is the order in
+    which this process first compiled for a model structure (one serves every case that shares it)."""
+    return {"imports": _IMPORTS[0], "compilations": dict(_COMPILATIONS)}
+
+
+def _record(event: str, key: tuple | None, seconds: float) -> None:
+    """Count an import or a compilation (startups), and append it to the file STARTUP_LOG_ENV names, if any: one
+    line written at once (O_APPEND), so the workers of a pool can share the file."""
+    if key is None:
+        _IMPORTS[0] += 1
+    else:
+        _COMPILATIONS[key] = _COMPILATIONS.get(key, 0) + 1
+    path = os.environ.get(STARTUP_LOG_ENV)
+    if path:
+        line = json.dumps({"pid": os.getpid(), "event": event, "key": None if key is None else list(key),
+                           "seconds": round(seconds, 3)}) + "\n"
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, line.encode())
+        finally:
+            os.close(fd)
+
+
 @functools.cache
 def _sdk() -> SimpleNamespace:
     """jax, jax.numpy, mujoco.mjx and the jitted rollout, imported on the first prepare. Compiled rollouts persist on
     disk (JAX's compilation cache), so a worker loads what another one, or an earlier run, compiled (5-30 s each, one
     per integrator, precision and model structure) instead of compiling it again; a cache the user chose
     (JAX_COMPILATION_CACHE_DIR) is kept."""
+    started = time.perf_counter()
     import jax
     from jax import numpy as jnp
     from mujoco import mjx
@@ -119,6 +160,7 @@ def _sdk() -> SimpleNamespace:
 
         return jax.lax.scan(interval, data, counts)
 
+    _record("import", None, time.perf_counter() - started)
     return SimpleNamespace(jax=jax, jnp=jnp, mjx=mjx, rollout=rollout)
 
 
@@ -142,13 +184,19 @@ def _compiled(precision: str, integrator: str, model, data, intervals: int):
     """The Compiled rollout over `intervals` sample intervals: from this process's cache, else traced and compiled
     (under the precision's jax_enable_x64, already entered by the caller)."""
     sdk = _sdk()
-    key = (precision, integrator, sdk.jax.tree_util.tree_structure((model, data)), intervals)
+    structure = sdk.jax.tree_util.tree_structure((model, data))
+    key = (precision, integrator, structure, intervals)
     if key not in _COMPILED:
         if _last_traced and _last_traced[-1] != precision:
             sdk.jax.clear_caches()
         _last_traced[:] = [precision]
+        started = time.perf_counter()
         counts = sdk.jnp.zeros(intervals, dtype=sdk.jnp.int32)
         _COMPILED[key] = sdk.rollout.lower(model, data, counts).compile()
+        if structure not in _STRUCTURES:
+            _STRUCTURES.append(structure)
+        _record("compilation", (precision, integrator, _STRUCTURES.index(structure), intervals),
+                time.perf_counter() - started)
     return _COMPILED[key]
 
 
@@ -212,8 +260,15 @@ class MjxEngine(MujocoBackend):
     """MuJoCo's JAX back-end (MJX 3.17) on the CPU: euler, rk4, implicitfast, each in float64 and float32."""
 
     name = "mjx"
-    # measured on the loaded 2-core machine: 12-30 µs per euler step, 40-60 µs per rk4 step (docs/ENGINES.md)
-    timing = Timing(pass_us=15.0)
+    # measured on the loaded 2-core machine: 12-30 µs per euler step, 40-60 µs per rk4 step (docs/ENGINES.md).
+    # startup_s, measured on the project's 2-core machine under load ~4 (another test run beside it), nice 19: the
+    # first prepare in a fresh process (heavy-asymmetric, float64, under a budget as a sweep's worker prepares: SDK
+    # import 0.8-1.4 s + the first compilation) took 6.7-13.7 s with JAX's persistent cache cold and 2.7-3.4 s warm.
+    # A worker then pays a compilation per integrator, precision, model structure and sample count it meets: in a
+    # 2-worker sweep of two cases, euler and rk4, both precisions (startups(), tests/test_mjx.py), 8 per worker,
+    # ~90 s cold and ~22 s warm. 10 s declares the cold first prepare, which is also a warm sweep's start-up at least:
+    # a second worker takes MJX's runs only when they outweigh it (harness.run.workers).
+    timing = Timing(pass_us=15.0, startup_s=10.0)
     about = About(packages=("mujoco-mjx", "jax", "jaxlib", "mujoco"), linestyle=(0, (3, 1, 1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
     run_precisions, deviations = (FLOAT64, FLOAT32), {"rk4": RK4_DEVIATION}
