@@ -1,7 +1,8 @@
 """The MJX engine (harness/engines/mjx.py, the optional extra stereodyn[mjx]): agreement with MuJoCo C, the two
 precisions in one process, its RK4's known deviation, torques, the budget's chunks, and the message when the extra is
 missing. Skipped where mujoco-mjx is not installed (but the missing-extra test runs). Each compilation costs 5-30 s:
-the default run compiles three rollouts (euler in float64 and float32, and float64's chunk); the order measurement is
+the default run compiles three rollouts (euler in float64 and float32, and float64's chunk), and the 2-worker sweep
+that counts each worker's start-up (mjx.startups) four (15-45 s of CPU, warm or cold cache); the order measurement is
 marked slow."""
 from __future__ import annotations
 
