@@ -147,3 +147,23 @@ def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mj
         by_program.setdefault((pid, precision, integrator, intervals), []).append(structure)
     assert all(len(structures) == 1 for structures in by_program.values()), by_program
     assert {key[1:] for key in by_program} == {(p, i, 64) for p in ("float64", "float32") for i in ("euler", "rk4")}
+
+
+def test_a_workers_single_timed_run_compiles_nothing(mjx):
+    """A sweep's worker prepares a run under the prepare budget, runs it under the run budget (CHUNK intervals a call)
+    and then times it once with no budget (timing.timed_once: one call over the grid's intervals). prepare compiles
+    both rollouts, so the timed run compiles nothing (mjx.startups): compiled there, the single time held the
+    compilation (1.5-26 s in a 2-worker sweep, against runs of milliseconds)."""
+    from stereodyn.harness.engines.mjx import CHUNK, startups
+    from stereodyn.harness.run import timing
+
+    case = _case("heavy-asymmetric", 1.0, samples=51)  # 50 intervals: not the chunk's 64
+    grid = time_grid(case.t_end, 0.01, case.samples)
+    assert grid.sample_steps.size - 1 != CHUNK
+    with budget.within("prepare", 600.0):
+        simulation = mjx.prepare(case, "euler", 0.01)
+    with budget.within("run", 600.0):
+        assert simulation.run(grid).status is Status.OK
+    prepared = startups()["compilations"]
+    timing.timed_once(simulation, grid)
+    assert startups()["compilations"] == prepared

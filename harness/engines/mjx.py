@@ -214,11 +214,15 @@ class MjxSimulation:
         with sdk.jax.enable_x64(self.x64):
             self.model = sdk.mjx.put_model(model)
             self.data = sdk.mjx.put_data(model, data)
-            # compile now (not timed) the rollout the run will use: under a budget (the sweep's accuracy runs) the
-            # chunk's, else (the timing phases) the case's own grid's; another is compiled on its first run
+            # compile now (not timed) the rollouts the runs will use: the case's own grid's, one call (the timed
+            # runs: the timing phases, and the worker's single timed run right after its accuracy run, which has no
+            # budget, timing.timed_once), and under a budget (the sweep's and ladders' accuracy runs) the chunk's too.
+            # Compiled only on the timed run, a worker's single time held the compilation (measured 1.5-26 s against
+            # runs of milliseconds). Another grid is compiled on its first run.
             grid = time_grid(case.t_end, self.dt, case.samples)
-            intervals = CHUNK if budget.deadline() is not None else grid.sample_steps.size - 1
-            _compiled(precision, integrator, self.model, self.data, intervals)
+            _compiled(precision, integrator, self.model, self.data, grid.sample_steps.size - 1)
+            if budget.deadline() is not None:
+                _compiled(precision, integrator, self.model, self.data, CHUNK)
 
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
