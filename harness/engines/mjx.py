@@ -265,13 +265,15 @@ class MjxEngine(MujocoBackend):
 
     name = "mjx"
     # measured on the loaded 2-core machine: 12-30 µs per euler step, 40-60 µs per rk4 step (docs/ENGINES.md).
-    # startup_s, measured on the project's 2-core machine under load ~4 (another test run beside it), nice 19: the
-    # first prepare in a fresh process (heavy-asymmetric, float64, under a budget as a sweep's worker prepares: SDK
-    # import 0.8-1.4 s + the first compilation) took 6.7-13.7 s with JAX's persistent cache cold and 2.7-3.4 s warm.
-    # A worker then pays a compilation per integrator, precision, model structure and sample count it meets: in a
-    # 2-worker sweep of two cases, euler and rk4, both precisions (startups(), tests/test_mjx.py), 8 per worker,
-    # ~90 s cold and ~22 s warm. 10 s declares the cold first prepare, which is also a warm sweep's start-up at least:
-    # a second worker takes MJX's runs only when they outweigh it (harness.run.workers).
+    # startup_s, measured on the project's 2-core machine under load 3-4 (another test run beside it), nice 19: the
+    # first prepare in a fresh process (heavy-asymmetric float64, dt 0.01, under a budget as a sweep's worker prepares
+    # it: SDK import 0.9-1.3 s, then the grid's and the chunk's rollouts) took 14 s (euler) and 26 s (rk4) with JAX's
+    # persistent cache cold, 4 s and 6 s warm (compiling the chunk's alone, before prepare compiled both: 7-14 s cold,
+    # 3 s warm). A worker then pays a compilation per integrator, precision, model structure and sample count it
+    # meets: 8 in a sweep of two cases, euler and rk4, both precisions, two dt (startups(), tests/test_mjx.py), ~90 s
+    # cold and 11-22 s warm per worker; a second worker mostly finds the first's compilations in the cache. 10 s sits
+    # between the warm and the cold first prepare, and under a warm sweep's start-up: a second worker takes MJX's runs
+    # only when their queued cost outweighs it (harness.run.workers).
     timing = Timing(pass_us=15.0, startup_s=10.0)
     about = About(packages=("mujoco-mjx", "jax", "jaxlib", "mujoco"), linestyle=(0, (3, 1, 1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
