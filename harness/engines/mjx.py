@@ -270,8 +270,9 @@ class MjxEngine(MujocoBackend):
     # it: SDK import 0.9-1.3 s, then the grid's and the chunk's rollouts) took 14 s (euler) and 26 s (rk4) with JAX's
     # persistent cache cold, 4 s and 6 s warm (compiling the chunk's alone, before prepare compiled both: 7-14 s cold,
     # 3 s warm). A worker then pays a compilation per integrator, precision, model structure and sample count it
-    # meets: 8 in a sweep of two cases, euler and rk4, both precisions, two dt (startups(), tests/test_mjx.py), ~90 s
-    # cold and 11-22 s warm per worker; a second worker mostly finds the first's compilations in the cache. 10 s sits
+    # meets (startups()): 8 in a sweep of two cases of one structure, euler and rk4, both precisions, 51 samples (4
+    # with 65: tests/test_mjx.py), ~90 s cold and 11-22 s warm per worker; a second worker mostly finds the first's
+    # compilations in the cache. 10 s sits
     # between the warm and the cold first prepare, and under a warm sweep's start-up: a second worker takes MJX's runs
     # only when their queued cost outweighs it (harness.run.workers).
     timing = Timing(pass_us=15.0, startup_s=10.0)
