@@ -1,7 +1,8 @@
 """The MJX engine (harness/engines/mjx.py, the optional extra stereodyn[mjx]): agreement with MuJoCo C, the two
 precisions in one process, its RK4's known deviation, torques, the budget's chunks, and the message when the extra is
 missing. Skipped where mujoco-mjx is not installed (but the missing-extra test runs). Each compilation costs 5-30 s:
-the default run compiles three rollouts (euler in float64 and float32, and float64's chunk); the order measurement is
+the default run compiles three rollouts (euler in float64 and float32, and float64's chunk), and the 2-worker sweep
+that counts each worker's start-up (mjx.startups) four (15-45 s of CPU, warm or cold cache); the order measurement is
 marked slow."""
 from __future__ import annotations
 
@@ -107,3 +108,62 @@ def test_rk4_is_second_order_on_a_ball_joint_the_known_deviation(mjx):
         errors.append(np.max(np.abs(traj.quat - fine.quat)))
     slopes = np.diff(np.log(errors)) / np.diff(np.log([0.02, 0.01, 0.005]))
     assert np.all(np.abs(slopes - 2.0) < 0.3), slopes
+
+
+def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mjx, tmp_path, monkeypatch):
+    """Issue 29, one start-up per worker: a sweep of MJX rows (euler and rk4, float64 and float32, dt 0.01 and 0.005)
+    of two cases that share one model structure (lagrange-top and kovalevskaya: a symmetric body whose centre of mass
+    lies on its axis) on a pool of 2 workers. Each worker appends its SDK imports and rollout compilations to the file
+    STEREODYN_MJX_STARTUP_LOG names (mjx.startups, counted where they happen). 65 samples: the timed run's rollout (the
+    grid's 64 intervals) is the accuracy run's chunk, so one compilation per integrator and precision serves every
+    run. In each worker the SDK is imported at most once and each (precision, integrator, structure, intervals) is
+    compiled once, and the two cases share it. MJX's declared start-up (Timing.startup_s, 10 s) outweighs these short
+    runs, so a single worker serves them all (harness.run.workers); the parent, which repeats no timing here, none.
+    Cold JAX cache ~40 s of CPU, warm ~15 s."""
+    import json
+
+    from stereodyn.harness.engines.mjx import STARTUP_LOG_ENV
+    from stereodyn.harness.run.pool import local_pool
+    from stereodyn.harness.run.sweep import SweepOptions, run_sweep
+
+    log = tmp_path / "startups.jsonl"
+    monkeypatch.setenv(STARTUP_LOG_ENV, str(log))  # the spawned workers inherit it
+    cases = [dataclasses.replace(with_overrides(find_case(name), t_end=1.0, dt=[0.01, 0.005]), samples=65)
+             for name in ("lagrange-top", "kovalevskaya")]
+    with local_pool(2, 16, ("mjx",)) as pool:
+        workers = set(pool.pids)
+        table = run_sweep(cases, SweepOptions(["mjx"], tmp_path / "out", ["euler", "rk4"], jobs=2, certify=False),
+                          pool=pool, decides=lambda rows: set())
+        assert set(pool.pids) == workers and len(workers) == 2  # no worker was replaced
+    assert len(table) == 16 and set(table["status"]) == {"ok"}, table[["case", "integrator", "status", "message"]]
+    events = [json.loads(line) for line in log.read_text().splitlines()]
+    assert {e["pid"] for e in events} <= workers  # none in the parent
+    imports = [e["pid"] for e in events if e["event"] == "import"]
+    assert len(imports) == len(set(imports)) == 1, events  # one worker imported the SDK, once
+    compilations = [(e["pid"], *e["key"]) for e in events if e["event"] == "compilation"]
+    assert len(compilations) == len(set(compilations)), compilations  # each structure once per worker
+    by_program = {}  # (pid, precision, integrator, intervals) -> structures compiled: both cases share one
+    for pid, precision, integrator, structure, intervals in compilations:
+        by_program.setdefault((pid, precision, integrator, intervals), []).append(structure)
+    assert all(len(structures) == 1 for structures in by_program.values()), by_program
+    assert {key[1:] for key in by_program} == {(p, i, 64) for p in ("float64", "float32") for i in ("euler", "rk4")}
+
+
+def test_a_workers_single_timed_run_compiles_nothing(mjx):
+    """A sweep's worker prepares a run under the prepare budget, runs it under the run budget (CHUNK intervals a call)
+    and then times it once with no budget (timing.timed_once: one call over the grid's intervals). prepare compiles
+    both rollouts, so the timed run compiles nothing (mjx.startups): compiled there, the single time held the
+    compilation (1.5-26 s in a 2-worker sweep, against runs of milliseconds)."""
+    from stereodyn.harness.engines.mjx import CHUNK, startups
+    from stereodyn.harness.run import timing
+
+    case = _case("heavy-asymmetric", 1.0, samples=51)  # 50 intervals: not the chunk's 64
+    grid = time_grid(case.t_end, 0.01, case.samples)
+    assert grid.sample_steps.size - 1 != CHUNK
+    with budget.within("prepare", 600.0):
+        simulation = mjx.prepare(case, "euler", 0.01)
+    with budget.within("run", 600.0):
+        assert simulation.run(grid).status is Status.OK
+    prepared = startups()["compilations"]
+    timing.timed_once(simulation, grid)
+    assert startups()["compilations"] == prepared

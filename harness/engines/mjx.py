@@ -20,8 +20,10 @@ default sweep and `skipped` with the reason when named.
 from __future__ import annotations
 
 import functools
+import json
 import math
 import os
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -94,12 +96,51 @@ def compiled_model(case: Case, integrator: str, dt: float) -> tuple:
     return scene_state(case, integrator, dt, MODEL_NAME, energy=False)
 
 
+# This process's start-up as it happens (issue 29: one start-up per worker): SDK imports and rollout compilations,
+# counted inside the code paths that do them (_sdk's body, _compiled's miss), not read off the caches. startups()
+# returns them; where the environment names a file (STARTUP_LOG_ENV, inherited by the pool's spawned workers), each
+# one also appends a JSON line there: {"pid", "event": "import" | "compilation", "key", "seconds"}, so a test or a
+# user can count them per worker process (tests/test_mjx.py).
+STARTUP_LOG_ENV = "STEREODYN_MJX_STARTUP_LOG"
+_IMPORTS: list[int] = [0]
+_COMPILATIONS: dict[tuple, int] = {}  # (precision, integrator, structure number, intervals) -> compilations
+_STRUCTURES: list = []  # the pytree structures this process compiled for, in order: a structure's number (the
+# structure's text holds object addresses, so it names nothing across processes; its number is this process's)
+
+
+def startups() -> dict:
+    """What this process has paid for MJX so far: {"imports": times the SDK was imported (jax, mujoco.mjx and the
+    rollout's definition: 1 after the first prepare, 0 before), "compilations": {(precision, integrator, structure
+    number, sample intervals): times that rollout was traced and compiled}}. The structure number is the order in
+    which this process first compiled for a model structure (one serves every case that shares it)."""
+    return {"imports": _IMPORTS[0], "compilations": dict(_COMPILATIONS)}
+
+
+def _record(event: str, key: tuple | None, seconds: float) -> None:
+    """Count an import or a compilation (startups), and append it to the file STARTUP_LOG_ENV names, if any: one
+    line written at once (O_APPEND), so the workers of a pool can share the file."""
+    if key is None:
+        _IMPORTS[0] += 1
+    else:
+        _COMPILATIONS[key] = _COMPILATIONS.get(key, 0) + 1
+    path = os.environ.get(STARTUP_LOG_ENV)
+    if path:
+        line = json.dumps({"pid": os.getpid(), "event": event, "key": None if key is None else list(key),
+                           "seconds": round(seconds, 3)}) + "\n"
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, line.encode())
+        finally:
+            os.close(fd)
+
+
 @functools.cache
 def _sdk() -> SimpleNamespace:
     """jax, jax.numpy, mujoco.mjx and the jitted rollout, imported on the first prepare. Compiled rollouts persist on
     disk (JAX's compilation cache), so a worker loads what another one, or an earlier run, compiled (5-30 s each, one
     per integrator, precision and model structure) instead of compiling it again; a cache the user chose
     (JAX_COMPILATION_CACHE_DIR) is kept."""
+    started = time.perf_counter()
     import jax
     from jax import numpy as jnp
     from mujoco import mjx
@@ -119,6 +160,7 @@ def _sdk() -> SimpleNamespace:
 
         return jax.lax.scan(interval, data, counts)
 
+    _record("import", None, time.perf_counter() - started)
     return SimpleNamespace(jax=jax, jnp=jnp, mjx=mjx, rollout=rollout)
 
 
@@ -142,13 +184,19 @@ def _compiled(precision: str, integrator: str, model, data, intervals: int):
     """The Compiled rollout over `intervals` sample intervals: from this process's cache, else traced and compiled
     (under the precision's jax_enable_x64, already entered by the caller)."""
     sdk = _sdk()
-    key = (precision, integrator, sdk.jax.tree_util.tree_structure((model, data)), intervals)
+    structure = sdk.jax.tree_util.tree_structure((model, data))
+    key = (precision, integrator, structure, intervals)
     if key not in _COMPILED:
         if _last_traced and _last_traced[-1] != precision:
             sdk.jax.clear_caches()
         _last_traced[:] = [precision]
+        started = time.perf_counter()
         counts = sdk.jnp.zeros(intervals, dtype=sdk.jnp.int32)
         _COMPILED[key] = sdk.rollout.lower(model, data, counts).compile()
+        if structure not in _STRUCTURES:
+            _STRUCTURES.append(structure)
+        _record("compilation", (precision, integrator, _STRUCTURES.index(structure), intervals),
+                time.perf_counter() - started)
     return _COMPILED[key]
 
 
@@ -166,11 +214,15 @@ class MjxSimulation:
         with sdk.jax.enable_x64(self.x64):
             self.model = sdk.mjx.put_model(model)
             self.data = sdk.mjx.put_data(model, data)
-            # compile now (not timed) the rollout the run will use: under a budget (the sweep's accuracy runs) the
-            # chunk's, else (the timing phases) the case's own grid's; another is compiled on its first run
+            # compile now (not timed) the rollouts the runs will use: the case's own grid's, one call (the timed
+            # runs: the timing phases, and the worker's single timed run right after its accuracy run, which has no
+            # budget, timing.timed_once), and under a budget (the sweep's and ladders' accuracy runs) the chunk's too.
+            # Compiled only on the timed run, a worker's single time held the compilation (measured 1.5-26 s against
+            # runs of milliseconds). Another grid is compiled on its first run.
             grid = time_grid(case.t_end, self.dt, case.samples)
-            intervals = CHUNK if budget.deadline() is not None else grid.sample_steps.size - 1
-            _compiled(precision, integrator, self.model, self.data, intervals)
+            _compiled(precision, integrator, self.model, self.data, grid.sample_steps.size - 1)
+            if budget.deadline() is not None:
+                _compiled(precision, integrator, self.model, self.data, CHUNK)
 
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
@@ -212,8 +264,18 @@ class MjxEngine(MujocoBackend):
     """MuJoCo's JAX back-end (MJX 3.17) on the CPU: euler, rk4, implicitfast, each in float64 and float32."""
 
     name = "mjx"
-    # measured on the loaded 2-core machine: 12-30 µs per euler step, 40-60 µs per rk4 step (docs/ENGINES.md)
-    timing = Timing(pass_us=15.0)
+    # measured on the loaded 2-core machine: 12-30 µs per euler step, 40-60 µs per rk4 step (docs/ENGINES.md).
+    # startup_s, measured on the project's 2-core machine under load 3-4 (another test run beside it), nice 19: the
+    # first prepare in a fresh process (heavy-asymmetric float64, dt 0.01, under a budget as a sweep's worker prepares
+    # it: SDK import 0.9-1.3 s, then the grid's and the chunk's rollouts) took 14 s (euler) and 26 s (rk4) with JAX's
+    # persistent cache cold, 4 s and 6 s warm (compiling the chunk's alone, before prepare compiled both: 7-14 s cold,
+    # 3 s warm). A worker then pays a compilation per integrator, precision, model structure and sample count it
+    # meets (startups()): 8 in a sweep of two cases of one structure, euler and rk4, both precisions, 51 samples (4
+    # with 65: tests/test_mjx.py), ~90 s cold and 11-22 s warm per worker; a second worker mostly finds the first's
+    # compilations in the cache. 10 s sits
+    # between the warm and the cold first prepare, and under a warm sweep's start-up: a second worker takes MJX's runs
+    # only when their queued cost outweighs it (harness.run.workers).
+    timing = Timing(pass_us=15.0, startup_s=10.0)
     about = About(packages=("mujoco-mjx", "jax", "jaxlib", "mujoco"), linestyle=(0, (3, 1, 1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
     run_precisions, deviations = (FLOAT64, FLOAT32), {"rk4": RK4_DEVIATION}
