@@ -427,6 +427,26 @@ def test_measure_interleaved_times_in_rounds_and_drops_what_fails(monkeypatch):
     assert measured[1].repeats == timing.MIN_REPEATS and measured[2] is None
 
 
+def test_a_time_the_run_already_has_counts_among_its_repeats_but_never_replaces_the_alone_ones(monkeypatch):
+    """first (a worker's single time) counts among REPEATS, so a short run needs one round fewer; MIN_REPEATS are
+    still timed here, alone, for a long run too: a slow worker time never stands with a single alone repeat."""
+    clock, calls = [0.0], []
+
+    def make(name, duration):
+        def run():
+            calls.append(name)
+            clock[0] += duration
+        return run
+
+    monkeypatch.setattr(timing.time, "perf_counter", lambda: clock[0])
+    runs = [make("short", 0.1), make("long", 5.0), make("fresh", 0.1)]
+    measured = timing.measure_interleaved(runs, repeats=3, budget_s=1.0, first=[0.3, 9.0, None])
+    assert calls == ["short", "long", "fresh", "short", "long", "fresh", "fresh"]
+    assert [m.repeats for m in measured] == [3, 3, 3]  # 2 alone + the given one; 2 alone + given; 3 alone
+    assert measured[0].best == pytest.approx(0.1) and measured[0].spread == pytest.approx(0.0)
+    assert measured[1].best == pytest.approx(5.0) and measured[1].spread == pytest.approx(0.0)  # 9 s: the slowest
+
+
 def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypatch):
     """A run's row is measured in its worker and timed once there, after its accuracy run (measure.measure's timed
     hook, timing.timed_once); without a decides() the timing phase then times each ok run again in the parent, one at

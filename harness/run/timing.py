@@ -102,7 +102,8 @@ def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS
     A run whose timing is disturbed (spread > best) is timed again once, in rounds over those runs; the second timing
     replaces the first, with `disturbed` set when it is disturbed too.
 
-    first: a timed run each run already had (s; None: none), counted as its first repeat (time_runs' single round).
+    first: a time each run already has (s; None: none): its worker's single time, or time_runs' single round. It
+    counts among the run's `repeats`, not among its `min_repeats`, which are always timed here, alone.
     """
     measured = _rounds(runs, repeats, budget_s, min_repeats, first)
     again = [i for i, m in enumerate(measured) if m is not None and disturbed(m.best, m.spread)]
@@ -113,17 +114,20 @@ def measure_interleaved(runs: list[Callable[[], object]], repeats: int = REPEATS
 
 def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min_repeats: int,
             first: list[float | None] | None = None) -> list[Timing | None]:
-    """One timing of each run, in rounds (measure_interleaved without the re-time); first: a repeat each already has."""
-    times: list[list[float] | None] = [[] if first is None or first[i] is None else [first[i]]
-                                       for i in range(len(runs))]
+    """One timing of each run, in rounds (measure_interleaved without the re-time). first: a time each already has
+    (None: none), counted among its `repeats` but not among its `min_repeats`, which are all timed here: a run stops
+    once it has min_repeats timed here and either `repeats` in all or `budget_s` spent here."""
+    given = list(first) if first is not None else [None] * len(runs)
+    times: list[list[float] | None] = [[] for _ in runs]
     runs = [_uncounted(run) for run in runs]
     enabled = gc.isenabled()
     gc.disable()
     try:
-        for round_ in range(max(1, repeats)):
+        for _ in range(max(1, repeats, min_repeats)):
             for i, run in enumerate(runs):
                 ts = times[i]
-                if ts is None or len(ts) > round_ or (round_ >= min_repeats and sum(ts) >= budget_s):
+                if ts is None or (len(ts) >= min_repeats and (
+                        len(ts) + (given[i] is not None) >= repeats or sum(ts) >= budget_s)):
                     continue
                 start = time.perf_counter()
                 try:
@@ -136,7 +140,8 @@ def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min
     finally:
         if enabled:
             gc.enable()
-    return [None if ts is None else _timing(ts) for ts in times]
+    return [None if ts is None else _timing(ts + ([given[i]] if given[i] is not None else []))
+            for i, ts in enumerate(times)]
 
 
 def _uncounted(run: Callable[[], object]) -> Callable[[], object]:
@@ -268,9 +273,10 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
     disturbed when re-timed carries it as `_disturbed`.
 
     singles: each run's single time from its worker (s; None: none, then it is timed once here first, alone); a run
-    timed with repeats counts its single time as its first repeat. select(indices, seconds) -> the indices to time with repeats, from the single
-    times (None: every run); the others keep their single time (timing SINGLE, no spread, never re-timed as
-    disturbed): {} for a run whose single time came from its worker, which its row has already."""
+    timed with repeats counts its single time among its REPEATS (after MIN_REPEATS timed here, alone).
+    select(indices, seconds) -> the indices to time with repeats, from the single times (None: every run); the others
+    keep their single time (timing SINGLE, no spread, never re-timed as disturbed): {} for a run whose single time
+    came from its worker, which its row has already."""
     singles = list(singles) if singles is not None else [None] * len(runs)
     rows: list[dict] = [{} for _ in runs]
     for group in groups([(run.engine, run.precision) for run in runs]):
@@ -283,8 +289,10 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
         repeat = set(known) if select is None else set(select(known, [seconds[i] for i in known])) & set(known)
         warm |= _warmed({i: runs[i] for i in known if i in repeat and i not in warm}, prepare, lambda run: run.engine)
         order = [i for i in known if i in repeat and i in warm]
-        # its single time counts as its first repeat, whether taken here or in its worker right after its accuracy
-        # run: beside another run it can be no faster, so it lowers neither the best nor, the slowest, the spread
+        # its single time counts among its repeats, whether taken here or in its worker right after its accuracy run
+        # (beside another run it is no faster: it lowers neither the best nor, the slowest, the spread); at least
+        # MIN_REPEATS are timed here, alone, whatever it was (one timed-alone repeat of a ladder point, a single slow
+        # period of the machine, once changed a "What to use" winner)
         first = [seconds[i] for i in order]
         measured = dict(zip(order, measure_interleaved([warm[i][0] for i in order], first=first)))
         for i in known:
