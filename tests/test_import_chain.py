@@ -11,7 +11,7 @@ from test_import_cycles import graph, imports
 # integrators -> integrators.geometric -> reference.exact -> reference.exact.euler_poinsot -> reference.body ->
 # reference.torque_models -> reference.registry -> reference. From 19 (this count, before): the truth's names in
 # harness/truth_names.py (scenes.checks, run.spec: not through the engine registry package); a ladder point's truth,
-# single time and timing phase in pipeline/points.py, beside both ladders (tolerance_ladders no longer above
+# single time and timing phase in harness/pipeline/points.py, beside both ladders (tolerance_ladders no longer above
 # dt_ladders); plugin_distributions in harness/environment.py, not engines.catalog. (FLOAT64/EPS are read from
 # harness/precision.py, not engines.base, which runs the registry package; that alone shortens nothing.) The floor under
 # engines is 10 modules of real needs (the registry checks Engine; Engine's defaults look integrators up in the table
