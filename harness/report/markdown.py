@@ -36,11 +36,12 @@ DEFINITIONS_TEMPLATE = """\
   reference, rtol = atol = 1e-8, the dense output on the sample times); steps: accepted steps; rhs_per_sim_s counts
   every right-hand-side call, the implicit methods' finite-difference Jacobians included. tolerance.csv runs them at
   1e-3 ... 1e-13 (section Tolerance ladders).
-- us_per_step: stepping time only, best of 2 or 3 timed runs after an untimed warm-up run, metrics off; every run is
-  timed alone, in a phase after all the accuracy runs, so no timed run shares the cores with another run. A run whose
-  time can change no "What to use" answer (more than 3x slower than its engine's fastest run at its accuracy) keeps
-  one timed run: results.csv's `timing` says which. Compare timings within one report. us_per_step_spread: the second-best timed
-  run minus the best (µs per step), the noise of the figure. rhs_per_sim_s: right-hand-side evaluations per simulated second, a cost noise cannot touch (steps x
+- us_per_step: stepping time only, metrics off. Every run is timed once in its worker, right after its accuracy run
+  (its warm-up). A run whose time can change a "What to use" answer (within 3x of its engine's fastest run at its
+  accuracy) is then timed again, alone, in a phase after all the accuracy runs, so that no repeat shares the cores with
+  another run: best of 3, at least 2 of them alone. results.csv's `timing` says which (`single` or `best of N`);
+  ladder.csv and tolerance.csv likewise. Compare timings within one report. us_per_step_spread: the second-best timed
+  run minus the best (µs per step), the noise of the figure; empty for a single time. rhs_per_sim_s: right-hand-side evaluations per simulated second, a cost noise cannot touch (steps x
   stages for an engine that does not count them; empty for an adaptive run that does not).
 - formulation (engine reference): the state and equations integrated. quaternion: Euler-Poisson with a quaternion;
   gibbs: Ferrarese's Lagrangian in the Gibbs vector, with Christoffel symbols; gibbs_hamiltonian: his Hamiltonian form;
