@@ -33,7 +33,7 @@ from .pool import (cost, local_pool, run_local, startup_cost, sweep_run, worker_
 from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
-from .results import SINGLE, frame, row_order, write_results
+from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
 from .truth import sweep_truths
 
@@ -250,7 +250,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
 
         timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed], prepare,
                                    select if decides is not None else None,
-                                   [_single(stored[keys[id(s)]]) for s in untimed])
+                                   [timing.single(stored[keys[id(s)]]) for s in untimed])
         if untimed:
             environment[TIMING_END] = load_snapshot()
         for spec, timed_columns in zip(untimed, timings):
@@ -274,13 +274,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
 def _needs_timing(row: dict) -> bool:
     """An ok row with no time, or only the single time of its worker (timing.timed_once: it may decide an answer)."""
     return row.get("status") == Status.OK.value and not row.get("_lost") and (
-        _single(row) is not None or not _finite(row.get("wall_s")))
-
-
-def _single(row: dict) -> float | None:
-    """The row's single time (s), when that is all it has; else None."""
-    wall = row.get("wall_s")
-    return float(wall) if row.get("timing") == SINGLE and _finite(wall) else None
+        timing.single(row) is not None or not _finite(row.get("wall_s")))
 
 
 def _finite(value) -> bool:

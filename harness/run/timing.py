@@ -171,7 +171,7 @@ def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: i
     ok = [ok[i] for i in chosen]
     for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok]):
         warm = _warmed({i: ok[i] for i in group}, prepare, lambda point: point["engine"])
-        first = [_single(ok[i]) for i in warm]  # its worker's single time is its first repeat, as in time_runs
+        first = [single(ok[i]) for i in warm]  # its worker's single time is its first repeat, as in time_runs
         for i, measured in zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s,
                                                          first=first)):
             if measured is not None:
@@ -181,10 +181,11 @@ def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: i
         warm.clear()  # this group's models go before the next group's are built
 
 
-def _single(point: dict) -> float | None:
-    """A point's single time from its worker (s; timing SINGLE), else None."""
-    wall = point.get("wall_s")
-    return float(wall) if point.get("timing") == SINGLE and isinstance(wall, float) and math.isfinite(wall) else None
+def single(row: dict) -> float | None:
+    """A row's or point's single time (s), when that is all it has (timing SINGLE), else None."""
+    wall = row.get("wall_s")
+    return float(wall) if row.get("timing") == SINGLE and isinstance(wall, (int, float)) and math.isfinite(wall) \
+        else None
 
 
 def _warmed(items: dict, prepare: Callable, engine_of: Callable) -> dict:
