@@ -93,6 +93,12 @@ def with_precision(df: pd.DataFrame) -> pd.DataFrame:
     return df.fillna({"precision": FLOAT64}).replace({"precision": {"": FLOAT64}}).astype({"precision": str})
 
 
+# The `timing` column's value for a run timed once (its worker's time): a run whose time decides nothing
+# (harness.analysis.decisive); else "best of N" (N 2 or 3), or empty for a run not timed (and in an older table). Here,
+# beside `disturbed` and for the same reason, so that run.timing writes it without the results table's columns.
+SINGLE = "single"
+
+
 def disturbed(best, spread):
     """Whether a timing is disturbed: its spread is larger than its best time (element-wise for arrays; a NaN spread is
     not). Here, not in run.timing or run.results (both re-export it), so that the Pareto table (analysis) reads it

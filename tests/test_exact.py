@@ -13,7 +13,7 @@ from stereodyn.reference.euler_poisson import downward_vertical, quat_dot
 from stereodyn.reference.exact import (ORACLES, Oracle, Setup, free_motion, grioli_body, grioli_precession, hess_grioli,
                              hess_grioli_body, lagrange_precession, mlodzejowski, pendulum, separatrix_omega,
                              staude_direction, staude_rotation)
-from stereodyn.reference.exact._util import first_kind, jacobi, third_kind_complete, third_kind_reduced
+from stereodyn.reference.closed_form import first_kind, jacobi, third_kind_complete, third_kind_reduced
 from stereodyn.reference.rotations import matrix_to_quat, zxz_to_matrix
 
 G = 9.81

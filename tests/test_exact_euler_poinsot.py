@@ -10,7 +10,7 @@ from stereodyn.reference.body import RigidBody
 from stereodyn.reference.exact import (free_motion, lyapunov_exponent, montgomery_phase, oscillation_frequencies, period,
                              precession_per_period, separatrix_distance, separatrix_omega, solid_angle,
                              unstable_direction)
-from stereodyn.reference.exact._util import principal_frame_precise
+from stereodyn.reference.closed_form import principal_frame_precise
 from stereodyn.reference.rotations import attitude_angle, matrix_to_quat, quat_to_matrix, zxz_to_matrix
 from stereodyn.reference.truth import truth
 

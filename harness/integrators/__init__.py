@@ -19,7 +19,8 @@ from .base import Integrator, LieSystem, check_step_signature  # noqa: F401 (thi
 from .registry import (ENTRY_POINT_GROUP, failed_plugin, get, in_default_sweep, joins_default_sweep,  # noqa: F401
                        names, register, stages, state_spaces)
 from .geometric import GEOMETRIC
-from .lie import RK4, ButcherTableau, Euler, ExplicitRK, RK4Naive, SymplecticEuler
+from .lie import RK4, Euler, ExplicitRK, RK4Naive, SymplecticEuler
+from .tableau import ButcherTableau
 from .vector import VectorEuler, VectorRK, VectorRK4, VectorSystem
 
 __all__ = ["ENTRY_POINT_GROUP", "ButcherTableau", "ExplicitRK", "Integrator", "LieSystem", "VectorRK", "VectorSystem",

@@ -26,7 +26,7 @@ import numpy as np
 from .base import Integrator, LieSystem, Stepper, StepperIntegrator
 from .vector import VectorRK, VectorSystem
 from ...reference.body import RigidBody
-from ...reference.exact.euler_poinsot import free_motion  # its module, not every exact solution's
+from ...reference.torque_free import free_motion  # the free flow's module, not every exact solution's
 
 # Fixed-point iteration: stop when the increment changes by at most this many ulps of its size (round-off); give up
 # after MAX_ITERATIONS (the contraction factor is ~h |∂a/∂v| / 2: well below 1/2 wherever the step resolves the
@@ -162,8 +162,8 @@ class ImplicitMidpointVector(VectorRK):
 
 
 class StrangSplitting(StepperIntegrator):
-    """Strang splitting: half a gravity kick, the exact torque-free flow over h (reference.exact.free_motion), half a
-    kick. The kick is exact (the gravity torque depends on the attitude only: v += τ σ⁻¹ τ_g(g) = τ a(t, g, 0)).
+    """Strang splitting: half a gravity kick, the exact torque-free flow over h (reference.torque_free.free_motion),
+    half a kick. The kick is exact (the gravity torque depends on the attitude only: v += τ σ⁻¹ τ_g(g) = τ a(t, g, 0)).
     Symmetric, order 2; exact (to round-off) for the torque-free body."""
 
     name = "strang_free_flow"

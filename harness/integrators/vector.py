@@ -15,7 +15,7 @@ import numpy as np
 from ..trajectory import Trajectory
 from ..grid import TimeGrid
 from .base import Integrator, Stepper, counting
-from .lie import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
+from .tableau import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
 
 
 class VectorSystem(Protocol):

@@ -10,7 +10,7 @@ import pandas as pd
 from ..atomic import write_atomic  # noqa: F401 (imported from here too)
 from ..tables import TableError, read_csv_table  # noqa: F401 (imported from here too)
 # (home: harness/tables.py, so that analysis reads them without the columns here, which need the integrals)
-from ..tables import disturbed, with_precision  # noqa: F401 (imported from here too)
+from ..tables import SINGLE, disturbed, with_precision  # noqa: F401 (imported from here too)
 from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 
@@ -54,11 +54,6 @@ def write_results(df: pd.DataFrame, path: Path) -> None:
 
 
 REQUIRED_COLUMNS = ("case", "engine", "integrator", "status")
-# `timing`: how wall_s was measured: "best of N" timed runs (N 2 or 3), or SINGLE, one timed run: a run whose time
-# decides nothing (harness.analysis.decisive); empty for a run not timed (and in a table of an older version).
-SINGLE = "single"
-
-
 TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "timing",
                 "torque_mode")
 NAMED = ("case", "engine")  # never empty (the integrator is, on a skipped row of an engine that cannot run a case)

@@ -21,8 +21,8 @@ from ..integrators.base import uncounted
 from ..precision import FLOAT64
 from ..trajectory import Status
 from .processes import raise_unless_data
-from .results import disturbed  # noqa: F401 (its home is the results table's module since issue 29: analysis reads it)
-from .results import SINGLE
+# (their home: harness/tables.py, not run.results, whose columns need the integrals and the scenes' metrics)
+from ..tables import SINGLE, disturbed
 
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread

@@ -5,10 +5,12 @@ conditions hold (each to CONDITION_RTOL or the stated tolerance) or the reason i
 solve(body, quat0, omega0, times) -> (quat (n, 4) wxyz body -> world, omega (n, 3) rad/s body), the exact motion at
 the given times (s).
 
-Modules: euler_poinsot (torque-free body: both families, symmetric body, separatrix; periods, Montgomery's phase),
-stationary (Lyapunov exponent and small-oscillation frequencies, FORMULARY T8), heavy (Lagrange, Staude, Grioli,
+Modules: stationary (Lyapunov exponent and small-oscillation frequencies, FORMULARY T8), heavy (Lagrange, Staude, Grioli,
 Hess–Grioli, Mlodzejowski; FORMULARY G5, G9–G11), self_excited (the tanh spin-up and uniform rotations under a
 body torque, G12, G13; the torque is part of the RigidBody the check and solve receive), pendulum (the plane pendulum in Jacobi functions).
+The torque-free body (both families, symmetric body, separatrix; periods, Montgomery's phase) is
+reference/torque_free.py, outside this package so that the splitting integrator imports it alone; euler_poinsot here
+re-exports it (0.2.0's path).
 """
 from __future__ import annotations
 
@@ -19,16 +21,16 @@ import numpy as np
 
 from ..body import RigidBody
 from . import heavy, self_excited
-from ._util import CONDITION_RTOL
-from .euler_poinsot import (SEPARATRIX_TOL, FreeMotion, euler_poinsot_check, euler_poinsot_solve,
-                            free_motion, montgomery_phase, period, precession_per_period,
-                            separatrix_check, separatrix_distance, separatrix_omega, solid_angle)
+from ..closed_form import CONDITION_RTOL
 from .heavy import (Setup, grioli_body, grioli_precession, grioli_rate, grioli_vertical,
                     hess_frame, hess_grioli, hess_grioli_body, lagrange_precession, lagrange_rates,
                     mlodzejowski, mlodzejowski_axis, sleeping_top_threshold, staude_direction,
                     staude_rate_squared, staude_rotation)
 from .pendulum import PendulumMotion, pendulum
 from .stationary import lyapunov_exponent, oscillation_frequencies, unstable_direction
+from ..torque_free import (SEPARATRIX_TOL, FreeMotion, euler_poinsot_check, euler_poinsot_solve, free_motion,
+                           montgomery_phase, period, precession_per_period, separatrix_check, separatrix_distance,
+                           separatrix_omega, solid_angle)
 
 
 @dataclass(frozen=True)

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..body import RigidBody
-from ._util import (CONDITION_RTOL, axis_angle_quat, continuous_signs, orthogonal_unit,
-                    principal_axes, rotation_taking, unit)
+from ..closed_form import (CONDITION_RTOL, axis_angle_quat, continuous_signs, orthogonal_unit,
+                           principal_axes, rotation_taking, unit)
 from .pendulum import pendulum
 from ..rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ellipkm1
 
-from ._util import first_kind, jacobi
+from ..closed_form import first_kind, jacobi
 
 
 @dataclass(frozen=True, eq=False)

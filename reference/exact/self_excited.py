@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..body import RigidBody, principal_frame_for
-from ._util import CONDITION_RTOL
+from ..closed_form import CONDITION_RTOL
 from ..rotations import quat_exp, quat_mul
 from ..torque_models.body_torque import body_torque_components
 

@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from ..body import RigidBody
-from ._util import principal_axes
+from ..closed_form import principal_axes
 
 
 def _triaxial_moments(body: RigidBody) -> tuple[np.ndarray, np.ndarray]:

@@ -1,5 +1,6 @@
 """Helpers shared by the exact solutions: principal frames, frames from vectors, Jacobi functions reduced to one
-half-period, Carlson forms of the incomplete elliptic integrals, quaternion sign continuity."""
+half-period, Carlson forms of the incomplete elliptic integrals, quaternion sign continuity. Outside reference/exact/
+so that the torque-free body (reference/torque_free.py) uses them without importing every exact solution."""
 from __future__ import annotations
 
 import math
@@ -8,7 +9,7 @@ from decimal import Decimal, localcontext
 import numpy as np
 from scipy.special import elliprf, elliprj
 
-from ..rotations import quat_exp
+from .rotations import quat_exp
 
 # Tolerance of every oracle condition (relative, see each check). Cases are written with 17 significant digits from
 # the constructors here, so a condition holds to rounding (~1e-16) or the state is on another motion; the deviation
