@@ -164,15 +164,22 @@ def timed_plugin(tmp_path, monkeypatch):
     sys.modules.pop("stereodyn_timed", None)
 
 
-def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at_a_time(timed_plugin, tmp_path):
-    """A sweep on its own pool of 2 workers, every ok run timed with repeats (no decides): the runs of `warm`
+@pytest.mark.parametrize("given_pool", [False, True])
+def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at_a_time(timed_plugin, tmp_path,
+                                                                                       given_pool):
+    """A sweep on a pool of 2 workers (its own, or one it is given as `stereodyn run`'s pipeline gives it), every ok
+    run timed with repeats (no decides): the runs of `warm`
     (declared start-up 5 s) are timed on a worker that ran `warm`'s accuracy runs, not in the parent (which would pay
     the SDK and every compilation again); `cold`'s (none declared) in the parent, as before. No two calls of the
     timing phase overlap, whichever process made them: each timed run had the machine alone."""
     case = dataclasses.replace(with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3]), samples=11)
     progress = _Stages()
-    table = run_sweep([case], SweepOptions(["warm", "cold"], tmp_path / "out", jobs=2, certify=False),
-                      progress=progress)
+    options = SweepOptions(["warm", "cold"], tmp_path / "out", jobs=2, certify=False)
+    if given_pool:
+        with run_pool.local_pool(2, 4, ()) as pool:
+            table = run_sweep([case], options, progress=progress, pool=pool)
+    else:
+        table = run_sweep([case], options, progress=progress)
     assert set(table.status) == {"ok"} and len(table) == 4, table[["engine", "status", "message"]]
     assert table.timing.str.startswith("best of").all(), table[["engine", "timing"]]
     calls = [json.loads(line) for path in timed_plugin.iterdir() for line in path.read_text().splitlines()]
