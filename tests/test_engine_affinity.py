@@ -2,14 +2,22 @@
 start-up; an engine whose start-up outweighs its queued runs is served by the workers that paid for it; both cores
 stay busy where the queued runs outweigh a start-up. Fake tasks stand in for engines: each pays a sleep once per
 worker process and counts that start-up."""
+import dataclasses
+import json
+import os
+import sys
 import time
 from types import SimpleNamespace
 
 import pytest
 from child_processes import pay
 
-from stereodyn.harness.run import pool as run_pool
-from stereodyn.harness.run.workers import Affinity, WatchedPool
+from stereodyn.harness import engines
+from stereodyn.harness.run import pool as run_pool, timing
+from stereodyn.harness.run.progress import ProgressBar
+from stereodyn.harness.run.sweep import SweepOptions, run_sweep
+from stereodyn.harness.run.workers import Affinity, WatchedPool, WorkerDied
+from stereodyn.harness.scenes.cases import find_case, with_overrides
 
 def _sweep(tasks: list[tuple[str, float, float]], declared_startup_s: float) -> list[tuple[int, str, bool]]:
     """The tasks on a 2-worker pool, both workers ready before the first is submitted (a worker still spawning
@@ -65,3 +73,161 @@ def test_a_worker_counts_the_engines_it_ran(monkeypatch):
     for engine in ("mujoco", "drake", "mujoco"):
         run_pool.sweep_run(SimpleNamespace(engine=engine, keep_states=False, compared=False), None)
     assert run_pool.started_engines() == {"mujoco": 2, "drake": 1}
+
+
+# --- the sweep's timing phase: an engine with a start-up is timed on a worker that paid it, one task at a time
+
+TIMED_PLUGIN = '''
+"""Two engines that wrap MuJoCo's euler: `warm` declares a start-up, `cold` none. Each simulation appends
+(engine, pid, start, end) of every run() to a file of the folder STEREODYN_TEST_CALLS names (one file per process)."""
+import json
+import os
+import time
+
+from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.base import Engine, Timing
+
+
+class _Recorded:
+    def __init__(self, engine, inner):
+        self.engine, self.inner = engine, inner
+
+    def run(self, grid):
+        start = time.monotonic()  # one system-wide clock: the processes' intervals compare
+        try:
+            time.sleep(0.02)  # long enough that two calls at once would overlap
+            return self.inner.run(grid)
+        finally:
+            end = time.monotonic()
+            with open(os.path.join(os.environ["STEREODYN_TEST_CALLS"], f"{os.getpid()}.jsonl"), "a") as out:
+                out.write(json.dumps([self.engine, os.getpid(), start, end]) + "\\n")
+
+
+class _Wrapped(Engine):
+    def integrators(self):
+        return ("euler",)
+
+    def unsupported(self, case):
+        return None
+
+    def prepare(self, case, integrator, dt):
+        return _Recorded(self.name, get_engine("mujoco").prepare(case, "euler", dt))
+
+
+class Warm(_Wrapped):
+    name = "warm"
+    state_space = "lie"
+    timing = Timing(pass_us=3.0, startup_s=5.0)
+
+
+class Cold(_Wrapped):
+    name = "cold"
+    state_space = "lie"
+    timing = Timing(pass_us=3.0)
+'''
+
+
+class _Stages(ProgressBar):
+    """A silent bar that notes when the timing phase begins (time.monotonic())."""
+
+    def __init__(self):
+        super().__init__(enabled=False)
+        self.timing_from = None
+
+    def stage(self, text: str) -> None:
+        if text.startswith("timing"):
+            self.timing_from = time.monotonic()
+        super().stage(text)
+
+
+@pytest.fixture
+def timed_plugin(tmp_path, monkeypatch):
+    """The two engines, registered by a distribution on sys.path (the spawned workers get the parent's), and the
+    folder their calls are written to."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "stereodyn_timed.py").write_text(TIMED_PLUGIN)
+    info = site / "stereodyn_timed-0.1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: stereodyn-timed\nVersion: 0.1.0\n")
+    (info / "entry_points.txt").write_text("[stereodyn.engines]\nwarm = stereodyn_timed:Warm\n"
+                                           "cold = stereodyn_timed:Cold\n")
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.setenv("STEREODYN_TEST_CALLS", str(calls))
+    engines._entry_points.cache_clear()
+    engines.get_engine.cache_clear()
+    yield calls
+    engines._entry_points.cache_clear()
+    engines.get_engine.cache_clear()
+    sys.modules.pop("stereodyn_timed", None)
+
+
+@pytest.mark.parametrize("given_pool", [False, True])
+def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at_a_time(timed_plugin, tmp_path,
+                                                                                       given_pool):
+    """A sweep on a pool of 2 workers (its own, or one it is given as `stereodyn run`'s pipeline gives it), every ok
+    run timed with repeats (no decides): the runs of `warm`
+    (declared start-up 5 s) are timed on a worker that ran `warm`'s accuracy runs, not in the parent (which would pay
+    the SDK and every compilation again); `cold`'s (none declared) in the parent, as before. No two calls of the
+    timing phase overlap, whichever process made them: each timed run had the machine alone."""
+    case = dataclasses.replace(with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3]), samples=11)
+    progress = _Stages()
+    options = SweepOptions(["warm", "cold"], tmp_path / "out", jobs=2, certify=False)
+    if given_pool:
+        with run_pool.local_pool(2, 4, ()) as pool:
+            table = run_sweep([case], options, progress=progress, pool=pool)
+    else:
+        table = run_sweep([case], options, progress=progress)
+    assert set(table.status) == {"ok"} and len(table) == 4, table[["engine", "status", "message"]]
+    assert table.timing.str.startswith("best of").all(), table[["engine", "timing"]]
+    calls = [json.loads(line) for path in timed_plugin.iterdir() for line in path.read_text().splitlines()]
+    assert progress.timing_from is not None
+    accuracy = {(engine, pid) for engine, pid, start, _ in calls if start < progress.timing_from}
+    timed = sorted((start, end, engine, pid) for engine, pid, start, end in calls if start >= progress.timing_from)
+    parent = os.getpid()
+    assert parent not in {pid for _, pid in accuracy}  # the accuracy runs ran on the pool
+    warm_timed = {pid for _, _, engine, pid in timed if engine == "warm"}
+    assert warm_timed and warm_timed <= {pid for engine, pid in accuracy if engine == "warm"}, (warm_timed, accuracy)
+    assert {pid for _, _, engine, pid in timed if engine == "cold"} == {parent}
+    for (_, end, *first), (start, _, *second) in zip(timed, timed[1:]):
+        assert end <= start, (first, second)
+
+
+class _Sim:
+    def run(self, grid):
+        time.sleep(0.001)
+
+
+def test_runs_whose_worker_dies_while_timing_them_keep_their_single_time():
+    """timing.time_runs with an `elsewhere` for engine x: its worker dies (the send raises WorkerDied), so x's run
+    keeps its single time ({}), and y's, timed here, is timed all the same; Ctrl-C while waiting stops the phase."""
+    runs = [SimpleNamespace(engine="x", precision="float64"), SimpleNamespace(engine="y", precision="float64")]
+
+    def died(fn, *args):
+        raise WorkerDied("worker process died (exit code -9)")
+
+    rows = timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01],
+                            elsewhere=lambda engine: died if engine == "x" else None)
+    assert rows[0] == {} and rows[1]["timing"].startswith("best of"), rows
+
+    def interrupted(fn, *args):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01],
+                         elsewhere=lambda engine: interrupted if engine == "x" else None)
+
+
+def test_an_engine_with_a_run_to_time_once_first_is_timed_here():
+    """A run with no single time (--resume of a run stored before single times) is timed once here first, so its
+    engine's runs are warm here: none is sent elsewhere."""
+    runs = [SimpleNamespace(engine="x", precision="float64")] * 2
+    sent = []
+    rows = timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[None, 0.01],
+                            elsewhere=lambda engine: lambda fn, *args: sent.append(args) or fn(*args))
+    assert not sent and all(row["timing"].startswith("best of") for row in rows), rows
+    rows = timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01],
+                            elsewhere=lambda engine: lambda fn, *args: sent.append(args) or fn(*args))
+    assert len(sent) == 1 and all(row["timing"].startswith("best of") for row in rows), rows

@@ -102,6 +102,16 @@ def affinity(spec: RunSpec) -> Affinity:
     return Affinity(spec.engine, startup_s(spec.engine), cost(spec))
 
 
+def on_paid_worker(pool: WatchedPool | None, engine: str) -> Callable | None:
+    """send(fn, *args) -> fn(*args)'s result from a worker of the pool that has paid the engine's start-up (submitted
+    with its Affinity, waited for); None where there is no pool or the engine declares no start-up (startup_s 0): the
+    sweep's timing phase times those in the parent (timing.time_runs' `elsewhere`)."""
+    declared = startup_s(engine)
+    if pool is None or declared <= 0.0:
+        return None
+    return lambda fn, *args: pool.submit(fn, *args, affinity=Affinity(engine, declared)).result()
+
+
 IN_PROCESS_ENV = "STEREODYN_IN_PROCESS"  # "1": --jobs 1 runs in the command's own process (in_process)
 
 

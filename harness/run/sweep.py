@@ -9,7 +9,7 @@ import math
 import os
 import time
 import warnings
-from contextlib import nullcontext
+from contextlib import ExitStack, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -28,8 +28,8 @@ from . import timing
 from .distributed import run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
-from .pool import (cost, local_pool, run_local, startup_cost, sweep_run, worker_failed_row,  # noqa: F401 (worker_pool)
-                   worker_pool)
+from .pool import (cost, local_pool, on_paid_worker, run_local, startup_cost, sweep_run,  # noqa: F401 (worker_pool)
+                   worker_failed_row, worker_pool)
 from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
@@ -142,7 +142,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
     specs.sort(key=cost, reverse=True)
     results_path = out_dir / "results.csv"
     budgets = budget.configured()  # the command's (harness.budget.configure), for every run, truth and --resume
-    with Store(out_dir) as store:
+    with Store(out_dir) as store, ExitStack() as open_pool:  # the pool, open until the timing phase is done
         identities = {id(s): s.identity(store, options.certify) for s in specs}
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
         stored: dict[str, dict] = {}  # key -> row of every run of this sweep done so far
@@ -205,30 +205,31 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # a cluster runs the runs itself (no local worker); else the given pool, or one of the sweep's own
         own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
             local_pool(local_jobs, len(pending), tuple(engines))
-        with own_pool as pool:
-            progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
-                           f"{plural(local_jobs, 'worker')}")
+        pool = open_pool.enter_context(own_pool)
+        progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
+                       f"{plural(local_jobs, 'worker')}")
 
-            def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
-                nonlocal pending
-                for spec in [s for s in pending if s.case is case]:
-                    finished(spec, {**base_row(spec, None), **failure})
-                pending = [s for s in pending if s.case is not case]
+        def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
+            nonlocal pending
+            for spec in [s for s in pending if s.case is case]:
+                finished(spec, {**base_row(spec, None), **failure})
+            pending = [s for s in pending if s.case is not case]
 
-            truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
-                                  progress.phase, truth_failed, budgets)
-            progress.start(len(pending), sum(cost(s) for s in pending) + startup_cost(pending, local_jobs),
-                           resumed=len(specs) - len(pending))
-            try:
-                if options.scheduler:
-                    run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
-                                   finished, worker_failed_row)
-                else:
-                    run_local(pending, truths, pool, finished, budgets)
-            finally:
-                publish()
-                progress.close()
-        # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone.
+        truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
+                              progress.phase, truth_failed, budgets)
+        progress.start(len(pending), sum(cost(s) for s in pending) + startup_cost(pending, local_jobs),
+                       resumed=len(specs) - len(pending))
+        try:
+            if options.scheduler:
+                run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
+                               finished, worker_failed_row)
+            else:
+                run_local(pending, truths, pool, finished, budgets)
+        finally:
+            publish()
+            progress.close()
+        # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone,
+        # here or, for an engine with a start-up, on a worker of the pool that paid it (pool.on_paid_worker)
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
         if untimed:
             progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, one "
@@ -250,7 +251,8 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
 
         timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed], prepare,
                                    select if decides is not None else None,
-                                   [timing.single(stored[keys[id(s)]]) for s in untimed])
+                                   [timing.single(stored[keys[id(s)]]) for s in untimed],
+                                   functools.partial(on_paid_worker, pool))
         if untimed:
             environment[TIMING_END] = load_snapshot()
         for spec, timed_columns in zip(untimed, timings):

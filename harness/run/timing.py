@@ -1,11 +1,14 @@
 """Stepping time, measured apart from accuracy (DESIGN §6.4). Every ok run is timed once in its worker, right after its
 accuracy run, which is its warm-up (once: the sweep's runs, the ladders' points); only the runs whose time decides
-something are then timed again, best of N in rounds, in the parent with no other run on the machine (time_runs,
-time_points, their `select`: harness.analysis.decisive), with the spread of the N recorded so that a ranking can tell a
-difference from noise. The others keep their single time, and say so (results.csv's and the ladders' `timing`
-column). Why a time once, in the worker: issue 29 (the timing phase, every run timed alone, was a third of the default
-run); why the accuracy run itself is no timing: with its counting and its first-call costs it measured Pinocchio's and
-the reference's runs 2-3x slower than their best of 3, up to 20x."""
+something are then timed again, best of N in rounds, with no other run on the machine (time_runs, time_points, their
+`select`: harness.analysis.decisive), with the spread of the N recorded so that a ranking can tell a difference from
+noise. The others keep their single time, and say so (results.csv's and the ladders' `timing` column). The repeats
+are timed in the parent, except the sweep's runs of an engine with a declared start-up (Engine startup_s: MJX, Warp,
+Genesis, Newton): those go, one task at a time, to a pool worker that has paid it (time_runs' `elsewhere`, time_here);
+in the parent they paid the SDK's import and every compilation again (19 MJX rollouts, 44 s of a 70 s timing phase of
+the quick suite). Why a time once, in the worker: issue 29 (the timing phase, every run timed alone, was a third of
+the default run); why the accuracy run itself is no timing: with its counting and its first-call costs it measured
+Pinocchio's and the reference's runs 2-3x slower than their best of 3, up to 20x."""
 from __future__ import annotations
 
 import gc
@@ -264,22 +267,47 @@ def step_columns(measured: Timing, steps: float) -> dict:
             "timing": label(measured)}
 
 
+def time_here(runs: list, prepare: Callable, first: list[float | None]) -> list[Timing | None]:
+    """The timings of runs (one timing group's) in this process, on the machine alone: each prepared and warmed up,
+    then best of REPEATS in rounds (measure_interleaved), first[i] counted among run i's repeats; None for a run that
+    fails here. What a pool worker that has paid the runs' engine runs for time_runs (its `elsewhere`)."""
+    warm = _warmed(dict(enumerate(runs)), prepare, lambda run: run.engine)
+    measured = dict(zip(warm, measure_interleaved([run for run, _ in warm.values()], first=[first[i] for i in warm])))
+    return [measured.get(i) for i in range(len(runs))]
+
+
+def _time_there(send: Callable, runs: list, prepare: Callable, first: list[float | None]) -> list[Timing | None]:
+    """time_here(runs, prepare, first) through send(fn, *args) -> its result (another process, waited for); all None
+    when that fails (its worker died): the runs keep their single time."""
+    try:
+        return send(time_here, runs, prepare, first)
+    except Exception as exc:
+        raise_unless_data(exc)
+        return [None] * len(runs)
+
+
 def time_runs(runs: list, steps: list[float], prepare: Callable,
               select: Callable[[list[int], list[float]], set[int]] | None = None,
-              singles: list[float | None] | None = None) -> list[dict]:
-    """The sweep's timing phase: the step_columns of finished ok runs, in this process with no other run sharing the
-    cores: each timing group (groups: by engine and precision where an engine's precision is process-global) prepared
-    (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group (measure_interleaved),
-    before the next group is prepared. {} for a run that fails here (the row keeps what it had); a timing still
-    disturbed when re-timed carries it as `_disturbed`.
+              singles: list[float | None] | None = None,
+              elsewhere: Callable[[str], Callable | None] | None = None) -> list[dict]:
+    """The sweep's timing phase: the step_columns of finished ok runs, with no other run sharing the cores, in this
+    process (or elsewhere, below): each timing group (groups: by engine and precision where an engine's precision is
+    process-global) prepared (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group
+    (measure_interleaved), before the next group is prepared. {} for a run that fails here (the row keeps what it
+    had); a timing still disturbed when re-timed carries it as `_disturbed`.
 
     singles: each run's single time from its worker (s; None: none, then it is timed once here first, alone); a run
     timed with repeats counts its single time among its REPEATS (after MIN_REPEATS timed here, alone).
     select(indices, seconds) -> the indices to time with repeats, from the single times (None: every run); the others
     keep their single time (timing SINGLE, no spread, never re-timed as disturbed): {} for a run whose single time
-    came from its worker, which its row has already."""
+    came from its worker, which its row has already.
+
+    elsewhere(engine) -> send(fn, *args) -> fn(*args)'s result from another process, waited for (None: here): where an
+    engine's runs chosen for repeats are timed (time_here), one send at a time, so each still has the machine alone;
+    only where none of that engine's runs in the group had to be timed once here first (they are warm here)."""
     singles = list(singles) if singles is not None else [None] * len(runs)
     rows: list[dict] = [{} for _ in runs]
+    senders: dict[str, Callable | None] = {}
     for group in groups([(run.engine, run.precision) for run in runs]):
         alone = [i for i in group if singles[i] is None]
         warm = _warmed({i: runs[i] for i in alone}, prepare, lambda run: run.engine)
@@ -288,7 +316,18 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
         seconds |= {i: m.best for i, m in once.items() if m is not None}
         known = [i for i in group if i in seconds]
         repeat = set(known) if select is None else set(select(known, [seconds[i] for i in known])) & set(known)
-        warm |= _warmed({i: runs[i] for i in known if i in repeat and i not in warm}, prepare, lambda run: run.engine)
+        here = {runs[i].engine for i in alone}
+        away: dict[str, list[int]] = {}  # engine -> its runs timed elsewhere
+        for i in known:
+            engine = runs[i].engine
+            if i in repeat and elsewhere is not None and engine not in here:
+                if engine not in senders:
+                    senders[engine] = elsewhere(engine)
+                if senders[engine] is not None:
+                    away.setdefault(engine, []).append(i)
+        far = {i for indices in away.values() for i in indices}
+        warm |= _warmed({i: runs[i] for i in known if i in repeat and i not in warm and i not in far}, prepare,
+                        lambda run: run.engine)
         order = [i for i in known if i in repeat and i in warm]
         # its single time counts among its repeats, whether taken here or in its worker right after its accuracy run
         # (beside another run it is no faster: it lowers neither the best nor, the slowest, the spread); at least
@@ -296,9 +335,12 @@ def time_runs(runs: list, steps: list[float], prepare: Callable,
         # period of the machine, once changed a "What to use" winner)
         first = [seconds[i] for i in order]
         measured = dict(zip(order, measure_interleaved([warm[i][0] for i in order], first=first)))
+        warm.clear()  # this group's models go before the next group's are built, or another process times its own
+        for engine, indices in away.items():
+            there = _time_there(senders[engine], [runs[i] for i in indices], prepare, [seconds[i] for i in indices])
+            measured |= {i: m for i, m in zip(indices, there) if m is not None}
         for i in known:
             m = measured.get(i) or once.get(i)  # repeated, else the single time taken here (if any)
             if m is not None:
                 rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
-        warm.clear()  # this group's models go before the next group's are built
     return rows
