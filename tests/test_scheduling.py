@@ -72,3 +72,37 @@ def test_an_interrupt_while_computing_the_truth_ends_the_started_workers(tmp_pat
         run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["euler"], jobs=2))
     assert len(workers) == 2 and ended(workers)
     assert 0 not in {p.exitcode for p in workers}  # ended at once (SIGKILL), not left to finish their start-up
+
+
+def test_an_engine_whose_precision_is_process_global_gets_its_runs_one_precision_at_a_time(monkeypatch):
+    """The runs of such an engine (Genesis: each change of precision re-initialised it, 8-11 s a run in the quick
+    suite) trade places among those they hold, so that each precision's come together in the order first met; every
+    other run keeps its place, and within a precision the order (the cost's) is kept."""
+    from types import SimpleNamespace
+
+    from stereodyn.harness.run import timing
+    from stereodyn.harness.run.pool import one_precision_at_a_time
+
+    monkeypatch.setattr(timing, "get_engine", lambda name: SimpleNamespace(process_global_precision=name == "g"))
+    runs = [SimpleNamespace(engine=e, precision=p, n=i) for i, (e, p) in enumerate(
+        [("g", "float64"), ("m", "float64"), ("g", "float32"), ("g", "float64"), ("m", "float32"), ("g", "float32"),
+         ("g", "float64")])]
+    ordered = one_precision_at_a_time(runs)
+    assert [r.n for r in ordered] == [0, 1, 3, 6, 4, 2, 5]
+    assert [r.precision for r in ordered if r.engine == "g"] == ["float64"] * 3 + ["float32"] * 2
+    assert [r.n for r in ordered if r.engine == "m"] == [1, 4]  # the others stay where they were
+    assert one_precision_at_a_time([]) == []
+
+
+def test_the_sweep_queues_its_runs_by_cost_one_precision_at_a_time(tmp_path, monkeypatch):
+    """The sweep hands its runs to the pool in the order one_precision_at_a_time gives the cost-sorted runs."""
+    from stereodyn.harness.run import sweep
+
+    seen, queued = [], []
+    real = sweep.one_precision_at_a_time
+    monkeypatch.setattr(sweep, "one_precision_at_a_time", lambda specs: seen.append(list(specs)) or real(specs)[::-1])
+    monkeypatch.setattr(sweep, "run_local", lambda specs, *args, **kwargs: queued.append(list(specs)))
+    case = with_overrides(find_case("lagrange-top"), t_end=0.2, dt=[0.01, 0.02])
+    run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["euler", "rk4"], jobs=1, certify=False))
+    assert len(seen) == 1 and [cost(s) for s in seen[0]] == sorted((cost(s) for s in seen[0]), reverse=True)
+    assert [s.label for s in queued[0]] == [s.label for s in seen[0][::-1]]  # its order, whatever it is

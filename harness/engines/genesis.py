@@ -174,10 +174,10 @@ class GenesisEngine(Engine):
     # measured: 300-600 µs per step from the Python loop on the loaded 2-core machine (docs/ENGINES.md). gs.init's
     # precision holds for the process: the timing phases time one precision's runs at a time. A first prepare in a
     # process imports Genesis (15-30 s) and builds its kernels cold (80-107 s), measured under load 14 on 2 cores:
-    # past the sweep's default 120 s. 600 s keeps ~4x that; later prepares take 0.5-20 s. startup_s: issue 29's
-    # figures, not measured with this declaration (Genesis is not installable where it was written): its import
-    # 15-30 s and kernel builds 1-2 min per worker, ~110 s at the middle of both.
-    timing = Timing(pass_us=400.0, startup_s=110.0, process_global_precision=True, prepare_budget_s=600.0)
+    # past the sweep's default 120 s. 600 s keeps ~4x that; later prepares take 0.5-20 s. startup_s: a fresh process's
+    # first prepare took 59 s with the caches cold and 30-37 s warm on 2 cores (issue 29; genesis-world 1.4.5, torch
+    # 2.13 CPU): 45 s between.
+    timing = Timing(pass_us=400.0, startup_s=45.0, process_global_precision=True, prepare_budget_s=600.0)
     about = About(packages=("genesis-world", "torch"), linestyle="--", formulation=BALL)
 
     def integrators(self) -> tuple[str, ...]:

@@ -160,10 +160,10 @@ class NewtonEngine(Engine):
     """Newton's solvers (featherstone, semi_implicit, xpbd) on a ball or free joint, float32 on Warp's CPU device."""
 
     name = "newton"
-    # measured: 1-30 µs per replayed step on the loaded 2-core machine (docs/ENGINES.md). startup_s: issue 29's
-    # figure, not measured with this declaration (Newton is not installable where it was written): its Warp kernels,
-    # ~70 s per worker.
-    timing = Timing(pass_us=10.0, startup_s=70.0)
+    # measured: 1-30 µs per replayed step on the loaded 2-core machine (docs/ENGINES.md). startup_s: a fresh process's
+    # first prepare (Warp's kernels for Newton) took 44 s with the kernel cache cold and 5.3 s warm (2 cores, issue 29):
+    # 20 s between.
+    timing = Timing(pass_us=10.0, startup_s=20.0)
     about = About(packages=("newton", "warp-lang"), linestyle=(0, (3, 1, 1, 1)), formulation=BALL)
 
     def integrators(self) -> tuple[str, ...]:

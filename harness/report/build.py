@@ -31,8 +31,9 @@ FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
 # "Good enough" attitude error for the summary's cheapest-run column: a microradian over the case's span.
 SUMMARY_ACCURACY = 1e-6
-# Figures per extra process when drawing in parallel: a process costs ~1 s to start, a figure ~0.5 s to draw.
-PARALLEL_FIGURES = 8
+# Figures per extra process when drawing in parallel: a process costs ~2 s to start, a figure 1-3 s to draw on the
+# 2-core machine (the quick suite's report, 8 figures: 25-28 s drawn here, 17-19 s on two processes; issue 29).
+PARALLEL_FIGURES = 2
 NOT_DRAWN = ("Figures not drawn (--no-figures, or STEREODYN_FIGURES=0 in the environment): "
              "`stereodyn report DIR --figures` draws them.")
 

@@ -67,6 +67,25 @@ def cost(spec: RunSpec) -> float:
     return RUN_OVERHEAD_S + (2 + CHECK_PASSES) * one_pass
 
 
+def one_precision_at_a_time(specs: list[RunSpec]) -> list[RunSpec]:
+    """specs in their order, except that the runs of an engine whose precision is process-global (timing.
+    process_global_precision) trade places among those they hold so that each precision's runs come together, in
+    the order first met, each in its order: its workers take them in queue order, and Genesis re-initialised itself
+    at each change of precision (measured: 8-11 s a run in the quick suite, where its float64 and float32 runs of
+    equal cost alternated; 0.3-3 s a run without the change)."""
+    places: dict[str, list[int]] = {}
+    for index, spec in enumerate(specs):
+        if timing.process_global_precision(spec.engine):
+            places.setdefault(spec.engine, []).append(index)
+    ordered = list(specs)
+    for indices in places.values():
+        runs = [specs[i] for i in indices]
+        first = list(dict.fromkeys(run.precision for run in runs))
+        for index, run in zip(indices, sorted(runs, key=lambda run: first.index(run.precision))):  # stable
+            ordered[index] = run
+    return ordered
+
+
 def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
     """The row of a run whose worker process died (e.g. a crash inside an SDK) or whose task was lost. It is shown in
     results.csv but not stored (_lost), so --resume tries the run again: the cause may have been passing (an

@@ -231,12 +231,17 @@ def groups(keys: list[tuple[str, str]]) -> list[list[int]]:
     form a group per precision, after the shared one. Empty groups are left out."""
     found: dict[tuple | None, list[int]] = {None: []}
     for index, (engine, precision) in enumerate(keys):
-        try:
-            exclusive = bool(get_engine(engine).process_global_precision)
-        except (KeyError, ValueError):  # not an engine of this registry: it shares the group
-            exclusive = False
-        found.setdefault((engine, precision) if exclusive else None, []).append(index)
+        found.setdefault((engine, precision) if process_global_precision(engine) else None, []).append(index)
     return [indices for indices in found.values() if indices]
+
+
+def process_global_precision(engine: str) -> bool:
+    """Whether building a model of one precision releases the other's in a process (Engine.process_global_precision:
+    Genesis re-initialises itself); False for a name this registry does not know."""
+    try:
+        return bool(get_engine(engine).process_global_precision)
+    except (KeyError, ValueError):
+        return False
 
 
 def with_disturbed(message, measured: Timing) -> str:
