@@ -11,9 +11,9 @@ from test_import_cycles import graph, imports
 # report.history -> analysis.history -> analysis.compare -> analysis.gate -> run.results -> scenes.metrics ->
 # scenes.cases -> reference.exact -> reference.exact.heavy -> reference.body -> reference.torque_models ->
 # reference.registry -> reference. From 17 (this count, before): the torque-free body's home is reference/torque_free.py
-# and the exact solutions' helpers reference/closed_form.py (before: a private module of the exact package), both outside
-# reference/exact/, so that geometric's splitting imports the free flow without the exact package's __init__ (every
-# exact solution, the body, the torque models); the free flow names RigidBody in annotations only, so it imports it
+# and the exact solutions' helpers reference/closed_form.py (before: a private module of the exact package), both
+# outside reference/exact/, so that geometric's splitting imports the free flow without the exact package's __init__
+# (every exact solution, the body, the torque models); the free flow names RigidBody in annotations only, so it imports it
 # for type checkers only (reference/exact/euler_poinsot.py re-exports its names, 0.2.0's path); the Butcher tableau in
 # harness/integrators/tableau.py, so that the vector methods no longer import the group methods (lie.py re-exports
 # it); the `timing` column's SINGLE beside `disturbed` in harness/tables.py, so that run.timing no longer imports
