@@ -13,8 +13,8 @@ from test_import_cycles import graph, imports
 # reference.registry -> reference. From 17 (this count, before): the torque-free body's home is reference/torque_free.py
 # and the exact solutions' helpers reference/closed_form.py (before: a private module of the exact package), both
 # outside reference/exact/, so that geometric's splitting imports the free flow without the exact package's __init__
-# (every exact solution, the body, the torque models); the free flow names RigidBody in annotations only, so it imports it
-# for type checkers only (reference/exact/euler_poinsot.py re-exports its names, 0.2.0's path); the Butcher tableau in
+# (every exact solution, the body, the torque models); the free flow names RigidBody in annotations only, so it imports
+# it for type checkers only (reference/exact/euler_poinsot.py re-exports its names, 0.2.0's path); the Butcher tableau in
 # harness/integrators/tableau.py, so that the vector methods no longer import the group methods (lie.py re-exports
 # it); the `timing` column's SINGLE beside `disturbed` in harness/tables.py, so that run.timing no longer imports
 # run.results (whose columns need the scenes' metrics, the cases and the exact solutions; results re-exports it).
