@@ -14,13 +14,13 @@ from test_import_cycles import graph, imports
 # and the exact solutions' helpers reference/closed_form.py (before: a private module of the exact package), both
 # outside reference/exact/, so that geometric's splitting imports the free flow without the exact package's __init__
 # (every exact solution, the body, the torque models); the free flow names RigidBody in annotations only, so it imports
-# it for type checkers only (reference/exact/euler_poinsot.py re-exports its names, 0.2.0's path); the Butcher tableau in
-# harness/integrators/tableau.py, so that the vector methods no longer import the group methods (lie.py re-exports
+# it for type checkers only (reference/exact/euler_poinsot.py re-exports its names, 0.2.0's path); the Butcher tableau
+# in harness/integrators/tableau.py, so that the vector methods no longer import the group methods (lie.py re-exports
 # it); the `timing` column's SINGLE beside `disturbed` in harness/tables.py, so that run.timing no longer imports
-# run.results (whose columns need the scenes' metrics, the cases and the exact solutions; results re-exports it).
-# The floor under engines is now 8 modules of real needs (the registry checks Engine; Engine's defaults look
-# integrators up in the table the integrators package fills with its built-ins; geometric's implicit midpoint is a
-# VectorRK, and every integrator's step loop checks the budget), so a chain through engines has at most 7 above it.
+# run.results (whose columns need the scenes' metrics, the cases and the exact solutions; results re-exports it). The
+# floor under engines is now 8 modules of real needs (the registry checks Engine; Engine's defaults look integrators up
+# in the table the integrators package fills with its built-ins; geometric's implicit midpoint is a VectorRK, and every
+# integrator's step loop checks the budget), so a chain through engines has at most 7 above it.
 LIMIT = 15
 
 
