@@ -162,7 +162,7 @@ def tolerance_figures(tolerance: pd.DataFrame | None, draw: bool = True) -> tupl
 
 
 def _render_all(tasks: list[tuple]) -> list[bytes | None]:
-    """The figures' PNGs, on all cores when there are many: drawing is most of a report's time (~0.5 s a figure)."""
+    """The figures' PNGs, on all cores when there are many: drawing is most of a report's time (1-3 s a figure here)."""
     workers = min(os.cpu_count() or 1, len(tasks) // PARALLEL_FIGURES)
     if workers < 2:
         return [_render(task) for task in tasks]
