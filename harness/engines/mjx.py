@@ -19,14 +19,11 @@ default sweep and `skipped` with the reason when named.
 """
 from __future__ import annotations
 
-import enum
 import functools
-import hashlib
 import json
 import math
 import os
 import time
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -47,7 +44,6 @@ from .base import FLOAT32, FLOAT64, About, KnownDeviation, Timing, require_modul
 require_modules(INSTALL, "jax", "mujoco.mjx")
 
 from .. import budget
-from ..atomic import write_atomic
 from ..scenes.cases import Case
 from .backends import MujocoBackend
 from .mujoco import scene_state, torque_mode
@@ -103,9 +99,8 @@ def compiled_model(case: Case, integrator: str, dt: float) -> tuple:
 # This process's start-up as it happens (issue 29: one start-up per worker): SDK imports and rollout compilations,
 # counted inside the code paths that do them (_sdk's body, _compiled's miss), not read off the caches. startups()
 # returns them; where the environment names a file (STARTUP_LOG_ENV, inherited by the pool's spawned workers), each
-# one also appends a JSON line there: {"pid", "event": "import" | "compilation", "key", "seconds"} (and for a
-# compilation "traced": false when its rollout came from disk), so a test or a user can count them per worker process
-# (tests/test_mjx.py).
+# one also appends a JSON line there: {"pid", "event": "import" | "compilation", "key", "seconds"}, so a test or a
+# user can count them per worker process (tests/test_mjx.py).
 STARTUP_LOG_ENV = "STEREODYN_MJX_STARTUP_LOG"
 _IMPORTS: list[int] = [0]
 _COMPILATIONS: dict[tuple, int] = {}  # (precision, integrator, structure number, intervals) -> compilations
@@ -116,15 +111,14 @@ _STRUCTURES: list = []  # the pytree structures this process compiled for, in or
 def startups() -> dict:
     """What this process has paid for MJX so far: {"imports": times the SDK was imported (jax, mujoco.mjx and the
     rollout's definition: 1 after the first prepare, 0 before), "compilations": {(precision, integrator, structure
-    number, sample intervals): times that rollout was traced (or loaded: _traced) and compiled}}. The structure number is the order in
+    number, sample intervals): times that rollout was traced and compiled}}. The structure number is the order in
     which this process first compiled for a model structure (one serves every case that shares it)."""
     return {"imports": _IMPORTS[0], "compilations": dict(_COMPILATIONS)}
 
 
-def _record(event: str, key: tuple | None, seconds: float, traced: bool | None = None) -> None:
+def _record(event: str, key: tuple | None, seconds: float) -> None:
     """Count an import or a compilation (startups), and append it to the file STARTUP_LOG_ENV names, if any: one
-    line written at once (O_APPEND), so the workers of a pool can share the file; a compilation's line says whether
-    its rollout was traced here or loaded from disk (_traced)."""
+    line written at once (O_APPEND), so the workers of a pool can share the file."""
     if key is None:
         _IMPORTS[0] += 1
     else:
@@ -132,7 +126,7 @@ def _record(event: str, key: tuple | None, seconds: float, traced: bool | None =
     path = os.environ.get(STARTUP_LOG_ENV)
     if path:
         line = json.dumps({"pid": os.getpid(), "event": event, "key": None if key is None else list(key),
-                           "seconds": round(seconds, 3), **({} if traced is None else {"traced": traced})}) + "\n"
+                           "seconds": round(seconds, 3)}) + "\n"
         fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
         try:
             os.write(fd, line.encode())
@@ -142,10 +136,10 @@ def _record(event: str, key: tuple | None, seconds: float, traced: bool | None =
 
 @functools.cache
 def _sdk() -> SimpleNamespace:
-    """jax, jax.numpy, mujoco.mjx and the jitted rollout, imported on the first prepare. Traced rollouts persist on
-    disk (_traced) and compiled ones too (JAX's compilation cache), so a worker loads what another one, or an earlier
-    run, traced and compiled (5-30 s each, one per integrator, precision and model structure) instead of doing it
-    again; a compilation cache the user chose (JAX_COMPILATION_CACHE_DIR) is kept."""
+    """jax, jax.numpy, mujoco.mjx and the jitted rollout, imported on the first prepare. Compiled rollouts persist on
+    disk (JAX's compilation cache), so a worker loads what another one, or an earlier run, compiled (5-30 s each, one
+    per integrator, precision and model structure) instead of compiling it again; a cache the user chose
+    (JAX_COMPILATION_CACHE_DIR) is kept."""
     started = time.perf_counter()
     import jax
     from jax import numpy as jnp
@@ -187,9 +181,8 @@ CHUNK = 64
 
 
 def _compiled(precision: str, integrator: str, model, data, intervals: int):
-    """The compiled rollout over `intervals` sample intervals, a function of (model, data, counts) as the jitted
-    rollout: from this process's cache, else loaded from the traced rollouts on disk (_traced) or traced there, then
-    compiled (under the precision's jax_enable_x64, already entered by the caller)."""
+    """The Compiled rollout over `intervals` sample intervals: from this process's cache, else traced and compiled
+    (under the precision's jax_enable_x64, already entered by the caller)."""
     sdk = _sdk()
     structure = sdk.jax.tree_util.tree_structure((model, data))
     key = (precision, integrator, structure, intervals)
@@ -199,124 +192,12 @@ def _compiled(precision: str, integrator: str, model, data, intervals: int):
         _last_traced[:] = [precision]
         started = time.perf_counter()
         counts = sdk.jnp.zeros(intervals, dtype=sdk.jnp.int32)
-        _COMPILED[key], traced = _traced(sdk, precision, integrator, model, data, counts)
+        _COMPILED[key] = sdk.rollout.lower(model, data, counts).compile()
         if structure not in _STRUCTURES:
             _STRUCTURES.append(structure)
         _record("compilation", (precision, integrator, _STRUCTURES.index(structure), intervals),
-                time.perf_counter() - started, traced)
+                time.perf_counter() - started)
     return _COMPILED[key]
-
-
-# Traced rollouts on disk (jax.export), beside JAX's compilation cache, which keeps only the XLA part: jit traces
-# MJX's step again in every process, 1.3-1.9 s of the 2.3-2.7 s a compilation took with that cache warm, while
-# loading the exported rollout and its compilation took 0.5 s, with the same numbers bit for bit (heavy-asymmetric
-# rk4 float64, 200 intervals, 2-core machine). The key holds everything that shapes the trace (_rollout_key); a
-# rollout it cannot key (a static field of a type it does not know), or a file it cannot read or write, is traced as
-# before. Where: ROLLOUTS below the user's cache folder; deleting the folder is always safe (docs/ENGINES.md).
-ROLLOUTS = os.path.join("stereodyn", "mjx")
-
-
-def rollouts_dir() -> str:
-    """The folder of the traced rollouts: $XDG_CACHE_HOME/stereodyn/mjx, or ~/.cache/stereodyn/mjx."""
-    return os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), ROLLOUTS)
-
-
-def _traced(sdk, precision: str, integrator: str, model, data, counts) -> tuple:
-    """(the compiled rollout as a function of (model, data, counts), whether it was traced here): exported over the
-    flat leaves of (model, data), whose structure (static fields included) the key fixes, loaded from rollouts_dir()
-    when there, else traced and written there."""
-    jax = sdk.jax
-    leaves, structure = jax.tree_util.tree_flatten((model, data))
-    key = _rollout_key(sdk, structure, leaves, precision, integrator, counts.size)
-    path = os.path.join(rollouts_dir(), f"{key}.jax") if key else None
-    exported = _read_exported(jax, path)
-    traced = exported is None
-    if traced:
-        def flat(leaves, counts):
-            data, states = sdk.rollout(*jax.tree_util.tree_unflatten(structure, leaves), counts)
-            return jax.tree_util.tree_leaves(data), states
-
-        exported = jax.export.export(jax.jit(flat))(leaves, counts)
-        if path:
-            try:
-                os.makedirs(os.path.dirname(path), exist_ok=True)
-                write_atomic(Path(path), bytes(exported.serialize()))
-            except (ImportError, OSError):  # no flatbuffers (JAX's serializer), a read-only cache: traced next time
-                pass
-    compiled = jax.jit(exported.call).lower(leaves, counts).compile()
-    data_structure = jax.tree_util.tree_structure(data)
-
-    def rollout(model, data, counts):
-        data_leaves, states = compiled(jax.tree_util.tree_leaves((model, data)), counts)
-        return jax.tree_util.tree_unflatten(data_structure, data_leaves), states
-
-    return rollout, traced
-
-
-def _read_exported(jax, path: str | None):
-    """The exported rollout at path, or None (no path, no file, or one this JAX cannot read: traced again)."""
-    if not path or not os.path.isfile(path):
-        return None
-    try:
-        with open(path, "rb") as handle:
-            return jax.export.deserialize(bytearray(handle.read()))
-    except Exception:  # noqa: BLE001 (a cache entry that does not load is a miss, whatever the reason)
-        return None
-
-
-class _Unkeyable(Exception):
-    """A static field of a type _feed cannot digest: that rollout is not kept on disk."""
-
-
-def _rollout_key(sdk, structure, leaves: list, precision: str, integrator: str, intervals: int) -> str | None:
-    """The digest naming a traced rollout: the structure of (model, data) with its static fields' values, the
-    leaves' shapes and dtypes, precision, integrator, intervals, the versions of jax, jaxlib, mujoco and mujoco-mjx,
-    and this file's text (its rollout). None where a static field cannot be digested."""
-    import jaxlib
-    from importlib import metadata
-
-    digest = hashlib.sha256()
-    try:
-        _feed_structure(digest, structure)
-    except _Unkeyable:
-        return None
-    _feed(digest, [(np.dtype(leaf.dtype).str, tuple(leaf.shape)) for leaf in leaves])
-    _feed(digest, [precision, integrator, int(intervals), sdk.jax.__version__, jaxlib.__version__,
-                   metadata.version("mujoco"), metadata.version("mujoco-mjx")])
-    digest.update(Path(__file__).read_bytes())
-    return digest.hexdigest()[:32]
-
-
-def _feed_structure(digest, structure) -> None:
-    """A pytree structure into digest: each node's type and static data, then its children, depth first."""
-    _feed(digest, structure.node_data())
-    children = structure.children()
-    digest.update(b"[%d" % len(children))
-    for child in children:
-        _feed_structure(digest, child)
-    digest.update(b"]")
-
-
-def _feed(digest, value) -> None:
-    """A static value into digest by its content (never by an object's address, which the structure's text holds)."""
-    if isinstance(value, (tuple, list)):
-        digest.update(b"(%d" % len(value))
-        for item in value:
-            _feed(digest, item)
-        digest.update(b")")
-    elif isinstance(value, np.ndarray):
-        digest.update(f"{value.dtype.str}{value.shape}".encode())
-        digest.update(np.ascontiguousarray(value).tobytes())
-    elif isinstance(getattr(value, "array", None), np.ndarray):  # MJX's hashable wrapper of a static numpy array
-        _feed(digest, value.array)
-    elif isinstance(value, enum.Enum):
-        digest.update(f"{type(value).__module__}.{type(value).__qualname__}.{value.name}".encode())
-    elif isinstance(value, (bool, int, float, str, bytes, type(None), np.generic)):
-        digest.update(f"{type(value).__name__}:{value!r}".encode())
-    elif isinstance(value, type):
-        digest.update(f"{value.__module__}.{value.__qualname__}".encode())
-    else:
-        raise _Unkeyable(type(value))
 
 
 class MjxSimulation:
