@@ -58,20 +58,26 @@ def test_float64_euler_is_mujoco_c_euler_and_float32_rounds(mjx):
 
 def test_under_a_budget_a_run_goes_in_chunks_with_the_same_numbers_and_stops_at_its_deadline(mjx):
     """Under a wall-time budget (the sweep's accuracy runs) the rollout is CHUNK sample intervals a call, the state
-    carried from call to call and the last chunk padded with 0-step intervals; the budget is checked between calls.
-    100 intervals (two chunks, 28 padded): the same numbers as the one-call rollout, bit for bit in this process
-    (measured so on heavy-asymmetric euler, lagrange-top rk4 float64 and free-asymmetric rk4 float32, 20 s, 999
-    intervals). A 1 ms budget stops it after its first chunk."""
-    from stereodyn.harness.engines.mjx import CHUNK
+    carried from call to call; the budget is checked between calls. Without one, SLOTS intervals a call. 1200
+    intervals: 19 chunks under a budget, 2 calls without, 1 call for the 100 intervals of the first second: the same
+    numbers, bit for bit in this process, from the one compiled rollout (mjx.startups: no compilation after prepare's;
+    chunks against one call measured bit for bit on heavy-asymmetric euler, lagrange-top rk4 float64 and
+    free-asymmetric rk4 float32, 20 s, 999 intervals). A 1 ms budget stops it after its first chunk."""
+    from stereodyn.harness.engines.mjx import CHUNK, SLOTS, startups
 
-    case = _case("heavy-asymmetric", 5.0)
+    case = _case("heavy-asymmetric", 12.0, samples=1201)
     grid = time_grid(case.t_end, 0.01, case.samples)
     simulation = mjx.prepare(case, "euler", 0.01)
+    compiled = startups()["compilations"]
     whole = simulation.run(grid)
     with budget.within("run", 600.0):
         chunked = simulation.run(grid)
-    assert grid.sample_steps.size - 1 > CHUNK  # more than one call
+    assert grid.sample_steps.size - 1 > SLOTS > CHUNK  # more than one call either way
     assert np.array_equal(chunked.quat, whole.quat) and np.array_equal(chunked.omega, whole.omega)
+    first = time_grid(1.0, 0.01, 101)  # the first second, sampled as the long grid is: one call of 100 intervals
+    short = simulation.run(first)
+    assert np.array_equal(short.quat, whole.quat[:101]) and np.array_equal(short.omega, whole.omega[:101])
+    assert startups()["compilations"] == compiled
     with pytest.raises(budget.BudgetExceeded, match="run budget exceeded"):
         with budget.within("run", 1e-3):
             simulation.run(grid)
@@ -114,12 +120,12 @@ def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mj
     """Issue 29, one start-up per worker: a sweep of MJX rows (euler and rk4, float64 and float32, dt 0.01 and 0.005)
     of two cases that share one model structure (lagrange-top and kovalevskaya: a symmetric body whose centre of mass
     lies on its axis) on a pool of 2 workers. Each worker appends its SDK imports and rollout compilations to the file
-    STEREODYN_MJX_STARTUP_LOG names (mjx.startups, counted where they happen). 65 samples: the timed run's rollout (the
-    grid's 64 intervals) is the accuracy run's chunk, so one compilation per integrator and precision serves every
-    run. In each worker the SDK is imported at most once and each (precision, integrator, structure, intervals) is
-    compiled once, and the two cases share it. MJX's declared start-up (Timing.startup_s, 10 s) outweighs these short
-    runs, so a single worker serves them all (harness.run.workers); the parent, which repeats no timing here, none.
-    Cold JAX cache ~40 s of CPU, warm ~15 s."""
+    STEREODYN_MJX_STARTUP_LOG names (mjx.startups, counted where they happen). 151 samples: the two dt give grids of
+    100 and 150 intervals, and the accuracy runs go in chunks of 64 (mjx.CHUNK); one compilation per integrator and
+    precision serves them all (a rollout compiled per grid shape compiled three). In each worker the SDK is imported at
+    most once and each (precision, integrator, structure) is compiled once, and the two cases share it. MJX's
+    declared start-up (Timing.startup_s, 10 s) outweighs these short runs, so a single worker serves them all
+    (harness.run.workers); the parent, which repeats no timing here, none. Cold JAX cache ~40 s of CPU, warm ~15 s."""
     import json
 
     from stereodyn.harness.engines.mjx import STARTUP_LOG_ENV
@@ -128,7 +134,7 @@ def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mj
 
     log = tmp_path / "startups.jsonl"
     monkeypatch.setenv(STARTUP_LOG_ENV, str(log))  # the spawned workers inherit it
-    cases = [dataclasses.replace(with_overrides(find_case(name), t_end=1.0, dt=[0.01, 0.005]), samples=65)
+    cases = [dataclasses.replace(with_overrides(find_case(name), t_end=1.0, dt=[0.01, 0.005]), samples=151)
              for name in ("lagrange-top", "kovalevskaya")]
     with local_pool(2, 16, ("mjx",)) as pool:
         workers = set(pool.pids)
@@ -142,17 +148,17 @@ def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mj
     assert len(imports) == len(set(imports)) == 1, events  # one worker imported the SDK, once
     compilations = [(e["pid"], *e["key"]) for e in events if e["event"] == "compilation"]
     assert len(compilations) == len(set(compilations)), compilations  # each structure once per worker
-    by_program = {}  # (pid, precision, integrator, intervals) -> structures compiled: both cases share one
-    for pid, precision, integrator, structure, intervals in compilations:
-        by_program.setdefault((pid, precision, integrator, intervals), []).append(structure)
+    by_program = {}  # (pid, precision, integrator) -> structures compiled: both cases share one
+    for pid, precision, integrator, structure in compilations:
+        by_program.setdefault((pid, precision, integrator), []).append(structure)
     assert all(len(structures) == 1 for structures in by_program.values()), by_program
-    assert {key[1:] for key in by_program} == {(p, i, 64) for p in ("float64", "float32") for i in ("euler", "rk4")}
+    assert {key[1:] for key in by_program} == {(p, i) for p in ("float64", "float32") for i in ("euler", "rk4")}
 
 
 def test_a_workers_single_timed_run_compiles_nothing(mjx):
     """A sweep's worker prepares a run under the prepare budget, runs it under the run budget (CHUNK intervals a call)
     and then times it once with no budget (timing.timed_once: one call over the grid's intervals). prepare compiles
-    both rollouts, so the timed run compiles nothing (mjx.startups): compiled there, the single time held the
+    the one rollout both use, so the timed run compiles nothing (mjx.startups): compiled there, the single time held the
     compilation (1.5-26 s in a 2-worker sweep, against runs of milliseconds)."""
     from stereodyn.harness.engines.mjx import CHUNK, startups
     from stereodyn.harness.run import timing

@@ -2,12 +2,13 @@
 
 The model is MuJoCo's own scene of the case (harness.engines.mujoco.scene: one body on a ball joint at O), put on
 the device with mjx.put_model. qpos is the quaternion (w, x, y, z) body -> world, qvel the body angular velocity, as
-in MuJoCo C. A run is one jitted function of (model, data, steps per sample interval): a lax.scan over the sample
-intervals, each a lax.fori_loop of mjx.step, so the whole rollout is compiled once per integrator, precision and
-sample count in a process and every case reuses it (the model is an argument, not a constant). Under a wall-time
-budget (the sweep's accuracy runs) the rollout goes CHUNK sample intervals a call, the budget checked between calls
-(the same numbers, bit for bit). prepare() compiles (never timed); run() waits for the result
-(jax.block_until_ready) before it returns. jax and mujoco.mjx are imported on the first prepare.
+in MuJoCo C. A run is one jitted function of (model, data, steps per sample interval, how many intervals): a loop over
+the sample intervals, each a lax.fori_loop of mjx.step, into SLOTS rows, so the whole rollout is compiled once per
+integrator, precision and model structure in a process, whatever the grid, and every case reuses it (the model is an
+argument, not a constant). Under a wall-time budget (the sweep's accuracy runs) the rollout goes CHUNK sample
+intervals a call, the budget checked between calls (the same numbers, bit for bit). prepare() compiles (never
+timed); run() waits for the result (jax.block_until_ready) before it returns. jax and mujoco.mjx are imported on
+the first prepare.
 
 Precision: JAX's `jax_enable_x64` is a process-wide flag whose value at trace time fixes every dtype, so each run
 traces, compiles and calls its function inside `jax.enable_x64(precision == "float64")`: float32 and float64 runs
@@ -47,7 +48,7 @@ from .. import budget
 from ..scenes.cases import Case
 from .backends import MujocoBackend
 from .mujoco import scene_state, torque_mode
-from ..grid import TimeGrid, time_grid
+from ..grid import TimeGrid
 from ..trajectory import Status, Trajectory, divergence_message, first_bad_sample
 
 # harness name (MuJoCo's, lower case) -> dynamics evaluations per step. MJX has no `implicit` integrator.
@@ -103,7 +104,7 @@ def compiled_model(case: Case, integrator: str, dt: float) -> tuple:
 # user can count them per worker process (tests/test_mjx.py).
 STARTUP_LOG_ENV = "STEREODYN_MJX_STARTUP_LOG"
 _IMPORTS: list[int] = [0]
-_COMPILATIONS: dict[tuple, int] = {}  # (precision, integrator, structure number, intervals) -> compilations
+_COMPILATIONS: dict[tuple, int] = {}  # (precision, integrator, structure number) -> compilations
 _STRUCTURES: list = []  # the pytree structures this process compiled for, in order: a structure's number (the
 # structure's text holds object addresses, so it names nothing across processes; its number is this process's)
 
@@ -111,7 +112,7 @@ _STRUCTURES: list = []  # the pytree structures this process compiled for, in or
 def startups() -> dict:
     """What this process has paid for MJX so far: {"imports": times the SDK was imported (jax, mujoco.mjx and the
     rollout's definition: 1 after the first prepare, 0 before), "compilations": {(precision, integrator, structure
-    number, sample intervals): times that rollout was traced and compiled}}. The structure number is the order in
+    number): times that rollout was traced and compiled}}. The structure number is the order in
     which this process first compiled for a model structure (one serves every case that shares it)."""
     return {"imports": _IMPORTS[0], "compilations": dict(_COMPILATIONS)}
 
@@ -151,21 +152,26 @@ def _sdk() -> SimpleNamespace:
                                        "stereodyn", "jax"))
 
     @jax.jit
-    def rollout(model, data, counts):
-        """The states after each sample interval, and the last: counts (n,) int32 steps per interval -> (data,
-        (qpos (n, 4), qvel (n, 3)))."""
-        def interval(state, steps):
-            state = jax.lax.fori_loop(0, steps, lambda _, d: mjx.step(model, d), state)
-            return state, (state.qpos, state.qvel)
+    def rollout(model, data, counts, intervals):
+        """The states after each of the first `intervals` sample intervals, and the last: counts (SLOTS,) int32
+        steps per interval, intervals int32 <= SLOTS -> (data, (qpos (SLOTS, 4), qvel (SLOTS, 3))), the rows past
+        `intervals` zero. A loop of `intervals` turns, not a scan over the SLOTS: a slot past them costs nothing."""
+        def interval(i, carry):
+            state, qpos, qvel = carry
+            state = jax.lax.fori_loop(0, counts[i], lambda _, d: mjx.step(model, d), state)
+            return state, qpos.at[i].set(state.qpos), qvel.at[i].set(state.qvel)
 
-        return jax.lax.scan(interval, data, counts)
+        rows = (jnp.zeros((counts.size, data.qpos.size), data.qpos.dtype),
+                jnp.zeros((counts.size, data.qvel.size), data.qvel.dtype))
+        data, qpos, qvel = jax.lax.fori_loop(0, intervals, interval, (data, *rows))
+        return data, (qpos, qvel)
 
     _record("import", None, time.perf_counter() - started)
     return SimpleNamespace(jax=jax, jnp=jnp, mjx=mjx, rollout=rollout)
 
 
-# Compiled rollouts of this process: (precision, integrator, pytree structure of (model, data), sample intervals) ->
-# jax's Compiled. The structure holds a model's static fields, so one entry serves every case that shares them.
+# Compiled rollouts of this process: (precision, integrator, pytree structure of (model, data)) -> jax's Compiled.
+# The structure holds a model's static fields, so one entry serves every case that shares them.
 _COMPILED: dict[tuple, object] = {}
 # The precision of the last trace: switching it clears jax's caches first. jax 0.10 caches the trace of a jitted
 # helper (jnp.tril, called by MJX's rungekutta4 on its float64 numpy tableau) across jax_enable_x64 settings, so rk4
@@ -173,30 +179,33 @@ _COMPILED: dict[tuple, object] = {}
 # tensor<3x3xf32>, provided tensor<3x3xf64>"), in either order (tests/test_mjx.py). The Compiled objects above are
 # kept: clearing jax's caches does not touch them.
 _last_traced: list[str] = []
+# The rollout's rows: every grid shares its shape, so one compilation per integrator, precision and structure serves
+# every grid, every chunk and every case of that structure in a process. A rollout compiled per grid shape (as before
+# issue 29) compiled 3 per structure in the quick suite (its two grids and the chunk): 36 compilations, 196 s of a
+# worker with JAX's cache warm. 1024 holds a suite case's grid (at most 1000 intervals) in one call; a longer grid
+# goes SLOTS intervals a call. A call costs ~0.3 ms of dispatch (MJX's data is a large pytree), so the timed runs,
+# which have no budget, go in as few calls as that allows.
+SLOTS = 1024
 # Under a wall-time budget (the sweep's accuracy runs) a run is CHUNK sample intervals per call, the budget checked
-# between calls: one compiled call cannot be stopped inside. Every grid shares the chunk's shape (one compilation per
-# integrator, precision and structure); the last chunk is padded with intervals of 0 steps. A call costs ~0.3 ms of
-# dispatch (MJX's data is a large pytree), so the timed runs, which have no budget, stay one call.
+# between calls: one compiled call cannot be stopped inside.
 CHUNK = 64
 
 
-def _compiled(precision: str, integrator: str, model, data, intervals: int):
-    """The Compiled rollout over `intervals` sample intervals: from this process's cache, else traced and compiled
-    (under the precision's jax_enable_x64, already entered by the caller)."""
+def _compiled(precision: str, integrator: str, model, data):
+    """The Compiled rollout (SLOTS rows): from this process's cache, else traced and compiled (under the precision's
+    jax_enable_x64, already entered by the caller)."""
     sdk = _sdk()
     structure = sdk.jax.tree_util.tree_structure((model, data))
-    key = (precision, integrator, structure, intervals)
+    key = (precision, integrator, structure)
     if key not in _COMPILED:
         if _last_traced and _last_traced[-1] != precision:
             sdk.jax.clear_caches()
         _last_traced[:] = [precision]
         started = time.perf_counter()
-        counts = sdk.jnp.zeros(intervals, dtype=sdk.jnp.int32)
-        _COMPILED[key] = sdk.rollout.lower(model, data, counts).compile()
+        _COMPILED[key] = sdk.rollout.lower(model, data, np.zeros(SLOTS, np.int32), np.int32(0)).compile()
         if structure not in _STRUCTURES:
             _STRUCTURES.append(structure)
-        _record("compilation", (precision, integrator, _STRUCTURES.index(structure), intervals),
-                time.perf_counter() - started)
+        _record("compilation", (precision, integrator, _STRUCTURES.index(structure)), time.perf_counter() - started)
     return _COMPILED[key]
 
 
@@ -214,36 +223,31 @@ class MjxSimulation:
         with sdk.jax.enable_x64(self.x64):
             self.model = sdk.mjx.put_model(model)
             self.data = sdk.mjx.put_data(model, data)
-            # compile now (not timed) the rollouts the runs will use: the case's own grid's, one call (the timed
-            # runs: the timing phases, and the worker's single timed run right after its accuracy run, which has no
-            # budget, timing.timed_once), and under a budget (the sweep's and ladders' accuracy runs) the chunk's too.
-            # Compiled only on the timed run, a worker's single time held the compilation (measured 1.5-26 s against
-            # runs of milliseconds). Another grid is compiled on its first run.
-            grid = time_grid(case.t_end, self.dt, case.samples)
-            _compiled(precision, integrator, self.model, self.data, grid.sample_steps.size - 1)
-            if budget.deadline() is not None:
-                _compiled(precision, integrator, self.model, self.data, CHUNK)
+            # compile now (not timed) the rollout every run uses: compiled on a timed run, the worker's single time
+            # (timing.timed_once) held the compilation (measured 1.5-26 s against runs of milliseconds)
+            _compiled(precision, integrator, self.model, self.data)
 
     def run(self, grid: TimeGrid) -> Trajectory:
         if grid.dt != self.dt:
             raise ValueError(f"grid dt {grid.dt} differs from the prepared dt {self.dt}")
         sdk = _sdk()
         counts = np.diff(grid.sample_steps).astype(np.int32)
+        budgeted = budget.deadline() is not None  # then CHUNK intervals a call, the budget checked between calls
+        per_call = CHUNK if budgeted else SLOTS
         with sdk.jax.enable_x64(self.x64):  # the function is called under the setting it was compiled with
-            if budget.deadline() is None:  # one call
-                rollout = _compiled(self.precision, self.integrator, self.model, self.data, counts.size)
-                qpos, qvel = sdk.jax.block_until_ready(rollout(self.model, self.data, counts)[1])
-            else:  # CHUNK intervals a call, the budget checked between calls
-                rollout = _compiled(self.precision, self.integrator, self.model, self.data, CHUNK)
-                padded = np.zeros(-(-counts.size // CHUNK) * CHUNK, dtype=np.int32)
-                padded[:counts.size] = counts
-                data, parts = self.data, []
-                for start in range(0, padded.size, CHUNK):
-                    data, states = rollout(self.model, data, padded[start:start + CHUNK])
-                    parts.append(sdk.jax.block_until_ready(states))
+            rollout = _compiled(self.precision, self.integrator, self.model, self.data)
+            data, parts = self.data, []
+            for start in range(0, max(counts.size, 1), per_call):  # one call even for an empty grid
+                part = counts[start:start + per_call]
+                slots = np.zeros(SLOTS, np.int32)
+                slots[:part.size] = part
+                data, states = rollout(self.model, data, slots, np.int32(part.size))
+                q, v = sdk.jax.block_until_ready(states)
+                parts.append((np.asarray(q)[:part.size], np.asarray(v)[:part.size]))
+                if budgeted:
                     budget.check()
-                qpos = np.concatenate([q for q, _ in parts])[:counts.size]
-                qvel = np.concatenate([v for _, v in parts])[:counts.size]
+            qpos = np.concatenate([q for q, _ in parts])
+            qvel = np.concatenate([v for _, v in parts])
         quat = np.empty((grid.times.size, 4))
         omega = np.empty((grid.times.size, 3))
         # the initial state as the device holds it (float32 rounds it: part of that precision's error)
@@ -269,12 +273,11 @@ class MjxEngine(MujocoBackend):
     # first prepare in a fresh process (heavy-asymmetric float64, dt 0.01, under a budget as a sweep's worker prepares
     # it: SDK import 0.9-1.3 s, then the grid's and the chunk's rollouts) took 14 s (euler) and 26 s (rk4) with JAX's
     # persistent cache cold, 4 s and 6 s warm (compiling the chunk's alone, before prepare compiled both: 7-14 s cold,
-    # 3 s warm). A worker then pays a compilation per integrator, precision, model structure and sample count it
-    # meets (startups()): 8 in a sweep of two cases of one structure, euler and rk4, both precisions, 51 samples (4
-    # with 65: tests/test_mjx.py), ~90 s cold and 11-22 s warm per worker; a second worker mostly finds the first's
-    # compilations in the cache. 10 s sits
-    # between the warm and the cold first prepare, and under a warm sweep's start-up: a second worker takes MJX's runs
-    # only when their queued cost outweighs it (harness.run.workers).
+    # 3 s warm). A worker then pays a compilation per integrator, precision and model structure it meets
+    # (startups()): 4 in a sweep of two cases of one structure, euler and rk4, both precisions (tests/test_mjx.py);
+    # a second worker mostly finds the first's compilations in JAX's cache. 10 s sits between the warm and the cold
+    # first prepare, and under a warm sweep's start-up: a second worker takes MJX's runs only when their queued cost
+    # outweighs it (harness.run.workers).
     timing = Timing(pass_us=15.0, startup_s=10.0)
     about = About(packages=("mujoco-mjx", "jax", "jaxlib", "mujoco"), linestyle=(0, (3, 1, 1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
