@@ -106,3 +106,39 @@ def test_the_sweep_queues_its_runs_by_cost_one_precision_at_a_time(tmp_path, mon
     run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["euler", "rk4"], jobs=1, certify=False))
     assert len(seen) == 1 and [cost(s) for s in seen[0]] == sorted((cost(s) for s in seen[0]), reverse=True)
     assert [s.label for s in queued[0]] == [s.label for s in seen[0][::-1]]  # its order, whatever it is
+
+
+def test_the_ladders_go_to_the_pool_with_their_engines_affinity_one_precision_at_a_time(monkeypatch):
+    """A family's ladder (dt ladder, short ladder, first part) is submitted to the sweep's pool with its engine's
+    affinity (the engine's start-up; a cost of twice its finest point), so it goes preferably to a worker that paid
+    for that engine, and an engine whose precision is process-global gets its families one precision at a time: the
+    default run with every extra spent 19 min in its ladders, Genesis's short ladders spread over both workers with
+    their precision alternating."""
+    from concurrent.futures import Future
+    from types import SimpleNamespace
+
+    from stereodyn.harness.pipeline import dt_ladders
+    from stereodyn.harness.run import pool as pool_module, timing
+
+    monkeypatch.setattr(timing, "process_global_precision", lambda engine: engine == "g")
+    monkeypatch.setattr(pool_module, "startup_s", lambda engine: {"g": 45.0}.get(engine, 0.0))
+    monkeypatch.setattr(pool_module, "get_engine",
+                        lambda engine: SimpleNamespace(pass_us={"g": 400.0}.get(engine, 1.0)))
+    submitted = []
+
+    class Pool:
+        def submit(self, fn, *args, affinity=None):
+            submitted.append((args[0], affinity))
+            future = Future()
+            future.set_result(([], {}))
+            return future
+
+    case = find_case("lagrange-top")
+    families = [dt_ladders.Family(case, engine, "", "euler", precision) for engine, precision in
+                [("g", "float64"), ("m", "float64"), ("g", "float32"), ("g", "float64"), ("m", "float32")]]
+    dt_ladders.run_ladders([], 1000, Pool(), short=[(family, [], 1000) for family in families], timed=False)
+    assert [(f.engine, f.precision) for f, _ in submitted] == \
+        [("g", "float64"), ("m", "float64"), ("g", "float64"), ("g", "float32"), ("m", "float32")]
+    assert all(a.key == f.engine for f, a in submitted)
+    assert [a.startup_s for f, a in submitted if f.engine == "g"] == [45.0] * 3
+    assert all(a.cost_s == pytest.approx(2 * 1000 * 400e-6) for f, a in submitted if f.engine == "g")

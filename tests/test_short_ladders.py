@@ -295,3 +295,25 @@ def test_the_default_run_gives_a_short_ladder_to_the_families_without_an_order()
     read_back = results.assign(rhs_per_sim_s=results["rhs_per_sim_s"] * (1 - 5e-11))
     [(_, _, steps)] = workprecision.short_ladder_families(read_back, [case], ["mujoco"], ["euler"], [], set())
     assert steps == workprecision.SHORT_MAX_EVALS
+
+
+def test_a_short_ladder_point_is_capped_at_its_seconds_of_stepping_in_the_sweep():
+    """A family whose steps cost SHORT_MAX_POINT_S / SHORT_MAX_EVALS or more in the sweep (its median us_per_step)
+    gets a steps cap of SHORT_MAX_POINT_S of stepping, never below its own sweep's steps: Genesis's Euler at ~0.5
+    ms a step ran 64000-80000-step points of 30-40 s. A cheap family keeps SHORT_MAX_EVALS."""
+    case = with_overrides(find_case("kovalevskaya"), t_end=T_END, dt=[1e-2, 3e-3])
+
+    def runs(us_per_step):
+        return pd.DataFrame([{"case": case.name, "engine": "mujoco", "formulation": "", "integrator": "euler",
+                              "dt": dt, "steps": round(T_END / dt), "status": "ok", "attitude_err": 1e-3,
+                              "omega_err": 1e-3, "casimir_drift": 0.0, "t_end": T_END, "rhs_per_sim_s": 1 / dt,
+                              "us_per_step": us_per_step} for dt in case.dt])
+
+    def cap(us_per_step):
+        [(_, _, steps)] = workprecision.short_ladder_families(runs(us_per_step), [case], ["mujoco"], ["euler"], [],
+                                                             set())
+        return steps
+
+    assert cap(2.0) == workprecision.SHORT_MAX_EVALS  # 80000 steps x 2 µs = 0.16 s
+    assert cap(500.0) == int(workprecision.SHORT_MAX_POINT_S / 500e-6)  # 30000 steps: 15 s
+    assert cap(1e7) == round(T_END / 3e-3)  # 10 s a step: the sweep's own steps, no fewer

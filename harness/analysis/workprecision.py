@@ -60,6 +60,12 @@ DEFAULT_LADDER_SKIP = ("implicitfast", "rk4_naive")
 # bench_short_ladders.py, 1 worker, other processes on the machine): +53 s of one core, 286 of 400 families fitted;
 # 160000 evaluations (Euler 160000 steps): +92 s, 296.
 SHORT_MAX_STEPS, SHORT_MAX_EVALS = DEFAULT_MAX_STEPS, 2 * DEFAULT_MAX_STEPS
+# ... and at most SHORT_MAX_POINT_S of stepping at the family's own cost of a step in the sweep (its median
+# us_per_step), never below the sweep's own steps. Genesis steps at ~0.5 ms: 64000-80000 steps were 30-40 s a point,
+# and its short ladders 1.26 M steps, ~640 s of CPU (the default run with every extra, 2026-11-27). The other engines'
+# points stayed under 9.4 s at these caps in four default runs (Drake's discrete and runge_kutta3 the dearest), so
+# 15 s leaves them as they were.
+SHORT_MAX_POINT_S = 15.0
 
 
 def _ladder_cost(family: Family) -> float:
@@ -87,7 +93,8 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
                           sweep_rows: list[dict], laddered: set[tuple],
                           remeasure: set[tuple] = frozenset()) -> list[tuple[Family, list[dict], int]]:
     """The families that get a short ladder (pipeline.dt_ladders.run_short_ladder), each with its sweep runs and its
-    steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep): every
+    steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep; at most
+    SHORT_MAX_POINT_S of stepping at its cost of a step in the sweep): every
     fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
     gives no order (or, for a claim (engine, formulation, integrator) in remeasure, whose order misses the rule on
     too few points: weak_claims; its non-chaotic cases), and with a run that was not failed or skipped (those keep
@@ -112,6 +119,11 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
         # back gives 0.99999999995 for Euler (its numbers are written to 10 digits)
         evals = round(per_step) if math.isfinite(per_step) else 0
         max_steps = max(SHORT_MAX_STEPS, int(SHORT_MAX_EVALS / evals) if evals >= 1 else 0)
+        per_step_s = group["us_per_step"].median() * 1e-6 if "us_per_step" in group else math.nan
+        if math.isfinite(per_step_s) and per_step_s > 0.0:
+            most = group["steps"].max()
+            floor = int(most) if math.isfinite(most) else 0
+            max_steps = min(max_steps, max(int(SHORT_MAX_POINT_S / per_step_s), floor))
         out.append((family, group[["dt", "steps", "status", "state_err"]].to_dict("records"), max_steps))
     return out
 

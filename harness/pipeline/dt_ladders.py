@@ -50,6 +50,7 @@ from ..run.processes import raise_unless_data
 from ..run.measure import measure as run_measure, rate
 from ..run.spec import Family, base_row  # noqa: F401 (Family: part of this API)
 from ..precision import EPS
+from ..run.pool import family_affinity, one_precision_at_a_time
 from ..run.workers import WatchedPool
 # a point's truth, its single time and the ladders' timing phase (points.py, beside this module: tolerance_ladders
 # reads them there); importable from here as before
@@ -167,18 +168,23 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None =
     ladders' points timed again here (time_points; the short ladders' points stay untimed; timed False leaves that to
     the caller: pipeline.work_precision times only those that decide). Returns (points, convergence rows): the ladders' in the order of `chosen`,
     then the short ladders' in the order of `short`, then the first parts', whatever order the families finish in."""
-    tasks = [(run_ladder, family, (family, max_steps), LADDER) for family in chosen]
-    tasks += [(run_short_ladder, family, (family, known, steps), SHORT_LADDER) for family, known, steps in short]
-    tasks += [(run_first_part, family, (family, known, steps, row), SHORT_LADDER)
+    tasks = [(run_ladder, family, (family, max_steps), LADDER, max_steps) for family in chosen]
+    tasks += [(run_short_ladder, family, (family, known, steps), SHORT_LADDER, steps) for family, known, steps in short]
+    tasks += [(run_first_part, family, (family, known, steps, row), SHORT_LADDER, steps)
               for family, known, steps, row in first_parts]
     results: dict[int, tuple[list[dict], dict]] = {}
     if pool is None:
-        for index, (function, family, args, _) in enumerate(tasks):
+        for index, (function, family, args, *_) in enumerate(tasks):
             results[index] = function(*args)
             if progress:
                 progress(family.label)
     else:
-        futures = {pool.submit(function, *args): index for index, (function, _, args, _) in enumerate(tasks)}
+        # as the sweep's runs: a family goes preferably to a worker that has paid its engine's start-up, and an
+        # engine whose precision is process-global gets its families one precision at a time (the default run with
+        # every extra spent 19 min here: Genesis's short ladders spread over both workers, its precision alternating)
+        order = one_precision_at_a_time(list(range(len(tasks))), of=lambda index: tasks[index][1])
+        futures = {pool.submit(tasks[index][0], *tasks[index][2],
+                               affinity=family_affinity(tasks[index][1], tasks[index][4])): index for index in order}
         for future in as_completed(futures):
             index = futures[future]
             try:

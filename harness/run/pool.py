@@ -67,22 +67,23 @@ def cost(spec: RunSpec) -> float:
     return RUN_OVERHEAD_S + (2 + CHECK_PASSES) * one_pass
 
 
-def one_precision_at_a_time(specs: list[RunSpec]) -> list[RunSpec]:
+def one_precision_at_a_time(specs: list, of: Callable = lambda item: item) -> list:
     """specs in their order, except that the runs of an engine whose precision is process-global (timing.
     process_global_precision) trade places among those they hold so that each precision's runs come together, in
     the order first met, each in its order: its workers take them in queue order, and Genesis re-initialised itself
     at each change of precision (measured: 8-11 s a run in the quick suite, where its float64 and float32 runs of
-    equal cost alternated; 0.3-3 s a run without the change)."""
+    equal cost alternated; 0.3-3 s a run without the change). of(item) -> what has the engine and precision (a
+    RunSpec, a ladder's Family): the item itself by default."""
     places: dict[str, list[int]] = {}
-    for index, spec in enumerate(specs):
-        if timing.process_global_precision(spec.engine):
-            places.setdefault(spec.engine, []).append(index)
+    for index, item in enumerate(specs):
+        if timing.process_global_precision(of(item).engine):
+            places.setdefault(of(item).engine, []).append(index)
     ordered = list(specs)
     for indices in places.values():
-        runs = [specs[i] for i in indices]
-        first = list(dict.fromkeys(run.precision for run in runs))
-        for index, run in zip(indices, sorted(runs, key=lambda run: first.index(run.precision))):  # stable
-            ordered[index] = run
+        items = [specs[i] for i in indices]
+        first = list(dict.fromkeys(of(item).precision for item in items))
+        for index, item in zip(indices, sorted(items, key=lambda item: first.index(of(item).precision))):  # stable
+            ordered[index] = item
     return ordered
 
 
@@ -119,6 +120,18 @@ def started_engines() -> dict[str, int]:
 def affinity(spec: RunSpec) -> Affinity:
     """A run's affinity (harness.run.workers): its engine, the engine's start-up and the run's estimated cost."""
     return Affinity(spec.engine, startup_s(spec.engine), cost(spec))
+
+
+def family_affinity(family, max_steps: int) -> Affinity:
+    """A ladder task's affinity (one family's ladder, short ladder or first part, run on the sweep's pool): its
+    engine, the engine's start-up, and a rough cost: its finest point (max_steps) twice over, as a walk of halvings
+    sums to about that, at the engine's cost of a pass (Engine pass_us) per stage."""
+    stages = max(1, integrator_registry.stages(family.integrator))
+    try:
+        pass_us = float(get_engine(family.engine).pass_us)
+    except Exception:  # its points say why
+        pass_us = 0.0
+    return Affinity(family.engine, startup_s(family.engine), 2.0 * max_steps * stages * pass_us * 1e-6)
 
 
 def on_paid_worker(pool: WatchedPool | None, engine: str) -> Callable | None:
