@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import as_completed
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import pandas as pd
 
@@ -157,6 +157,17 @@ def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> 
                 "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
+class _Task(NamedTuple):
+    """One family's work on the pool: function(*args) -> (points, convergence row); source: the rows' source column
+    (LADDER or SHORT_LADDER); steps: its steps cap (the finest point's), for the pool's cost estimate."""
+
+    function: Callable
+    family: Family
+    args: tuple
+    source: str
+    steps: int
+
+
 def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None = None,
                 progress: Callable[[str], None] | None = None,
                 short: list[tuple[Family, list[dict], int]] = (),
@@ -166,34 +177,37 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None =
     and every first part (first_parts: (family, its points, its steps cap, its row), run_first_part), their accuracy
     runs in this process (pool None) or on the sweep's pool, each ladder point timed once there, then with timed the
     ladders' points timed again here (time_points; the short ladders' points stay untimed; timed False leaves that to
-    the caller: pipeline.work_precision times only those that decide). Returns (points, convergence rows): the ladders' in the order of `chosen`,
-    then the short ladders' in the order of `short`, then the first parts', whatever order the families finish in."""
-    tasks = [(run_ladder, family, (family, max_steps), LADDER, max_steps) for family in chosen]
-    tasks += [(run_short_ladder, family, (family, known, steps), SHORT_LADDER, steps) for family, known, steps in short]
-    tasks += [(run_first_part, family, (family, known, steps, row), SHORT_LADDER, steps)
+    the caller: pipeline.work_precision times only those that decide). Returns (points, convergence rows): the
+    ladders' in the order of `chosen`, then the short ladders' in the order of `short`, then the first parts',
+    whatever order the families finish in."""
+    tasks = [_Task(run_ladder, family, (family, max_steps), LADDER, max_steps) for family in chosen]
+    tasks += [_Task(run_short_ladder, family, (family, known, steps), SHORT_LADDER, steps)
+              for family, known, steps in short]
+    tasks += [_Task(run_first_part, family, (family, known, steps, row), SHORT_LADDER, steps)
               for family, known, steps, row in first_parts]
     results: dict[int, tuple[list[dict], dict]] = {}
     if pool is None:
-        for index, (function, family, args, *_) in enumerate(tasks):
-            results[index] = function(*args)
+        for index, task in enumerate(tasks):
+            results[index] = task.function(*task.args)
             if progress:
-                progress(family.label)
+                progress(task.family.label)
     else:
         # as the sweep's runs: a family goes preferably to a worker that has paid its engine's start-up, and an
         # engine whose precision is process-global gets its families one precision at a time (the default run with
         # every extra spent 19 min here: Genesis's short ladders spread over both workers, its precision alternating)
-        order = one_precision_at_a_time(list(range(len(tasks))), of=lambda index: tasks[index][1])
-        futures = {pool.submit(tasks[index][0], *tasks[index][2],
-                               affinity=family_affinity(tasks[index][1], tasks[index][4])): index for index in order}
+        order = one_precision_at_a_time(list(range(len(tasks))), of=lambda index: tasks[index].family)
+        futures = {pool.submit(tasks[index].function, *tasks[index].args,
+                               affinity=family_affinity(tasks[index].family, tasks[index].steps)): index
+                   for index in order}
         for future in as_completed(futures):
             index = futures[future]
             try:
                 results[index] = future.result()
             except Exception as exc:  # a worker that died: the family's row says so
                 raise_unless_data(exc)
-                results[index] = _failed_family(tasks[index][1], exc, tasks[index][3])
+                results[index] = _failed_family(tasks[index].family, exc, tasks[index].source)
             if progress:
-                progress(tasks[index][1].label)
+                progress(tasks[index].family.label)
     points, rows = [], []
     for index in range(len(tasks)):
         points += results[index][0]
