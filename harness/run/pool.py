@@ -60,11 +60,16 @@ def cost(spec: RunSpec) -> float:
     it runs, counts as a one-stage run at the case's finest step: an upper bound for the reference's Taylor runs
     (measured 0.02-1 times that), since underestimating a long run is what leaves it alone at the end."""
     dt = min(spec.case.dt) if spec.dt is None else spec.dt
-    steps = math.ceil(spec.case.t_end / dt - 1e-9)
-    # at least one pass a step: moser_veselov declares 0 stages (it calls no accel) yet costs a solve a step
-    one_pass = steps * max(1, integrator_registry.stages(spec.integrator)) * get_engine(spec.engine).pass_us * 1e-6
+    one_pass = pass_s(spec.engine, spec.integrator, math.ceil(spec.case.t_end / dt - 1e-9))
     # the accuracy run with its metrics and checks, then the worker's single timed run (timing.timed_once)
     return RUN_OVERHEAD_S + (2 + CHECK_PASSES) * one_pass
+
+
+def pass_s(engine: str, integrator: str, steps: int) -> float:
+    """Estimated seconds of one pass of `steps` steps: steps x the integrator's stages x the engine's cost of a stage
+    (Engine pass_us). At least one stage a step: moser_veselov declares 0 (it calls no accel) yet costs a solve a
+    step."""
+    return steps * max(1, integrator_registry.stages(integrator)) * get_engine(engine).pass_us * 1e-6
 
 
 def one_precision_at_a_time(specs: list, of: Callable = lambda item: item) -> list:
@@ -125,13 +130,8 @@ def affinity(spec: RunSpec) -> Affinity:
 def family_affinity(family, max_steps: int) -> Affinity:
     """A ladder task's affinity (one family's ladder, short ladder or first part, run on the sweep's pool): its
     engine, the engine's start-up, and a rough cost: its finest point (max_steps) twice over, as a walk of halvings
-    sums to about that, at the engine's cost of a pass (Engine pass_us) per stage."""
-    stages = max(1, integrator_registry.stages(family.integrator))
-    try:
-        pass_us = float(get_engine(family.engine).pass_us)
-    except Exception:  # its points say why
-        pass_us = 0.0
-    return Affinity(family.engine, startup_s(family.engine), 2.0 * max_steps * stages * pass_us * 1e-6)
+    sums to about that (pass_s)."""
+    return Affinity(family.engine, startup_s(family.engine), 2.0 * pass_s(family.engine, family.integrator, max_steps))
 
 
 def on_paid_worker(pool: WatchedPool | None, engine: str) -> Callable | None:
