@@ -137,3 +137,35 @@ def test_the_heartbeat_thread_writes_and_stops(monkeypatch):
     time.sleep(0.2)
     assert log.getvalue() == written  # finished: no more lines
     assert ProgressBar(io.StringIO(), enabled=False)._thread is None  # --quiet: no thread at all
+
+
+def test_the_bar_ends_at_100_percent_when_an_engine_declares_a_start_up(tmp_path, monkeypatch):
+    """The bar's total counts each engine's start-up once per worker that pays it (pool.startup_cost); the runs that
+    paid it count it when they finish (pool.startup_charges). Before, no run counted it: the quick suite's bar (every
+    extra) stalled at the runs' share and showed 'ETA 1:00:01' a minute before its sweep ended."""
+    from stereodyn.harness.run import pool
+
+    from stereodyn.harness.run import progress
+
+    monkeypatch.setattr(pool, "startup_s", lambda engine: 100.0)  # 100 s against runs of ~0.01 s
+    monkeypatch.setattr(progress, "REFRESH_S", 0.0)  # a frame after every run
+    screen = Terminal()
+    case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
+    run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["euler", "rk4"], jobs=1),
+              progress=ProgressBar(screen, width=100))
+    frames = screen.getvalue().split("\r")
+    assert "4/4" in frames[-1] and "100%" in frames[-1], frames[-1]
+    first = next(frame for frame in frames if "1/4" in frame)  # the first run paid the start-up: most of the total
+    assert int(first.split("%")[0].split()[-1]) >= 90, first
+
+
+def test_start_up_charges_add_up_to_the_start_up_cost(monkeypatch):
+    from types import SimpleNamespace
+    from stereodyn.harness.run import pool
+
+    monkeypatch.setattr(pool, "startup_s", lambda engine: {"a": 10.0, "b": 3.0}[engine])
+    specs = [SimpleNamespace(engine="a")] * 3 + [SimpleNamespace(engine="b")]
+    charge = pool.startup_charges(specs, jobs=2)
+    charged = [charge(spec.engine) for spec in specs]
+    assert charged == [10.0, 10.0, 0.0, 3.0]  # a: paid by both workers; b: one run, one worker
+    assert sum(charged) == pool.startup_cost(specs, jobs=2) == 23.0

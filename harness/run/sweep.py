@@ -29,7 +29,7 @@ from .distributed import run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import (cost, local_pool, on_paid_worker, one_precision_at_a_time, run_local,  # noqa: F401 (worker_pool)
-                   startup_cost, sweep_run, worker_failed_row, worker_pool)
+                   startup_charges, startup_cost, sweep_run, worker_failed_row, worker_pool)
 from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
@@ -185,7 +185,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
             # sweep (seconds per run at ~1000 rows), so refresh them at most every PUBLISH_EVERY_S and at the end.
             if time.monotonic() - last_publish[0] >= PUBLISH_EVERY_S:
                 publish()
-            progress.advance(spec.label, cost(spec), str(row.get("status", "")))
+            progress.advance(spec.label, cost(spec) + charge(spec.engine), str(row.get("status", "")))
 
         def _compare(spec: RunSpec, states: dict) -> None:
             agreement.append({"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
@@ -215,10 +215,12 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
                 finished(spec, {**base_row(spec, None), **failure})
             pending = [s for s in pending if s.case is not case]
 
+        charge = startup_charges([], local_jobs)  # a failed truth's runs finish before the bar starts: no charge
         truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
                               progress.phase, truth_failed, budgets)
         progress.start(len(pending), sum(cost(s) for s in pending) + startup_cost(pending, local_jobs),
                        resumed=len(specs) - len(pending))
+        charge = startup_charges(pending, local_jobs)
         try:
             if options.scheduler:
                 run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
