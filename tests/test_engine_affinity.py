@@ -71,7 +71,8 @@ def test_a_worker_counts_the_engines_it_ran(monkeypatch):
     monkeypatch.setattr(run_pool, "measure", lambda spec, truth, **options: {"engine": spec.engine})
     monkeypatch.setattr(run_pool, "_STARTED", {})
     for engine in ("mujoco", "drake", "mujoco"):
-        run_pool.sweep_run(SimpleNamespace(engine=engine, keep_states=False, compared=False), None)
+        run_pool.sweep_run(SimpleNamespace(engine=engine, precision="float64", keep_states=False, compared=False),
+                           None)
     assert run_pool.started_engines() == {"mujoco": 2, "drake": 1}
 
 
@@ -79,7 +80,8 @@ def test_a_worker_counts_the_engines_it_ran(monkeypatch):
 
 TIMED_PLUGIN = '''
 """Two engines that wrap MuJoCo's euler: `warm` declares a start-up, `cold` none. Each simulation appends
-(engine, pid, start, end) of every run() to a file of the folder STEREODYN_TEST_CALLS names (one file per process)."""
+(engine, pid, start, end) of every run() to a file of the folder STEREODYN_TEST_CALLS names (one file per process),
+and each prepare (engine, pid, dt, time) to another."""
 import json
 import os
 import time
@@ -111,6 +113,8 @@ class _Wrapped(Engine):
         return None
 
     def prepare(self, case, integrator, dt):
+        with open(os.path.join(os.environ["STEREODYN_TEST_CALLS"], f"{os.getpid()}.prepared"), "a") as out:
+            out.write(json.dumps([self.name, os.getpid(), dt, time.monotonic()]) + "\\n")
         return _Recorded(self.name, get_engine("mujoco").prepare(case, "euler", dt))
 
 
@@ -182,7 +186,7 @@ def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at
         table = run_sweep([case], options, progress=progress)
     assert set(table.status) == {"ok"} and len(table) == 4, table[["engine", "status", "message"]]
     assert table.timing.str.startswith("best of").all(), table[["engine", "timing"]]
-    calls = [json.loads(line) for path in timed_plugin.iterdir() for line in path.read_text().splitlines()]
+    calls = [json.loads(line) for path in timed_plugin.glob("*.jsonl") for line in path.read_text().splitlines()]
     assert progress.timing_from is not None
     accuracy = {(engine, pid) for engine, pid, start, _ in calls if start < progress.timing_from}
     timed = sorted((start, end, engine, pid) for engine, pid, start, end in calls if start >= progress.timing_from)
@@ -193,6 +197,22 @@ def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at
     assert {pid for _, _, engine, pid in timed if engine == "cold"} == {parent}
     for (_, end, *first), (start, _, *second) in zip(timed, timed[1:]):
         assert end <= start, (first, second)
+
+
+def test_a_run_timed_on_the_worker_that_ran_it_is_not_prepared_again(timed_plugin, tmp_path):
+    """The timing phase times `warm`'s runs (declared start-up) on a worker that ran them, with the models that worker
+    kept from their accuracy runs (pool.prepare_kept): it prepares again only a run whose accuracy run was on another
+    worker. Before, it built every one again (Genesis: ~22 of the quick suite's 48 s of timing)."""
+    case = dataclasses.replace(with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3, 2.5e-3]),
+                               samples=11)
+    progress = _Stages()
+    table = run_sweep([case], SweepOptions(["warm"], tmp_path / "out", jobs=2, certify=False), progress=progress)
+    assert set(table.status) == {"ok"} and table.timing.str.startswith("best of").all(), table
+    prepared = [json.loads(line) for path in timed_plugin.glob("*.prepared") for line in path.read_text().splitlines()]
+    ran = {dt: pid for _, pid, dt, at in prepared if at < progress.timing_from}  # the accuracy runs' workers
+    again = [(pid, dt) for _, pid, dt, at in prepared if at >= progress.timing_from]
+    assert len(ran) == 3 and len(again) < 3, (ran, again)
+    assert all(ran[dt] != pid for pid, dt in again), (ran, again)
 
 
 class _Sim:

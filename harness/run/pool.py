@@ -14,7 +14,7 @@ from .. import budget, integrators as integrator_registry
 from ..engines import get_engine
 from ..trajectory import Status
 from . import timing
-from .measure import measure
+from .measure import measure, prepare
 from .processes import exit_with_parent, raise_unless_data
 from .spec import RunSpec, base_row
 from .workers import Affinity, WatchedPool
@@ -143,6 +143,49 @@ def started_engines() -> dict[str, int]:
     return dict(_STARTED)
 
 
+# The simulations this process prepared for the ok runs of start-up engines in the sweep (sweep_run), by run, for the
+# sweep's timing phase: it times those runs on a worker that ran them (on_paid_worker), which would otherwise build
+# each model again (Genesis: ~2.7 s a scene; its 8 scenes were ~22 of the quick suite's 48 s of timing). A pool serves
+# one sweep; the parent forgets its own after the timing phase (forget_kept: --jobs 1 in process). At most KEPT_MAX,
+# the oldest dropped first (a Genesis scene holds ~10 MB).
+KEPT_MAX = 32
+_KEPT: dict[tuple, object] = {}
+
+
+def _kept_key(run: RunSpec) -> tuple:
+    case = run.case
+    return (case.name, case.t_end, case.samples, run.engine, run.formulation, run.integrator, run.dt, run.tolerance,
+            run.precision)
+
+
+def _released(engine: str, precision: str) -> None:
+    """Forget the kept simulations that a model of engine at precision releases: those of its other precision, where
+    its precision is process-global (timing.process_global_precision: Genesis re-initialises itself)."""
+    if timing.process_global_precision(engine):
+        for key in [key for key in _KEPT if key[3] == engine and key[-1] != precision]:
+            del _KEPT[key]
+
+
+def _keep(run: RunSpec, sim) -> None:
+    _KEPT[_kept_key(run)] = sim
+    while len(_KEPT) > KEPT_MAX:
+        del _KEPT[next(iter(_KEPT))]
+
+
+def prepare_kept(run: RunSpec) -> tuple:
+    """(simulation, grid) of a run, as measure.prepare: the simulation this process kept from the run's accuracy run
+    (sweep_run) where it has one, else built anew."""
+    sim = _KEPT.pop(_kept_key(run), None)
+    if sim is not None:
+        return sim, run.grid
+    _released(run.engine, run.precision)
+    return prepare(run)
+
+
+def forget_kept() -> None:
+    _KEPT.clear()
+
+
 def affinity(spec: RunSpec) -> Affinity:
     """A run's affinity (harness.run.workers): its engine, the engine's start-up and the run's estimated cost."""
     return Affinity(spec.engine, startup_s(spec.engine), cost(spec))
@@ -206,7 +249,15 @@ def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> di
     """A sweep's run on a worker: measure() with the sweep's extras (checks, series, --save-trajectories' states),
     within the budgets (default this process's), then timed once (timing.timed_once: results.csv's timing SINGLE)."""
     _STARTED[spec.engine] = _STARTED.get(spec.engine, 0) + 1
-    row = measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, timed=timing.timed_once,
+    _released(spec.engine, spec.precision)  # measure prepares a model of this precision, whatever its outcome
+    keep = startup_s(spec.engine) > 0.0
+
+    def timed_once(sim, grid) -> dict:  # called only for an ok run, after its accuracy run
+        if keep:
+            _keep(spec, sim)
+        return timing.timed_once(sim, grid)
+
+    row = measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, timed=timed_once,
                   budgets=budgets)
     once = row.pop(timing.ONCE, None)
     if once is not None:  # timed once here, after its accuracy run; the timing phase repeats it if it decides

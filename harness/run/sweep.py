@@ -28,8 +28,8 @@ from . import timing
 from .distributed import run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
-from .pool import (cost, local_pool, on_paid_worker, one_precision_at_a_time, run_local,  # noqa: F401 (worker_pool)
-                   startup_charges, startup_cost, sweep_run, worker_failed_row, worker_pool)
+from .pool import (cost, forget_kept, local_pool, on_paid_worker, one_precision_at_a_time,  # noqa: F401 (worker_pool)
+                   prepare_kept, run_local, startup_charges, startup_cost, sweep_run, worker_failed_row, worker_pool)
 from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
@@ -251,10 +251,12 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
             chosen = set(decides(rows))
             return {i for i in indices if keys[id(untimed[i])] in chosen}
 
-        timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed], prepare,
-                                   select if decides is not None else None,
+        # prepare_kept: a run timed where its accuracy run was (a worker that paid its engine) reuses its model
+        timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed],
+                                   prepare_kept, select if decides is not None else None,
                                    [timing.single(stored[keys[id(s)]]) for s in untimed],
                                    functools.partial(on_paid_worker, pool))
+        forget_kept()
         if untimed:
             environment[TIMING_END] = load_snapshot()
         for spec, timed_columns in zip(untimed, timings):

@@ -228,11 +228,16 @@ def groups(keys: list[tuple[str, str]]) -> list[list[int]]:
     """The timing groups of runs given by (engine, precision): the indices of the runs prepared side by side and
     timed in rounds together. One group for every engine's runs, except an engine whose precision is process-global
     (Engine.process_global_precision: building a model of one precision releases the models of the other), whose runs
-    form a group per precision, after the shared one. Empty groups are left out."""
+    form a group per precision, after the shared one: the precision met last first, since the sweep ran its runs last
+    (pool.one_precision_at_a_time), so its workers still hold that precision and the models they kept
+    (pool.prepare_kept): one switch of precision, not two. Empty groups are left out."""
     found: dict[tuple | None, list[int]] = {None: []}
     for index, (engine, precision) in enumerate(keys):
         found.setdefault((engine, precision) if process_global_precision(engine) else None, []).append(index)
-    return [indices for indices in found.values() if indices]
+    shared = found.pop(None)
+    engines = list(dict.fromkeys(engine for engine, _ in found))
+    ordered = [indices for engine in engines for key, indices in reversed(found.items()) if key[0] == engine]
+    return [indices for indices in [shared, *ordered] if indices]
 
 
 def process_global_precision(engine: str) -> bool:
