@@ -137,13 +137,13 @@ def test_the_sweep_times_once_what_decides_nothing(tmp_path, monkeypatch, repeat
     nothing: no run is prepared again, each keeps its single time; names everything: each is prepared once in the
     timing phase and timed with repeats."""
     from helpers import case_file, tiny_case
-    from stereodyn.harness.run import sweep
+    from stereodyn.harness.run import pool, sweep
     from stereodyn.harness.scenes.cases import load_case
 
     case = load_case(case_file(tmp_path, tiny_case(dt="1e-2, 5e-3")))
     prepared, seen = [], []
-    real = sweep.prepare
-    monkeypatch.setattr(sweep, "prepare", lambda run: prepared.append(run.engine) or real(run))
+    real = pool.prepare  # the timing phase's (pool.prepare_kept: neither engine declares a start-up, none is kept)
+    monkeypatch.setattr(pool, "prepare", lambda run: prepared.append(run.engine) or real(run))
 
     def decides(rows):
         seen.append(sorted(rows["engine"]))
