@@ -4,6 +4,10 @@ torch is not installed (but the missing-extra test runs). Importing Genesis cost
 for a minute or more (then the kernel cache serves): the tests share one module-scoped engine."""
 from __future__ import annotations
 
+import importlib
+import inspect
+import sys
+import types
 
 import numpy as np
 import pytest
@@ -28,6 +32,37 @@ def _against_mujoco_euler(engine, case, integrator, model, precision, seconds=2.
     assert ours.status is Status.OK, ours.message
     angle = float(np.max(attitude_angle(quat_to_matrix(ours.quat), quat_to_matrix(theirs.quat))))
     return ours, angle, float(np.max(np.abs(ours.omega - theirs.omega)))
+
+
+class _Watched(types.ModuleType):
+    """A module that counts the reads of its __file__: inspect.getmodule's walk of sys.modules reads every one."""
+    reads = 0
+
+    @property
+    def __file__(self):
+        _Watched.reads += 1
+        return "/nowhere/stereodyn_watched.py"
+
+
+def test_genesis_import_spares_inspect_its_walks_of_sys_modules(tmp_path, monkeypatch):
+    """Before Genesis imports, inspect learns that no module holds importlib's frozen frames: it answers the same for
+    such a frame (what Quadrants' decorators ask ~2,900 times during the import) without walking sys.modules."""
+    adapter = pytest.importorskip("stereodyn.harness.engines.genesis", exc_type=ImportError)  # needs the extra
+    (tmp_path / "stereodyn_frame_probe.py").write_text("import sys\nFRAME = sys._getframe(1)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    frame = importlib.import_module("stereodyn_frame_probe").FRAME  # the frame that executed the module's body
+    monkeypatch.delitem(sys.modules, "stereodyn_frame_probe")
+    assert frame.f_code.co_filename in adapter.IMPORT_FRAME_FILES
+    monkeypatch.setitem(sys.modules, "stereodyn_watched", _Watched("stereodyn_watched"))
+    monkeypatch.setattr(inspect, "modulesbyfile", {file: name for file, name in inspect.modulesbyfile.items()
+                                                   if file not in adapter.IMPORT_FRAME_FILES})
+    _Watched.reads = 0
+    unseeded = inspect.getframeinfo(frame)
+    assert _Watched.reads > 0  # without the seed, each such question walks every module
+    _Watched.reads = 0
+    adapter.spare_import_scans()
+    assert inspect.getframeinfo(frame) == unseeded
+    assert _Watched.reads == 0
 
 
 def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
