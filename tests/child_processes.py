@@ -62,3 +62,24 @@ def pay(key: str, startup_s: float, run_s: float) -> tuple[int, str, bool]:
         _PAID.add(key)
     time.sleep(run_s)
     return os.getpid(), key, first
+
+
+class _WritesAtTeardown:
+    def __init__(self, path: str):
+        self.path = path
+
+    def __del__(self):
+        Path(self.path).write_text("freed")
+
+
+_HELD = []
+
+
+def watch_exit(folder: str) -> int:
+    """A task for a pool's worker (tests/test_scheduling.py): folder/exit-handler is written if its exit handlers run,
+    folder/teardown if the interpreter frees what its modules hold. Returns the worker's pid."""
+    import atexit
+
+    atexit.register(lambda: Path(folder, "exit-handler").write_text("ran"))
+    _HELD.append(_WritesAtTeardown(str(Path(folder, "teardown"))))
+    return os.getpid()
