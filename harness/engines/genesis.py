@@ -195,7 +195,8 @@ class GenesisEngine(Engine):
     # process imports Genesis (15-30 s) and builds its kernels cold (80-107 s), measured under load 14 on 2 cores:
     # past the sweep's default 120 s. 600 s keeps ~4x that; later prepares take 0.5-20 s. startup_s: a fresh process's
     # first prepare took 59 s with the caches cold and 30-37 s warm on 2 cores (issue 29; genesis-world 1.4.5, torch
-    # 2.13 CPU): 45 s between.
+    # 2.13 CPU): 45 s between. Since spare_import_scans: 56 s cold (import and init 9.4 s, a cold build 46.5 s), 18 s
+    # warm (10.0 + 8.0), idle; 45 s kept, which a first run on a machine (the README's commands) pays nearly whole.
     timing = Timing(pass_us=400.0, startup_s=45.0, process_global_precision=True, prepare_budget_s=600.0)
     about = About(packages=("genesis-world", "torch"), linestyle="--", formulation=BALL)
 

@@ -8,7 +8,7 @@ import signal
 from collections.abc import Iterator
 from concurrent.futures import Future, as_completed
 from contextlib import contextmanager
-from typing import Callable
+from typing import Callable, NamedTuple
 
 from .. import budget, integrators as integrator_registry
 from ..engines import get_engine
@@ -149,20 +149,35 @@ def started_engines() -> dict[str, int]:
 # one sweep; the parent forgets its own after the timing phase (forget_kept: --jobs 1 in process). At most KEPT_MAX,
 # the oldest dropped first (a Genesis scene holds ~10 MB).
 KEPT_MAX = 32
-_KEPT: dict[tuple, object] = {}
 
 
-def _kept_key(run: RunSpec) -> tuple:
+class _Kept(NamedTuple):
+    """What makes a kept simulation the one a run needs."""
+    case: str
+    t_end: float
+    samples: int
+    engine: str
+    formulation: str
+    integrator: str
+    dt: float | None
+    tolerance: float | None
+    precision: str
+
+
+_KEPT: dict[_Kept, object] = {}
+
+
+def _kept_key(run: RunSpec) -> _Kept:
     case = run.case
-    return (case.name, case.t_end, case.samples, run.engine, run.formulation, run.integrator, run.dt, run.tolerance,
-            run.precision)
+    return _Kept(case.name, case.t_end, case.samples, run.engine, run.formulation, run.integrator, run.dt,
+                 run.tolerance, run.precision)
 
 
 def _released(engine: str, precision: str) -> None:
     """Forget the kept simulations that a model of engine at precision releases: those of its other precision, where
     its precision is process-global (timing.process_global_precision: Genesis re-initialises itself)."""
     if timing.process_global_precision(engine):
-        for key in [key for key in _KEPT if key[3] == engine and key[-1] != precision]:
+        for key in [key for key in _KEPT if key.engine == engine and key.precision != precision]:
             del _KEPT[key]
 
 
