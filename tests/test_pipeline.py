@@ -19,8 +19,9 @@ def test_the_phases_of_run_in_order_each_need_given_before():
         assert set(phase.needs) <= given, f"{phase.name} needs {set(phase.needs) - given}"
         assert not set(phase.gives) & given, f"{phase.name} gives again {set(phase.gives) & given}"
         given |= set(phase.gives)
-    # the runs go to the pool; verdicts (their check runs are in this process, as before), pareto and report do not
-    assert [p.name for p in PHASES if p.in_pool] == ["truths and sweep", "ladders", "advice"]
+    # one pool for the whole command: the runs go to it, and the report draws its figures on its workers (verdicts'
+    # check runs stay in this process, as before)
+    assert all(p.in_pool for p in PHASES)
 
 
 @pytest.fixture
@@ -68,3 +69,24 @@ def test_a_phase_that_breaks_its_declaration_is_our_bug(request_):
     early = (Phase("b", ("x",), ("y",), lambda *args: {"y": 1}),)
     with pytest.raises(AssertionError, match="phase 'b' needs x, which no earlier phase gives"):
         run(request, early)
+
+
+def test_the_report_draws_its_figures_on_the_runs_worker_pool(request_, monkeypatch):
+    """The pool's workers have imported most of what drawing needs: the report spawns no processes of its own."""
+    from stereodyn.harness.report import build
+    from stereodyn.harness.run import store
+    from stereodyn.harness.run.progress import ProgressBar
+
+    request, _ = request_
+
+    class Pool:
+        def map(self, fn, items):
+            return [fn(item) for item in items]
+
+    pool, given = Pool(), {}
+    monkeypatch.setattr(build, "write_reports", lambda out, results, **options: given.update(options) or ("md", "h"))
+    monkeypatch.setattr(store, "mark_complete", lambda out: None)
+    phases._report(request, {"results": None, "verdicts": None}, pool, ProgressBar(enabled=False))
+    assert given["render_map"] == pool.map
+    phases._report(request, {"results": None, "verdicts": None}, None, ProgressBar(enabled=False))
+    assert given["render_map"] is None  # --jobs 1: no pool, the report's own processes

@@ -116,6 +116,29 @@ def test_figures_drawn_in_parallel_are_the_same(reported, tmp_path, monkeypatch)
         assert (tmp_path / "copy" / "figures" / png.name).read_bytes() == png.read_bytes()
 
 
+def test_figures_drawn_on_the_runs_worker_pool_are_the_same_and_start_no_process(reported, tmp_path, monkeypatch):
+    """`stereodyn run` hands the report its worker pool's map (pipeline.phases): the figures are drawn there, by
+    processes that have imported most of what drawing needs, and the report spawns none of its own."""
+    from stereodyn.harness.run.pool import local_pool
+
+    def no_processes_of_its_own(*args, **kwargs):
+        raise AssertionError("the report started processes of its own")
+
+    shutil.copytree(reported, tmp_path / "copy")
+    monkeypatch.setattr(build, "ProcessPoolExecutor", no_processes_of_its_own)
+    monkeypatch.setattr(build, "PARALLEL_FIGURES", 1)  # 4 figures: processes of its own without the pool's map
+    drawn = []
+    with local_pool(2, 5, ()) as pool:
+        def pool_map(fn, tasks):
+            drawn.extend(task[:2] for task in tasks)
+            return pool.map(fn, tasks)
+
+        build.write_reports(tmp_path / "copy", render_map=pool_map)
+    assert sorted(drawn) == sorted((kind, case) for case in CASES for kind in ("work-precision", "invariants"))
+    for png in (reported / "figures").glob("*.png"):
+        assert (tmp_path / "copy" / "figures" / png.name).read_bytes() == png.read_bytes()
+
+
 def test_no_figures_writes_the_tables_and_says_where_the_figures_are(reported, tmp_path, monkeypatch):
     """--no-figures (and STEREODYN_FIGURES=0, tests/conftest.py) draws nothing, removes the figures of an earlier
     render and says so in each case's section; --figures draws them again."""

@@ -111,7 +111,10 @@ def _report(request: Request, values: dict, pool, progress: ProgressBar) -> dict
     if request.verbose:
         print(drift_table_text(results))
     progress.stage("report: report.md, figures, report.html" if request.figures else "report: report.md, report.html")
-    markdown, html = write_reports(out, results, self_contained=request.self_contained, figures=request.figures)
+    # the figures are drawn on the pool's workers, which have imported most of what drawing needs: two processes of
+    # their own spawned and imported for 5-8 s each (the quick suite's report)
+    markdown, html = write_reports(out, results, self_contained=request.self_contained, figures=request.figures,
+                                   render_map=None if pool is None else pool.map)
     mark_complete(out)  # the last write: check, baseline, compare and report read the folder from now on
     elapsed = progress.finish()
     lines = [] if request.quiet else summary.terminal_lines(results, values["verdicts"], out, html, elapsed_s=elapsed)
@@ -122,9 +125,9 @@ PHASES = (
     Phase("truths and sweep", (), ("results",), _sweep, in_pool=True),
     Phase("ladders", ("results",), ("ladders",), _ladders, in_pool=True),
     Phase("advice", ("results", "ladders"), ("advice",), _advice, in_pool=True),
-    Phase("verdicts", ("results",), ("verdicts",), _verdicts),
-    Phase("What to use", ("results", "verdicts"), ("pareto",), _what_to_use),
-    Phase("report", ("results", "verdicts"), ("markdown", "html", "summary"), _report),
+    Phase("verdicts", ("results",), ("verdicts",), _verdicts, in_pool=True),
+    Phase("What to use", ("results", "verdicts"), ("pareto",), _what_to_use, in_pool=True),
+    Phase("report", ("results", "verdicts"), ("markdown", "html", "summary"), _report, in_pool=True),
 )
 
 

@@ -12,6 +12,7 @@ import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -97,11 +98,11 @@ def _checks(context: sections.Context) -> list[str]:
 
 def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool,
                     ladder: pd.DataFrame | None = None, tolerance: pd.DataFrame | None = None,
-                    draw: bool = True) -> tuple[dict[str, list[str]], dict]:
+                    draw: bool = True, render_map: Callable | None = None) -> tuple[dict[str, list[str]], dict]:
     """Each case's figures as report lines {case: lines} (work–precision, then invariants against time), and the
     figures {relative path: PNG bytes}; the points of the dt ladders (ladder.csv) and of the tolerance ladders
     (tolerance.csv, harness.analysis.workprecision) join their case's work–precision plot. The tolerance figures are
-    tolerance_figures'. With draw False (--no-figures) each case gets one line saying so."""
+    tolerance_figures'. With draw False (--no-figures) each case gets one line saying so. render_map: _render_all's."""
     if not draw:
         return {case: [NOT_DRAWN, ""] for case in dict.fromkeys(df["case"])}, {}
     images: dict[str, bytes] = {}
@@ -116,7 +117,7 @@ def figure_sections(df: pd.DataFrame, series: dict[tuple, dict], has_store: bool
                "No invariants figure: no stored series in this folder (DIR/runs.json and DIR/store/ are written by "
                "`stereodyn run`)."}
     lines: dict[str, list[str]] = {}
-    for (kind, case, group, _), png in zip(tasks, _render_all(tasks)):
+    for (kind, case, group, _), png in zip(tasks, _render_all(tasks, render_map)):
         if png is None:
             lines.setdefault(case, []).extend([missing[kind], ""])
             continue
@@ -147,22 +148,27 @@ def _render(task: tuple) -> bytes | None:
     return figures.work_precision(group, case) if kind == "work-precision" else figures.invariants(group, series, case)
 
 
-def tolerance_figures(tolerance: pd.DataFrame | None, draw: bool = True) -> tuple[dict[str, str], dict[str, bytes]]:
+def tolerance_figures(tolerance: pd.DataFrame | None, draw: bool = True,
+                      render_map: Callable | None = None) -> tuple[dict[str, str], dict[str, bytes]]:
     """The tolerance-against-error figure of each case with tolerance ladders (tolerance.csv): ({case: relative
-    path}, {relative path: PNG bytes})."""
+    path}, {relative path: PNG bytes}). render_map: _render_all's."""
     if tolerance is None or tolerance.empty or not draw:
         return {}, {}
     cases = list(dict.fromkeys(tolerance["case"]))
     paths, images = {}, {}
-    for case, png in zip(cases, _render_all([("tolerance", case, tolerance, None) for case in cases])):
+    for case, png in zip(cases, _render_all([("tolerance", case, tolerance, None) for case in cases], render_map)):
         if png is not None:
             paths[case] = f"{FIGURES_DIR}/{figure_stem(case)}-tolerance.png"
             images[paths[case]] = png
     return paths, images
 
 
-def _render_all(tasks: list[tuple]) -> list[bytes | None]:
-    """The figures' PNGs, on all cores when there are many: drawing is most of a report's time (1-3 s a figure here)."""
+def _render_all(tasks: list[tuple], render_map: Callable | None = None) -> list[bytes | None]:
+    """The figures' PNGs, on all cores when there are many: drawing is most of a report's time (1-3 s a figure here).
+    render_map(fn, tasks) -> [fn(task), ...] in order: processes already started and imported where the caller has
+    some (`stereodyn run`'s worker pool); else this process's own, spawned here."""
+    if render_map is not None and len(tasks) > 1:
+        return list(render_map(_render, tasks))
     workers = min(os.cpu_count() or 1, len(tasks) // PARALLEL_FIGURES)
     if workers < 2:
         return [_render(task) for task in tasks]
@@ -252,11 +258,12 @@ def _series_index(out_dir: Path) -> dict[tuple, dict]:
 
 
 def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained: bool = False,
-                  figures: bool = True) -> tuple[Path, Path]:
+                  figures: bool = True, render_map: Callable | None = None) -> tuple[Path, Path]:
     """Write DIR/report.md, DIR/figures/*.png and DIR/report.html from the folder's results; return the two pages.
     report.html links the figures in DIR/figures/ (readable at 96 dpi, the ~55 figures of the default run would make a
     self-contained page of over 3 MB); self_contained embeds them instead (one file to send). figures False
-    (--no-figures) draws none: the tables only, and no figure of an earlier render is left behind."""
+    (--no-figures) draws none: the tables only, and no figure of an earlier render is left behind. render_map: where
+    the figures are drawn (_render_all)."""
     out_dir = Path(out_dir)
     df = read_results(out_dir / "results.csv") if df is None else df
     manifest = read_manifest(out_dir)
@@ -264,8 +271,8 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained:
     tolerance = workprecision.read_optional(out_dir / workprecision.TOLERANCE_FILE, workprecision.TEXT_COLUMNS)
     case_extras, images = figure_sections(df, series, manifest is not None,
                                           workprecision.read_optional(out_dir / workprecision.LADDER_FILE), tolerance,
-                                          draw=figures)
-    tolerance_paths, tolerance_images = tolerance_figures(tolerance, draw=figures)
+                                          draw=figures, render_map=render_map)
+    tolerance_paths, tolerance_images = tolerance_figures(tolerance, draw=figures, render_map=render_map)
     images.update(tolerance_images)
     env = dict(manifest["environment"]) if manifest and manifest.get("environment") else None
     if env is not None:

@@ -109,6 +109,11 @@ class WatchedPool:
         self._wake()
         return future
 
+    def map(self, fn, items) -> list:
+        """[fn(item) for item in items] on the workers, in order; the first failure raises (a bug of ours included)."""
+        futures = [self.submit(fn, item) for item in items]
+        return [future.result() for future in futures]
+
     def shutdown(self) -> None:
         """Every task is done: let the idle workers exit on their own (Python joins them at exit at the latest)."""
         with self._lock:
