@@ -255,8 +255,8 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Watch
     except BaseException:
         pool.kill()
         raise
-    # Every run is done and stored: let the idle workers exit on their own rather than wait here for their interpreter
-    # teardown (0.2-0.5 s with the SDKs loaded, ~3% of a short sweep). Python joins them at exit at the latest.
+    # Every task is done: let the idle workers exit on their own (their exit handlers, not the interpreter's teardown:
+    # workers._exit) rather than wait here for them. Python joins them at exit at the latest.
     pool.shutdown()
 
 
