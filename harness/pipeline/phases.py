@@ -111,8 +111,8 @@ def _report(request: Request, values: dict, pool, progress: ProgressBar) -> dict
     if request.verbose:
         print(drift_table_text(results))
     progress.stage("report: report.md, figures, report.html" if request.figures else "report: report.md, report.html")
-    # the figures are drawn on the pool's workers, which have imported most of what drawing needs: two processes of
-    # their own spawned and imported for 5-8 s each (the quick suite's report)
+    # the figures are drawn on the pool's workers, which have imported most of what drawing needs (the report's own
+    # two processes spawned and imported for 5-8 s each in the quick suite)
     markdown, html = write_reports(out, results, self_contained=request.self_contained, figures=request.figures,
                                    render_map=None if pool is None else pool.map)
     mark_complete(out)  # the last write: check, baseline, compare and report read the folder from now on
