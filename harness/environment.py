@@ -19,6 +19,12 @@ CORE_PACKAGES = ("numpy", "scipy")
 TRUTH_PACKAGES = ("heyoka", "stereodyn")
 
 
+def user_cache(*parts: str) -> Path:
+    """A folder of stereodyn's in the user's cache folder: $XDG_CACHE_HOME/stereodyn/*parts, else
+    ~/.cache/stereodyn/*parts (the matrix's environments, MJX's compiled and traced rollouts)."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "stereodyn", *parts)
+
+
 def packages() -> tuple[str, ...]:
     """CORE_PACKAGES, every registered engine's packages, then TRUTH_PACKAGES; each once."""
     from .engines import EngineError, engine_names, get_engine

@@ -55,8 +55,7 @@ def uv_binary() -> str:
 
 def cache_root() -> Path:
     """The user's cache folder for the matrix's environments ($XDG_CACHE_HOME or ~/.cache, then stereodyn/matrix)."""
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "stereodyn" / "matrix"
+    return env_info.user_cache("matrix")
 
 
 def stereodyn_source() -> str:
