@@ -173,35 +173,3 @@ def test_a_workers_single_timed_run_compiles_nothing(mjx):
     prepared = startups()["compilations"]
     timing.timed_once(simulation, grid)
     assert startups()["compilations"] == prepared
-
-
-def test_a_compilation_reads_the_traced_rollout_from_disk_with_the_same_numbers(mjx, tmp_path, monkeypatch):
-    """The traced rollouts persist as jax.export programs (mjx.exports_dir), keyed on what they depend on, the model
-    structure's static fields among them. Two structures (free-asymmetric: full inertia; lagrange-top: diagonal, the
-    centre of mass on an axis, a "simple" body in MuJoCo's compilation) are traced once each into an empty folder; a
-    process that has compiled nothing yet (this one's compiled rollouts set aside) then traces nothing, and each run
-    gives, bit for bit, what the rollout jitted and traced afresh gives: a key that ignored the static fields would hand
-    one structure the other's program (same leaf shapes) and fail this."""
-    from stereodyn.harness.engines import mjx as adapter
-
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    monkeypatch.setattr(adapter, "_COMPILED", {})
-    cases = [_case("free-asymmetric", 1.0, samples=51), _case("lagrange-top", 1.0, samples=51)]
-    first = [mjx.prepare(case, "rk4", 0.01) for case in cases]
-    assert len(list(adapter.exports_dir().glob("rk4-float64-*.bin"))) == 2
-    traces = adapter.startups()["traces"]
-    monkeypatch.setattr(adapter, "_COMPILED", {})  # as a fresh process: nothing compiled yet
-    again = [mjx.prepare(case, "rk4", 0.01) for case in cases]
-    assert adapter.startups()["traces"] == traces  # both read from disk
-    sdk = adapter._sdk()
-    for case, a, b in zip(cases, first, again):
-        grid = time_grid(case.t_end, 0.01, case.samples)
-        counts = np.zeros(adapter.SLOTS, np.int32)
-        counts[:grid.sample_steps.size - 1] = np.diff(grid.sample_steps)
-        with sdk.jax.enable_x64(True):
-            _, (qpos, qvel) = sdk.jax.jit(sdk.rollout.__wrapped__)(b.model, b.data, counts,
-                                                                   np.int32(grid.sample_steps.size - 1))
-        run, rerun = a.run(grid), b.run(grid)
-        assert np.array_equal(rerun.quat[1:], np.asarray(qpos)[:grid.sample_steps.size - 1])
-        assert np.array_equal(rerun.omega[1:], np.asarray(qvel)[:grid.sample_steps.size - 1])
-        assert np.array_equal(run.quat, rerun.quat) and np.array_equal(run.omega, rerun.omega)

@@ -21,15 +21,11 @@ default sweep and `skipped` with the reason when named.
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import math
 import os
 import time
-from importlib import metadata
-from pathlib import Path
 from types import SimpleNamespace
-from typing import NamedTuple
 
 import numpy as np
 
@@ -45,12 +41,10 @@ if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_XLA_THREADS}".strip()
 from .base import FLOAT32, FLOAT64, About, KnownDeviation, Timing, require_modules
 
-# jax and mujoco.mjx are imported on the first prepare (_sdk: 2-8 s); loading the adapter only checks them (and
-# flatbuffers, which jax.export needs to write and read the traced rollouts)
-require_modules(INSTALL, "jax", "mujoco.mjx", "flatbuffers")
+# jax and mujoco.mjx are imported on the first prepare (_sdk: 2-8 s); loading the adapter only checks them
+require_modules(INSTALL, "jax", "mujoco.mjx")
 
 from .. import budget
-from ..atomic import write_atomic
 from ..environment import user_cache
 from ..scenes.cases import Case
 from .backends import MujocoBackend
@@ -111,7 +105,6 @@ def compiled_model(case: Case, integrator: str, dt: float) -> tuple:
 # user can count them per worker process (tests/test_mjx.py).
 STARTUP_LOG_ENV = "STEREODYN_MJX_STARTUP_LOG"
 _IMPORTS: list[int] = [0]
-_TRACES: list[int] = [0]  # compilations that traced MJX's step (the others read their program from exports_dir())
 _COMPILATIONS: dict[tuple, int] = {}  # (precision, integrator, structure number) -> compilations
 _STRUCTURES: list = []  # the pytree structures this process compiled for, in order: a structure's number (the
 # structure's text holds object addresses, so it names nothing across processes; its number is this process's)
@@ -120,24 +113,22 @@ _STRUCTURES: list = []  # the pytree structures this process compiled for, in or
 def startups() -> dict:
     """What this process has paid for MJX so far: {"imports": times the SDK was imported (jax, mujoco.mjx and the
     rollout's definition: 1 after the first prepare, 0 before), "compilations": {(precision, integrator, structure
-    number): times that rollout was compiled}, "traces": how many of those compilations traced MJX's step (the rest
-    read the traced program from exports_dir())}. The structure number is the order in which this process first
-    compiled for a model structure (one serves every case that shares it)."""
-    return {"imports": _IMPORTS[0], "compilations": dict(_COMPILATIONS), "traces": _TRACES[0]}
+    number): times that rollout was traced and compiled}}. The structure number is the order in
+    which this process first compiled for a model structure (one serves every case that shares it)."""
+    return {"imports": _IMPORTS[0], "compilations": dict(_COMPILATIONS)}
 
 
-def _record(event: str, key: tuple | None, seconds: float, traced: bool | None = None) -> None:
+def _record(event: str, key: tuple | None, seconds: float) -> None:
     """Count an import or a compilation (startups), and append it to the file STARTUP_LOG_ENV names, if any: one
     line written at once (O_APPEND), so the workers of a pool can share the file."""
     if key is None:
         _IMPORTS[0] += 1
     else:
         _COMPILATIONS[key] = _COMPILATIONS.get(key, 0) + 1
-        _TRACES[0] += bool(traced)
     path = os.environ.get(STARTUP_LOG_ENV)
     if path:
         line = json.dumps({"pid": os.getpid(), "event": event, "key": None if key is None else list(key),
-                           "seconds": round(seconds, 3), "traced": traced}) + "\n"
+                           "seconds": round(seconds, 3)}) + "\n"
         fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
         try:
             os.write(fd, line.encode())
@@ -147,13 +138,12 @@ def _record(event: str, key: tuple | None, seconds: float, traced: bool | None =
 
 @functools.cache
 def _sdk() -> SimpleNamespace:
-    """jax, jax.export, jax.numpy, mujoco.mjx and the jitted rollout, imported on the first prepare. Compiled rollouts
-    persist on disk (JAX's compilation cache), so a worker loads what another one, or an earlier run, compiled (5-30 s
-    each, one per integrator, precision and model structure) instead of compiling it again; a cache the user chose
-    (JAX_COMPILATION_CACHE_DIR) is kept. The traced programs persist beside it (exports_dir())."""
+    """jax, jax.numpy, mujoco.mjx and the jitted rollout, imported on the first prepare. Compiled rollouts persist on
+    disk (JAX's compilation cache), so a worker loads what another one, or an earlier run, compiled (5-30 s each, one
+    per integrator, precision and model structure) instead of compiling it again; a cache the user chose
+    (JAX_COMPILATION_CACHE_DIR) is kept."""
     started = time.perf_counter()
     import jax
-    from jax import export
     from jax import numpy as jnp
     from mujoco import mjx
 
@@ -176,10 +166,10 @@ def _sdk() -> SimpleNamespace:
         return data, (qpos, qvel)
 
     _record("import", None, time.perf_counter() - started)
-    return SimpleNamespace(jax=jax, jnp=jnp, mjx=mjx, export=export, rollout=rollout)
+    return SimpleNamespace(jax=jax, jnp=jnp, mjx=mjx, rollout=rollout)
 
 
-# Compiled rollouts of this process: (precision, integrator, pytree structure of (model, data)) -> _Rollout.
+# Compiled rollouts of this process: (precision, integrator, pytree structure of (model, data)) -> jax's Compiled.
 # The structure holds a model's static fields, so one entry serves every case that shares them.
 _COMPILED: dict[tuple, object] = {}
 # The precision of the last trace: switching it clears jax's caches first. jax 0.10 caches the trace of a jitted
@@ -200,140 +190,22 @@ SLOTS = 1024
 CHUNK = 64
 
 
-def _compiled(precision: str, integrator: str, model, data) -> "_Rollout":
-    """The compiled rollout (SLOTS rows): from this process's cache, else compiled from its exported program (traced
-    under the precision's jax_enable_x64, already entered by the caller, or read from the exports folder)."""
+def _compiled(precision: str, integrator: str, model, data):
+    """The Compiled rollout (SLOTS rows): from this process's cache, else traced and compiled (under the precision's
+    jax_enable_x64, already entered by the caller)."""
     sdk = _sdk()
-    leaves, structure = sdk.jax.tree_util.tree_flatten((model, data))
+    structure = sdk.jax.tree_util.tree_structure((model, data))
     key = (precision, integrator, structure)
     if key not in _COMPILED:
+        if _last_traced and _last_traced[-1] != precision:
+            sdk.jax.clear_caches()
+        _last_traced[:] = [precision]
         started = time.perf_counter()
-        exported, traced = _exported(sdk, precision, integrator, leaves, structure)
-        compiled = sdk.jax.jit(exported.call).lower(leaves, np.zeros(SLOTS, np.int32), np.int32(0)).compile()
-        _COMPILED[key] = _Rollout(compiled, sdk.jax.tree_util.tree_structure(data))
+        _COMPILED[key] = sdk.rollout.lower(model, data, np.zeros(SLOTS, np.int32), np.int32(0)).compile()
         if structure not in _STRUCTURES:
             _STRUCTURES.append(structure)
-        _record("compilation", (precision, integrator, _STRUCTURES.index(structure)), time.perf_counter() - started,
-                traced=traced)
+        _record("compilation", (precision, integrator, _STRUCTURES.index(structure)), time.perf_counter() - started)
     return _COMPILED[key]
-
-
-class _Rollout(NamedTuple):
-    """A compiled rollout of flat leaves, called as the jitted one: (model, data, counts, intervals) -> (data, (qpos,
-    qvel)). The exported program takes the leaves of (model, data) and returns the leaves of data: its pytree
-    structure, which holds MJX's static fields, is closed over, so nothing of MJX's needs registering to serialize."""
-
-    compiled: object
-    data_structure: object
-
-    def __call__(self, model, data, counts, intervals):
-        import jax
-
-        out, qpos, qvel = self.compiled(jax.tree_util.tree_leaves((model, data)), counts, intervals)
-        return self.data_structure.unflatten(out), (qpos, qvel)
-
-
-# Traced rollouts persist on disk as jax.export programs (StableHLO), one file per export key, in exports_dir() under
-# the user's cache folder. JAX's compilation cache is keyed on the lowered program, so without this every compilation
-# traced MJX's step and lowered it again before that cache could serve it: 0.5-3 s each of the 1-4 s of a warm
-# compilation, 12 compilations a worker in the quick suite. The key holds everything the program depends on: the
-# versions of jax, jaxlib, mujoco and mujoco-mjx, this file's source, the backend, the precision, the integrator, SLOTS,
-# the pytree structure with its static fields (MJX keeps some model arrays static: by their bytes) and every leaf's
-# shape and dtype. A structure whose static fields this cannot describe faithfully is traced every time.
-def exports_dir() -> Path:
-    """Where the exported rollouts live: $XDG_CACHE_HOME/stereodyn/mjx, else ~/.cache/stereodyn/mjx (docs/ENGINES.md:
-    deleting the folder is safe; the next run traces again)."""
-    return user_cache("mjx")
-
-
-def _exported(sdk, precision: str, integrator: str, leaves: list, structure) -> tuple[object, bool]:
-    """(the rollout's jax.export program for these leaves and structure, whether it was traced here): read from
-    exports_dir() where its key names a file that deserializes, else traced, exported and written there atomically."""
-    key = _export_key(sdk, precision, integrator, leaves, structure)
-    path = None if key is None else exports_dir() / f"{integrator}-{precision}-{key}.bin"
-    if path is not None and path.is_file():
-        try:
-            return sdk.export.deserialize(bytearray(path.read_bytes())), False
-        except Exception:  # a file cut short or from another writer: traced again and overwritten below
-            pass
-    if _last_traced and _last_traced[-1] != precision:
-        sdk.jax.clear_caches()
-    _last_traced[:] = [precision]
-
-    def flat(leaves, counts, intervals):
-        model, data = structure.unflatten(leaves)
-        data, (qpos, qvel) = sdk.rollout(model, data, counts, intervals)
-        return sdk.jax.tree_util.tree_leaves(data), qpos, qvel
-
-    specs = [sdk.jax.ShapeDtypeStruct(np.shape(leaf), leaf.dtype) for leaf in leaves]
-    exported = sdk.export.export(sdk.jax.jit(flat))(specs, sdk.jax.ShapeDtypeStruct((SLOTS,), np.int32),
-                                                      sdk.jax.ShapeDtypeStruct((), np.int32))
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(path, bytes(exported.serialize()))
-    return exported, True
-
-
-class _Unkeyable(Exception):
-    """A static field whose text would not name its value across processes (an object's address)."""
-
-
-def _export_key(sdk, precision: str, integrator: str, leaves: list, structure) -> str | None:
-    """The exported program's key (a sha256, hex), or None where the structure's static fields cannot be described
-    faithfully (then nothing is read or written)."""
-    digest = hashlib.sha256()
-    for part in (*(metadata.version(package) for package in MjxEngine.about.packages), Path(__file__).read_bytes(),
-                 sdk.jax.default_backend(), precision, integrator, SLOTS):
-        digest.update(repr(part).encode() + b"\0")
-    try:
-        _describe(sdk.jax.tree_util, structure, digest)
-    except _Unkeyable:
-        return None
-    for leaf in leaves:
-        digest.update(f"{np.shape(leaf)}{np.dtype(leaf.dtype).str};".encode())
-    return digest.hexdigest()
-
-
-def _describe(tree_util, structure, digest) -> None:
-    """Feed the pytree structure, node by node with its static data, into the digest."""
-    if tree_util.treedef_is_leaf(structure):
-        digest.update(b"*")
-        return
-    kind, static = structure.node_data()
-    digest.update(f"{kind.__module__}.{kind.__qualname__}[".encode())
-    _static(static, digest)
-    digest.update(b"](")
-    for child in structure.children():
-        _describe(tree_util, child, digest)
-        digest.update(b",")
-    digest.update(b")")
-
-
-def _static(value, digest) -> None:
-    """Feed one static value into the digest: containers item by item, arrays (MJX wraps them in a hashable holder
-    with an `array`) by dtype, shape and bytes, every other value by its repr, which must not be an address."""
-    array = getattr(value, "array", value)
-    if isinstance(array, np.ndarray):
-        digest.update(f"array({array.dtype.str},{array.shape})".encode() + np.ascontiguousarray(array).tobytes())
-    elif isinstance(value, (tuple, list)):
-        digest.update(f"{type(value).__name__}(".encode())
-        for item in value:
-            _static(item, digest)
-            digest.update(b",")
-        digest.update(b")")
-    elif isinstance(value, dict):
-        digest.update(b"dict(")
-        for name in sorted(value, key=repr):
-            _static(name, digest)
-            digest.update(b":")
-            _static(value[name], digest)
-            digest.update(b",")
-        digest.update(b")")
-    else:
-        text = repr(value)
-        if " at 0x" in text:
-            raise _Unkeyable(text)
-        digest.update(f"{type(value).__module__}.{type(value).__qualname__}:{text}".encode())
 
 
 class MjxSimulation:
