@@ -21,8 +21,9 @@ TRUTH_PACKAGES = ("heyoka", "stereodyn")
 
 def user_cache(*parts: str) -> Path:
     """A folder of stereodyn's in the user's cache folder: $XDG_CACHE_HOME/stereodyn/*parts, else
-    ~/.cache/stereodyn/*parts (the matrix's environments, MJX's compiled and traced rollouts)."""
-    return Path(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "stereodyn", *parts)
+    ~/.cache/stereodyn/*parts (the matrix's environments; JAX's compilation cache for MJX)."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base, "stereodyn", *parts)
 
 
 def packages() -> tuple[str, ...]:

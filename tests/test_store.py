@@ -188,3 +188,16 @@ def test_runs_json_records_the_load_at_the_timing_phases_start_and_end(uninterru
         assert environment[key].startswith("load average ") and cpu_name() in environment[key], environment[key]
         load = [float(x) for x in environment[key].split("load average ")[1].split(" (")[0].split(", ")]
         assert len(load) == 3 and min(load) >= 0.0
+
+
+def test_the_cache_folders_are_the_users_under_stereodyn(monkeypatch, tmp_path):
+    """stereodyn's caches (the matrix's environments, JAX's compilation cache for MJX) live in $XDG_CACHE_HOME/stereodyn,
+    else ~/.cache/stereodyn: where docs/ENGINES.md and the guide say a user finds and clears them."""
+    from stereodyn.harness.environment import user_cache
+    from stereodyn.harness.run.environments import cache_root
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_root() == tmp_path / "xdg" / "stereodyn" / "matrix"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert user_cache("jax") == tmp_path / "home" / ".cache" / "stereodyn" / "jax"
