@@ -1,5 +1,5 @@
 """The environment a sweep ran in: library versions and code fingerprints (part of every result's store key), CPU,
-date, git commit."""
+date, git commit; and where stereodyn's caches live on this machine (user_cache)."""
 from __future__ import annotations
 
 import datetime

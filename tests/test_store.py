@@ -192,7 +192,7 @@ def test_runs_json_records_the_load_at_the_timing_phases_start_and_end(uninterru
 
 def test_the_cache_folders_are_the_users_under_stereodyn(monkeypatch, tmp_path):
     """stereodyn's caches (the matrix's environments, JAX's compilation cache for MJX) live in $XDG_CACHE_HOME/stereodyn,
-    else ~/.cache/stereodyn: where docs/ENGINES.md and the guide say a user finds and clears them."""
+    else ~/.cache/stereodyn: where docs/guide.md says a user finds and clears them."""
     from stereodyn.harness.environment import user_cache
     from stereodyn.harness.run.environments import cache_root
 
