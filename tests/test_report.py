@@ -139,6 +139,39 @@ def test_figures_drawn_on_the_runs_worker_pool_are_the_same_and_start_no_process
         assert (tmp_path / "copy" / "figures" / png.name).read_bytes() == png.read_bytes()
 
 
+def test_a_worker_that_dies_drawing_the_figures_loses_no_figure(reported, tmp_path, capsys):
+    """The run's pool map raising WorkerDied (a worker killed under a figure) leaves the report whole: the figures
+    are drawn in this process instead, the same, and one warning line says so (it ended `stereodyn run` with a
+    traceback and no report.md)."""
+    from stereodyn.harness.run.workers import WorkerDied
+
+    def dying_map(fn, tasks):
+        raise WorkerDied("worker process died (exit code -9)")
+
+    shutil.copytree(reported, tmp_path / "copy")
+    (tmp_path / "copy" / "report.md").unlink()
+    build.write_reports(tmp_path / "copy", render_map=dying_map)
+    warned = [line for line in capsys.readouterr().err.splitlines() if "drawing the figures" in line]
+    assert warned == ["stereodyn: warning: a worker drawing the figures failed (WorkerDied: worker process died "
+                      "(exit code -9)); drawing them in this process"]
+    assert (tmp_path / "copy" / "report.md").exists()
+    for png in (reported / "figures").glob("*.png"):
+        assert (tmp_path / "copy" / "figures" / png.name).read_bytes() == png.read_bytes()
+
+
+def test_our_own_bug_in_a_figure_is_raised_not_drawn_around(reported, tmp_path):
+    """A bug of ours in drawing (a TypeError in build._render: harness.errors' internal error) is not data: it fails
+    loudly, with no quiet redraw."""
+    from stereodyn.harness.errors import InternalError
+
+    def buggy_map(fn, tasks):
+        return [fn(None) for _ in tasks]  # _render unpacks None: TypeError in our own code
+
+    shutil.copytree(reported, tmp_path / "copy")
+    with pytest.raises(InternalError, match="TypeError"):
+        build.write_reports(tmp_path / "copy", render_map=buggy_map)
+
+
 def test_no_figures_writes_the_tables_and_says_where_the_figures_are(reported, tmp_path, monkeypatch):
     """--no-figures (and STEREODYN_FIGURES=0, tests/conftest.py) draws nothing, removes the figures of an earlier
     render and says so in each case's section; --figures draws them again."""

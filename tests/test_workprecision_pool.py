@@ -2,13 +2,16 @@
 the ladders ends its workers at once, as during the sweep (tests/test_scheduling.py)."""
 import math
 import multiprocessing
+from concurrent.futures import Future
 from pathlib import Path
 
 import pandas as pd
 import pytest
 from child_processes import ended, started_since
 
+from stereodyn.harness.pipeline import dt_ladders
 from stereodyn.harness.run.pool import worker_pool
+from stereodyn.harness.run.workers import WorkerDied
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.pipeline import work_precision as workprecision
 from stereodyn.harness.scenes.cases import find_case, with_overrides
@@ -67,3 +70,39 @@ def test_without_a_pool_the_ladders_run_here(tmp_path):
     paths = workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200)
     ladder = pd.read_csv(paths["ladder"])
     assert len(ladder) == 4 * 10 and math.isfinite(ladder["state_err"].min())
+
+
+class _OneWorkerDies:
+    """A pool that runs each task here, except the first dt ladder's, whose worker dies under it (as
+    WatchedPool reports a process killed by an SDK's crash or the memory killer)."""
+
+    def __init__(self):
+        self.died = []
+
+    def submit(self, fn, *args, affinity=None) -> Future:
+        future = Future()
+        if fn is dt_ladders.run_ladder and not self.died:
+            self.died.append(args[0].key)
+            future.set_exception(WorkerDied("worker process died (exit code -9)"))
+        else:
+            future.set_result(fn(*args))
+        return future
+
+
+def test_a_ladder_whose_worker_died_is_a_row_saying_so_and_the_phase_goes_on(tmp_path):
+    """A failing run is a row with its reason: a family whose worker died has a convergence row saying so, and the
+    other ladders, the orders, the Pareto table and the advice are still written (its row lacked the fit's columns,
+    and the first-part selection after the ladders raised KeyError: 'order', ending `stereodyn run`)."""
+    df = run_sweep([_case()], SweepOptions(["reference"], tmp_path, ["rk4"], jobs=1))
+    pool = _OneWorkerDies()
+    paths = workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200,
+                                  pool=pool)
+    assert len(pool.died) == 1 and {"pareto", "advice"} <= set(paths)
+    convergence = pd.read_csv(paths["convergence"], dtype={"formulation": str}, keep_default_na=False,
+                              na_values=[""])
+    ladders = convergence[convergence["source"] == "ladder"]
+    dead = ladders[ladders["note"].str.startswith("worker failed: WorkerDied")]
+    assert len(dead) == 1 and dead["order"].isna().all() and (dead["declared_order"] == 4.0).all()
+    others = ladders.drop(dead.index)
+    # the other three formulations' rk4 orders, as in test_the_sweep_and_the_ladders_share_one_pool
+    assert len(others) == 3 and ((others["order"] - 4.0).abs() < 0.3).all(), others

@@ -10,6 +10,7 @@ import hashlib
 import math
 import multiprocessing
 import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable
@@ -24,7 +25,7 @@ from . import figures, html, index
 from . import sections
 # the modules whose sections the page shows besides this one's and markdown's (each registers its own)
 from .markdown import markdown_table as _md_table, number as _num
-from ..run.processes import exit_with_parent
+from ..run.processes import exit_with_parent, raise_unless_data
 from ..run.results import read_csv_table, read_results, write_atomic
 from ..run.store import read_manifest, read_records
 
@@ -168,7 +169,13 @@ def _render_all(tasks: list[tuple], render_map: Callable | None = None) -> list[
     render_map(fn, tasks) -> [fn(task), ...] in order: processes already started and imported where the caller has
     some (`stereodyn run`'s worker pool); else this process's own, spawned here."""
     if render_map is not None and len(tasks) > 1:
-        return list(render_map(_render, tasks))
+        try:
+            return list(render_map(_render, tasks))
+        except Exception as exc:  # a worker died under a figure (the memory killer, a crash at its exit): the report
+            raise_unless_data(exc)  # is not lost for it; our own bug in drawing is raised (harness.errors)
+            print(f"stereodyn: warning: a worker drawing the figures failed ({type(exc).__name__}: {exc}); drawing "
+                  "them in this process", file=sys.stderr)
+            return [_render(task) for task in tasks]
     workers = min(os.cpu_count() or 1, len(tasks) // PARALLEL_FIGURES)
     if workers < 2:
         return [_render(task) for task in tasks]
