@@ -124,7 +124,7 @@ def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mj
     100 and 150 intervals, and the accuracy runs go in chunks of 64 (mjx.CHUNK); one compilation per integrator and
     precision serves them all (a rollout compiled per grid shape compiled three). In each worker the SDK is imported at
     most once and each (precision, integrator, structure) is compiled once, and the two cases share it. MJX's
-    declared start-up (Timing.startup_s, 10 s) outweighs these short runs, so a single worker serves them all
+    declared start-up (Timing.startup_s, 20 s) outweighs these short runs, so a single worker serves them all
     (harness.run.workers); the parent, which repeats no timing here, none. Cold JAX cache ~40 s of CPU, warm ~15 s."""
     import json
 

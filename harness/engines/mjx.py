@@ -274,10 +274,12 @@ class MjxEngine(MujocoBackend):
     # persistent cache cold, 4 s and 6 s warm (compiling the chunk's alone, before prepare compiled both: 7-14 s cold,
     # 3 s warm). A worker then pays a compilation per integrator, precision and model structure it meets
     # (startups()): 4 in a sweep of two cases of one structure, euler and rk4, both precisions (tests/test_mjx.py);
-    # a second worker mostly finds the first's compilations in JAX's cache. 10 s sits between the warm and the cold
-    # first prepare, and under a warm sweep's start-up: a second worker takes MJX's runs only when their queued cost
-    # outweighs it (harness.run.workers).
-    timing = Timing(pass_us=15.0, startup_s=10.0)
+    # a second worker mostly finds the first's compilations in JAX's cache. A worker's compilations in all: 35-48 s
+    # cold in the quick suite with every extra (12 rollouts; 2 idle cores, 2026-11-27), 10-16 s warm. 20 s sits
+    # between: more than Warp's, as measured cold and warm, so the sweep queues MJX's runs before Warp's
+    # (pool.queue_key), and a second worker takes MJX's runs only when their queued cost outweighs it
+    # (harness.run.workers).
+    timing = Timing(pass_us=15.0, startup_s=20.0)
     about = About(packages=("mujoco-mjx", "jax", "jaxlib", "mujoco"), linestyle=(0, (3, 1, 1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
     run_precisions, deviations = (FLOAT64, FLOAT32), {"rk4": RK4_DEVIATION}

@@ -153,8 +153,9 @@ class WarpEngine(MujocoBackend):
     name = "warp"
     # measured in the quick suite on the 2-core machine (issue 29): 39 µs a euler step, 80 rk4, read-backs included
     # (the graph-captured step; 4.7 ms was the launched one, docs/ENGINES.md). startup_s: a fresh process's first
-    # prepare took 35 s with Warp's kernel cache cold and 2.7-5 s warm: 15 s between, as MJX's.
-    timing = Timing(pass_us=40.0, startup_s=15.0)
+    # prepare took 35 s with Warp's kernel cache cold and 2.7-5 s warm; a worker's Warp runs in the quick suite with
+    # every extra took 18-25 s in all cold, 2-3 s warm (2 idle cores, 2026-11-27): 12 s between, under MJX's.
+    timing = Timing(pass_us=40.0, startup_s=12.0)
     about = About(packages=("mujoco-warp", "warp-lang", "mujoco"), linestyle=(0, (1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
     run_precisions, coarse_default_step = (FLOAT32,), True

@@ -86,6 +86,15 @@ def cost(spec: RunSpec) -> float:
     return RUN_OVERHEAD_S + (2 + CHECK_PASSES) * one_pass
 
 
+def queue_key(spec: RunSpec) -> float:
+    """The sweep's queue order, largest first: a run's cost plus its engine's start-up, so the runs of the engines
+    that pay one come first and their start-ups spread over the workers from the start (the pool's affinity then
+    keeps each engine on the workers that paid it). By cost alone Newton's cheap runs came last: in the quick suite
+    with every extra and cold caches, its 45 s start-up began at 67 s on one worker while the other idled for 44 s
+    (2 cores, 2026-11-27: 135-155 s by cost alone, 123-150 s with the start-ups, alternating runs; warm 50-52 s both)."""
+    return cost(spec) + startup_s(spec.engine)
+
+
 def pass_s(engine: str, integrator: str, steps: int) -> float:
     """Estimated seconds of one pass of `steps` steps: steps x the integrator's stages x the engine's cost of a stage
     (Engine pass_us). At least one stage a step: moser_veselov declares 0 (it calls no accel) yet costs a solve a

@@ -29,7 +29,8 @@ from .distributed import run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
 from .pool import (cost, forget_kept, local_pool, on_paid_worker, one_precision_at_a_time,  # noqa: F401 (worker_pool)
-                   prepare_kept, run_local, startup_charges, startup_cost, sweep_run, worker_failed_row, worker_pool)
+                   prepare_kept, queue_key, run_local, startup_charges, startup_cost, sweep_run, worker_failed_row,
+                   worker_pool)
 from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
@@ -139,7 +140,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
     if agreement is not None:
         candidates = agreement_candidates(specs)
         specs = [dataclasses.replace(s, compared=True) if i in candidates else s for i, s in enumerate(specs)]
-    specs = one_precision_at_a_time(sorted(specs, key=cost, reverse=True))
+    specs = one_precision_at_a_time(sorted(specs, key=queue_key, reverse=True))
     results_path = out_dir / "results.csv"
     budgets = budget.configured()  # the command's (harness.budget.configure), for every run, truth and --resume
     with Store(out_dir) as store, ExitStack() as open_pool:  # the pool, open until the timing phase is done
