@@ -108,6 +108,18 @@ def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):
     assert "No invariants figure: no stored series in this folder" in text and "No checks.csv" in text
 
 
+def test_one_case_is_counted_in_the_singular(reported, tmp_path):
+    """'31 runs over 1 cases' in a one-case report (seen in a browser): the counts read as words do."""
+    results = pd.read_csv(reported / "results.csv")
+    case = results["case"].iloc[0]
+    results[results["case"] == case].to_csv(tmp_path / "results.csv", index=False)
+    pareto = pd.read_csv(reported / "pareto.csv")
+    pareto[pareto["case"] == case].to_csv(tmp_path / "pareto.csv", index=False)  # What to use's tables
+    assert cli.main(["report", str(tmp_path), "--no-figures"]) == 0
+    text = (tmp_path / "report.md").read_text()
+    assert re.search(r"\n\d+ runs over 1 case: ", text) and "1 case × " in text and "1 cases" not in text
+
+
 def test_figures_drawn_in_parallel_are_the_same(reported, tmp_path, monkeypatch):
     shutil.copytree(reported, tmp_path / "copy")
     monkeypatch.setattr(build, "PARALLEL_FIGURES", 1)  # 4 figures: two processes

@@ -28,6 +28,7 @@ from .markdown import markdown_table as _md_table, number as _num
 from ..run.processes import exit_with_parent, raise_unless_data
 from ..run.results import read_csv_table, read_results, write_atomic
 from ..run.store import read_manifest, read_records
+from ..words import plural
 
 FIGURES_DIR = "figures"
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
@@ -87,7 +88,7 @@ def _summary(context: sections.Context) -> list[str]:
     df = context.results
     counts = df["status"].value_counts()
     failed = failed_integrators(read_verdicts(context.out_dir) or [])
-    return ["## Summary", "", f"{len(df)} runs over {df['case'].nunique()} cases: "
+    return ["## Summary", "", f"{plural(len(df), 'run')} over {plural(df['case'].nunique(), 'case')}: "
             + ", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "diverged", "failed", "skipped")), "",
             *summary_lines(df, failed, answers.read(context.out_dir, failed))]
 

@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..testing import energy_noise
 from . import sections
+from ..words import plural
 from .markdown import markdown_table, number
 
 # Accuracy targets (max attitude error, rad) of the cost comparison.
@@ -176,7 +177,7 @@ def cost_ratios(runs: pd.DataFrame, integrator: str, builtin: set[str], targets=
             others = group[(group["integrator"] != integrator) & group["integrator"].isin(builtin)]["cost"]
             if len(mine) and len(others):
                 ratios.append(mine.min() / others.min())
-        out[target] = f"{np.median(ratios):.2g}x ({len(ratios)} cases)" if ratios else "-"
+        out[target] = f"{np.median(ratios):.2g}x ({plural(len(ratios), 'case')})" if ratios else "-"
     return out
 
 

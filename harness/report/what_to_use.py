@@ -6,6 +6,7 @@ import pandas as pd
 
 from ..analysis.answers import LISTED, SEARCHED, answer_setting
 from ..analysis.pareto import ANY, TIE_MAX_RATIO, TIE_RTOL, run_name
+from ..words import plural
 from .markdown import number
 
 # The targets shown (max attitude error, rad): every other decade from 1e-2 keeps a table within a 1400 px window;
@@ -47,7 +48,7 @@ def what_to_use_lines(answers: pd.DataFrame) -> list[str]:
         if own:  # an engine's table folds to one line of counts: the page's height is the cases' figures, not this
             at = rows[[shown(t) for t in rows["target"]]]
             counts = at["source"].value_counts()
-            table = [f"<details><summary>{rows['case'].nunique()} cases × {len(targets)} targets: "
+            table = [f"<details><summary>{plural(rows['case'].nunique(), 'case')} × {plural(len(targets), 'target')}: "
                      f"{counts.get(SEARCHED, 0)} answers searched, {counts.get(LISTED, 0)} listed but not searched, "
                      f"{int((at['engine'] == '').sum())} targets no run reached</summary>", "", *table, "",
                      "</details>"]
