@@ -152,12 +152,11 @@ def run_first_part(family: Family, points: list[dict], max_steps: int, row: dict
 
 
 def _failed_family(family: Family, exc: BaseException, source: str = LADDER) -> tuple[list[dict], dict]:
-    """A family whose worker died: no points, and its convergence row says why, with every column a fit gives (no
-    order: NaN), as the rows after it are read (analysis.workprecision.first_part_families, convergence_rows)."""
-    declared = declared_order(family.engine, family.integrator, family.formulation)
-    return [], {**family.columns, "order": math.nan, "floor_dt": math.nan, "floor_err": math.nan,
-                "stable_dt_max": math.nan, "declared_order": declared, "points": 0, "source": source,
-                "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
+    """A family whose worker died: no points, and its convergence row says why, with every column of
+    fitting.CONVERGENCE_COLUMNS (no order: NaN), as the rows after it are read (analysis.workprecision)."""
+    return [], {**dict.fromkeys(fitting.CONVERGENCE_COLUMNS, math.nan), **family.columns, "points": 0,
+                "declared_order": declared_order(family.engine, family.integrator, family.formulation),
+                "source": source, "note": f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
 class _Task(NamedTuple):
