@@ -161,10 +161,9 @@ def _panel_grid(count: int, height_in: float, legend_in: float, title: str):
 
 def png(figure: Figure) -> bytes:
     """The figure as a palette PNG: a quarter of the bytes of full colour, which matters in a self-contained page."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
     from PIL.PngImagePlugin import PngInfo
-
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     canvas = FigureCanvasAgg(figure)
     buffer = io.BytesIO()
