@@ -1,9 +1,11 @@
-"""The core types every layer shares: a run's Status, its recorded Trajectory, and the divergence rule.
+"""The core types every layer shares: a run's Status, its recorded Trajectory, and the divergence rule, which
+`judged` applies to whatever a simulation's run() returned (harness.run.measure: every engine's, built-in or plug-in).
 
 Integrators, engines, metrics and the store all import this module; it imports nothing of stereodyn's but the grid.
 """
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from dataclasses import dataclass, field
@@ -110,6 +112,81 @@ def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, b
     if message is None:
         message = divergence_message(diverged_at)
     return Trajectory(grid.times, quat, omega, Status.DIVERGED, message, diverged_at, steps, rhs_evals)
+
+
+def _array_problem(name: str, value, shape: tuple) -> str | None:
+    """Why `value` is not a real numeric array of `shape`, or None."""
+    array = np.asarray(value) if isinstance(value, (np.ndarray, list, tuple)) else None
+    if array is None or array.dtype.kind not in "fiu":
+        return f"{name} is {type(value).__name__}, not an array of numbers"
+    if array.shape != shape:
+        return f"{name} has shape {array.shape}, not {shape} ({shape[0]} samples)"
+    return None
+
+
+def problem(traj, samples: int, expected: type | None = None) -> str | None:
+    """Why what a simulation's run() returned is no trajectory of `samples` samples (its grid's), or None: an object
+    of the scene's class (expected; None: any with the fields below), a Status, a message in words, and arrays of
+    numbers of one row per sample (Trajectory: times, quat (n, 4), omega (n, 3); SlidingLadderTrajectory: times,
+    state (n, 6), violation (n,)). A plug-in's answer is checked before any metric reads it (its bug is its row)."""
+    if expected is not None and not isinstance(traj, expected):
+        return f"returned {type(traj).__name__}, not a {expected.__name__}"
+    if not isinstance(getattr(traj, "status", None), Status):
+        return f"returned {type(traj).__name__}, whose status is not a Status"
+    whose = f"returned a {type(traj).__name__} whose"
+    if not isinstance(getattr(traj, "message", ""), str):
+        return f"{whose} message is {type(traj.message).__name__}, not text"
+    shapes = {"times": (samples,)}
+    if isinstance(traj, Trajectory):
+        shapes.update(quat=(samples, 4), omega=(samples, 3))
+    elif isinstance(traj, SlidingLadderTrajectory):
+        shapes.update(state=(samples, 6), violation=(samples,))
+    for name, shape in shapes.items():
+        why = _array_problem(name, getattr(traj, name, None), shape)
+        if why is not None:
+            return f"{whose} {why}"
+    for name in ("steps", "rhs_evals"):
+        value = getattr(traj, name, 0)
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            return f"{whose} {name} is {value!r}, not a count"
+    if not isinstance(getattr(traj, "info", {}), dict):
+        return f"{whose} info is {type(traj.info).__name__}, not a dict"
+    return None
+
+
+def _first_bad(traj) -> int | None:
+    """The first sample that breaks the divergence rule: a Trajectory's by first_bad_sample (from its first sample's
+    omega), any other's first row of `state` with a value not finite; None where none does (or it has no state)."""
+    if isinstance(traj, Trajectory):
+        return first_bad_sample(traj.omega, traj.quat, np.asarray(traj.omega, dtype=float)[0])
+    state = getattr(traj, "state", None)
+    if not isinstance(state, np.ndarray) or state.dtype.kind not in "fiu" or state.ndim < 1:
+        return None
+    rows = np.isfinite(state.reshape(len(state), -1)).all(axis=1)
+    hits = np.flatnonzero(~rows)
+    return int(hits[0]) if hits.size else None
+
+
+def judged(traj):
+    """traj with the divergence rule applied: an ok trajectory with a sample that breaks it becomes diverged at that
+    sample's time, its samples from there on NaN (the rule as an integrator applies it, for every engine; an engine
+    that finds the exact step sets diverged itself). Others unchanged."""
+    fields = {f.name for f in dataclasses.fields(traj)} if dataclasses.is_dataclass(traj) else set()
+    if traj.status is not Status.OK or not {"status", "message", "diverged_at"} <= fields:
+        return traj
+    bad = _first_bad(traj)
+    if bad is None:
+        return traj
+    at = float(np.asarray(traj.times, dtype=float)[bad])
+    blanked = {}
+    for name in {"quat", "omega", "state"} & fields:
+        value = getattr(traj, name)
+        if isinstance(value, np.ndarray):
+            value = value.astype(float)  # a copy: the engine's arrays stay as they were
+            value[bad:] = np.nan
+            blanked[name] = value
+    return dataclasses.replace(traj, **blanked, status=Status.DIVERGED, message=divergence_message(at),
+                               diverged_at=at)
 
 
 @dataclass(frozen=True, eq=False)

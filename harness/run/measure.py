@@ -1,6 +1,9 @@
 """The one path from a run to its row: the sweep's runs, the dt ladders' and tolerance ladders' points and every
 scene's runs go through measure(). What differs between scenes is done by the scene object (harness.scenes.base):
-its grid's truth, its metrics and checks; here nothing branches on a kind."""
+its grid's truth, its metrics and checks; here nothing branches on a kind. Here too, for every engine, what a
+simulation's run() returned is checked (harness.trajectory: problem, then the divergence rule, judged) before any
+metric reads it, and whatever a plug-in's code raises, SystemExit and GeneratorExit included, is its run's failed
+row."""
 from __future__ import annotations
 
 import math
@@ -8,11 +11,13 @@ import time
 from typing import Callable
 
 from .. import budget
+from ...reference import plugins
 from ..engines import get_engine
+from ..errors import InternalError
 from ..precision import FLOAT64
 from ..scenes import scene_of
-from ..trajectory import Status
-from .processes import raise_unless_data
+from ..trajectory import Status, judged, problem
+from .processes import plugin_interrupt, raise_unless_data
 from .spec import RunKey, base_row
 
 
@@ -57,7 +62,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance,
                                                     **precision_keyword(run)), prepare_budget(run, budgets))
         with budget.within("run", budgets.run_s):
-            traj = sim.run(grid)
+            traj = checked(sim, sim.run(grid), grid, getattr(scene, "trajectory", None))
             row["_accuracy_s"] = time.perf_counter() - start
             row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
 
@@ -75,7 +80,30 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         raise_unless_data(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    except BaseException as exc:  # SystemExit, GeneratorExit, a plug-in's own KeyboardInterrupt: its run's failure
+        if isinstance(exc, InternalError) or (isinstance(exc, KeyboardInterrupt) and not plugin_interrupt(exc)):
+            raise  # our bug, or the user's Ctrl-C
+        text = " ".join(str(exc).split())
+        row = {**base_row(run, grid), "status": Status.FAILED.value, "_accuracy_s": time.perf_counter() - start,
+               "message": f"{type(exc).__name__}: {text}" if text else type(exc).__name__}
     return row
+
+
+class NoTrajectory(ValueError):
+    """A simulation's run() that returned what is no trajectory of its grid: a failed row of a plug-in."""
+
+
+def checked(sim, traj, grid, expected: type | None = None):
+    """What sim.run(grid) returned, checked (harness.trajectory.problem) and judged by the divergence rule: an ok
+    trajectory with NaN states is diverged at their time, whichever engine made it. Not a trajectory: NoTrajectory
+    (the run's failed row) from a plug-in's simulation, InternalError from stereodyn's own (our bug)."""
+    why = problem(traj, len(grid.times), expected)
+    if why is not None:
+        text = f"{type(sim).__module__}.{type(sim).__qualname__}.run() {why}"
+        if plugins.own(type(sim)):
+            raise InternalError(f"NoTrajectory: {text}", f"NoTrajectory: {text}\n")
+        raise NoTrajectory(text)
+    return judged(traj)
 
 
 def rate(count: float, t_end: float) -> float:

@@ -12,6 +12,11 @@ as they do. A worker is tied to its parent from its first moment, whatever the s
 - the tie is the kernel's parent-death signal (Linux prctl PR_SET_PDEATHSIG: SIGKILL the moment the parent dies, even
   inside a long C call that holds the GIL) and a thread that polls the parent every PARENT_POLL_S (elsewhere, and as a
   second line).
+A worker leads a process group of its own (own_process_group), so that what a plug-in starts in it dies with it:
+the parent kills the worker's group where it ends a worker (harness/run/workers.py: past a budget, on Ctrl-C, once
+one died), a worker that exits kills the rest of its group first (end_group), and a process a plug-in forks there
+(os.fork, multiprocessing's fork) gets the parent-death signal on the worker, so that it dies with the worker even when
+the worker is SIGKILLed with the command. A grandchild that leaves the group (setsid) is out of reach.
 Ctrl-C reaches the whole process group; the parent handles it (stops the sweep, ends its workers). A worker ignores it
 from its start: the parent blocks SIGINT while it starts workers (the mask survives fork and exec; the kernel holds a
 blocked signal, so the parent's own Ctrl-C meanwhile is delivered when the block ends, never dropped) and the worker
@@ -26,6 +31,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 from ..errors import raise_if_internal
 
@@ -54,6 +60,7 @@ def _watch_pid(parent: int) -> None:
     while True:
         time.sleep(PARENT_POLL_S)
         if os.getppid() != parent:  # re-parented (to init or a subreaper): the parent is dead
+            end_group()
             os._exit(1)
 
 
@@ -61,7 +68,62 @@ def _watch_sentinel(sentinel: int) -> None:
     from multiprocessing.connection import wait
 
     wait([sentinel])  # readable (EOF) once the parent is gone: its end of the pipe closed with it
+    end_group()
     os._exit(1)
+
+
+def own_process_group() -> None:
+    """A pool worker's first act: lead a process group of its own (the parent kills it whole: kill_group), and give
+    every process it forks from Python the parent-death signal on it (a plug-in's os.fork)."""
+    if not hasattr(os, "setpgid"):
+        return
+    try:
+        os.setpgid(0, 0)
+    except OSError:  # already a group leader (a session leader cannot move): its group is still its own
+        pass
+    os.register_at_fork(after_in_child=_parent_death_signal)
+
+
+def _group_members(group: int) -> list[int]:
+    """The pids of a process group (Linux: /proc; elsewhere none are known)."""
+    members = []
+    try:
+        entries = list(Path("/proc").iterdir())
+    except OSError:
+        return members
+    for entry in entries:
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except (OSError, IndexError):
+                continue
+            if int(fields[2]) == group:  # after the name: state, ppid, pgrp
+                members.append(int(entry.name))
+    return members
+
+
+def end_group() -> None:
+    """Before a worker exits: kill the other processes of its group (what a plug-in started and left), where it leads
+    one (own_process_group); a process in someone else's group (a worker the tests made by hand) kills nothing."""
+    me = os.getpid()
+    if not hasattr(os, "getpgrp") or os.getpgrp() != me:
+        return
+    for pid in _group_members(me):
+        if pid != me:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+
+
+def kill_group(leader: int) -> None:
+    """The parent's end of a worker: SIGKILL its process group (the worker, as long as it is not reaped, keeps the
+    group's id from being reused); nothing where it has none."""
+    if hasattr(os, "killpg"):
+        try:
+            os.killpg(leader, signal.SIGKILL)
+        except OSError:  # no such group (it never made it, or every member is gone)
+            pass
 
 
 def _watch(target, argument) -> None:
@@ -148,6 +210,16 @@ def raise_if_interrupted(exc: BaseException) -> None:
     """In an `except Exception` that records a failure as data: a failure the interrupt caused is no data."""
     if interrupted():
         raise KeyboardInterrupt from exc
+
+
+def plugin_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt was raised by code (a plug-in's `raise KeyboardInterrupt`), not by the user's
+    Ctrl-C: always in a pool worker, which ignores SIGINT; in the command's process, when its handler (on_interrupt)
+    took no Ctrl-C. Under Python's own handler it cannot be told apart: the user's."""
+    if not isinstance(exc, KeyboardInterrupt):
+        return False
+    handler = signal.getsignal(signal.SIGINT)
+    return handler is signal.SIG_IGN or (handler is on_interrupt and not interrupted())
 
 
 def raise_unless_data(exc: BaseException) -> None:

@@ -5,7 +5,11 @@ without checking, or one long compiled call (MJX's rollout) would hold its worke
 parent every deadline it enters or leaves (budget.watch: seconds left, which budget, how large), and the parent kills
 (SIGKILL) a worker still inside a deadline budget.grace(seconds) after it, fails the task with that budget
 (EndedPastBudget, a budget.BudgetExceeded) and starts a replacement. A worker that dies by itself (a crash in an SDK)
-fails its task only (WorkerDied) and is replaced too.
+fails its task only (WorkerDied) and is replaced too. A task that ends with what is not an Exception (a plug-in's
+SystemExit, GeneratorExit, or KeyboardInterrupt, which cannot be Ctrl-C here: a worker ignores it) fails with TaskEnded,
+an Exception: its caller makes it that run's failed row, never the command's exit. Each worker leads a process group
+of its own, killed whole when the parent ends the worker (harness/run/processes.py: what a plug-in forked dies with
+it).
 
 concurrent.futures' ProcessPoolExecutor cannot do this: it cannot end one task, and a killed worker breaks the whole
 executor. This pool keeps its interface where the callers use it (submit() -> Future, consumed with
@@ -21,6 +25,7 @@ from __future__ import annotations
 import atexit
 import multiprocessing
 import os
+import signal
 import sys
 import threading
 import time
@@ -30,8 +35,8 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait
 
 from .. import budget
-from ..errors import as_internal
-from .processes import starting_workers
+from ..errors import InternalError, as_internal
+from .processes import end_group, kill_group, own_process_group, starting_workers
 
 
 class EndedPastBudget(budget.BudgetExceeded):
@@ -44,7 +49,24 @@ class EndedPastBudget(budget.BudgetExceeded):
 
 
 class WorkerDied(RuntimeError):
-    """A task whose worker process died under it (a crash inside an SDK, the memory killer)."""
+    """A task whose worker process died under it (a crash inside an SDK, the memory killer, a plug-in's os._exit)."""
+
+
+class TaskEnded(RuntimeError):
+    """A task that raised what is not an Exception (SystemExit, GeneratorExit, a KeyboardInterrupt a plug-in raised):
+    in a worker that is the task's failure, never the end of the command."""
+
+
+def died(exitcode: int | None) -> WorkerDied:
+    """WorkerDied naming how the process ended: its exit code, or the signal that killed it."""
+    if exitcode is not None and exitcode < 0:
+        try:
+            how = f"killed by {signal.Signals(-exitcode).name}"
+        except ValueError:
+            how = f"killed by signal {-exitcode}"
+    else:
+        how = f"exit code {exitcode}"
+    return WorkerDied(f"worker process died ({how})")
 
 
 @dataclass(frozen=True)
@@ -126,6 +148,7 @@ class WatchedPool:
         with self._lock:
             self._closing = True
         for worker in list(self._workers):
+            kill_group(worker.process.pid)  # the worker and what it started
             worker.process.kill()
         self._wake()
 
@@ -146,6 +169,7 @@ class WatchedPool:
                 pass
         except BaseException as exc:  # a bug here must not leave callers waiting forever
             for worker in self._workers:
+                kill_group(worker.process.pid)
                 worker.process.kill()
             self._fail_all(exc)
             raise
@@ -184,7 +208,7 @@ class WatchedPool:
         for sentinel in [s for s in ready if s in by_sentinel]:
             worker = by_sentinel[sentinel]
             self._hear(worker)  # what it sent before it died
-            self._remove(worker, WorkerDied(f"worker process died (exit code {worker.process.exitcode})"))
+            self._remove(worker, None)  # its task fails saying how it ended
         now = time.monotonic()
         for worker in list(self._workers):
             if worker.future is not None and worker.ends() is not None and now > worker.ends():
@@ -258,11 +282,13 @@ class WatchedPool:
                 else:
                     future.set_exception(value)
 
-    def _remove(self, worker: _Worker, failure: BaseException) -> None:
-        """A dead (or killed) worker: its task fails with `failure`; _hand_out starts another when tasks wait. One
+    def _remove(self, worker: _Worker, failure: BaseException | None) -> None:
+        """A dead (or killed) worker: its task fails with `failure` (None: WorkerDied, how it ended); _hand_out starts another when tasks wait. One
         that died before it was ready (its start-up fails) while no other is ready fails the queued tasks too, rather
         than be replaced forever."""
+        kill_group(worker.process.pid)  # what it started (a plug-in's children), while its pid holds the group's id
         worker.process.join()
+        failure = failure or died(worker.process.exitcode)
         worker.conn.close()
         self._workers.remove(worker)
         if worker.future is not None and not worker.future.done():
@@ -279,6 +305,7 @@ class WatchedPool:
 # ---------------------------------------------------------------------------------------------------- in the worker
 def _serve(conn, initializer, initargs) -> None:
     """A worker's life: its initializer, then one task at a time until told to stop (None) or the parent is gone."""
+    own_process_group()  # before any plug-in's code: what it starts is in this worker's group
     initializer(*initargs)
     sending = threading.Lock()  # a plug-in's own thread may enter a budget too
 
@@ -287,6 +314,7 @@ def _serve(conn, initializer, initargs) -> None:
             try:
                 conn.send(message)
             except OSError:  # the parent closed its end (the pool was shut down, or it died): nobody listens
+                end_group()
                 os._exit(0)
 
     budget.watch(lambda left: send(("deadline", left)))
@@ -305,11 +333,21 @@ def _serve(conn, initializer, initargs) -> None:
         try:
             message = ("done", True, fn(*args))
         except BaseException as exc:  # the parent decides what a failed task means; our own bug is said so here,
-            message = ("done", False, as_internal(exc))  # where its traceback is (harness.errors)
+            message = ("done", False, _failure(exc))  # where its traceback is (harness.errors)
         try:
             send(message)
         except Exception as exc:  # a result or exception that does not pickle
             send(("done", False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+
+
+def _failure(exc: BaseException) -> BaseException:
+    """What a failed task sends back: our own bug as InternalError (harness.errors), an Exception as it is, anything
+    else (SystemExit, GeneratorExit, a KeyboardInterrupt, which Ctrl-C cannot be here) as TaskEnded."""
+    failure = as_internal(exc)
+    if isinstance(failure, (Exception, InternalError)):
+        return failure
+    text = " ".join(str(exc).split())
+    return TaskEnded(f"{type(exc).__name__}: {text}" if text else type(exc).__name__)
 
 
 def _exit() -> None:
@@ -323,4 +361,5 @@ def _exit() -> None:
             stream.flush()
         except (AttributeError, OSError, ValueError):  # closed, or replaced by None
             pass
+    end_group()  # what a plug-in started and left in this worker's group
     os._exit(0)

@@ -25,6 +25,10 @@ class Scene(Protocol):
     keeps_states: bool        # whether --save-trajectories can write its runs' states (quat, omega)
     work_precision: bool      # whether dt and tolerance ladders, orders and floors apply to its runs
     columns: tuple[str, ...]  # the results.csv columns its rows fill beyond the identity, status and timing ones
+    # Optional: the class its models' run() returns (harness.trajectory's Trajectory, SlidingLadderTrajectory); the
+    # one run -> row path checks each run's answer against it (harness.run.measure.checked). Absent: any object with
+    # a Status, a message and one row of times per sample.
+    # trajectory: type
 
     def parse(self, parser: Any, data: dict) -> Any:
         """The case of a file's TOML (parser: harness.scenes.cases' validator, whose failures name FILE: KEY: RULE)."""

@@ -10,6 +10,7 @@ import numpy as np
 
 from .. import budget, integrators as integrator_registry
 from ..grid import TimeGrid, time_grid
+from ..trajectory import Trajectory
 from ...reference import truth as reference_truth
 from .base import register
 from .cases import RIGID_BODY, Case
@@ -77,6 +78,7 @@ class RigidBodyScene:
     needs_truth = True
     keeps_states = True
     work_precision = True
+    trajectory = Trajectory  # what its models' run() returns (harness.run.measure checks it)
     columns = (*DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err", "truth_err", "truth_omega_err", "chart_changes",
                "torque_mode", *TORQUE_COLUMNS, "rhs_per_sim_s")
 

@@ -40,6 +40,7 @@ class SlidingLadderScene:
     needs_truth = False    # each run is compared with the equation solved on its own grid
     keeps_states = False   # its state is the rod's planar one, not a body's (quat, omega)
     work_precision = False  # orders and floors are about the body with a fixed point; MuJoCo's constraints are soft
+    trajectory = SlidingLadderTrajectory  # what its models' run() returns (harness.run.measure checks it)
     columns = ("energy_drift", "attitude_err", "attitude_err_end", "omega_err", "torque_mode")
 
     def parse(self, parser, data: dict) -> LadderCase:
