@@ -5,12 +5,16 @@ integrators()).
 Whatever the plug-in raises, any Exception and SystemExit too (a plug-in calling sys.exit(3) at import must not end
 the command with code 3 and nothing said), becomes PluginError: one line naming the plug-in (its entry point and
 distribution) and the error; each registry turns it into that plug-in's unavailability, or bad input. KeyboardInterrupt
-is never caught, nor an ImportError an extension module's init raised from one: Ctrl-C stays Ctrl-C. Here, in the bottom
+is never caught, nor an ImportError an extension module's init raised from one: Ctrl-C stays Ctrl-C. A plug-in that
+calls os._exit inside the guard (at import, in a report section) would end the command at once, saying nothing: in
+the guarded thread os._exit raises ProcessExit (a SystemExit) instead, and is that plug-in's failure. Here, in the bottom
 layer, because reference/ (torque models) may not import harness/ and harness/ imports reference/.
 """
 from __future__ import annotations
 
 import multiprocessing
+import os
+import threading
 import warnings
 from contextlib import contextmanager
 from typing import Any, Iterator
@@ -28,6 +32,49 @@ class PluginError(Exception):
     def missing(self) -> bool:
         """Whether it is an ImportError: a module (an SDK) that is not installed, not a broken plug-in."""
         return isinstance(self.error, ImportError)
+
+
+class ProcessExit(SystemExit):
+    """os._exit(code) called by a plug-in's code inside the guard, raised instead of ending the process."""
+
+
+_real_exit = os._exit
+_guarded: dict[int, int] = {}  # thread id -> guards it is inside
+_guarded_lock = threading.Lock()
+
+
+def _exit_in_guard(code: int) -> None:
+    """os._exit while a guard is open: a guarded thread raises ProcessExit, any other exits as asked."""
+    if threading.get_ident() in _guarded:
+        raise ProcessExit(f"called os._exit({code})")
+    _real_exit(code)
+
+
+def _forget_guards() -> None:  # a process forked inside a guard exits as it asks
+    _guarded.clear()
+    os._exit = _real_exit
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_guards)
+
+
+@contextmanager
+def _exits_raise() -> Iterator[None]:
+    """os._exit raises ProcessExit in this thread for the block (ProcessExit)."""
+    me = threading.get_ident()
+    with _guarded_lock:
+        _guarded[me] = _guarded.get(me, 0) + 1
+        os._exit = _exit_in_guard
+    try:
+        yield
+    finally:
+        with _guarded_lock:
+            _guarded[me] -= 1
+            if not _guarded[me]:
+                del _guarded[me]
+            if not _guarded:
+                os._exit = _real_exit
 
 
 class PluginWarning(UserWarning):
@@ -51,7 +98,8 @@ def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator
     """Run a plug-in's code: PluginError(where, error) for any Exception or SystemExit it raises, except the types in
     `passing` (a hook's own way to refuse input, e.g. a case file's error), which go through unchanged."""
     try:
-        yield
+        with _exits_raise():
+            yield
     except passing:
         raise
     except (Exception, SystemExit) as exc:

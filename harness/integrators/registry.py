@@ -9,7 +9,7 @@ from importlib.metadata import entry_points
 from ...reference import plugins
 from ...reference.registry import Registry
 
-from .base import Integrator, check_step_signature
+from .base import Integrator, check_step_signature, metadata_problem
 
 ENTRY_POINT_GROUP = "stereodyn.integrators"
 
@@ -70,6 +70,9 @@ def _check(cls: type) -> type[Integrator]:
     abstract = sorted(getattr(cls, "__abstractmethods__", ()))
     if abstract:
         raise TypeError(f"integrator {cls.__qualname__} does not implement {', '.join(abstract)}")
+    why = metadata_problem(cls)
+    if why is not None:  # refused at load, naming the field and the rule, before any run
+        raise ValueError(f"integrator {cls.__module__}.{cls.__qualname__}: {why}")
     check_step_signature(cls)  # a plug-in written for 0.1 (no time argument) is refused, saying what changed
     return cls
 

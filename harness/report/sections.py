@@ -5,8 +5,9 @@ sections are discovered as asv's plug-ins are: a distribution names its module u
 `stereodyn.report_sections`, and the report imports it (its `register` calls run) before it lists the sections.
 stereodyn's own section modules are the registry's built-in table (BUILT_IN, reference.registry): found the same way,
 never through an import line elsewhere that could be forgotten (tests/test_registries.py checks the table holds every
-module that registers a section). A plug-in that does not import is one warning line naming it; the report renders
-without it."""
+module that registers a section). A plug-in that does not import, or whose section raises or exits while it renders
+(or returns what is not a list of lines), is one warning line naming it; the report renders without it. stereodyn's
+own sections are not guarded: their bug is a traceback."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -82,9 +83,26 @@ def registered() -> list[Section]:
     return sorted(_REGISTRY.values(), key=lambda section: (section.order, section.name))
 
 
+def _lines(section: Section, context: Context) -> list[str]:
+    """A section's lines: a plug-in's behind the guard (reference.plugins), checked to be a list of text; [] and one
+    warning line naming it when it fails."""
+    if plugins.own(section.render):
+        return section.render(context)
+    where = plugins.describe_class(section.render, f"report section plug-in {section.name!r}")
+    try:
+        with plugins.guard(f"{where} left out"):
+            lines = section.render(context)
+            if not isinstance(lines, list) or not all(isinstance(line, str) for line in lines):
+                raise TypeError(f"render returned {type(lines).__name__}, not a list of lines of text")
+    except plugins.PluginError as exc:
+        plugins.warn(str(exc))
+        return []
+    return lines
+
+
 def render(context: Context) -> str:
-    """report.md: the sections' lines in order."""
+    """report.md: the sections' lines in order (a plug-in's section that fails left out, with a warning)."""
     lines: list[str] = []
     for section in registered():
-        lines += section.render(context)
+        lines += _lines(section, context)
     return "\n".join(lines) + "\n"

@@ -53,9 +53,42 @@ ENTRY_POINT_GROUP = "stereodyn.scenes"
 SCENES = Registry("scene plug-in", ENTRY_POINT_GROUP, (f"{__package__}.rigid_body", f"{__package__}.sliding_ladder"))
 
 
+_FLAGS = ("needs_truth", "keeps_states", "work_precision")
+_HOOKS = {"parse": "parse(parser, data)", "truth": "truth(case, grids, certify)",
+          "metrics": "metrics(run, model, traj, grid, truth, full, rerun, keep_states)"}
+
+
+def scene_problem(scene: Any) -> str | None:
+    """Why an object cannot be a Scene (the protocol above), naming the field and the rule; None when it can."""
+    kind = getattr(scene, "kind", None)
+    if not isinstance(kind, str) or not kind:
+        return f"kind = {kind!r}: must be a non-empty string"
+    if not isinstance(getattr(scene, "title", None), str):
+        return "title: must be a string"
+    for flag in _FLAGS:
+        if not isinstance(getattr(scene, flag, None), bool):
+            return f"{flag} = {getattr(scene, flag, None)!r}: must be True or False"
+    columns = getattr(scene, "columns", None)
+    if not isinstance(columns, (tuple, list)) or not all(isinstance(c, str) for c in columns):
+        return f"columns = {columns!r}: must be a tuple of column names"
+    for hook, signature in _HOOKS.items():
+        if not callable(getattr(scene, hook, None)):
+            return f"{hook}: missing; a scene defines {signature}"
+    trajectory = getattr(scene, "trajectory", None)
+    if trajectory is not None and not isinstance(trajectory, type):
+        return f"trajectory = {trajectory!r}: must be a class"
+    return None
+
+
 def register(scene: Scene) -> Scene:
     """Make a scene known by its kind (a case file names it with `kind = "..."`). Registering a kind again replaces
-    the scene (a test's toy scene, a plug-in's newer version)."""
+    the scene (a test's toy scene, a plug-in's newer version). TypeError, naming the field and the rule, for what is
+    not a Scene (a plug-in's register at import: that plug-in is left out with a warning, the scene it would have
+    replaced stays)."""
+    why = scene_problem(scene)
+    if why is not None:
+        raise TypeError(f"scene {getattr(scene, 'kind', None)!r} ({type(scene).__module__}."
+                        f"{type(scene).__qualname__}): {why}")
     _SCENES[scene.kind] = scene
     return scene
 
