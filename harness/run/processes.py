@@ -106,10 +106,15 @@ def end_group() -> None:
     """Before a worker exits: kill the other processes of its group (what a plug-in started and left), where it leads
     one (own_process_group); a process in someone else's group (a worker the tests made by hand) kills nothing."""
     me = os.getpid()
-    if not hasattr(os, "getpgrp") or os.getpgrp() != me:
-        return
-    for pid in _group_members(me):
-        if pid != me:
+    if hasattr(os, "getpgrp") and os.getpgrp() == me:
+        end_group_of(me)
+
+
+def end_group_of(leader: int) -> None:
+    """Kill the processes of leader's group but the leader (the parent at a pool's shutdown: a worker started by the
+    pool's thread dies by its parent-death signal when that thread ends, before it can end its group itself)."""
+    for pid in _group_members(leader):
+        if pid != leader:
             try:
                 os.kill(pid, signal.SIGKILL)
             except OSError:

@@ -36,7 +36,7 @@ from multiprocessing.connection import wait
 
 from .. import budget
 from ..errors import InternalError, as_internal
-from .processes import end_group, kill_group, own_process_group, starting_workers
+from .processes import end_group, end_group_of, kill_group, own_process_group, starting_workers
 
 
 class EndedPastBudget(budget.BudgetExceeded):
@@ -142,6 +142,8 @@ class WatchedPool:
             self._closing = True
         self._wake()
         self._thread.join()
+        for worker in list(self._workers):  # what the tasks left running in a worker's group (processes.py)
+            end_group_of(worker.process.pid)
 
     def kill(self) -> None:
         """End the workers now (Ctrl-C, an error): the tasks not done are cancelled."""

@@ -1,0 +1,313 @@
+"""Issue 46, the plug-ins' half: whatever a plug-in does is that plug-in's row or one warning line, never the end of
+the command. In a worker, any BaseException, os._exit, a killed worker or forked children (findings 1, 5); every
+trajectory through the divergence rule in measure, and garbage from run() a row (finding 2 and the smaller one); a
+report section that fails is left out with a warning (3); metadata checked at load (4). The fast parts run the pool,
+measure, the guard and the registries in this process; `-m slow` runs the real commands with hostile packages."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from stereodyn.harness import integrators
+from stereodyn.harness.errors import InternalError
+from stereodyn.harness.integrators import registry
+from stereodyn.harness.integrators.base import metadata_problem
+from stereodyn.harness.integrators.lie import ExplicitRK
+from stereodyn.harness.integrators.tableau import CLASSICAL_RK4
+from stereodyn.harness.report import sections
+from stereodyn.harness.run import measure, pool as run_pool
+from stereodyn.harness.run.spec import RunKey
+from stereodyn.harness.run.workers import TaskEnded, WatchedPool, WorkerDied
+from stereodyn.harness import scenes
+from stereodyn.harness.scenes.cases import find_case, with_overrides
+from stereodyn.harness.trajectory import Status, Trajectory
+from stereodyn.reference import plugins
+
+import faulty_tasks
+
+SETTLE_S = 30.0  # a generous bound for a loaded machine to end a process, not a timing check
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def _gone(pids, within_s: float = SETTLE_S) -> bool:
+    deadline = time.monotonic() + within_s
+    while any(_alive(p) for p in pids):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.1)
+    return True
+
+
+# --- 1 and 5: a worker's task that ends with what is no Exception, or ends its worker, fails that task only
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_task_that_exits_interrupts_or_kills_its_worker_fails_that_task_only():
+    """SystemExit, KeyboardInterrupt (a worker ignores Ctrl-C: it is the code's) and GeneratorExit come back as
+    TaskEnded, an Exception every caller makes a row of (the parent raised them: `run` exited 0 or 130 with no
+    report); os._exit and SIGKILL are WorkerDied saying how (it said "exit code None"); the pool goes on."""
+    pool = WatchedPool(1, run_pool._init_worker, ((), None))
+    try:
+        for kind, name in (("exit", "SystemExit: 0"), ("interrupt", "KeyboardInterrupt"),
+                           ("generator", "GeneratorExit")):
+            failure = pool.submit(faulty_tasks.ends_with, kind).exception(timeout=120)
+            assert isinstance(failure, TaskEnded) and str(failure) == name, repr(failure)
+        failure = pool.submit(faulty_tasks.exits, 7).exception(timeout=120)
+        assert isinstance(failure, WorkerDied) and str(failure) == "worker process died (exit code 7)"
+        failure = pool.submit(faulty_tasks.kills_itself).exception(timeout=120)
+        assert isinstance(failure, WorkerDied) and str(failure) == "worker process died (killed by SIGKILL)"
+        assert pool.submit(faulty_tasks.pid).result(timeout=120) > 0  # a new worker took the next task
+    finally:
+        pool.kill()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_what_a_plugin_starts_in_a_worker_dies_with_the_worker():
+    """A child forked (os.fork) or started (subprocess) by a task outlived the command (only the worker's pid was
+    killed). Each worker leads its own process group: a worker that ends kills the rest of it, the parent kills the
+    group of a worker it ends, and a forked child has the parent-death signal on the worker."""
+    pool = WatchedPool(1, run_pool._init_worker, ((), None))
+    try:
+        worker = pool.submit(faulty_tasks.pid).result(timeout=120)
+        assert os.getpgid(worker) == worker  # its own group, in this session
+        left = [pool.submit(faulty_tasks.forks).result(timeout=120),
+                pool.submit(faulty_tasks.starts).result(timeout=120)]
+        assert all(_alive(p) for p in left)
+        assert isinstance(pool.submit(faulty_tasks.exits, 0).exception(timeout=120), WorkerDied)
+        assert _gone(left), [p for p in left if _alive(p)]  # the parent killed the dead worker's group
+        left = [pool.submit(faulty_tasks.forks).result(timeout=120),
+                pool.submit(faulty_tasks.starts).result(timeout=120)]
+    finally:
+        pool.shutdown()  # the worker exits on its own: it kills what is left in its group first
+    assert _gone(left), [p for p in left if _alive(p)]
+
+
+# --- 2 and the smaller finding: every trajectory through one gate in measure
+
+CASE = with_overrides(find_case("free-asymmetric"), t_end=0.1)
+RUN = RunKey(CASE, "pinocchio", "rk4", 1e-2)
+
+
+class _Model:
+    """A plug-in's model whose simulation's run() returns `answer(grid)` or raises it."""
+
+    def __init__(self, answer, on_prepare=None):
+        self.answer, self.on_prepare = answer, on_prepare
+
+    def torque_mode(self, case):
+        return "none"
+
+    def prepare(self, case, variant, integrator, dt, tolerance=None):
+        if self.on_prepare is not None:
+            raise self.on_prepare
+        answer = self.answer
+
+        class Simulation:
+            def run(self, grid):
+                if isinstance(answer, BaseException):
+                    raise answer
+                return answer(grid)
+        return Simulation()
+
+
+def _states(grid, bad_from: int | None = None):
+    n = len(grid.times)
+    quat, omega = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.tile([0.4, 0.1, 2.0], (n, 1))
+    if bad_from is not None:
+        omega[bad_from:] = np.nan
+    return Trajectory(grid.times, quat, omega, steps=grid.steps)
+
+
+def _row(monkeypatch, model) -> dict:
+    monkeypatch.setattr(measure, "model_of", lambda run: model)
+    return measure.measure(RUN, None, full=False)
+
+
+def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
+    """A plug-in's ok trajectory with NaN states was an `ok` row with no metrics (the rule ran only inside the
+    harness's integrators): now measure applies it to every trajectory."""
+    row = _row(monkeypatch, _Model(lambda grid: _states(grid, bad_from=4)))
+    assert row["status"] == "diverged" and row["diverged_at"] == pytest.approx(0.04, abs=1e-12), row
+    assert "t = 0.04 s" in row["message"]
+    row = _row(monkeypatch, _Model(lambda grid: _states(grid)))
+    assert row["status"] == "ok" and math.isnan(row["diverged_at"]), row
+
+
+@pytest.mark.parametrize("answer, words", [
+    (lambda grid: None, "run() returned NoneType, not a Trajectory"),
+    (lambda grid: "done", "run() returned str, not a Trajectory"),
+    (lambda grid: Trajectory(grid.times[:3], np.zeros((3, 4)), np.zeros((3, 3))),
+     "whose times has shape (3,), not (11,) (11 samples)"),
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 3)), np.zeros((11, 3))), "whose quat has shape (11, 3)"),
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), status="ok"), "not a Status"),
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), steps=-1), "steps is -1"),
+], ids=["None", "text", "short", "quat shape", "status text", "negative steps"])
+def test_garbage_from_a_plugins_run_is_its_failed_row(monkeypatch, answer, words):
+    """It was exit 3, "a bug in stereodyn" (an AttributeError in our metrics): the bug is the plug-in's."""
+    row = _row(monkeypatch, _Model(answer))
+    assert row["status"] == "failed" and row["message"].startswith("NoTrajectory: "), row
+    assert words in row["message"], row["message"]
+
+
+def test_garbage_from_stereodyns_own_simulation_is_our_bug():
+    class Simulation:  # stands in for a built-in adapter's
+        pass
+    Simulation.__module__ = "stereodyn.harness.engines.fake"
+    with pytest.raises(InternalError, match="NoTrajectory: .*returned NoneType"):
+        measure.checked(Simulation(), None, RUN.grid, Trajectory)
+
+
+@pytest.mark.parametrize("fault, where, message", [
+    (SystemExit(0), "run", "SystemExit: 0"), (SystemExit(), "prepare", "SystemExit"),
+    (GeneratorExit(), "run", "GeneratorExit"), (KeyboardInterrupt(), "run", "KeyboardInterrupt")])
+def test_a_plugin_that_raises_a_base_exception_is_its_failed_row(monkeypatch, fault, where, message):
+    """As in a worker, where SIGINT is ignored: a KeyboardInterrupt there is the plug-in's own raise."""
+    monkeypatch.setattr(signal, "getsignal", lambda signum: signal.SIG_IGN)
+    model = _Model(fault) if where == "run" else _Model(None, on_prepare=fault)
+    row = _row(monkeypatch, model)
+    assert row["status"] == "failed" and row["message"] == message, row
+
+
+def test_the_users_ctrl_c_is_still_ctrl_c(monkeypatch):
+    """Under Python's own handler (or ours after a Ctrl-C) a KeyboardInterrupt is the user's: never a row."""
+    monkeypatch.setattr(signal, "getsignal", lambda signum: signal.default_int_handler)
+    with pytest.raises(KeyboardInterrupt):
+        _row(monkeypatch, _Model(KeyboardInterrupt()))
+
+
+# --- 3: a report section that fails is one warning, and the page renders
+
+def _context(tmp_path) -> sections.Context:
+    return sections.Context(tmp_path, pd.DataFrame(), {}, None, {}, {})
+
+
+@pytest.fixture
+def only_sections(monkeypatch):
+    """The section registry holding only what the test registers (its plug-ins count as loaded)."""
+    monkeypatch.setattr(sections, "_REGISTRY", {})
+    monkeypatch.setattr(sections.SECTIONS, "_loaded", True)
+
+
+def test_a_section_that_raises_exits_or_returns_garbage_is_left_out_with_one_warning(tmp_path, only_sections):
+    """A section plug-in that raised threw a finished run away (exit 1, complete: false; sys.exit(5): exit 5 and
+    nothing said) and `stereodyn report` blamed "malformed tables"."""
+    faults = {"raises": lambda c: 1 / 0, "exits": lambda c: sys.exit(5), "os-exit": lambda c: os._exit(7),
+              "garbage": lambda c: "# a string", "fine": lambda c: ["## fine", ""]}
+    for order, (name, render) in enumerate(faults.items()):
+        sections.register(name, order)(render)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        page = sections.render(_context(tmp_path))
+    assert page == "## fine\n\n"
+    said = [str(w.message) for w in caught if issubclass(w.category, plugins.PluginWarning)]
+    assert [line.split("'")[1] for line in said] == ["raises", "exits", "os-exit", "garbage"], said
+    assert said[0].startswith("report section plug-in 'raises' (") and said[0].endswith(
+        "left out: ZeroDivisionError: division by zero"), said
+    assert said[1].endswith("left out: SystemExit: 5") and said[2].endswith("ProcessExit: called os._exit(7)")
+    assert said[3].endswith("TypeError: render returned str, not a list of lines of text")
+    assert os._exit is plugins._real_exit  # the guard put it back
+
+
+def test_the_guard_takes_os_exit_only_from_its_own_thread():
+    with pytest.raises(plugins.PluginError, match=r"^scene plug-in 'x' \(x\) does not load: ProcessExit: called "
+                                                  r"os._exit\(3\)$"):
+        with plugins.guard("scene plug-in 'x' (x) does not load"):
+            os._exit(3)
+    assert os._exit is plugins._real_exit
+
+
+# --- 4: metadata validated at load, naming the field and the rule
+
+def _rk(class_name: str, **declared) -> type:
+    attrs = {"name": class_name, "order": 4, "tableau": CLASSICAL_RK4, "description": "RKMK4",
+             "__module__": "plugin_x"}
+    return type(class_name, (ExplicitRK,), {**attrs, **declared})
+
+
+@pytest.mark.parametrize("declared, words", [
+    ({"order": "four"}, "order = 'four': must be a positive finite number"),
+    ({"order": math.nan}, "order = nan: must be a positive finite number"),
+    ({"order": 0}, "order = 0: must be a positive finite number"),
+    ({"order": True}, "order = True: must be a positive finite number"),
+    ({"stages": -3}, "stages = -3: must be a non-negative integer"),
+    ({"stages": 2.5}, "stages = 2.5: must be a non-negative integer"),
+    ({"symplectic": "yes"}, "symplectic = 'yes': must be True or False"),
+    ({"symmetric": 1}, "symmetric = 1: must be True or False"),
+    ({"iterative": None}, "iterative = None: must be True or False"),
+    ({"name": ""}, "name = '': must be a non-empty string"),
+], ids=["order text", "order nan", "order 0", "order bool", "stages negative", "stages float", "symplectic text",
+        "symmetric int", "iterative None", "no name"])
+def test_an_integrator_with_a_bad_declaration_is_refused_at_register(declared, words):
+    cls = _rk("meta_bad", **declared)
+    with pytest.raises(ValueError) as caught:
+        registry.register(cls)
+    assert str(caught.value) == f"integrator plugin_x.meta_bad: {words}" or words in str(caught.value)
+    assert ("lie", "meta_bad") not in registry._registry
+
+
+def test_every_builtin_integrator_declares_valid_metadata():
+    assert {name: metadata_problem(integrators.get(name, space)) for space in integrators.state_spaces()
+            for name in integrators.names(space)} == {name: None for name in integrators.names(None)}
+
+
+def test_an_entry_point_with_a_bad_order_is_one_line_and_named_exit_2(monkeypatch):
+    """order = "four" ran the whole sweep, then a ValueError traceback (exit 1); now its entry point is refused at
+    load with one line, and `--integrators` naming it answers that line."""
+    from importlib.metadata import EntryPoint
+
+    module = type(sys)("plugin_meta")
+    module.Four = _rk("meta_four", order="four")
+    monkeypatch.setitem(sys.modules, "plugin_meta", module)
+    monkeypatch.setattr(registry, "entry_points",
+                        lambda group: [EntryPoint("four", "plugin_meta:Four", registry.ENTRY_POINT_GROUP)])
+    monkeypatch.setattr(registry, "_plugins_loaded", False)
+    monkeypatch.setattr(registry, "_failed", {})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert "meta_four" not in integrators.names(None)
+    line = ("integrator plug-in 'four' (plugin_meta:Four) not loaded: ValueError: integrator plugin_x.meta_four: "
+            "order = 'four': must be a positive finite number")
+    assert [str(w.message) for w in caught] == [line]
+    assert registry.failed_plugin("meta_four") == line
+
+
+def test_a_scene_without_parse_is_refused_and_the_builtin_stays():
+    """A scene plug-in re-registering rigid_body without parse replaced the built-in: an AttributeError traceback
+    at the first case file."""
+    builtin = scenes.scene("rigid_body")
+
+    class NoParse:
+        kind, title, needs_truth, keeps_states, work_precision, columns = "rigid_body", "a body", True, True, True, ()
+
+        def truth(self, case, grids, certify):
+            return None
+
+        def metrics(self, *args, **kwargs):
+            return {}
+
+    with pytest.raises(TypeError, match=r"scene 'rigid_body' \(.*NoParse\): parse: missing; a scene defines "
+                                        r"parse\(parser, data\)"):
+        scenes.register(NoParse())
+    NoParse.parse = lambda self, parser, data: None
+    NoParse.needs_truth = "yes"
+    with pytest.raises(TypeError, match="needs_truth = 'yes': must be True or False"):
+        scenes.register(NoParse())
+    assert scenes.scene("rigid_body") is builtin
