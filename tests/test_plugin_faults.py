@@ -311,3 +311,211 @@ def test_a_scene_without_parse_is_refused_and_the_builtin_stays():
     with pytest.raises(TypeError, match="needs_truth = 'yes': must be True or False"):
         scenes.register(NoParse())
     assert scenes.scene("rigid_body") is builtin
+
+
+# --- the real commands, with hostile packages on PYTHONPATH (slow: a sweep is ~20 s on 2 loaded cores)
+
+def _package(root: Path, name: str, modules: dict[str, str], entry_points: dict[str, dict[str, str]]) -> dict:
+    """A distribution `name` 0.1.0 written as files (its modules and a .dist-info with its entry points), found by
+    importlib.metadata on PYTHONPATH: no pip. Returns the environment of a command that sees it."""
+    for path, text in modules.items():
+        (root / path).parent.mkdir(parents=True, exist_ok=True)
+        (root / path).write_text(textwrap.dedent(text))
+    info = root / f"{name.replace('-', '_')}-0.1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 0.1.0\n")
+    (info / "entry_points.txt").write_text("".join(
+        f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in points.items()) for group, points in entry_points.items()))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))}
+    env.pop("STEREODYN_IN_PROCESS", None)  # the runs on watched workers, as a user's (conftest runs them here)
+    return env
+
+
+HOSTILE_ENGINES = '''
+import os, signal, sys, time
+import numpy as np
+from stereodyn.harness import integrators
+from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.trajectory import Trajectory
+
+
+class Simulation:
+    def __init__(self, how, case, dt):
+        from stereodyn.harness.engines.pinocchio import PinocchioSimulation
+        self.how, self.inner = how, PinocchioSimulation(case, integrators.get("rk4")(), float(dt))
+
+    def run(self, grid):
+        how = self.how
+        if how == "exits":
+            sys.exit(0)
+        if how == "interrupts":
+            raise KeyboardInterrupt
+        if how == "generator":
+            raise GeneratorExit
+        if how == "os_exit":
+            os._exit(0)
+        if how == "kills":
+            os.kill(os.getpid(), signal.SIGKILL)
+        traj = self.inner.run(grid)
+        if how == "forks":
+            pid = os.fork()
+            if pid == 0:
+                time.sleep(300)
+                os._exit(0)
+            with open(os.environ["FORKED_PIDS"], "a") as out:
+                out.write(f"{pid}\\n")
+        if how == "nan_states":
+            omega = traj.omega.copy()
+            omega[5:] = np.nan
+            return Trajectory(traj.times, traj.quat, omega, steps=traj.steps)
+        if how == "garbage":
+            return None
+        return traj
+
+
+def engine(how):
+    class Hostile(Engine):
+        name = how
+        state_space = "lie"
+        pass_us = 3.0
+
+        def integrators(self):
+            return ("rk4",)
+
+        def unsupported(self, case):
+            return None
+
+        def prepare(self, case, integrator, dt):
+            if how == "exits_in_prepare":
+                sys.exit(0)
+            return Simulation(how, case, dt)
+    return Hostile
+
+
+HOWS = ("exits", "exits_in_prepare", "interrupts", "generator", "os_exit", "kills", "forks", "nan_states", "garbage")
+for how in HOWS:
+    globals()[how] = engine(how)
+'''
+HOWS = ("exits", "exits_in_prepare", "interrupts", "generator", "os_exit", "kills", "forks", "nan_states", "garbage")
+QUICK = ("free-asymmetric", "--integrators", "rk4", "--t-end", "0.2", "--dt", "1e-2", "--no-ladder", "--quiet",
+         "--jobs", "1")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_hostile_engines_are_their_rows_and_the_sweep_completes(tmp_path):
+    """Finding 1, 2, 5 as run: sys.exit(0) while stepping or in prepare (exit 0, no report, MuJoCo's rows lost),
+    KeyboardInterrupt (exit 130 "interrupted"), GeneratorExit (a traceback), os._exit, SIGKILL, a forked child (alive
+    after the command), NaN states (`ok`), None from run() (exit 3): each its failed or diverged row, MuJoCo's ok."""
+    env = _package(tmp_path / "site", "hostile-engines", {"hostile_engines.py": HOSTILE_ENGINES},
+                   {"stereodyn.engines": {how: f"hostile_engines:{how}" for how in HOWS}})
+    env["FORKED_PIDS"] = str(tmp_path / "forked")
+    out = tmp_path / "out"
+    result = subprocess.run([sys.executable, "-m", "stereodyn", "run", *QUICK, "--engines", ",".join([*HOWS, "mujoco"]),
+                             "--out", str(out)], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "Traceback" not in result.stderr, result.stderr
+    rows = pd.read_csv(out / "results.csv").set_index("engine")
+    assert set(rows.index) == {*HOWS, "mujoco"}, result.stderr[-3000:]
+    assert rows.loc["mujoco", "status"] == "ok"
+    expected = {"exits": "SystemExit: 0", "exits_in_prepare": "SystemExit: 0", "interrupts": "KeyboardInterrupt",
+                "generator": "GeneratorExit", "os_exit": "worker process died (exit code 0)",
+                "kills": "worker process died (killed by SIGKILL)", "garbage": "run() returned NoneType"}
+    for how, words in expected.items():
+        assert rows.loc[how, "status"] == "failed" and words in rows.loc[how, "message"], (how, rows.loc[how])
+    nan = rows.loc["nan_states"]
+    assert nan["status"] == "diverged" and nan["diverged_at"] == pytest.approx(0.05), nan
+    assert rows.loc["forks", "status"] == "ok"
+    assert json.loads((out / "runs.json").read_text())["complete"] is True and (out / "report.md").is_file()
+    forked = [int(pid) for pid in (tmp_path / "forked").read_text().split()]
+    assert forked and _gone(forked), [p for p in forked if _alive(p)]
+
+
+HOSTILE_LOADS = {
+    "hostile_loads/__init__.py": "",
+    "hostile_loads/scene_without_parse.py": '''
+        from stereodyn.harness import scenes
+
+
+        class NoParse:
+            kind, title, needs_truth, keeps_states, work_precision, columns = "rigid_body", "a body", True, True, True, ()
+
+            def truth(self, case, grids, certify):
+                return None
+
+            def metrics(self, *args, **kwargs):
+                return {}
+
+
+        scenes.register(NoParse())
+        ''',
+    "hostile_loads/ends_the_process.py": "import os\nos._exit(0)\n",
+    "hostile_loads/sections.py": '''
+        import os, sys
+        from stereodyn.harness.report import sections
+
+
+        @sections.register("hostile-raises", 15)
+        def raises(context):
+            raise RuntimeError("section broke")
+
+
+        @sections.register("hostile-exits", 16)
+        def exits(context):
+            sys.exit(5)
+
+
+        @sections.register("hostile-fine", 17)
+        def fine(context):
+            return ["## A plug-in's section that works", ""]
+        ''',
+    "hostile_loads/integrators.py": '''
+        from stereodyn.harness.integrators.lie import ExplicitRK
+        from stereodyn.harness.integrators.tableau import CLASSICAL_RK4
+
+
+        class Four(ExplicitRK):
+            name, order, tableau, description = "hostile_four", "four", CLASSICAL_RK4, "RKMK4 declaring order 'four'"
+        ''',
+}
+
+
+@pytest.mark.slow
+def test_hostile_loads_are_warnings_and_the_report_renders(tmp_path):
+    """Findings 1 (os._exit at import: `run`, `report`, `cases` exit 0 in silence), 3 (a section that raises: exit 1,
+    complete false, no report; `report` said "malformed tables"; sys.exit(5): exit 5) and 4 (order "four": a
+    traceback after the sweep; a scene re-registering rigid_body without parse: an AttributeError)."""
+    env = _package(tmp_path / "site", "hostile-loads", HOSTILE_LOADS, {
+        "stereodyn.scenes": {"noparse": "hostile_loads.scene_without_parse", "ends": "hostile_loads.ends_the_process"},
+        "stereodyn.report_sections": {"hostile": "hostile_loads.sections", "ends": "hostile_loads.ends_the_process"},
+        "stereodyn.integrators": {"four": "hostile_loads.integrators:Four"}})
+
+    def command(*argv):
+        return subprocess.run([sys.executable, "-m", "stereodyn", *argv], capture_output=True, text=True, env=env,
+                              cwd=tmp_path, timeout=600)
+
+    cases = command("cases")
+    assert cases.returncode == 0 and "free-asymmetric" in cases.stdout, cases.stderr
+    said = cases.stderr.splitlines()
+    assert all(line.startswith("stereodyn: warning: scene plug-in ") for line in said) and len(said) == 2, said
+    assert any("'noparse'" in line and "parse: missing; a scene defines parse(parser, data)" in line for line in said)
+    assert any("'ends'" in line and "ProcessExit: called os._exit(0)" in line for line in said)
+    named = command("run", *QUICK[:1], "--integrators", "hostile_four", "--engines", "pinocchio", "--out",
+                    str(tmp_path / "named"))
+    assert named.returncode == 2 and named.stderr.splitlines()[-1].startswith(
+        "stereodyn: error: --integrators: hostile_four: integrator plug-in 'four'"), named.stderr
+    assert "order = 'four': must be a positive finite number" in named.stderr and not (tmp_path / "named").exists()
+    out = tmp_path / "out"
+    run = command("run", *QUICK, "--engines", "mujoco", "--out", str(out))
+    assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr[-3000:]
+    assert json.loads((out / "runs.json").read_text())["complete"] is True
+    assert "A plug-in's section that works" in (out / "report.md").read_text()
+    for argv in (("run",), ("report", str(out))):
+        result = run if argv == ("run",) else command(*argv)
+        assert result.returncode == 0, result.stderr
+        said = result.stderr.splitlines()
+        assert all(line.startswith("stereodyn: warning: ") for line in said), said
+        left_out = [line for line in said if "left out" in line]
+        assert len(left_out) == 2 and "RuntimeError: section broke" in left_out[0] and "SystemExit: 5" in left_out[1]
+        assert any("report section plug-in 'ends'" in line and "ProcessExit" in line for line in said), said
+        assert "malformed" not in result.stderr
