@@ -114,10 +114,15 @@ def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, b
     return Trajectory(grid.times, quat, omega, Status.DIVERGED, message, diverged_at, steps, rhs_evals)
 
 
+def _real(array: np.ndarray) -> bool:
+    """Whether an array holds real numbers (integers or floats; not text, objects, booleans or complex)."""
+    return np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)
+
+
 def _array_problem(name: str, value, shape: tuple) -> str | None:
     """Why `value` is not a real numeric array of `shape`, or None."""
     array = np.asarray(value) if isinstance(value, (np.ndarray, list, tuple)) else None
-    if array is None or array.dtype.kind not in "fiu":
+    if array is None or not _real(array):
         return f"{name} is {type(value).__name__}, not an array of numbers"
     if array.shape != shape:
         return f"{name} has shape {array.shape}, not {shape} ({shape[0]} samples)"
@@ -160,7 +165,7 @@ def _first_bad(traj) -> int | None:
     if isinstance(traj, Trajectory):
         return first_bad_sample(traj.omega, traj.quat, np.asarray(traj.omega, dtype=float)[0])
     state = getattr(traj, "state", None)
-    if not isinstance(state, np.ndarray) or state.dtype.kind not in "fiu" or state.ndim < 1:
+    if not isinstance(state, np.ndarray) or not _real(state) or state.ndim < 1:
         return None
     rows = np.isfinite(state.reshape(len(state), -1)).all(axis=1)
     hits = np.flatnonzero(~rows)

@@ -71,6 +71,15 @@ from stereodyn.harness import scenes
 class Scene:
     kind, title, needs_truth, keeps_states, work_precision, columns = "toy_plugin_scene", "a toy", False, False, False, ()
 
+    def parse(self, parser, data):  # a scene defines its three hooks (scenes.register refuses one without them)
+        return None
+
+    def truth(self, case, grids, certify):
+        return None
+
+    def metrics(self, run, model, traj, grid, truth, full, rerun, keep_states=False):
+        return {}
+
 
 scenes.register(Scene())
 '''

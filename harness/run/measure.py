@@ -17,7 +17,7 @@ from ..errors import InternalError
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status, judged, problem
-from .processes import plugin_interrupt, raise_unless_data
+from .processes import plugin_fault, raise_unless_data
 from .spec import RunKey, base_row
 
 
@@ -81,8 +81,8 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         row.setdefault("_accuracy_s", time.perf_counter() - start)
         row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
     except BaseException as exc:  # SystemExit, GeneratorExit, a plug-in's own KeyboardInterrupt: its run's failure
-        if isinstance(exc, InternalError) or (isinstance(exc, KeyboardInterrupt) and not plugin_interrupt(exc)):
-            raise  # our bug, or the user's Ctrl-C
+        if not plugin_fault(exc):
+            raise  # our bug (InternalError), or the user's Ctrl-C
         text = " ".join(str(exc).split())
         row = {**base_row(run, grid), "status": Status.FAILED.value, "_accuracy_s": time.perf_counter() - start,
                "message": f"{type(exc).__name__}: {text}" if text else type(exc).__name__}

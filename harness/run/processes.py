@@ -227,6 +227,14 @@ def plugin_interrupt(exc: BaseException) -> bool:
     return handler is signal.SIG_IGN or (handler is on_interrupt and not interrupted())
 
 
+def plugin_fault(exc: BaseException) -> bool:
+    """Whether exc, not an Exception, is a plug-in's way out that its run's failure must hold (SystemExit,
+    GeneratorExit, a KeyboardInterrupt its code raised: plugin_interrupt), rather than Ctrl-C or our bug."""
+    if isinstance(exc, KeyboardInterrupt):
+        return plugin_interrupt(exc)
+    return isinstance(exc, (SystemExit, GeneratorExit))
+
+
 def raise_unless_data(exc: BaseException) -> None:
     """In an `except Exception` that records a failure as data: neither a failure the interrupt caused nor a bug in
     stereodyn's own code (harness.errors) is data."""

@@ -23,7 +23,15 @@ from ..grid import TimeGrid
 from ..integrators.base import uncounted
 from ..precision import FLOAT64
 from ..trajectory import Status
-from .processes import raise_unless_data
+from .processes import plugin_fault, raise_unless_data
+
+
+def _raise_unless_data(exc: BaseException) -> None:
+    """raise_unless_data for what a timed run raised, in this process too: a plug-in's SystemExit, GeneratorExit or
+    own KeyboardInterrupt leaves the run untimed, as an Exception does; anything else (Ctrl-C, our bug) goes on."""
+    if not isinstance(exc, Exception) and not plugin_fault(exc):
+        raise exc
+    raise_unless_data(exc)
 # (their home: harness/tables.py, not run.results, whose columns need the integrals and the scenes' metrics)
 from ..tables import SINGLE, disturbed
 
@@ -135,8 +143,8 @@ def _rounds(runs: list[Callable[[], object]], repeats: int, budget_s: float, min
                 start = time.perf_counter()
                 try:
                     run()
-                except Exception as exc:  # it ran ok before: left untimed rather than breaking the phase
-                    raise_unless_data(exc)
+                except BaseException as exc:  # it ran ok before: left untimed rather than breaking the phase
+                    _raise_unless_data(exc)
                     times[i] = None
                     continue
                 ts.append(time.perf_counter() - start)
@@ -199,8 +207,8 @@ def _warmed(items: dict, prepare: Callable, engine_of: Callable) -> dict:
         try:
             sim, grid = prepare(item)
             warm_up(sim, grid, engine_of(item))
-        except Exception as exc:
-            raise_unless_data(exc)
+        except BaseException as exc:
+            _raise_unless_data(exc)
             continue
         warm[key] = (lambda sim=sim, grid=grid: sim.run(grid)), grid
     return warm
