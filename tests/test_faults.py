@@ -538,7 +538,8 @@ def test_ctrl_c_at_any_moment_is_130_and_one_line(tmp_path, at_s):
         rows = pd.read_csv(out / "results.csv")
         blamed = rows[rows["message"].fillna("").str.contains("unavailable|KeyboardInterrupt|initialization failed")]
         assert blamed.empty, blamed.to_string()
-    assert _wait_gone(alive_in(group=process.pid), 60) == []
+    # its session, not its process group: each worker leads a group of its own (harness/run/processes.py)
+    assert _wait_gone(alive_in(session=process.pid), 60) == []
     assert cli.main([*ACCEPTANCE, "--out", str(out), "--resume"]) == 0
 
 
@@ -554,7 +555,7 @@ def test_a_killed_command_leaves_no_process(tmp_path, at_s):
     os.kill(process.pid, signal.SIGKILL)
     process.wait()
     time.sleep(5)
-    survivors = alive_in(group=process.pid)
+    survivors = alive_in(session=process.pid)  # the workers lead groups of their own, in its session
     for pid in survivors:
         os.kill(pid, signal.SIGKILL)
     assert survivors == []
