@@ -121,7 +121,10 @@ def _real(array: np.ndarray) -> bool:
 
 def _array_problem(name: str, value, shape: tuple) -> str | None:
     """Why `value` is not a real numeric array of `shape`, or None."""
-    array = np.asarray(value) if isinstance(value, (np.ndarray, list, tuple)) else None
+    try:  # an SDK's array type (JAX's, Warp's) reads as numpy's
+        array = np.asarray(value) if isinstance(value, (list, tuple)) or hasattr(value, "__array__") else None
+    except Exception:  # an array-like that does not convert is no array of numbers
+        array = None
     if array is None or not _real(array):
         return f"{name} is {type(value).__name__}, not an array of numbers"
     if array.shape != shape:
@@ -152,7 +155,8 @@ def problem(traj, samples: int, expected: type | None = None) -> str | None:
             return f"{whose} {why}"
     for name in ("steps", "rhs_evals"):
         value = getattr(traj, name, 0)
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or value < 0:  # an SDK's integer type or a float count is read as a count; text or -1 is not
             return f"{whose} {name} is {value!r}, not a count"
     if not isinstance(getattr(traj, "info", {}), dict):
         return f"{whose} info is {type(traj.info).__name__}, not a dict"
