@@ -35,7 +35,7 @@ from ..precision import FLOAT64
 from ..environment import code_origin, library_versions, source_fingerprint
 from ..scenes.checks import ROW_KEY
 from ..readers import ReadError, read_json
-from .results import COLUMNS, write_atomic
+from .results import COLUMNS, FINITE, METRIC_SUFFIXES, value_rule, write_atomic
 from ..trajectory import Status
 
 STORE_DIR = "store"
@@ -180,11 +180,23 @@ _IDENTITY_COLUMNS = ("engine", "formulation", "integrator", "precision")  # in b
 _STATUSES = frozenset(s.value for s in Status)
 
 
-def _is_number(value: Any) -> bool:
-    """A number column's JSON value: a number, null (NaN) or "inf"/"-inf" (as _plain writes them)."""
-    if isinstance(value, bool):
+def _is_number(column: str, value: Any) -> bool:
+    """A number column's JSON value as _plain writes it and read_results would read it back: null (NaN), a number
+    within the column's rule (results.value_rule: no negative metric or count, no dt <= 0, nothing above MAX_VALUE),
+    "inf"/"-inf" only where a results table may hold them (not a metric, a timing or a dt: results.FINITE), never a
+    NaN literal (_plain writes null)."""
+    if value is None:
+        return True
+    finite_only = column in FINITE or column.endswith(METRIC_SUFFIXES)
+    if value in ("inf", "-inf"):
+        return not finite_only
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
         return False
-    return value is None or value in ("inf", "-inf") or isinstance(value, (int, float))
+    try:
+        number = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        return False
+    return math.isfinite(number) and value_rule(column, number) is None
 
 
 def well_formed(record: Any, key: str) -> bool:
@@ -206,7 +218,7 @@ def well_formed(record: Any, key: str) -> bool:
         if column in _TEXT_COLUMNS or column == "torque_mode":
             if not isinstance(value, (str, type(None))):
                 return False
-        elif not _is_number(value):
+        elif not _is_number(column, value):
             return False
     return isinstance(row.get(ROW_KEY), (list, type(None)))
 
