@@ -373,18 +373,34 @@ class Store:
 
 
 def read_manifest(out_dir: Path) -> dict | None:
-    """DIR/runs.json, or None when the folder has none (results.csv from elsewhere)."""
+    """DIR/runs.json, or None when the folder has none (results.csv from elsewhere) or one this version cannot read
+    (manifest_problem says why)."""
+    return _manifest(out_dir)[0]
+
+
+def manifest_problem(out_dir: Path) -> str | None:
+    """Why DIR/runs.json, which is there, is no runs.json this version reads (not a regular file, larger than the
+    readers' limit, not JSON, another shape), in one line naming it; None when it reads, or is absent."""
+    return _manifest(out_dir)[1]
+
+
+def _manifest(out_dir: Path) -> tuple[dict | None, str | None]:
+    path = Path(out_dir) / MANIFEST
     try:
-        manifest = read_json(Path(out_dir) / MANIFEST)
-    except (OSError, ReadError):
-        return None
+        manifest = read_json(path)
+    except FileNotFoundError:
+        return None, None
+    except (OSError, ReadError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        return None, f"{path}: not a runs.json stereodyn can read ({reason})"
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
-        return None
+        return None, f"{path}: not a runs.json stereodyn can read (no \"format\": {FORMAT})"
     runs, environment = manifest.get("runs", []), manifest.get("environment")
     if not (isinstance(runs, list) and all(isinstance(key, str) for key in runs)
             and isinstance(environment, (dict, type(None))) and isinstance(manifest.get(COMPLETE, False), bool)):
-        return None  # not a manifest this version wrote: as if the folder had none
-    return manifest
+        # not a manifest this version wrote: as if the folder had none
+        return None, f"{path}: not a runs.json stereodyn can read (runs, environment or {COMPLETE} of another shape)"
+    return manifest, None
 
 
 def mark_complete(out_dir: Path) -> None:
@@ -412,6 +428,11 @@ def completeness(out_dir: Path, allow_partial: bool = False) -> list[str]:
         mark = False
     if mark is True:
         return []
+    problem = None if mark is False else manifest_problem(out_dir)
+    if problem and not allow_partial:  # garbled, cut or huge: named, never read as "no completion mark"
+        raise FolderNotReady(f"{problem}: read the folder as it is with --allow-partial")
+    if problem:
+        return [f"{problem}: read as it is, without its environment (--allow-partial)"]
     if mark is False:
         if not allow_partial:
             raise FolderNotReady(f"{out_dir}: an unfinished sweep (interrupted, killed or still running): finish it "
