@@ -13,8 +13,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import cli
-from stereodyn.harness.analysis import gate
-from stereodyn.harness.environment import TIMING_END, TIMING_START, differences
+from stereodyn.harness.environment import TIMING_END, TIMING_START
 
 ROWS = [  # case, engine, formulation, integrator, dt, energy_drift, attitude_err
     ("free-asymmetric", "mujoco", "", "rk4", 0.01, 3.1e-9, 2.0e-7),
@@ -93,6 +92,8 @@ def test_a_same_machine_rerun_is_the_same_environment_for_check_compare_and_hist
 
 def test_a_real_difference_still_differs_everywhere(tmp_path, capsys):
     """Another MuJoCo is a difference for all three readers, and the only one named."""
+    from stereodyn.harness.environment import differences
+
     a = folder(tmp_path / "a")
     env = {**environment("2026-11-02T10:00:00+00:00", "1.00, 1.00, 1.00"), "mujoco": "4.0.0"}
     b = folder(tmp_path / "b", env=env)
