@@ -331,11 +331,12 @@ def test_history_refuses_a_duplicated_row_as_every_reader_does(tmp_path, capsys)
         assert "duplicate key" in err, err
 
 
-@pytest.mark.parametrize("value, kept", [(None, True), (2.5e-7, True), (-1e-9, False), (1e308, False),
-                                         (float("nan"), False), ("inf", False), (10 ** 400, False)])
+@pytest.mark.parametrize("value, kept", [(None, True), (2.5e-7, True), ("inf", True), (-1e-9, False),
+                                         (1e308, False), (float("nan"), False), (10 ** 400, False), ("1e-3", False)])
 def test_resume_keeps_only_records_whose_numbers_results_csv_would_accept(value, kept):
-    """A hand-edited store record (a negative error, 1e308, a NaN literal where the store writes null, inf in a
-    metric) counts as absent on --resume and is redone, never copied into a results.csv that check then refuses."""
+    """A hand-edited store record (a negative error, 1e308, a NaN literal where the store writes null) counts as
+    absent on --resume and is redone, never copied into a results.csv that check then refuses; what the store itself
+    writes (null, "inf": test_store_contracts) is kept."""
     from stereodyn.harness.run.results import COLUMNS
     from stereodyn.harness.run.store import FORMAT, well_formed
 
@@ -345,5 +346,3 @@ def test_resume_keeps_only_records_whose_numbers_results_csv_would_accept(value,
     row.update(dt=0.01, t_end=1.0, steps=100, attitude_err=value)
     record = {"format": FORMAT, "key": "k" * 24, "identity": {"engine": "reference"}, "row": row, "series": None}
     assert well_formed(record, "k" * 24) is kept
-    if kept:
-        assert not well_formed({**record, "row": {**row, "us_per_step": "inf"}}, "k" * 24)  # a timing: finite

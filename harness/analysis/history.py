@@ -19,8 +19,8 @@ from statistics import median
 import pandas as pd
 
 from . import gate
-from ..environment import differences
 from .compare import FLOOR, GROUPS
+from ..environment import differences
 from ..run.results import KEY
 
 # The smallest change of a metric flagged: compare's smallest change group (1.1x). Reruns on one machine are
@@ -193,7 +193,7 @@ def _became_nan(records: list[dict], rows: list[int], quantity: str) -> list[tup
             had = True
         if ok:
             last = value
-    return found if quantity != STATUS else []
+    return found
 
 
 def _status_direction(before: str, after: str) -> str:
@@ -224,7 +224,8 @@ def history(points: list[Point], factor: float = STEP_FACTOR,
 
 def points_table(points: list[Point], steps: pd.DataFrame) -> pd.DataFrame:
     """history_points.csv: per point its label, path, date, commit, rows, fitted orders, steps flagged there (worse),
-    and every environment entry that differs between points (the date and commit aside)."""
+    and every environment entry that differs between two of the points (environment.differences: the measurement
+    context aside)."""
     keys = list(dict.fromkeys(k for p in points for k in p.environment))
     differ = {k for a, b in itertools.combinations(points, 2) for k in differences(a.environment, b.environment)}
     varying = [k for k in keys if k in differ]

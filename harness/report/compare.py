@@ -224,7 +224,9 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
         members = changes[groups == name].sort_values("change", ascending=False)
         if len(members):
             r = members.iloc[0]
-            worst = (f"{r['metric']} x{_ratio(r[r['metric']])}" if r["metric"] and name in dict(map(reversed, GROUPS))
+            ratio = r[r["metric"]] if r["metric"] else math.nan
+            worst = (f"{r['metric']} " + ("NaN in B" if ratio == BECAME_NAN else f"x{_ratio(ratio)}")
+                     if r["metric"] and name in dict(map(reversed, GROUPS))
                      else f"{r['status_a']} -> {r['status_b']}")
             head.append(f"{len(members)} rows {name}; first: {label(r)} ({worst})")
     return out / "compare.md", out / "compare.html", head

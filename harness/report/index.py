@@ -44,6 +44,8 @@ ENTRIES: dict[str, str] = {
     "history_points.csv": "`stereodyn history`: the runs in order, with the environment entries that differ",
     "history.md": "`stereodyn history`'s page: the steps and their series",
     "history.html": "`stereodyn history`'s page, as history.md",
+    "matrix-run.json": "`stereodyn matrix`: the environment and run arguments of this folder (reused or resumed by the "
+                       "next matrix)",
     "MUJOCO_LOG.TXT": "MuJoCo's own warnings of this run (each also in its row's message)",
     INDEX_FILE: "this index",
 }

@@ -35,7 +35,7 @@ from ..precision import FLOAT64
 from ..environment import code_origin, library_versions, source_fingerprint
 from ..scenes.checks import ROW_KEY
 from ..readers import ReadError, read_json
-from .results import COLUMNS, FINITE, METRIC_SUFFIXES, value_rule, write_atomic
+from .results import COLUMNS, value_rule, write_atomic
 from ..trajectory import Status
 
 STORE_DIR = "store"
@@ -181,15 +181,12 @@ _STATUSES = frozenset(s.value for s in Status)
 
 
 def _is_number(column: str, value: Any) -> bool:
-    """A number column's JSON value as _plain writes it and read_results would read it back: null (NaN), a number
-    within the column's rule (results.value_rule: no negative metric or count, no dt <= 0, nothing above MAX_VALUE),
-    "inf"/"-inf" only where a results table may hold them (not a metric, a timing or a dt: results.FINITE), never a
-    NaN literal (_plain writes null)."""
-    if value is None:
+    """A number column's JSON value as _plain writes it: null (NaN), "inf"/"-inf" (what the run computed, kept as it
+    was), or a finite number within the column's rule (results.value_rule, the rule of every reader of rows: no
+    negative metric or count, no dt <= 0, nothing above MAX_VALUE), never a NaN literal (_plain writes null). A
+    hand-edited record outside it is redone, not copied into a results.csv that check would refuse."""
+    if value is None or value in ("inf", "-inf"):
         return True
-    finite_only = column in FINITE or column.endswith(METRIC_SUFFIXES)
-    if value in ("inf", "-inf"):
-        return not finite_only
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return False
     try:
