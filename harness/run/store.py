@@ -425,11 +425,6 @@ def completeness(out_dir: Path, allow_partial: bool = False) -> list[str]:
         mark = False
     if mark is True:
         return []
-    problem = None if mark is False else manifest_problem(out_dir)
-    if problem and not allow_partial:  # garbled, cut or huge: named, never read as "no completion mark"
-        raise FolderNotReady(f"{problem}: read the folder as it is with --allow-partial")
-    if problem:
-        return [f"{problem}: read as it is, without its environment (--allow-partial)"]
     if mark is False:
         if not allow_partial:
             raise FolderNotReady(f"{out_dir}: an unfinished sweep (interrupted, killed or still running): finish it "
@@ -438,6 +433,9 @@ def completeness(out_dir: Path, allow_partial: bool = False) -> list[str]:
         return [f"{out_dir}: an unfinished sweep, read as it is (--allow-partial)"]
     if not (Path(out_dir) / "results.csv").is_file():
         return []  # nothing to read: the reader says so
+    problem = manifest_problem(out_dir)
+    if problem:  # garbled, cut or huge: named, and read as a folder without one
+        return [f"{problem}: read as it is, as a folder without one (no completion mark, no environment)"]
     return [f"{out_dir}: no completion mark (written by stereodyn 0.2.0 or elsewhere): read as it is"]
 
 
