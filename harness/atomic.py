@@ -25,3 +25,31 @@ def write_atomic(path: Path, text: str | bytes) -> None:
         if isinstance(exc, OSError) and exc.filename is None:  # a full disk: write() and fsync() name no file
             raise OSError(exc.errno, exc.strerror, str(path)) from exc
         raise
+
+
+def append_regular(path: Path, text: str) -> None:
+    """Append text to path, a regular file or a new path (created), without ever blocking: anything else (a FIFO,
+    whose open waits for a reader forever; a device) is an OSError saying what it is, before a byte is written.
+    Checked before the open and again on the open file (opened non-blocking: a path swapped for a FIFO in between
+    still opens at once, or fails, and fstat refuses it)."""
+    import errno
+    import stat
+
+    from .readers import kind
+
+    def refuse(mode: int) -> None:
+        if not stat.S_ISREG(mode):
+            raise OSError(errno.EINVAL, f"not a regular file ({kind(mode)})", str(path))
+
+    try:
+        refuse(os.stat(path).st_mode)
+    except FileNotFoundError:
+        pass  # a new path
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NONBLOCK", 0), 0o644)
+    try:
+        refuse(os.fstat(fd).st_mode)
+        data = text.encode("utf-8")
+        while data:
+            data = data[os.write(fd, data):]
+    finally:
+        os.close(fd)

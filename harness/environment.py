@@ -250,6 +250,32 @@ def environment() -> dict[str, str]:
 TIMING_START, TIMING_END = "load at timing start", "load at timing end"
 
 
+# What a result folder's or baseline's environment records is of two kinds, and every reader (check, compare,
+# history) tells them apart by this one rule (differences). The environment: what can change a number (library
+# versions, the CPU model, the platform, plug-ins and code hashes); two runs in the same environment agree bit for
+# bit. The measurement context: when and under what load the numbers were made (the date, the commit checked out, the
+# load at the start and end of timing, when the report was rendered); it differs on every run and changes no number
+# (the code a commit holds is in the environment, as its source hash).
+CONTEXT = ("date", "git commit", "report rendered", TIMING_START, TIMING_END)
+# The hash of stereodyn's own source, in a result folder's environment (runs.json's code); a baseline keeps none (the
+# gate does not compare it: it changes with every commit), so a baseline's lack of it is no difference.
+OWN_SOURCE = "stereodyn source"
+
+
+def is_context(name: str) -> bool:
+    """Whether an environment entry is measurement context (CONTEXT), not environment."""
+    return name in CONTEXT
+
+
+def differences(a: dict, b: dict) -> list[str]:
+    """The environment entries that differ between two recorded environments, in first-seen order: context never
+    (is_context), OWN_SOURCE only where both record it; an entry one side lacks reads as "-" there."""
+    names = list(dict.fromkeys([*a, *b]))
+    return [name for name in names if not is_context(name)
+            and not (name == OWN_SOURCE and (name not in a or name not in b))
+            and str(a.get(name, "-")) != str(b.get(name, "-"))]
+
+
 def load_snapshot() -> str:
     """The load average (1, 5, 15 min), the number of CPUs, the CPU model and the time: one line for the report's
     Environment section."""

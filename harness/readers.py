@@ -52,8 +52,11 @@ def read_bytes(path: str | Path, limit: int) -> bytes:
     # Non-blocking: a path swapped for a FIFO after the check still opens at once, and fstat refuses it.
     fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     with open(fd, "rb") as handle:
-        if not stat.S_ISREG(mode := os.fstat(fd).st_mode):
-            raise ReadError(f"not a regular file ({kind(mode)})")
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise ReadError(f"not a regular file ({kind(info.st_mode)})")
+        if info.st_size > limit:  # said before a byte is read (a 300 MB file is not read to be refused)
+            raise ReadError(f"larger than {limit} bytes (docs/limits.md)")
         raw = handle.read(limit + 1)
     if len(raw) > limit:
         raise ReadError(f"larger than {limit} bytes (docs/limits.md)")

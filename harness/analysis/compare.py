@@ -14,7 +14,7 @@ import pandas as pd
 
 from . import gate
 from ..precision import FLOAT64
-from ..environment import TIMING_END, TIMING_START
+from ..environment import differences
 from ..run.results import with_precision
 from ..run.store import read_manifest
 
@@ -25,9 +25,10 @@ FLOOR = 1e-12
 # rows count as unchanged (round-off moves deterministic runs by far less than 10 %, harness.analysis.gate).
 GROUPS = ((1.0, "changed 10x or more"), (math.log10(2.0), "changed 2x to 10x"),
           (math.log10(1.1), "changed 1.1x to 2x"))
-# Environment keys that differ between any two runs (not a difference in what ran).
-EXPECTED = ("date", "report rendered", TIMING_START, TIMING_END)
 TIMING = "us_per_step"
+# The ratio of a metric that had a number in A and is NaN in B: infinitely worse (check fails it as it fails a
+# metric over its bound); compare.csv writes it as inf, the pages as "NaN in B".
+BECAME_NAN = math.inf
 DIFFERS = "DIFFERS"
 LISTED = 40      # rows listed per group (the output folder's compare.csv holds every row)
 # --format pr: a metric changed when B / A leaves [1 / PR_RATIO, PR_RATIO] (the same-machine gate's factor), a fitted
@@ -73,11 +74,13 @@ def _load(path: Path) -> tuple[pd.DataFrame, dict]:
 
 
 def environment_rows(a: dict, b: dict) -> list[list[str]]:
-    """[key, A, B, mark]: the keys that differ first (expected ones, the date, after them), then the equal ones."""
+    """[key, A, B, mark]: the keys that differ (environment.differences) first, then those that differ as expected
+    (the measurement context: the date, the load at timing; a source hash only one side records), then the equal
+    ones."""
     keys = list(dict.fromkeys([*a, *b]))
     rows = [[k, str(a.get(k, "-")), str(b.get(k, "-"))] for k in keys]
-    differs = lambda r: r[1] != r[2]  # noqa: E731
-    rank = lambda r: (0 if differs(r) and r[0] not in EXPECTED else 1 if differs(r) else 2)  # noqa: E731
+    differ = set(differences(a, b))
+    rank = lambda r: (0 if r[0] in differ else 1 if r[1] != r[2] else 2)  # noqa: E731
     return [r + [DIFFERS if rank(r) == 0 else "differs (expected)" if rank(r) == 1 else ""]
             for r in sorted(rows, key=rank)]
 
@@ -87,8 +90,9 @@ def _metrics(a: pd.DataFrame, b: pd.DataFrame) -> list[str]:
 
 
 def row_changes(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
-    """One row per key in A or B: statuses, the ratio B/A of every metric and of the timing, the largest accuracy
-    change (|log10 ratio|) and its metric."""
+    """One row per key in A or B: statuses, the ratio B/A of every metric and of the timing (BECAME_NAN for a metric
+    that had a number in A and is NaN in B), the largest accuracy change (|log10 ratio|, inf for a metric become NaN)
+    and its metric."""
     metrics = _metrics(a, b)
     index = lambda df: {gate._key(row): row for row in df.to_dict("records")}  # noqa: E731
     rows_a, rows_b = index(a), index(b)
@@ -103,9 +107,11 @@ def row_changes(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
             x = gate._number(ra.get(metric)) if ra else math.nan
             y = gate._number(rb.get(metric)) if rb else math.nan
             ratio = max(y, FLOOR) / max(x, FLOOR) if math.isfinite(x) and math.isfinite(y) else math.nan
+            if metric != TIMING and math.isfinite(x) and math.isnan(y) and rb is not None:
+                ratio = BECAME_NAN  # a number in A, NaN in B: the gate fails it on a row ok in both, so worse
             entry[metric] = ratio
-            if metric != TIMING and math.isfinite(ratio) and abs(math.log10(ratio)) > worst:
-                worst, worst_metric = abs(math.log10(ratio)), metric
+            if metric != TIMING and ratio > 0 and abs(math.log10(ratio)) > worst:  # NaN > 0 is False
+                worst, worst_metric = abs(math.log10(ratio)), metric  # inf for a metric become NaN: the largest
         entry["change"], entry["metric"] = worst, worst_metric
         out.append(entry)
     return pd.DataFrame(out)
@@ -167,8 +173,12 @@ def order_changes(a: dict[tuple, dict], b: dict[tuple, dict]) -> list[dict]:
 
 def verdict_changes(a: Path, b: Path) -> list[dict]:
     """The verdicts (verdicts.csv of two result directories) whose status changed: {name, a, b, sign}; a verdict in
-    one run only counts from or to "-". Worse first."""
+    one run only counts from or to "-". Worse first. None where either side is a baseline file: it keeps no
+    verdicts, so it has none to lose or gain (its rows and orders are compared)."""
     from .verdicts import read
+
+    if not (Path(a).is_dir() and Path(b).is_dir()):
+        return []
 
     def index(path: Path) -> dict:
         found = read(path) if Path(path).is_dir() else None

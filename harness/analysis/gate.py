@@ -33,10 +33,11 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..environment import OWN_SOURCE, differences
 from ..precision import FLOAT64
 from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
 from ..run.results import (KEY, METRIC_SUFFIXES, NAMED, SINGLE, STATUSES, TableError, describe_key, dt_key, duplicate,
-                           metric_names, read_csv_table, read_results, sign_rule, with_precision, write_atomic)
+                           metric_names, read_csv_table, read_results, value_rule, with_precision, write_atomic)
 
 # KEY: (case, engine, formulation, integrator, precision, dt); precision: a baseline or table of stereodyn 0.2.0 has
 # none, and its runs were float64.
@@ -47,8 +48,6 @@ ORDER_KEY = ("case", "engine", "formulation", "integrator", "precision")
 # A fitted order may fall this much below the baseline's. The fits are deterministic: on one machine kind round-off
 # moves them by < 0.01; a method that lost an order (MuJoCo 3.17's ball-joint RK4: 2.00 against 4.07) moves >= 1.
 ORDER_DROP = 0.5
-# Environment entries that differ on every run and say nothing about the numbers.
-_VOLATILE = ("date", "git commit")
 SAME_MACHINE, CROSS_MACHINE = "same-machine", "cross-machine"
 DEFAULT_MODE = SAME_MACHINE
 LEGACY_MODE = CROSS_MACHINE  # a baseline that records no mode was made for factor 2, 0.2.0's only default
@@ -230,6 +229,13 @@ def _is_number(value) -> bool:
     return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
 
 
+def _finite(value) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer of hundreds of digits: no double holds it
+        return False
+
+
 def _validate_rows(path: Path, name: str, rows, required: tuple, text: tuple, numbers) -> None:
     """Every entry of the list `name` is an object with the required keys; text keys hold strings (or null where
     allowed below), number keys (numbers(key)) hold numbers or null."""
@@ -246,8 +252,8 @@ def _validate_rows(path: Path, name: str, rows, required: tuple, text: tuple, nu
         for key, value in row.items():
             if numbers(key) and not _is_number(value):
                 raise GateError(f"{where}.{key}: must be a number or null, got {json.dumps(value)[:40]}")
-            if numbers(key) and value is not None and not math.isfinite(value):
-                raise GateError(f"{where}.{key}: must be finite, got {value}")
+            if numbers(key) and value is not None and not _finite(value):
+                raise GateError(f"{where}.{key}: must be finite, got {str(value)[:40]}")
 
 
 def _check_rows(path: Path, rows: list[dict]) -> None:
@@ -263,7 +269,7 @@ def _check_rows(path: Path, rows: list[dict]) -> None:
                 raise GateError(f"{where}.{key}: not a metric of the results table (valid: {', '.join(metrics)})")
             if not key.endswith(METRIC_SUFFIXES) and key not in allowed:
                 raise GateError(f"{where}.{key}: unknown key (allowed: {', '.join(allowed)} and the metrics)")
-            rule = None if value is None or isinstance(value, str) else sign_rule(key, value)
+            rule = None if value is None or isinstance(value, str) else value_rule(key, value)
             if rule:
                 raise GateError(f"{where}.{key}: {rule}, got {value}")
         for key in NAMED:
@@ -301,6 +307,11 @@ def read_baseline_file(path: Path) -> Baseline:
         raise GateError(f"{path}: orders: must be a list")
     _validate_rows(path, "orders", orders, (*ORDER_KEY[:4], "fitted"), ORDER_KEY,
                    lambda key: key in ("fitted", "declared"))
+    for index, row in enumerate(orders):  # an order below 0 could never fall by ORDER_DROP below itself and fail
+        for key, low in (("fitted", "must be >= 0"), ("declared", "must be > 0")):
+            value = row.get(key)
+            if value is not None and (value < 0 or (key == "declared" and value == 0)):
+                raise GateError(f"{path}: orders[{index}].{key}: {low} (a convergence order), got {value}")
     twice = duplicate([_order_key(row) for row in orders])
     if twice:
         raise GateError(f"{path}: orders[{twice[1]}]: duplicate key {describe_key(_order_key(orders[twice[1]]))} "
@@ -396,7 +407,8 @@ def compare(current: pd.DataFrame, baseline: list[dict], tolerances: Tolerances 
             before, after = _number(old.get("us_per_step")), _number(new.get("us_per_step"))
             if not math.isnan(before) and not math.isnan(after) and after > tolerances.time_factor * before:
                 findings.append(Finding(key, "us_per_step", f"{before:.3g}", f"{after:.3g}",
-                                        f"<= {tolerances.time_factor * before:.3g}", after / before))
+                                        f"<= {tolerances.time_factor * before:.3g}",
+                                        after / before if before > 0 else math.inf))
     return findings
 
 
@@ -436,8 +448,8 @@ def code_environment(manifest: dict | None, own: bool = False) -> dict:
     if not isinstance(code, dict):
         return {}
     entries = {}
-    if own and isinstance(code.get("stereodyn source"), str):
-        entries["stereodyn source"] = code["stereodyn source"]
+    if own and isinstance(code.get(OWN_SOURCE), str):
+        entries[OWN_SOURCE] = code[OWN_SOURCE]
     for kind, table in (("engine", code.get("engines")), ("integrator", code.get("integrators"))):
         for name, origins in (table.items() if isinstance(table, dict) else ()):
             for origin in (origins if isinstance(origins, list) else [origins]):
@@ -454,18 +466,12 @@ def recorded_environment(manifest: dict | None) -> dict:
 
 
 def environment_changes(baseline: dict, current: dict | None) -> list[str]:
-    """'name old -> new' for every environment entry (library versions, CPU, platform) that differs between the
-    baseline and the run; the date and the git commit are left out (they differ every time)."""
+    """'name old -> new' for every environment entry (library versions, CPU, platform, plug-ins' code) that differs
+    between the baseline and the run, by environment.differences: the measurement context (the date, the commit, the
+    load at timing) is no change."""
     if not current:
         return ["run environment unknown (no runs.json beside results.csv)"] if baseline else []
-    changes = []
-    for name in [*baseline, *(k for k in current if k not in baseline)]:
-        if name in _VOLATILE:
-            continue
-        before, after = baseline.get(name, "-"), current.get(name, "-")
-        if str(before) != str(after):
-            changes.append(f"{name} {before} -> {after}")
-    return changes
+    return [f"{name} {baseline.get(name, '-')} -> {current.get(name, '-')}" for name in differences(baseline, current)]
 
 
 def new_rows(current: pd.DataFrame, baseline: list[dict]) -> int:

@@ -11,6 +11,7 @@ too.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from statistics import median
@@ -19,6 +20,7 @@ import pandas as pd
 
 from . import gate
 from .compare import FLOOR, GROUPS
+from ..environment import differences
 from ..run.results import KEY
 
 # The smallest change of a metric flagged: compare's smallest change group (1.1x). Reruns on one machine are
@@ -141,6 +143,7 @@ def flag(table: pd.DataFrame, points: list[Point], factor: float = STEP_FACTOR,
                 if after != before:
                     found.append((rows[i], before, after, f"{before} -> {after}", _status_direction(before, after)))
             continue
+        found += _became_nan(records, rows, quantity)
         finite = [(r, records[r]["value"]) for r in rows if math.isfinite(records[r]["value"])]
         if quantity == ORDER:
             levels, threshold = [v for _, v in finite], order_step
@@ -175,6 +178,24 @@ def flag(table: pd.DataFrame, points: list[Point], factor: float = STEP_FACTOR,
     return table.assign(step=step, change=change)[list(COLUMNS)], steps_table
 
 
+def _became_nan(records: list[dict], rows: list[int], quantity: str) -> list[tuple]:
+    """The points where a metric that had a number on an ok row became NaN on a row still ok (worse: the gate fails
+    it), or a fitted order that had a number became NaN or went (worse: the gate fails it, "fell" or "missing"), and
+    where such a value got a number again (better). The finite values' levels are fitted apart (flag)."""
+    found, had, last = [], False, math.nan
+    for r in rows:
+        value, ok = records[r]["value"], quantity == ORDER or records[r]["status"] == "ok"
+        if ok and not math.isfinite(value) and had and math.isfinite(last):
+            found.append((r, last, math.nan, "NaN", "worse"))
+        elif ok and math.isfinite(value) and had and not math.isfinite(last):
+            found.append((r, math.nan, value, "a number again", "better"))
+        if ok and math.isfinite(value):
+            had = True
+        if ok:
+            last = value
+    return found
+
+
 def _status_direction(before: str, after: str) -> str:
     """A status change signed as the gate ranks statuses; a row gone missing is worse (the gate fails it), one that
     appears is a change (the gate does not check it)."""
@@ -203,10 +224,11 @@ def history(points: list[Point], factor: float = STEP_FACTOR,
 
 def points_table(points: list[Point], steps: pd.DataFrame) -> pd.DataFrame:
     """history_points.csv: per point its label, path, date, commit, rows, fitted orders, steps flagged there (worse),
-    and every environment entry that differs between points (the date and commit aside)."""
+    and every environment entry that differs between two of the points (environment.differences: the measurement
+    context aside)."""
     keys = list(dict.fromkeys(k for p in points for k in p.environment))
-    varying = [k for k in keys if k not in ("date", "git commit")
-               and len({str(p.environment.get(k, ABSENT)) for p in points}) > 1]
+    differ = {k for a, b in itertools.combinations(points, 2) for k in differences(a.environment, b.environment)}
+    varying = [k for k in keys if k in differ]
     rows = []
     for index, point in enumerate(points, 1):
         here = steps[steps["point"] == index] if len(steps) else steps

@@ -45,6 +45,12 @@ FIGURES_ENV = "STEREODYN_FIGURES"  # "0": --no-figures by default (a test suite,
 GATE_MODES = ("same-machine", "cross-machine")  # harness.analysis.gate.MODES (this module imports no analysis)
 
 
+# What the interrupt line adds, per command: what to run to go on (a command that keeps nothing says nothing more).
+INTERRUPTED = {"run": "; every finished run is stored (rerun with --resume to go on)",
+               "matrix": "; the environments built and the runs finished are kept (rerun the same matrix command to "
+                         "go on: it reuses them)"}
+
+
 class BadInput(Exception):
     """A user error outside case files: one line, exit code 2."""
 
@@ -353,10 +359,21 @@ def override(case, args):
                                                                 "") + f": {exc.rule}") from None
 
 
-def output_folder(path: Path, option: str) -> Path:
-    """Create the output folder (and its store/) and prove it writable, or one line naming the option."""
+def output_folder(path: Path, option: str, store: bool = True) -> Path:
+    """Create the output folder (and, with store, its store/) and prove it writable, or one line naming the option:
+    a path that exists is a folder (a device, a FIFO or a file there is refused, saying what it is)."""
+    import stat
+
+    from ..readers import kind
+
     try:
-        for folder in (path, path / "store"):
+        mode = os.stat(path).st_mode
+    except OSError:  # absent (a new path), or below something that is not a folder: said below
+        mode = None
+    if mode is not None and not stat.S_ISDIR(mode):
+        raise BadInput(f"{option} {path}: is {kind(mode)}, not a folder (give a folder or a new path)")
+    try:
+        for folder in (path, path / "store") if store else (path,):
             folder.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryFile(dir=folder):
                 pass
@@ -504,7 +521,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         sys.stdout, sys.stderr = streams
     if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
-        print("stereodyn: interrupted; every finished run is stored (rerun with --resume to go on)", file=sys.stderr)
+        print(f"stereodyn: interrupted{INTERRUPTED.get(args.command, '')}", file=sys.stderr)
         return 130
     return code
 

@@ -73,6 +73,7 @@ def main(args) -> int:
 def _write_ci(args, base, verdict, headline: str, context: list[str], groups: list[str]) -> None:
     """--junit FILE (an unwritable one was refused before the check), and the step summary when GitHub's variable
     names a file (appended, as GitHub expects; one that cannot be written is a warning: the gate's status stands)."""
+    from ..atomic import append_regular
     from ..report.check import junit, step_summary
     from ..run.results import write_atomic
 
@@ -83,8 +84,7 @@ def _write_ci(args, base, verdict, headline: str, context: list[str], groups: li
             raise BadInput(f"--junit {args.junit}: cannot write ({exc.strerror or exc})") from None
     path = os.environ.get(STEP_SUMMARY)
     if path:
-        try:
-            with Path(path).open("a", encoding="utf-8") as summary:
-                summary.write(step_summary(verdict, headline, context, groups))
+        try:  # a FIFO there (nothing reading it) would block check for ever: a regular file or a new path only
+            append_regular(Path(path), step_summary(verdict, headline, context, groups))
         except OSError as exc:
             warn([f"{STEP_SUMMARY}={path}: cannot append the summary ({exc.strerror or exc})"])

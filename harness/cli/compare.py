@@ -4,13 +4,15 @@ from __future__ import annotations
 import os
 from contextlib import ExitStack
 
-from . import warn
+from . import output_folder, warn
 
 
 def main(args) -> int:
     from ..report.compare import compare
     from ..run.store import STORE_DIR, completeness, folder_lock, reading
 
+    if args.out is not None:  # a folder or a new path: /dev/null or a FIFO is refused naming the option
+        output_folder(args.out, "--out", store=False)
     out = args.out if args.out is not None else args.b
     warnings: list[str] = []
     with ExitStack() as held:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 from contextlib import ExitStack
 from pathlib import Path
@@ -9,16 +10,20 @@ from pathlib import Path
 from . import BadInput, warn
 
 
-def load_point(path: Path, label: str, held: ExitStack, allow_partial: bool, warnings: list[str]):
-    """A result folder (read only when no command writes it, and complete) or a baseline file as a history Point."""
+def load_point(path: Path, label: str, held: ExitStack, allow_partial: bool, warnings: list[str],
+               written: Path | None = None):
+    """A result folder (read only when no command writes it, and complete) or a baseline file as a history Point;
+    `written`: the folder this command writes (and has locked), whose own completeness is read without a lock."""
     import pandas as pd
 
     from ..analysis import compare, gate
     from ..analysis.history import Point
-    from ..run.store import reading
+    from ..run.store import STORE_DIR, completeness, reading
 
     if path.is_dir():
-        warnings += held.enter_context(reading(path, allow_partial))
+        own = written is not None and os.path.realpath(path) == os.path.realpath(written)
+        warnings += (completeness(path, allow_partial) if own and (path / STORE_DIR).is_dir()
+                     else held.enter_context(reading(path, allow_partial)))
     table, environment = compare.load(path)
     if path.is_dir():
         orders = gate.read_orders(path)
@@ -43,7 +48,8 @@ def commits(repo: Path) -> list[str]:
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise BadInput(f"--repo {repo}: cannot run git ({exc})") from None
     if done.returncode != 0:
-        raise BadInput(f"--repo {repo}: not a git repository ({done.stderr.strip().splitlines()[-1:] or ['?']})")
+        said = done.stderr.strip().splitlines()
+        raise BadInput(f"--repo {repo}: not a git repository ({said[-1] if said else f'git exited {done.returncode}'})")
     return done.stdout.split()
 
 
@@ -69,18 +75,28 @@ def check_steps(args) -> None:
 
 def main(args) -> int:
     from . import output_folder
+    from ..report import index
+    from ..run.store import STORE_DIR, folder_lock
 
     check_steps(args)
     if len(args.dirs) < 2:
         raise BadInput(f"history: needs at least two result folders or baselines, got {len(args.dirs)}")
+    real = [os.path.realpath(path) for path in args.dirs]
+    twice = next((path for path, name in zip(args.dirs, real) if real.count(name) > 1), None)
+    if twice is not None:  # one run counted twice would look like a series that did not move
+        raise BadInput(f"history: {twice} given twice (each run once)")
     commit_list = commits(args.repo) if args.by == "commit" else None
-    out = output_folder(args.out, "--out")
+    out = output_folder(args.out, "--out", store=False)
     warnings: list[str] = []
     with ExitStack() as held:
-        points = [load_point(path, label, held, args.allow_partial, warnings)
+        if (out / STORE_DIR).is_dir():  # a result folder: locked as `run` locks it while history writes there
+            held.enter_context(folder_lock(out))
+        points = [load_point(path, label, held, args.allow_partial, warnings, out)
                   for path, label in zip(args.dirs, labels(args.dirs))]
-    warn(warnings)
-    pages, steps, ordered = build(points, args.by, out, args.step_factor, args.order_step, commit_list)
+        warn(warnings)
+        pages, steps, ordered = build(points, args.by, out, args.step_factor, args.order_step, commit_list)
+        if (out / index.INDEX_FILE).is_file():  # a result folder's index now lists history's files too
+            index.write(out)
     print(f"{len(ordered)} runs in order ({args.by}): {', '.join(p.label for p in ordered)}")
     worse = steps[steps["direction"] == "worse"] if len(steps) else steps
     print(f"{len(steps)} steps flagged, {len(worse)} worse" + (":" if len(worse) else ""))

@@ -9,10 +9,12 @@ import json
 import math
 import re
 import shutil
+import signal
 import subprocess
 from contextlib import ExitStack
 from pathlib import Path
 
+from ..atomic import write_atomic
 from . import BadInput, one_line, output_folder, warn
 
 # The quick suite (README, "Regression CI"; .ci/run gates it against reports/baselines/quick.json).
@@ -56,11 +58,18 @@ def slug(index: int, label: str) -> str:
     return f"{index}-" + (re.sub(r"[^A-Za-z0-9.=+-]+", "-", label).strip("-")[:60] or "env")
 
 
+# Run arguments that make `stereodyn run` print and exit without a result (argparse's help, and any prefix of it).
+_NO_RESULT = ("-h", "--help")
+
+
 def run_arguments(args) -> list[str]:
     given = list(QUICK) if args.run_args is None else list(args.run_args)
     for option in ("--out", "--resume"):
         if any(a == option or a.startswith(option + "=") for a in given):
             raise BadInput(f"matrix: {option} after --: the matrix chooses each run's folder (OUT/runs/N-NAME)")
+    for a in given:
+        if a in _NO_RESULT or (len(a) > 3 and "--help".startswith(a)):
+            raise BadInput(f"matrix: {a} after --: prints the run's help and runs nothing (see stereodyn run --help)")
     return given
 
 
@@ -69,22 +78,37 @@ def command(python: Path, argv: list[str], folder: Path) -> list[str]:
     return [str(python), "-m", "stereodyn", "run", *argv, "--out", str(folder)]
 
 
+def _stamp(folder: Path) -> dict | None:
+    try:
+        stamp = json.loads((folder / RUN_STAMP).read_text())
+    except (OSError, ValueError):
+        return None
+    return stamp if isinstance(stamp, dict) else None
+
+
 def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str, str, bool]:
     """`stereodyn run ARGV --out FOLDER` with the environment's Python: (status, reason, reused). A folder from an
-    earlier matrix with the same environment (its cache key) and arguments is reused, unless rerun."""
+    earlier matrix with the same environment (its cache key) and arguments is reused when it finished, resumed
+    (`run --resume`: its stored runs kept) when it was interrupted, unless rerun; any other is emptied, never while
+    another command writes it (its lock: StoreBusy, one line)."""
+    from ..run import environments as envs
+    from ..run.store import folder_lock
+
     stamp = {"environment": environment.path.name, "run": argv}
-    if not rerun and (folder / RUN_STAMP).is_file() and (folder / "results.csv").is_file():
-        try:
-            if json.loads((folder / RUN_STAMP).read_text()) == stamp:
-                return "ok", "", True
-        except ValueError:
-            pass
-    if folder.exists():
-        shutil.rmtree(folder)
-    folder.mkdir(parents=True)
+    earlier = None if rerun else _stamp(folder)
+    same = earlier is not None and {k: earlier.get(k) for k in stamp} == stamp
+    if same and earlier.get("complete", True) and (folder / "results.csv").is_file():
+        return "ok", "", True
+    resume = same and (folder / "store").is_dir()
+    if folder.exists() and not resume:
+        with folder_lock(folder):  # never a folder a run still writes (an earlier matrix's, or one by hand)
+            shutil.rmtree(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_atomic(folder / RUN_STAMP, json.dumps({**stamp, "complete": False}) + "\n")  # before: an interrupt resumes
     log = folder.parent / f"{folder.name}.log"
-    with open(log, "w") as out:
-        done = subprocess.run(command(environment.python, argv, folder), stdout=out, stderr=subprocess.STDOUT)
+    with open(log, "a" if resume else "w") as out:
+        done = envs.owned(command(environment.python, argv + (["--resume"] if resume else []), folder), stdout=out,
+                          stderr=subprocess.STDOUT)
     if done.returncode == 130:  # interrupted there: the matrix is too
         raise KeyboardInterrupt
     if done.returncode == 3:  # a bug in stereodyn is never a row (harness/errors.py), in an environment's run neither
@@ -96,18 +120,21 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
         lines = [line for line in log.read_text(errors="replace").splitlines() if line.strip()]
         return "run failed", f"stereodyn run exited {done.returncode}: {lines[-1] if lines else 'no output'} " \
                              f"({log})", False
-    (folder / RUN_STAMP).write_text(json.dumps(stamp) + "\n")
+    if not (folder / "results.csv").is_file():  # exit 0 and no table: the run's arguments ran nothing
+        return "run failed", f"stereodyn run exited 0 but wrote no results.csv ({log})", False
+    write_atomic(folder / RUN_STAMP, json.dumps({**stamp, "complete": True}) + "\n")
     return "ok", "", False
 
 
-def main(args) -> int:
-    import pandas as pd
+def _terminated(signum, frame) -> None:
+    """SIGTERM of the matrix: as Ctrl-C, so that the run or install under way is ended with it (envs.owned)."""
+    raise KeyboardInterrupt
 
-    from ..analysis import history as analysis
-    from ..report.compare import compare
+
+def main(args) -> int:
     from ..run import environments as envs
-    from ..run.results import write_atomic
-    from .history import build, check_steps, load_point
+    from ..run.store import folder_lock
+    from .history import check_steps
 
     check_steps(args)
     matrix = environments(args.specs, args.cross)
@@ -117,6 +144,22 @@ def main(args) -> int:
     except envs.UvMissing as exc:
         raise BadInput(str(exc)) from None
     out = output_folder(args.out, "--out")
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        with folder_lock(out):  # one matrix at a time in OUT: its runs' folders are its own
+            return _matrix(args, matrix, argv, out)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _matrix(args, matrix: list, argv: list[str], out: Path) -> int:
+    import pandas as pd
+
+    from ..analysis import history as analysis
+    from ..report.compare import compare
+    from ..run import environments as envs
+    from .history import build, load_point
+
     rows, points = [], []
     for index, (label, requirements) in enumerate(matrix, 1):
         print(f"[{index}/{len(matrix)}] {label}: environment ...", flush=True)

@@ -5,12 +5,13 @@ table)."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import pandas as pd
 
 from ..analysis import gate
-from ..analysis.compare import (DIFFERS, FIGURE_ROWS, FLOOR, GROUPS, LISTED, ORDER_CHANGE, PR_RATIO, TIMING,
+from ..analysis.compare import (BECAME_NAN, DIFFERS, FIGURE_ROWS, FLOOR, GROUPS, LISTED, ORDER_CHANGE, PR_RATIO, TIMING,
                                 CompareError, environment_rows, group, identical, label, load, load_orders,
                                 metric_signs, order_changes, row_changes, verdict_changes)
 from ..precision import FLOAT64
@@ -18,7 +19,7 @@ from .markdown import markdown_table
 
 
 def _ratio(value: float) -> str:
-    return "-" if not math.isfinite(value) else f"{value:.3g}"
+    return "NaN in B" if value == BECAME_NAN else "-" if not math.isfinite(value) else f"{value:.3g}"
 
 
 def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.DataFrame,
@@ -67,9 +68,28 @@ def _short(value: str) -> str:
                     for word in str(value).split(" "))
 
 
+# Characters that markdown would read as markup in a value (a case name, an environment value, a path): escaped with a
+# backslash, which GitHub's markdown renders as the character itself. "_" only at a word's edge (inside a word, as in
+# attitude_err, it is never emphasis).
+_MARKUP = re.compile(r"[\\`*\[\]<>|~&#!]|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])")
+
+
+def _md(value) -> str:
+    """A value as markdown text that shows as itself, on one line: control characters (a newline in a case name or an
+    environment value) written as escapes, markup escaped."""
+    text = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in str(value))
+    return _MARKUP.sub(lambda m: "\\" + m.group(0), text)
+
+
 def _capped(header: list[str], rows: list[list], cap: int, rest: str) -> list[str]:
-    lines = markdown_table(header, rows[:cap])
+    """A table of at most `cap` rows, every cell escaped (_md): one line a row whatever the values hold."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(_md(cell) for cell in row) + " |" for row in rows[:cap]]
     return lines + ([f"... and {len(rows) - cap} more {rest}"] if len(rows) > cap else [])
+
+
+def _times(ratio: float) -> str:
+    return "NaN in B" if ratio == BECAME_NAN else f"{ratio:.3g}x"
 
 
 def _order(value: float) -> str:
@@ -83,7 +103,7 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
     declared order is better) and verdicts that changed; one line when nothing differs at all."""
     env = [r for r in environment_rows(env_a, env_b) if r[3] == DIFFERS]
     if same_rows and not env and not orders and not verdicts:
-        return [f"**stereodyn compare**: `{path_b}` is identical to `{path_a}` ({len(changes)} rows, the same "
+        return [f"**stereodyn compare**: {_md(path_b)} is identical to {_md(path_a)} ({len(changes)} rows, the same "
                 "statuses, metrics, fitted orders, verdicts and environment, the date aside)."]
     statuses = changes[changes["status_a"] != changes["status_b"]] if len(changes) else changes
     rank = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2, "-": 3}  # a row gone ("-") is the worst
@@ -94,7 +114,7 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
     metrics = metric_signs(changes)
     worse = sum(m["worse"] for m in metrics) + sum(r[3] == "worse" for r in status_rows) \
         + sum(o["sign"] == "worse" for o in orders) + sum(v["sign"] == "worse" for v in verdicts)
-    lines = [f"**stereodyn compare**: B `{path_b}` against A `{path_a}`: {len(changes)} rows; "
+    lines = [f"**stereodyn compare**: B {_md(path_b)} against A {_md(path_a)}: {len(changes)} rows; "
              f"{'**' + str(worse) + ' changes for the worse**' if worse else 'no change for the worse'} "
              f"(a metric beyond {PR_RATIO:g}x either way, an order moved by more than {ORDER_CHANGE:g}).", ""]
     if env:
@@ -105,8 +125,8 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
         lines += ["Same environment (the date aside).", ""]
     if metrics:
         rows = [[m["metric"], f"{m['worse']} worse" if m["worse"] else "-", f"{m['better']} better" if m["better"]
-                 else "-", f"{m['worst'][1]:.3g}x {m['worst'][0]}" if m["worst"] else "-",
-                 f"{m['best'][1]:.3g}x {m['best'][0]}" if m["best"] else "-"] for m in metrics]
+                 else "-", f"{_times(m['worst'][1])} {m['worst'][0]}" if m["worst"] else "-",
+                 f"{_times(m['best'][1])} {m['best'][0]}" if m["best"] else "-"] for m in metrics]
         lines += ["Accuracy, rows ok in both (B / A; lower error is better):", "",
                   *_capped(["metric", "worse", "better", "worst (B / A)", "best (B / A)"], rows, PR_LISTED["metrics"],
                            "metrics in compare.md"), ""]
@@ -128,13 +148,14 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
         lines += [f"Verdicts: {len(verdicts)} changed", "",
                   *_capped(["verdict", "A", "B", ""], rows, PR_LISTED["verdicts"], "(verdicts.csv)"), ""]
     lines.append("Every row: compare.md and compare.csv beside this summary.")
-    assert len(lines) <= PR_LINES, len(lines)  # PR_LISTED bounds it
+    assert "\n".join(lines).count("\n") < PR_LINES, len(lines)  # PR_LISTED bounds it; _md keeps a value one line
     return lines
 
 
 def figure(changes: pd.DataFrame) -> bytes | None:
     """A bar per row of the largest accuracy changes (log10 of the ratio B / A of its most-changed metric)."""
-    top = changes[changes["change"] >= GROUPS[-1][0]].sort_values("change", ascending=False).head(FIGURE_ROWS)
+    drawn = changes[(changes["change"] >= GROUPS[-1][0]) & (changes["change"] < math.inf)]  # NaN in B has no bar
+    top = drawn.sort_values("change", ascending=False).head(FIGURE_ROWS)
     if top.empty:
         return None
     from matplotlib.figure import Figure
@@ -203,7 +224,9 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
         members = changes[groups == name].sort_values("change", ascending=False)
         if len(members):
             r = members.iloc[0]
-            worst = (f"{r['metric']} x{_ratio(r[r['metric']])}" if r["metric"] and name in dict(map(reversed, GROUPS))
+            ratio = r[r["metric"]] if r["metric"] else math.nan
+            worst = (f"{r['metric']} " + ("NaN in B" if ratio == BECAME_NAN else f"x{_ratio(ratio)}")
+                     if r["metric"] and name in dict(map(reversed, GROUPS))
                      else f"{r['status_a']} -> {r['status_b']}")
             head.append(f"{len(members)} rows {name}; first: {label(r)} ({worst})")
     return out / "compare.md", out / "compare.html", head

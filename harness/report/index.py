@@ -17,7 +17,7 @@ ENTRIES: dict[str, str] = {
     "report.md": "the same report as Markdown, figures linked from `figures/`",
     "figures/": "the report's PNGs, named CASE-KIND.png: KIND is `work-precision` (error against cost), "
                 "`invariants` (drifts against time) or `tolerance` (error against requested tolerance); "
-                "`stereodyn compare` adds compare-largest-changes.png",
+                "`stereodyn compare` adds compare-largest-changes.png, `stereodyn history` history-steps.png",
     "results.csv": "one row per run: what ran, its status and reason, drifts, errors against the truth, cost",
     "verdicts.csv": "one row per verdict: declared against measured (order, bounded energy, the truth's invariants, "
                     "oracles), with its rule",
@@ -39,6 +39,13 @@ ENTRIES: dict[str, str] = {
     "compare.html": "`stereodyn compare`'s page, as compare.md",
     "compare.csv": "`stereodyn compare`: every matched row with its ratios",
     "compare-pr.md": "`stereodyn compare --format pr`: a pull-request summary",
+    "history.csv": "`stereodyn history`: every series (metric, status, fitted order) of every row over the runs",
+    "history_steps.csv": "`stereodyn history`: the steps flagged, worse first",
+    "history_points.csv": "`stereodyn history`: the runs in order, with the environment entries that differ",
+    "history.md": "`stereodyn history`'s page: the steps and their series",
+    "history.html": "`stereodyn history`'s page, as history.md",
+    "matrix-run.json": "`stereodyn matrix`: the environment and run arguments of this folder (reused or resumed by the "
+                       "next matrix)",
     "MUJOCO_LOG.TXT": "MuJoCo's own warnings of this run (each also in its row's message)",
     INDEX_FILE: "this index",
 }

@@ -12,8 +12,15 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # not on this platform: no lock (as harness.run.store)
+    fcntl = None
 
 from .. import environment as env_info
 from ..atomic import write_atomic
@@ -108,9 +115,58 @@ def _running_versions(uv: str, requirements: tuple[str, ...]) -> str:
     return "\n".join(pins) + "\n"
 
 
+def _tie_to_parent() -> None:
+    """In the child, before it executes: the kernel SIGKILLs it the moment the matrix dies, even by SIGKILL (Linux
+    PR_SET_PDEATHSIG; a run's own workers are tied to the run the same way, harness/run/processes.py)."""
+    from .processes import _parent_death_signal
+
+    _parent_death_signal()
+
+
+# After SIGTERM, how long an owned process group gets to end before SIGKILL.
+STOP_GRACE_S = 5.0
+
+
+def owned(argv: list[str], timeout: float | None = None, **options) -> subprocess.CompletedProcess:
+    """subprocess.run for the matrix's children (uv, an environment's `stereodyn run`): each in a process group of its
+    own and tied to the matrix by the parent-death signal, so that nothing it started outlives the matrix. Whatever
+    ends the wait (Ctrl-C or SIGTERM of the matrix, which raise KeyboardInterrupt here: harness/cli/matrix.py; the
+    timeout) ends the whole group first: SIGTERM, then SIGKILL after STOP_GRACE_S. A SIGKILLed matrix ends its
+    child by the parent-death signal; what that child started dies with it (a run's workers) or is its own."""
+    process = subprocess.Popen(argv, process_group=0, preexec_fn=_tie_to_parent, **options)
+    try:
+        out, err = process.communicate(timeout=timeout)
+    except BaseException:
+        stop_group(process)
+        raise
+    return subprocess.CompletedProcess(argv, process.returncode, out, err)
+
+
+def stop_group(process: subprocess.Popen) -> None:
+    """End an owned process and its group: SIGTERM, SIGKILL past STOP_GRACE_S; waited for."""
+    import signal
+
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(process.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            break
+        try:
+            process.wait(timeout=STOP_GRACE_S)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    try:  # the group's other members (a worker of the run) are gone with SIGKILL, or by their own parent-death tie
+        os.killpg(process.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    process.wait()
+
+
 def _uv(uv: str, *argv: str) -> subprocess.CompletedProcess:
     try:
-        return subprocess.run([uv, *argv], capture_output=True, text=True, timeout=INSTALL_TIMEOUT_S)
+        return owned([uv, *argv], timeout=INSTALL_TIMEOUT_S, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                     text=True)
     except subprocess.TimeoutExpired:
         return subprocess.CompletedProcess([uv, *argv], 1, "", f"uv {argv[0]} took more than {INSTALL_TIMEOUT_S} s")
 
@@ -124,22 +180,43 @@ def build(requirements: tuple[str, ...], stereodyn: str | None = None, overlay: 
     only the requirements, without their dependencies, over the running environment's packages (a .pth adds its
     site folders after the environment's own, so what the requirements install shadows them): seconds instead of
     minutes, but not isolated."""
-    import site
-
     uv = uv_binary()
     stereodyn = stereodyn or stereodyn_source()
     path = (root or cache_root()) / key(requirements, stereodyn, overlay)
     python = _python(path)
     if (path / MARK).is_file() and python.exists():
         return Environment(requirements, path, python, cached=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with _building(path):  # another matrix building it meanwhile: waited for, never deleted under it
+        if (path / MARK).is_file() and python.exists():
+            return Environment(requirements, path, python, cached=True)
+        return _build(requirements, stereodyn, overlay, path, python, uv)
+
+
+@contextmanager
+def _building(path: Path) -> Iterator[None]:
+    """Hold the exclusive lock of an environment's folder (PATH.lock beside it) while it is built."""
+    fd = os.open(f"{path}.lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _build(requirements: tuple[str, ...], stereodyn: str, overlay: bool, path: Path, python: Path,
+           uv: str) -> Environment:
+    import site
+
     if path.exists():  # half built (killed, or a failed install): built again from nothing
         shutil.rmtree(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     done = _uv(uv, "venv", "--quiet", "--python", sys.executable, str(path))
     if done.returncode == 0 and overlay:
         folders = [p for p in site.getsitepackages() if os.path.isdir(p)]
-        own = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                             capture_output=True, text=True).stdout.strip()
+        own = owned([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True).stdout.strip()
         write_atomic(Path(own) / "_stereodyn_matrix_overlay.pth",
                      "".join(f"import site; site.addsitedir({folder!r})\n" for folder in folders))
         constraints = path / "overlay-constraints.txt"

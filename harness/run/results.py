@@ -85,12 +85,27 @@ def dt_key(value) -> str:
     return "" if math.isnan(value) else f"{value:.10g}"
 
 
-def sign_rule(column: str, value: float) -> str | None:
-    """Why value cannot be in column (negative, or a step of 0), or None."""
+# The largest number a reader accepts in a metric, timing or count column (read_results, a baseline's rows, a stored
+# record on --resume): one bound, so that whatever a reader accepts every command can compute with (the ratios to the
+# 1e-12 floor, the powers of ten of their logs in history, factor x baseline in check: 1e100 / 1e-12 = 1e112, far from
+# a double's 1.8e308). What a run can report stays far below it: an attitude error is an angle (<= pi); an ok run's
+# angular speed stays below 1e6 (1 + |omega0|) (the divergence rule, harness/trajectory.py) and a case's numbers within
+# 1e6 (docs/limits.md), so its energy stays below ~1e31 J and a relative drift or error above 1e100 would need an
+# initial scale below 1e-69 (the largest metric of the committed default report's 1337 ok rows: an energy drift of
+# 8.1e4). A value above it is a hand-edited or foreign table.
+MAX_VALUE = 1e100
+
+
+def value_rule(column: str, value: float) -> str | None:
+    """Why value cannot be in column (negative, a step of 0, or above MAX_VALUE), or None. The one rule of every
+    reader of results rows."""
     if column in POSITIVE and value <= 0:
         return "must be > 0"
-    if (column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES)) and value < 0:
+    checked = column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES)
+    if checked and value < 0:
         return "must be >= 0"
+    if (checked or column in POSITIVE) and value > MAX_VALUE:
+        return f"must be <= {MAX_VALUE:g} (docs/limits.md)"
     return None
 
 
@@ -143,10 +158,10 @@ def read_results(path: Path) -> pd.DataFrame:
                 raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]]!r}: must be finite "
                                  "or empty")
         if column in POSITIVE or column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES):
-            bad = df.index[values.map(lambda value: sign_rule(column, value) is not None)]
+            bad = df.index[values.map(lambda value: value_rule(column, value) is not None)]
             if len(bad):
                 raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]][:40]!r}: "
-                                 f"{sign_rule(column, values[bad[0]])}")
+                                 f"{value_rule(column, values[bad[0]])}")
         df[column] = values
     df = with_precision(df)  # a results.csv of 0.2.0 has none: float64
     dts = df["dt"] if "dt" in df else pd.Series(math.nan, index=df.index)

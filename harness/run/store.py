@@ -35,7 +35,7 @@ from ..precision import FLOAT64
 from ..environment import code_origin, library_versions, source_fingerprint
 from ..scenes.checks import ROW_KEY
 from ..readers import ReadError, read_json
-from .results import COLUMNS, write_atomic
+from .results import COLUMNS, value_rule, write_atomic
 from ..trajectory import Status
 
 STORE_DIR = "store"
@@ -180,11 +180,20 @@ _IDENTITY_COLUMNS = ("engine", "formulation", "integrator", "precision")  # in b
 _STATUSES = frozenset(s.value for s in Status)
 
 
-def _is_number(value: Any) -> bool:
-    """A number column's JSON value: a number, null (NaN) or "inf"/"-inf" (as _plain writes them)."""
-    if isinstance(value, bool):
+def _is_number(column: str, value: Any) -> bool:
+    """A number column's JSON value as _plain writes it: null (NaN), "inf"/"-inf" (what the run computed, kept as it
+    was), or a finite number within the column's rule (results.value_rule, the rule of every reader of rows: no
+    negative metric or count, no dt <= 0, nothing above MAX_VALUE), never a NaN literal (_plain writes null). A
+    hand-edited record outside it is redone, not copied into a results.csv that check would refuse."""
+    if value is None or value in ("inf", "-inf"):
+        return True
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
         return False
-    return value is None or value in ("inf", "-inf") or isinstance(value, (int, float))
+    try:
+        number = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        return False
+    return math.isfinite(number) and value_rule(column, number) is None
 
 
 def well_formed(record: Any, key: str) -> bool:
@@ -206,7 +215,7 @@ def well_formed(record: Any, key: str) -> bool:
         if column in _TEXT_COLUMNS or column == "torque_mode":
             if not isinstance(value, (str, type(None))):
                 return False
-        elif not _is_number(value):
+        elif not _is_number(column, value):
             return False
     return isinstance(row.get(ROW_KEY), (list, type(None)))
 
@@ -361,18 +370,34 @@ class Store:
 
 
 def read_manifest(out_dir: Path) -> dict | None:
-    """DIR/runs.json, or None when the folder has none (results.csv from elsewhere)."""
+    """DIR/runs.json, or None when the folder has none (results.csv from elsewhere) or one this version cannot read
+    (manifest_problem says why)."""
+    return _manifest(out_dir)[0]
+
+
+def manifest_problem(out_dir: Path) -> str | None:
+    """Why DIR/runs.json, which is there, is no runs.json this version reads (not a regular file, larger than the
+    readers' limit, not JSON, another shape), in one line naming it; None when it reads, or is absent."""
+    return _manifest(out_dir)[1]
+
+
+def _manifest(out_dir: Path) -> tuple[dict | None, str | None]:
+    path = Path(out_dir) / MANIFEST
     try:
-        manifest = read_json(Path(out_dir) / MANIFEST)
-    except (OSError, ReadError):
-        return None
+        manifest = read_json(path)
+    except FileNotFoundError:
+        return None, None
+    except (OSError, ReadError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        return None, f"{path}: not a runs.json stereodyn can read ({reason})"
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
-        return None
+        return None, f"{path}: not a runs.json stereodyn can read (no \"format\": {FORMAT})"
     runs, environment = manifest.get("runs", []), manifest.get("environment")
     if not (isinstance(runs, list) and all(isinstance(key, str) for key in runs)
             and isinstance(environment, (dict, type(None))) and isinstance(manifest.get(COMPLETE, False), bool)):
-        return None  # not a manifest this version wrote: as if the folder had none
-    return manifest
+        # not a manifest this version wrote: as if the folder had none
+        return None, f"{path}: not a runs.json stereodyn can read (runs, environment or {COMPLETE} of another shape)"
+    return manifest, None
 
 
 def mark_complete(out_dir: Path) -> None:
@@ -408,6 +433,9 @@ def completeness(out_dir: Path, allow_partial: bool = False) -> list[str]:
         return [f"{out_dir}: an unfinished sweep, read as it is (--allow-partial)"]
     if not (Path(out_dir) / "results.csv").is_file():
         return []  # nothing to read: the reader says so
+    problem = manifest_problem(out_dir)
+    if problem:  # garbled, cut or huge: named, and read as a folder without one
+        return [f"{problem}: read as it is, as a folder without one (no completion mark, no environment)"]
     return [f"{out_dir}: no completion mark (written by stereodyn 0.2.0 or elsewhere): read as it is"]
 
 
