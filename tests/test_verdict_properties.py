@@ -87,7 +87,7 @@ def bodies(draw) -> dict:
     omega = direction() * speed
     # the fastest rate of the motion: the spin, or gravity's pendulum frequency about O
     rate = speed + (math.sqrt(mass * 9.81 * np.linalg.norm(com) / min(np.linalg.eigvalsh(inertia))) if gravity else 0)
-    turns = draw(st.floats(2.0, 12.0))  # rad of motion over the span
+    turns = math.exp(draw(st.floats(math.log(2.0), math.log(80.0))))  # rad of motion over the span (issue 45: 75)
     t_end = min(3.0, max(0.05, turns / rate))
     return dict(mass=mass, com=com, inertia=0.5 * (inertia + inertia.T), gravity=gravity, quat0=quaternion(),
                 omega=omega, rate=rate, t_end=float(f"{t_end:.3g}"))
