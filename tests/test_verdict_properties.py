@@ -169,7 +169,8 @@ def judge_body(body: dict, ladder: tuple[float, float], tally: dict, wrong: list
         dts = [float(f"{body['t_end'] / n:.6g}") for n in steps]
         where = (f"{name}: {verdict.status}: {verdict.detail}\n--- the body, as a case file (random-body.toml):\n"
                  f"{toml(body, dts)}--- run it: stereodyn run --case-file random-body.toml --engines {engine} "
-                 f"--integrators {integrator} --no-ladder\n(errors {', '.join(f'{e:.3g}' for e in points['state_err'])})")
+                 f"--integrators {integrator} --no-ladder\n(errors "
+                 + ", ".join(f"{e:.3g}" for e in points["state_err"]) + ")")
         note(where)
         settled = row["points"] >= fitting.MIN_POINTS
         tally.setdefault(name, []).append((verdict.status, settled))

@@ -33,7 +33,7 @@ import pandas as pd
 
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
 from ..tables import read_optional
-from .fitting import (CONVERGENCE_FILE, FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, NOT_YET,
+from .fitting import (AGREE, CONVERGENCE_FILE, FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, NOT_YET,
                       SUPERCONVERGENT)
 from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import read_csv_table, with_precision, write_atomic
@@ -139,9 +139,11 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
     excluded = set(excluded_cases)
     out = []
     df = with_precision(convergence).fillna({"formulation": ""})
-    rule = (f"|median fitted - declared| <= {ORDER_TOLERANCE:g} over the non-chaotic cases, and <= "
+    rule = (f"fitted on each case's judged range (from the fine end, local slopes within {AGREE:g}); "
+            f"|median fitted - declared| <= {ORDER_TOLERANCE:g} over the non-chaotic cases, and <= "
             f"{ORDER_CASE_TOLERANCE:g} on each; a miss of the first on < {MIN_POINTS} asymptotic points a case and "
-            f"< {MIN_CASES} cases is {NOT_ENOUGH} (--strict fails it after measuring more)")
+            f"< {MIN_CASES} cases is {NOT_ENOUGH}, and on slopes still moving toward the declared order "
+            f"{NOT_ASYMPTOTIC} (--strict fails either after measuring finer)")
     for (engine, formulation, integrator, precision), group in df.groupby(
             ["engine", "formulation", "integrator", "precision"], sort=False):
         declared = float(group["declared_order"].iloc[0])
