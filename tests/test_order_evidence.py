@@ -141,3 +141,73 @@ def test_strict_measures_a_miss_on_two_points_first_then_judges(tmp_path, capsys
     assert "gibbs" in measured.index and measured.loc["gibbs", "points"] == 3, measured
     line = next(x for x in capsys.readouterr().err.splitlines() if x.startswith("verdict failed:"))
     assert "reference gibbs rk4 declares order 4" in line and "from 3 asymptotic points" in line, line
+
+
+# ------------------------------------------------------------------------------------------------ issue 45
+
+def _ladder(slopes, dt0=0.0372, err0=1e-4, t_end=10.0) -> pd.DataFrame:
+    """Points halving from dt0 whose local slopes, coarse to fine, are `slopes`."""
+    import numpy as np
+
+    dts = dt0 / 2.0 ** np.arange(len(slopes) + 1)
+    err = err0 * np.exp(np.cumsum([0.0] + [s * math.log(0.5) for s in slopes]))
+    return pd.DataFrame({"dt": dts, "steps": np.round(t_end / dts), "status": "ok", "state_err": err})
+
+
+def _row(points, declared, integrator="rk4") -> dict:
+    from stereodyn.harness.analysis import fitting
+
+    return {"case": "usertop", "engine": "mujoco", "formulation": "", "integrator": integrator,
+            "precision": "float64", "stable_dt_max": math.nan, "source": "dt_list", **fitting.fit(points, declared)}
+
+
+def test_the_order_is_judged_on_the_finest_run_of_agreeing_slopes():
+    """Issue 45's user top: MuJoCo's rk4 from 0.0372 to 0.00116, local slopes 3.67 3.31 3.75 3.89 3.94. One line
+    through all six fitted 3.70 and failed; the finest three agree (spread 0.05 <= AGREE) and judge 3.92: pass,
+    the evidence in the note and the verdict."""
+    row = _row(_ladder([3.67, 3.31, 3.75, 3.89, 3.94]), 4.0)
+    assert row["points"] == 3 and abs(row["order"] - 3.91) < 0.01, row
+    assert "slopes 3.67 3.31 3.75 3.89 3.94; judged on dt 0.00465 to 0.00116: 3.92" in row["note"], row["note"]
+    (verdict,) = verdicts.order_verdicts(pd.DataFrame([row]))
+    assert verdict.status == verdicts.PASS and "usertop: slopes 3.67 3.31 3.75 3.89 3.94" in verdict.detail
+    # falling toward 4 from above (issue 45's random body: 4.62 4.46 4.28 4.15 4.08): judged 4.15 4.08
+    row = _row(_ladder([4.62, 4.46, 4.28, 4.15, 4.08], err0=1e-3), 4.0)
+    assert row["points"] == 3 and abs(row["order"] - 4.11) < 0.01 and "judged on dt 0.00465 to 0.00116" in row["note"]
+
+
+def test_slopes_still_moving_toward_the_declared_order_are_not_yet_asymptotic_never_failed():
+    row = _row(_ladder([2.6, 3.0, 3.4]), 4.0)
+    assert row["points"] == 2 and "not yet asymptotic" in row["note"], row
+    (verdict,) = verdicts.order_verdicts(pd.DataFrame([row]))
+    assert verdict.status == verdicts.NOT_ASYMPTOTIC and "slopes 2.60 3.00 3.40" in verdict.detail, verdict
+    assert verdicts.failed_integrators([verdict]) == set() and verdicts.strict_failures([verdict]) == [verdict]
+    assert verdicts.weak_evidence(pd.DataFrame([row])) == {("mujoco", "", "rk4")}  # --strict measures finer
+    # moving away from it is no excuse: a settled miss fails
+    assert "not yet asymptotic" not in _row(_ladder([3.4, 3.0, 2.6]), 4.0)["note"]
+
+
+@pytest.mark.parametrize("slopes, declared", [([2.0, 2.0, 2.01, 2.0], 4.0),   # Heun or rk4_naive declared 4
+                                              ([4.0, 4.01, 4.0, 4.0], 5.0),   # rk4 declared 5
+                                              ([1.5, 1.8, 2.0, 2.0], 4.0)])   # settled at 2 after a drift
+def test_a_false_claim_fails_once_its_slopes_settle(slopes, declared):
+    (verdict,) = verdicts.order_verdicts(pd.DataFrame([_row(_ladder(slopes, err0=1e-3), declared)]))
+    assert verdict.status == verdicts.FAIL, verdict
+
+
+def test_a_short_ladder_measures_finer_never_coarser():
+    """Issue 45: at advise's dt and 2.5x it (0.0117, 0.0293 on the user top, one slope 4.41) --strict's short ladder
+    added 0.0372, coarser than both. Now it halves from the finest until the judged range settles (3 points)."""
+    from stereodyn.harness.analysis.ladders import short_ladder
+    from stereodyn.harness.run.spec import Family
+    from stereodyn.harness.scenes.cases import find_case, with_overrides
+
+    case = with_overrides(find_case("heavy-asymmetric"), t_end=10.0, dt=[0.0293, 0.0117])
+
+    def point(dt):  # rk4 with a pre-asymptotic term: slopes fall toward 4 as dt halves
+        return {"dt": dt, "steps": round(10.0 / dt), "status": "ok", "state_err": 50.0 * dt ** 4 * (1 + 40 * dt)}
+
+    tried = []
+    new, row = short_ladder(Family(case, "mujoco", "", "rk4"), [point(0.0293), point(0.0117)], 40_000, 4.0,
+                            lambda dt: tried.append(dt) or point(dt))
+    assert tried and max(tried) < 0.0117, tried
+    assert row["points"] >= 3 and "the slopes settled" in row["note"], row["note"]

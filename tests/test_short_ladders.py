@@ -232,8 +232,8 @@ def test_a_long_horizon_has_its_order_measured_over_its_first_part(monkeypatch):
     assert tried == [] and math.isnan(row["order"]) and "smallest tried (t_end / 1000)" in row["note"], row["note"]
     assert dt_ladders.first_part_span(T_END, 0.01, _phase(0.01, 1000), 2.0, 1000) == 2.5
     more, part = dt_ladders.run_first_part(family, known + new, 1000, row)
-    assert tried == pytest.approx([0.01, 0.02, 0.005, 0.0025])  # from 4 x the cap: coarser once, then finer
-    assert [p["t_end"] for p in more] == pytest.approx([2.5] * 4)
+    assert tried == pytest.approx([0.01, 0.005, 0.0025])  # from 4 x the cap: finer only (issue 45), to the cap
+    assert [p["t_end"] for p in more] == pytest.approx([2.5] * 3)
     assert part["order"] == pytest.approx(2.0, abs=1e-6) and part["points"] == 3, part
     assert part["note"].startswith(f"{fitting.FIRST_PART} 2.5 s of 10 s (over all 10 s, 0 point(s) in the asymptotic "
                                    "range down to dt = 0.01 (state_err 0.04), steps cap t_end / 1000)"), part["note"]

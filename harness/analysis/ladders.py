@@ -32,12 +32,16 @@ STABILITY_RTOL = 0.02        # bisection stops when the bracket [stable, unstabl
 MIN_STEPS = 20               # the largest dt tried is t_end / MIN_STEPS: fewer steps say nothing about stability
 
 
-# A short ladder stops at SHORT_TARGET asymptotic points: three, so that one point bent by rounding or by the
-# pre-asymptotic range shows as a bent line, and so that a fit steeper than the declared order can be kept as
-# superconvergence (fitting.STEEP). Its walk to finer steps ends after SHORT_POINTS points in all (each at most
-# max_steps steps); its walk to coarser steps goes on up to t_end / MIN_STEPS, which an exact method needs to be called
-# exact: doubling from dt, all its points together cost fewer steps than one run at dt (t_end/2dt + t_end/4dt + ...).
-# Measured: strang_free_flow on a 500 s case from dt = 0.25 stopped at 6.4 s with a 6-point cap, its claim unmeasured.
+# A short ladder measures finer: it halves dt from the finest point until the judged range (fitting.judged_start) is
+# settled, SHORT_TARGET points, three, so that one point bent by rounding or by the pre-asymptotic range shows as a
+# bent line, and so that a fit steeper than the declared order can be kept as superconvergence (fitting.STEEP); or
+# until the round-off floor shows, the steps cap (each point at most max_steps steps) or SHORT_POINTS points in all
+# stop it. More evidence for an order comes from smaller steps, toward the asymptotic range (issue 45: a coarser point
+# added to settle an order failed a correct rk4 on a user's body). It walks coarser only where finer steps cannot give
+# a fit at all: fewer than two points in the band and the finest at round-off (an exact method, which needs steps up to
+# t_end / MIN_STEPS to be called exact, or a float32 family whose round-off closes the fine end): doubling from dt,
+# all its points together cost fewer steps than one run at dt (t_end/2dt + t_end/4dt + ...). Measured:
+# strang_free_flow on a 500 s case from dt = 0.25 stopped at 6.4 s with a 6-point cap, its claim unmeasured.
 SHORT_POINTS, SHORT_TARGET = 6, 3
 
 
@@ -109,15 +113,24 @@ def short_ladder(family: Family, known: list[dict], max_steps: int, declared: fl
     def asymptotic() -> int:
         return int((marked()["regime"] == fitting.ASYMPTOTIC).sum())
 
+    def band() -> int:  # the points above round-off and at most ASYMPTOTIC_MAX, judged or pre-asymptotic
+        return int(marked()["regime"].isin((fitting.ASYMPTOTIC, fitting.PRE_ASYMPTOTIC)).sum())
+
     # a point that leaves the range in the walk's direction ends that direction
     leaves = {1: (fitting.ABOVE, fitting.FAILED), -1: (fitting.ROUNDOFF, fitting.IRREGULAR)}
     stops = []
-    for direction in (1, -1):  # coarser first: its steps are the cheap ones
+    for direction in (-1, 1):  # finer first: toward the asymptotic range
         points = marked()
         edge = points.iloc[0] if direction == 1 else points.iloc[-1]
         if asymptotic() >= SHORT_TARGET or edge["regime"] in leaves[direction]:
+            if direction == -1 and edge["regime"] in leaves[-1] and asymptotic() < SHORT_TARGET:
+                stops.append(f"finer: the round-off floor shows at dt = {edge['dt']:.3g}")
             continue
+        ran = points[points["regime"] != fitting.FAILED]
+        if direction == 1 and (band() >= 2 or ran.empty or ran.iloc[-1]["regime"] not in leaves[-1]):
+            continue  # coarser only where finer steps cannot give a fit at all (the walk's comment above)
         if direction == -1 and edge["regime"] == fitting.FAILED and (points["regime"] != fitting.FAILED).any():
+            stops.append(f"finer: dt = {edge['dt']:.3g} did not run ok where a coarser dt did (a run budget)")
             continue  # failed finer than a run that finished (a run budget, not a stability limit): finer costs more
         last = None
         for dt in walk(float(edge["dt"]), direction, floor, cap):
@@ -128,7 +141,14 @@ def short_ladder(family: Family, known: list[dict], max_steps: int, declared: fl
             new.append(measure_at(float(f"{dt:.4g}")) | {"source": SHORT_LADDER})
             points = marked()
             last = points.loc[points["dt"] == new[-1]["dt"], "regime"].iloc[-1]
-            if asymptotic() >= SHORT_TARGET or last in leaves[direction]:
+            if asymptotic() >= SHORT_TARGET:
+                stops.append(f"{'finer' if direction == -1 else 'coarser'} to dt = {new[-1]['dt']:.3g}: the slopes "
+                             f"settled ({SHORT_TARGET} points judged)")
+                break
+            if last in leaves[direction]:
+                stops.append(f"finer to dt = {new[-1]['dt']:.3g}: the round-off floor shows" if direction == -1 else
+                             f"coarser to dt = {new[-1]['dt']:.3g}: " + ("not ok" if last == fitting.FAILED else
+                                                                         f"state_err > {fitting.ASYMPTOTIC_MAX:g}"))
                 break
             if direction == -1 and last == previous["regime"] == fitting.ABOVE \
                     and new[-1]["state_err"] > previous["state_err"] * 2.0 ** -fitting.FLOOR_SLOPE:
@@ -143,6 +163,8 @@ def short_ladder(family: Family, known: list[dict], max_steps: int, declared: fl
     row.update(fitting.fit(frame(), declared, family.precision))
     if not math.isfinite(row["order"]):
         row["note"] = "; ".join([row["note"], *dict.fromkeys(stops), *short_reason(family, marked())])
+    elif new:  # how far it measured and why it stopped: the evidence's extent
+        row["note"] = "; ".join([x for x in (row["note"], *dict.fromkeys(stops)) if x])
     return new, row
 
 

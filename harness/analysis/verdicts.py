@@ -33,7 +33,8 @@ import pandas as pd
 
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
 from ..tables import read_optional
-from .fitting import CONVERGENCE_FILE, FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, SUPERCONVERGENT
+from .fitting import (AGREE, CONVERGENCE_FILE, FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, NOT_YET,
+                      SUPERCONVERGENT)
 from ..scenes.metrics import DRIFT_COLUMNS
 from ..run.results import read_csv_table, with_precision, write_atomic
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
@@ -62,6 +63,10 @@ KNOWN, FIXED = "known", "fixed upstream?"
 # A miss of the order tolerance found on too little evidence (fitting.MIN_POINTS, MIN_CASES) is NOT_ENOUGH, not a
 # failure; `run --strict` measures such a claim first (short ladders) and fails what is still NOT_ENOUGH after that.
 NOT_ENOUGH = "not enough evidence"
+# A claim whose only cases that miss it are still drifting toward it at their finest dt (fitting.NOT_YET: two points
+# judged, the slopes moving toward the declared order) and are within ORDER_CASE_TOLERANCE of it: never a failure;
+# `run --strict` measures finer first (short ladders) and fails what is still not asymptotic after that.
+NOT_ASYMPTOTIC = NOT_YET
 
 # The median of a family's fitted orders over the cases must be within ORDER_TOLERANCE of the declared order, and no
 # single case more than ORDER_CASE_TOLERANCE off. The suite's fits (reports/default/convergence.csv, 134 families) lie
@@ -134,9 +139,11 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
     excluded = set(excluded_cases)
     out = []
     df = with_precision(convergence).fillna({"formulation": ""})
-    rule = (f"|median fitted - declared| <= {ORDER_TOLERANCE:g} over the non-chaotic cases, and <= "
+    rule = (f"fitted on each case's judged range (from the fine end, local slopes within {AGREE:g}); "
+            f"|median fitted - declared| <= {ORDER_TOLERANCE:g} over the non-chaotic cases, and <= "
             f"{ORDER_CASE_TOLERANCE:g} on each; a miss of the first on < {MIN_POINTS} asymptotic points a case and "
-            f"< {MIN_CASES} cases is {NOT_ENOUGH} (--strict fails it after measuring more)")
+            f"< {MIN_CASES} cases is {NOT_ENOUGH}, and on slopes still moving toward the declared order "
+            f"{NOT_ASYMPTOTIC} (--strict fails either after measuring finer)")
     for (engine, formulation, integrator, precision), group in df.groupby(
             ["engine", "formulation", "integrator", "precision"], sort=False):
         declared = float(group["declared_order"].iloc[0])
@@ -144,6 +151,13 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
             continue  # no claim to judge (an engine's integrator of unknown order)
         fitted = group[np.isfinite(group["order"].astype(float)) & ~group["case"].isin(excluded)]
         base = dict(engine=engine, formulation=formulation, integrator=integrator, precision=precision, rule=rule)
+        drifting = _drifting(fitted, declared)
+        if len(drifting) and len(drifting) == len(fitted):
+            out.append(Verdict("order", **base, status=NOT_ASYMPTOTIC, detail=(
+                f"declares order {declared:g}; {NOT_YET} on {_cases(drifting)}: " + _shown(drifting, declared)
+                + " (--strict measures finer first)")))
+            continue
+        fitted = fitted.drop(drifting.index)
         if fitted.empty:
             why = "; not measurable in " + precision + " (round-off closes the asymptotic range)" \
                 if precision != FLOAT64 and group["note"].fillna("").astype(str).str.contains(
@@ -178,6 +192,10 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
         if len(bad):
             detail += " (off by more than 1 on " + ", ".join(bad["case"].astype(str).tolist()[:5]) + (
                 "…" if len(bad) > 5 else "") + ")"
+        shown = _shown(fitted, declared)
+        detail += f"; {shown}" if shown else ""
+        if len(drifting):
+            detail += f"; {NOT_YET} (not judged) on {_cases(drifting)}: " + _shown(drifting, declared)
         deviation = _known_deviation(engine, integrator)
         if deviation is not None:
             off = fitted[(orders - deviation.expected).abs() > ORDER_CASE_TOLERANCE]
@@ -199,6 +217,37 @@ def order_verdicts(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()
     return out
 
 
+def _drifting(fitted: pd.DataFrame, declared: float) -> pd.DataFrame:
+    """The fitted cases still drifting toward the declared order (fitting.NOT_YET) that miss it by more than
+    ORDER_TOLERANCE and at most ORDER_CASE_TOLERANCE: not judged (a whole order off fails on any evidence)."""
+    if "note" not in fitted:
+        return fitted.iloc[:0]
+    off = (fitted["order"].astype(float) - declared).abs()
+    return fitted[fitted["note"].fillna("").astype(str).str.contains(NOT_YET, regex=False)
+                  & (off > ORDER_TOLERANCE) & (off <= ORDER_CASE_TOLERANCE)]
+
+
+def _cases(rows: pd.DataFrame) -> str:
+    return f"{len(rows)} case{'s' * (len(rows) != 1)}"
+
+
+def _shown(fitted: pd.DataFrame, declared: float, most: int = 2) -> str:
+    """The evidence of the cases farthest from the declared order (at most `most`): each case's local slopes and the
+    dt range judged, in its note's words (fitting.evidence)."""
+    if "note" not in fitted or fitted.empty:
+        return ""
+    far = (fitted["order"].astype(float) - declared).abs().sort_values(ascending=False, kind="stable").index[:most]
+    shown = []
+    for index in far:
+        segment = next((x for x in str(fitted.at[index, "note"] or "").split("; ") if x.startswith("slopes ")), "")
+        judged = next((x for x in str(fitted.at[index, "note"] or "").split("; ") if x.startswith("judged on ")), "")
+        if segment:
+            shown.append(f"{fitted.at[index, 'case']}: {segment}; {judged}" if judged else
+                         f"{fitted.at[index, 'case']}: {segment}")
+    more = f" (+{len(fitted) - most} more cases)" if len(fitted) > most and shown else ""
+    return "; ".join(shown) + more
+
+
 def _evidence(fitted: pd.DataFrame) -> tuple[pd.Series, bool, bool]:
     """The asymptotic points of a claim's fitted cases, whether the table counts them (a table of 0.2.0 may not), and
     whether they are enough to judge: MIN_POINTS on some case, or MIN_CASES cases."""
@@ -209,13 +258,13 @@ def _evidence(fitted: pd.DataFrame) -> tuple[pd.Series, bool, bool]:
 
 def weak_evidence(convergence: pd.DataFrame, excluded_cases: Iterable[str] = ()) -> set[tuple[str, str, str]]:
     """The order claims (engine, formulation, integrator) whose fitted cases are too few to judge (_evidence), passed
-    or missed: `run --strict` measures them more (short ladders) before it judges, since a pre-asymptotic pair can
-    fit the declared order by chance as well as miss it."""
+    or missed, or with a case not yet asymptotic (_drifting): `run --strict` measures them more (short ladders, finer
+    steps) before it judges, since a pre-asymptotic pair can fit the declared order by chance as well as miss it."""
     df = with_precision(convergence).fillna({"formulation": ""})
     fitted = df[np.isfinite(df["order"].astype(float)) & np.isfinite(df["declared_order"].astype(float))
                 & ~df["case"].isin(set(excluded_cases))]
     return {key for key, group in fitted.groupby(["engine", "formulation", "integrator"], sort=False)
-            if not _evidence(group)[2]}
+            if not _evidence(group)[2] or len(_drifting(group, float(group["declared_order"].iloc[0])))}
 
 
 def excuse(row, excluded: set[str]) -> str | None:
@@ -364,8 +413,9 @@ def failed(verdicts: Iterable[Verdict]) -> list[Verdict]:
 
 
 def strict_failures(verdicts: Iterable[Verdict]) -> list[Verdict]:
-    """What `run --strict` fails on: a failed verdict, and a claim nothing measured and no reason excuses."""
-    return [v for v in verdicts if v.status in (FAIL, NO_REASON, NOT_ENOUGH)]
+    """What `run --strict` fails on: a failed verdict, a claim nothing measured and no reason excuses, and a claim
+    with too little evidence or not yet asymptotic after measuring more."""
+    return [v for v in verdicts if v.status in (FAIL, NO_REASON, NOT_ENOUGH, NOT_ASYMPTOTIC)]
 
 
 def failed_integrators(verdicts: Iterable[Verdict]) -> set[tuple[str, str, str]]:
@@ -385,15 +435,17 @@ def summary_lines(verdicts: list[Verdict]) -> list[str]:
     """The terminal's verdict block: the counts, then one line per failed verdict, per claim nothing measured and
     no reason excuses, per known deviation and per deviation that stopped matching."""
     counts = {s: sum(v.status == s for v in verdicts)
-              for s in (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED, NOT_ENOUGH)}
+              for s in (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED, NOT_ENOUGH, NOT_ASYMPTOTIC)}
     head = (f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED] + counts[NO_REASON]} not "
             f"measured" + (f" ({counts[NO_REASON]} with no reason: --strict fails them)" if counts[NO_REASON] else ""))
     head += f", {counts[NOT_ENOUGH]} with {NOT_ENOUGH} (--strict measures more, then fails them)" \
         if counts[NOT_ENOUGH] else ""
+    head += f", {counts[NOT_ASYMPTOTIC]} {NOT_ASYMPTOTIC} (--strict measures finer, then fails them)" \
+        if counts[NOT_ASYMPTOTIC] else ""
     head += f", {counts[KNOWN]} known deviations" if counts[KNOWN] else ""
     head += f", {counts[FIXED]} {FIXED}" if counts[FIXED] else ""
     lines = [head]
-    words = {FAIL: "failed", NO_REASON: "not measured", NOT_ENOUGH: NOT_ENOUGH}
+    words = {FAIL: "failed", NO_REASON: "not measured", NOT_ENOUGH: NOT_ENOUGH, NOT_ASYMPTOTIC: NOT_ASYMPTOTIC}
     lines += [f"verdict {words[v.status]}: {v.line}" for v in strict_failures(verdicts)]
     lines += [f"verdict {v.status}: {v.line}" for v in verdicts if v.status in (KNOWN, FIXED)]
     return lines

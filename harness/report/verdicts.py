@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..analysis.verdicts import (FAIL, FIXED, KNOWN, NO_REASON, NOT_ENOUGH, PASS, UNMEASURED, read,
-                                 summary_lines)
+from ..analysis.verdicts import (FAIL, FIXED, KNOWN, NO_REASON, NOT_ASYMPTOTIC, NOT_ENOUGH, PASS, UNMEASURED,
+                                 read, summary_lines)
 from . import sections
 from .markdown import markdown_table
 
-ORDER = (FAIL, NO_REASON, NOT_ENOUGH, FIXED, KNOWN, UNMEASURED)
+ORDER = (FAIL, NO_REASON, NOT_ENOUGH, NOT_ASYMPTOTIC, FIXED, KNOWN, UNMEASURED)
 
 
 def report_lines(out_dir: Path) -> list[str]:
@@ -18,8 +18,9 @@ def report_lines(out_dir: Path) -> list[str]:
     if verdicts is None:
         return []
     lines = ["## Verdicts", "", summary_lines(verdicts)[0] + ". Failed verdicts come first, then claims nothing "
-             f"measured and no reason excuses, then misses found on too few points (`{NOT_ENOUGH}`), then known "
-             "engine deviations "
+             f"measured and no reason excuses, then misses found on too few points (`{NOT_ENOUGH}`), then claims "
+             f"whose local slopes still move toward the declared order at the finest dt (`{NOT_ASYMPTOTIC}`), then "
+             "known engine deviations "
              f"(`{KNOWN}`: declared by the engine with their upstream reference, not failures) and those "
              f"that stopped matching (`{FIXED}`); the passes follow, one line per kind of claim (open it for its "
              "rows); the rules are stated once, below.", ""]
