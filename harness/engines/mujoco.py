@@ -33,6 +33,7 @@ from ..scenes.cases import Case, unphysical_inertia
 from ..trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                           diverged_trajectory, sample_good, samples_good)
 from .base import RIGID_BODY, SLIDING_LADDER, About, Engine, Offer, RigidBodyModel, SceneModel, Timing, singular_torque
+from .offered import names as offered_names, unmodelled as unmodelled_reason
 from ..grid import TimeGrid
 from ...reference.torques import torque_function
 
@@ -54,13 +55,37 @@ def _log_warning(message: str) -> None:
 
 mujoco.set_mju_user_warning(_log_warning)
 
-# harness name -> (MJCF option value, dynamics evaluations per step)
+# The integrators the adapter models: harness name (mjtIntegrator's member without mjINT_, lower case) -> (MJCF option
+# value, dynamics evaluations per step). Which of them a run has is read from the installed MuJoCo (offered()):
+# discrete exists from 3.13.
 INTEGRATORS: dict[str, tuple[str, int]] = {
     "euler": ("Euler", 1),
     "implicit": ("implicit", 1),
     "implicitfast": ("implicitfast", 1),
     "rk4": ("RK4", 4),
+    "discrete": ("discrete", 1),
 }
+# mjtIntegrator members the adapter knows and does not run, with why (offered.unmodelled; none today). A member in
+# neither table is named as not modelled at run time; tests/test_engine_sdk.py fails until it is in one of them.
+NOT_MODELLED: dict[str, str] = {}
+ENUM_PREFIX = "mjINT_"
+
+
+def offered() -> tuple[str, ...]:
+    """The integrators the installed MuJoCo offers: mjtIntegrator's members, in its order, as harness names."""
+    return tuple(name[len(ENUM_PREFIX):].lower() for name in mujoco.mjtIntegrator.__members__
+                 if name.startswith(ENUM_PREFIX))
+
+
+def integrator_names() -> tuple[str, ...]:
+    """The engine's integrators: the modelled ones this MuJoCo offers, then the ones it offers that are not modelled
+    (offered.names)."""
+    return offered_names(offered(), tuple(INTEGRATORS))
+
+
+def not_modelled(integrator: str) -> str:
+    """Why the adapter does not run an integrator of the installed MuJoCo ("" when it does)."""
+    return unmodelled_reason(integrator, INTEGRATORS, NOT_MODELLED, f"mujoco {mujoco.__version__}'s mjtIntegrator")
 
 # Steps per rollout call: bounds the state buffer (CHUNK_STEPS x 8 doubles) for long runs; at this size the
 # per-call cost is well under 1% of the stepping.
@@ -448,12 +473,14 @@ class LadderSimulation:
 
 
 # Declared orders of MuJoCo's integrators (ENGINES.md: its Euler is semi-implicit, implicit/implicitfast are first
-# order, RK4 on a ball joint is RKMK, 4th order in MuJoCo 4).
-ORDERS = {"euler": 1, "implicit": 1, "implicitfast": 1, "rk4": 4}
-# What each integrator is (harness.engines.methods): Euler updates the velocity first; implicitfast on a ball joint is
-# the same update (its gyroscopic treatment is for free bodies: bit-identical here, ENGINES.md); implicit is MuJoCo's
-# own.
-METHODS = {"euler": "semi_implicit_euler", "implicitfast": "semi_implicit_euler", "rk4": "rk4"}
+# order, RK4 on a ball joint is RKMK, 4th order in MuJoCo 4; discrete is the implicit velocity update in the metric
+# M + hD + h^2 K, which on this scene, without damping, stiffness or constraints, is Euler's update: first order).
+ORDERS = {"euler": 1, "implicit": 1, "implicitfast": 1, "rk4": 4, "discrete": 1}
+# What each integrator is (harness.engines.methods): Euler updates the velocity first; implicitfast and discrete on a
+# ball joint are the same update (implicitfast's gyroscopic treatment is for free bodies, discrete's metric adds only
+# damping and stiffness: both bit-identical to Euler here, ENGINES.md); implicit is MuJoCo's own.
+METHODS = {"euler": "semi_implicit_euler", "implicitfast": "semi_implicit_euler", "discrete": "semi_implicit_euler",
+           "rk4": "rk4"}
 DEFAULT_MJCF_INTEGRATOR = "rk4"
 
 
@@ -477,10 +504,11 @@ class MujocoEngine(Engine):
     about = About(packages=("mujoco",), linestyle="-", export_formats=("mjcf",))
 
     def offer(self, integrator: str) -> Offer:
-        return Offer(order=float(ORDERS.get(integrator, math.nan)), method=METHODS.get(integrator, ""))
+        return Offer(order=float(ORDERS.get(integrator, math.nan)), method=METHODS.get(integrator, ""),
+                     unmodelled=not_modelled(integrator))
 
     def integrators(self) -> tuple[str, ...]:
-        return tuple(INTEGRATORS)
+        return integrator_names()
 
     def unsupported(self, case: Case) -> str | None:
         return _unsupported(case)
