@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ast
 import importlib.util
+from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 NOT_MODELLED = "not modelled by stereodyn's adapter"
@@ -36,15 +37,20 @@ def unmodelled(integrator: str, modelled: Iterable[str], reasons: Mapping[str, s
 def enum_members(module: str, enum: str) -> tuple[str, ...] | None:
     """The member names of class `enum` in an installed module's source, read without importing it (MJX's and MuJoCo
     Warp's modules import jax or warp, seconds a process); None when the module or the class is absent."""
-    try:
-        spec = importlib.util.find_spec(module)
+    top, *rest = module.split(".")
+    try:  # a top-level name is found without importing it; a dotted one would import its parents (jax, warp)
+        spec = importlib.util.find_spec(top)
     except (ImportError, ValueError):
         return None
-    if spec is None or not spec.origin or not spec.origin.endswith(".py"):
+    if spec is None or not rest or not spec.submodule_search_locations:
         return None
+    files = [Path(folder, *rest[:-1], rest[-1] + ".py") for folder in spec.submodule_search_locations]
+    found = next((f for f in files if f.is_file()), None)
     try:
-        tree = ast.parse(open(spec.origin, encoding="utf-8").read())
+        tree = ast.parse(found.read_text(encoding="utf-8")) if found else None
     except (OSError, SyntaxError, UnicodeDecodeError):
+        return None
+    if tree is None:
         return None
     for node in ast.walk(tree):
         if isinstance(node, ast.ClassDef) and node.name == enum:
