@@ -116,15 +116,21 @@ class Verdict:
 
     @property
     def subject(self) -> str:
+        """What was judged, the engine's version included: "integrator mujoco rk4 (mujoco 4.0.0)"."""
+        return self._judged + (f" ({self.engine_version})" if self.engine_version else "")
+
+    @property
+    def _judged(self) -> str:
         if self.integrator:
             precision = self.precision if self.precision not in ("", FLOAT64) else ""
             return "integrator " + " ".join(x for x in (self.engine, self.formulation, self.integrator, precision)
-                                            if x) + (f" ({self.engine_version})" if self.engine_version else "")
+                                            if x)
         return f"case {self.case}"
 
     @property
     def line(self) -> str:
-        return f"{self.subject} {self.detail}"
+        """One line: what was judged, the finding, then the engine version it was judged under."""
+        return f"{self._judged} {self.detail}" + (f" [{self.engine_version}]" if self.engine_version else "")
 
 
 def _fmt_order(x: float) -> str:
