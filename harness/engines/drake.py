@@ -104,8 +104,8 @@ DEFAULT_SWEEP = (DISCRETE, "runge_kutta2", "runge_kutta3", "runge_kutta3" + ADAP
 # Schemes of GetIntegrationSchemes() the adapter knows and does not run, with why (offered.unmodelled). A scheme in
 # neither table is named as not modelled at run time; tests/test_engine_sdk.py fails until it is in one of them.
 NOT_MODELLED = {
-    "cenic": "CENIC (pydrake.multibody.cenic, Drake's convex error-controlled integrator for contact) is "
-             "error-controlled only, and the adapter declares no order for its steps",
+    "cenic": "CENIC (pydrake.multibody.cenic) is Drake's convex error-controlled integrator for contact, built "
+             "for a plant with a SceneGraph (the adapter's diagram has none); no order declared for it",
 }
 
 
