@@ -63,7 +63,7 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                 dts = (None,) if integrator and (engine.adaptive(integrator) or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
                     dts = engine.default_dts(case, integrator, tuple(dts))
-                for formulation_rank, formulation in enumerate(variants):
+                for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
                     if integrator and selection.default and not model.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
                     # the precisions the engine's model of this scene runs (SceneModel.precisions)
