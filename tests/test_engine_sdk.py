@@ -107,8 +107,9 @@ def test_a_run_names_the_newer_integrator_in_one_line(newer_mujoco, tmp_path, ca
 
 def test_the_names_keep_the_adapters_order_then_the_sdks_others():
     assert offered.names(["b", "x", "a"], ["a", "b", "c"]) == ("a", "b", "x")  # c: an older SDK lacks it
-    assert offered.unmodelled("a", ["a"], {}, "sdk") == ""
-    assert offered.unmodelled("x", ["a"], {"x": "why"}, "sdk") == f"{offered.NOT_MODELLED}: why"
+    assert offered.unmodelled("a", ["a", "x"], ["a"], {}, "sdk") == ""
+    assert offered.unmodelled("x", ["a", "x"], ["a"], {"x": "why"}, "sdk") == f"{offered.NOT_MODELLED}: why"
+    assert offered.unmodelled("y", ["a", "x"], ["a"], {}, "sdk") == ""  # not offered: not this engine's at all
 
 
 def test_a_backends_integrators_are_read_from_its_sdks_enum_without_importing_it(tmp_path, monkeypatch):
@@ -158,6 +159,7 @@ def test_every_scheme_of_the_installed_drake_is_modelled_or_says_why():
             f"Drake's GetIntegrationSchemes() has {scheme!r}: model it in harness/engines/drake.py or say why in "
             "NOT_MODELLED")
     assert "cenic" not in drake.MODELLED or "cenic" not in drake.NOT_MODELLED
+    assert engine.offer("rk4").unmodelled == "" and not engine.in_default_sweep("rk4")  # another engine's name
     for integrator in engine.integrators():
         offer = engine.offer(integrator)
         assert bool(offer.unmodelled) == (integrator not in drake.MODELLED)

@@ -58,7 +58,7 @@ class MujocoBackend(Engine):
         return offered.names(self.offered(), tuple(self.stages))
 
     def offer(self, integrator: str) -> Offer:
-        reason = offered.unmodelled(integrator, self.stages, self.not_modelled,
+        reason = offered.unmodelled(integrator, self.offered(), self.stages, self.not_modelled,
                                     f"{self.sdk_enum[0]}.{self.sdk_enum[1]}")
         return Offer(order=self.orders.get(integrator, math.nan), method=self.methods.get(integrator, ""),
                      default_sweep=integrator in self.default_sweep or bool(reason), precisions=self.run_precisions,

@@ -400,7 +400,7 @@ class DrakeEngine(Engine):
         adaptive runs have no dt to be compared at: no method."""
         order = 1.0 if integrator == DISCRETE else float(FIXED_STEP.get(ADAPTIVE.get(integrator, integrator),
                                                                            math.nan))
-        reason = unmodelled_reason(integrator, MODELLED, NOT_MODELLED,
+        reason = unmodelled_reason(integrator, offered(), MODELLED, NOT_MODELLED,
                                    f"drake {_drake_version()}'s GetIntegrationSchemes()")
         return Offer(order=order, method=METHODS.get(integrator, ""), adaptive=integrator in ADAPTIVE,
                      default_sweep=integrator in DEFAULT_SWEEP or bool(reason), unmodelled=reason)

@@ -85,7 +85,8 @@ def integrator_names() -> tuple[str, ...]:
 
 def not_modelled(integrator: str) -> str:
     """Why the adapter does not run an integrator of the installed MuJoCo ("" when it does)."""
-    return unmodelled_reason(integrator, INTEGRATORS, NOT_MODELLED, f"mujoco {mujoco.__version__}'s mjtIntegrator")
+    return unmodelled_reason(integrator, offered(), INTEGRATORS, NOT_MODELLED,
+                             f"mujoco {mujoco.__version__}'s mjtIntegrator")
 
 # Steps per rollout call: bounds the state buffer (CHUNK_STEPS x 8 doubles) for long runs; at this size the
 # per-call cost is well under 1% of the stepping.

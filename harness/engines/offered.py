@@ -23,11 +23,12 @@ def names(offered: Iterable[str], modelled: Sequence[str]) -> tuple[str, ...]:
     return tuple(m for m in modelled if m in offered) + tuple(o for o in offered if o not in modelled)
 
 
-def unmodelled(integrator: str, modelled: Iterable[str], reasons: Mapping[str, str], sdk: str) -> str:
-    """Why the adapter does not run an integrator its SDK offers ("" when it runs it): the adapter's stated reason,
-    else that the release is newer than what the adapter declares (sdk: what offers it, e.g. "mujoco 4.1.0's
-    mjtIntegrator")."""
-    if integrator in modelled:
+def unmodelled(integrator: str, offered: Iterable[str], modelled: Iterable[str], reasons: Mapping[str, str],
+               sdk: str) -> str:
+    """Why the adapter does not run an integrator its SDK offers ("" when it runs it, or when the SDK does not offer
+    it): the adapter's stated reason, else that the release is newer than what the adapter declares (sdk: what offers
+    it, e.g. "mujoco 4.1.0's mjtIntegrator")."""
+    if integrator in modelled or integrator not in offered:
         return ""
     reason = reasons.get(integrator) or (f"{sdk} offers it, and the adapter declares no order nor method for it: "
                                          f"a release newer than the adapter")
