@@ -171,8 +171,8 @@ def scene(case: Case, integrator: str, dt: float, model_name: str | None = None,
 # (user_objects.cc: "inertia must satisfy A + B >= C; use 'balanceinertia'", which would make all three equal): the
 # rounded eigenvalues of a rotated lamina fall below the equality by an ulp or two. The smallest change it accepts is
 # found by trying: each principal moment raised by ULPS x eps x the largest one, ULPS = 1, 2, 4, ... up to this cap
-# (measured: 1 on each of 7 refused orientations of a disk; the change is ~2e-16 relative, far below every error the rows report, which are against the
-# truth of the unchanged body). Past it, a body MuJoCo refuses stays refused.
+# (measured: 1 on each of 7 refused orientations of a disk, ~2e-16 relative, far below every error the rows report,
+# which are against the truth of the unchanged body). Past it, a body MuJoCo refuses stays refused.
 LAMINA_MAX_ULPS = 64
 LAMINA_REFUSAL = "A + B >= C"
 
