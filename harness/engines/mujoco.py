@@ -177,7 +177,8 @@ LAMINA_MAX_ULPS = 64
 LAMINA_REFUSAL = "A + B >= C"
 
 
-def compiled(case: Case, integrator: str, dt: float, model_name: str | None = None) -> tuple[str, "mujoco.MjModel", str]:
+def compiled(case: Case, integrator: str, dt: float,
+             model_name: str | None = None) -> tuple[str, "mujoco.MjModel", str]:
     """(MJCF, compiled model, note) of the case's scene: note "" when MuJoCo accepts the body as it is, else the
     smallest raise of its principal moments (LAMINA_MAX_ULPS) that MuJoCo accepts, in words for the row."""
     xml = scene(case, integrator, dt, model_name=model_name)
