@@ -50,6 +50,18 @@ def library_versions() -> dict[str, str]:
     return versions
 
 
+def engine_version(engine: str) -> str:
+    """The engine's packages (Engine.packages) as installed, "mujoco 4.0.0" ("jax 0.6.2, mujoco-mjx 3.17.0" for
+    several): the version a result or a verdict of the engine was judged under. "" for an engine not registered."""
+    from .engines import EngineError, get_engine
+
+    try:
+        names = get_engine(engine).packages
+    except (EngineError, KeyError):
+        return ""
+    return ", ".join(f"{name} {_version(name)}" for name in names)
+
+
 # The import packages whose files make up stereodyn (pyproject.toml maps each to its own folder, so walking the top
 # package alone would miss them in an editable install).
 SOURCE_PACKAGES = ("stereodyn", "stereodyn.harness", "stereodyn.reference", "stereodyn.cases")

@@ -5,6 +5,7 @@ import functools
 import math
 import xml.etree.ElementTree as ET
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -75,7 +76,10 @@ def angles(quat_a: np.ndarray, quat_b: np.ndarray) -> np.ndarray:
 # -------------------------------------------------------------------------------------------------- conventions
 
 def test_engine_integrators():
-    assert MUJOCO.name == "mujoco" and MUJOCO.integrators() == ("euler", "implicit", "implicitfast", "rk4")
+    # discrete from MuJoCo 3.13 (mjtIntegrator; the list is read from the installed MuJoCo: tests/test_engine_sdk.py)
+    expected = ("euler", "implicit", "implicitfast", "rk4") + (("discrete",) if hasattr(
+        mujoco.mjtIntegrator, "mjINT_DISCRETE") else ())
+    assert MUJOCO.name == "mujoco" and MUJOCO.integrators() == expected
     assert PINOCCHIO.name == "pinocchio"
     assert PINOCCHIO.integrators()[:4] == ("euler", "symplectic_euler", "rk4", "rk4_naive")
 
@@ -217,6 +221,7 @@ ORDER_CASES = [
     ("mujoco", "implicit", FIRST_ORDER_DTS, (0.8, 1.2)),
     ("mujoco", "implicitfast", FIRST_ORDER_DTS, (0.8, 1.2)),
     ("mujoco", "rk4", RK_DTS, (3.7, 4.3)),
+    ("mujoco", "discrete", FIRST_ORDER_DTS, (0.8, 1.2)),
     ("pinocchio", "euler", FIRST_ORDER_DTS, (0.8, 1.2)),
     ("pinocchio", "symplectic_euler", FIRST_ORDER_DTS, (0.8, 1.2)),
     ("pinocchio", "rk4", RK_DTS, (3.7, 4.3)),
@@ -253,7 +258,7 @@ def test_fitted_convergence_order(engine, integrator, dts, bounds):
 
 # Heavy-asymmetric over 20 s: MuJoCo's Euler (and the same scheme on Pinocchio) first diverges at dt = 0.25; the
 # explicit Euler at dt = 0.15; the RK4s, implicit, and rk4_naive stay bounded up to dt = 1 (measured).
-DIVERGING = [("mujoco", "euler", 0.3, 54), ("mujoco", "implicitfast", 0.3, 54),
+DIVERGING = [("mujoco", "euler", 0.3, 54), ("mujoco", "implicitfast", 0.3, 54), ("mujoco", "discrete", 0.3, 54),
              ("pinocchio", "symplectic_euler", 0.3, 54), ("pinocchio", "euler", 0.2, 64)]
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Iterable
 
@@ -41,9 +41,11 @@ from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part 
 from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, get_engine
 from ..engines.base import KnownDeviation
 from ..precision import FLOAT64
+from ..environment import engine_version
 
 VERDICTS_FILE = "verdicts.csv"
-COLUMNS = ("verdict", "engine", "formulation", "integrator", "precision", "case", "status", "detail", "rule")
+COLUMNS = ("verdict", "engine", "formulation", "integrator", "precision", "case", "status", "detail", "rule",
+           "engine_version")
 PASS, FAIL, UNMEASURED = "pass", "fail", "not measured"
 # A declared order that nothing measured (no case's dt list or short ladder gave an order) and no reason excuses:
 # `run --strict` fails it as it fails FAIL, yet "What to use" still recommends its runs (no claim was disproved).
@@ -115,9 +117,15 @@ class Verdict:
     status: str = PASS
     detail: str = ""
     rule: str = ""
+    engine_version: str = ""  # the engine's packages as installed, "mujoco 4.0.0" (environment.engine_version)
 
     @property
     def subject(self) -> str:
+        """What was judged, the engine's version included: "integrator mujoco rk4 (mujoco 4.0.0)"."""
+        return self._judged + (f" ({self.engine_version})" if self.engine_version else "")
+
+    @property
+    def _judged(self) -> str:
         if self.integrator:
             precision = self.precision if self.precision not in ("", FLOAT64) else ""
             return "integrator " + " ".join(x for x in (self.engine, self.formulation, self.integrator, precision)
@@ -126,7 +134,8 @@ class Verdict:
 
     @property
     def line(self) -> str:
-        return f"{self.subject} {self.detail}"
+        """One line: what was judged, the finding, then the engine version it was judged under."""
+        return f"{self._judged} {self.detail}" + (f" [{self.engine_version}]" if self.engine_version else "")
 
 
 def _fmt_order(x: float) -> str:
@@ -391,6 +400,9 @@ def evaluate(out_dir: Path, results: pd.DataFrame, cases: Iterable = (),
     verdicts += checked
     checks_path = out_dir / checks.CHECKS_FILE
     verdicts += truth_verdicts(results, checks.read_checks(checks_path) if checks_path.exists() else None)
+    # the engine version each verdict judged (issue 48): a report of MuJoCo 4.0.0 is not read as one of 3.3.7
+    verdicts = [replace(v, engine_version=engine_version(v.engine)) if v.engine and not v.engine_version else v
+                for v in verdicts]
     write(verdicts, out_dir / VERDICTS_FILE)
     return verdicts
 

@@ -7,6 +7,7 @@ import math
 from typing import Callable
 
 from ..scenes.cases import Case, unphysical_inertia
+from . import offered
 from .base import FLOAT64, RIGID_BODY, Engine, KnownDeviation, Offer, RigidBodyModel, singular_torque
 from .mujoco import torque_mode
 from .stepping import DEFAULT_CASES, coarse_dts
@@ -42,14 +43,26 @@ class MujocoBackend(Engine):
     deviations: dict[str, KnownDeviation] = {}
     coarse_default_step = False             # a default sweep runs one coarse step (stepping.coarse_dts)
     torque_refusal: Callable[[Case], str | None] = staticmethod(lambda case: None)  # why its torque cannot be applied
+    # where the SDK declares its integrators: (module, enum class), read from its source without importing it
+    # (offered.enum_members); the members, lower case, are the harness names
+    sdk_enum: tuple[str, str] = ("", "")
+    not_modelled: dict[str, str] = {}       # SDK integrators the adapter knows and does not run, with why
+
+    def offered(self) -> tuple[str, ...]:
+        """The integrators the installed SDK offers (its enum's members, lower case); the adapter's own when the
+        enum cannot be read (no Python source: said so by the test that compares them, tests/test_engine_sdk.py)."""
+        members = offered.enum_members(*self.sdk_enum) if self.sdk_enum[0] else None
+        return tuple(self.stages) if members is None else tuple(m.lower() for m in members)
 
     def integrators(self) -> tuple[str, ...]:
-        return tuple(self.stages)
+        return offered.names(self.offered(), tuple(self.stages))
 
     def offer(self, integrator: str) -> Offer:
+        reason = offered.unmodelled(integrator, self.offered(), self.stages, self.not_modelled,
+                                    f"{self.sdk_enum[0]}.{self.sdk_enum[1]}")
         return Offer(order=self.orders.get(integrator, math.nan), method=self.methods.get(integrator, ""),
-                     default_sweep=integrator in self.default_sweep, precisions=self.run_precisions,
-                     deviation=self.deviations.get(integrator))
+                     default_sweep=integrator in self.default_sweep or bool(reason), precisions=self.run_precisions,
+                     deviation=self.deviations.get(integrator), unmodelled=reason)
 
     def unsupported(self, case: Case) -> str | None:
         return unphysical_inertia(case) or singular_torque(case)  # MuJoCo's compiler refuses the first

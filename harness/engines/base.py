@@ -79,7 +79,9 @@ class Offer:
     it chooses its own steps (rows with dt None; prepare gets tolerance=...). default_sweep: whether a sweep that names
     no integrators runs it; None: the registry's rule (True for an engine's own names). precisions: FLOAT64, FLOAT32,
     each a row of its own (an engine declaring any other than float64 gets prepare(..., precision=...)). deviation: a
-    documented departure from what it declares (KnownDeviation), or None.
+    documented departure from what it declares (KnownDeviation), or None. unmodelled: why the adapter does not run
+    an integrator its SDK offers ("not modelled by stereodyn's adapter: ...", harness.engines.offered; "": it runs):
+    one skipped row per case, and a line of `stereodyn engines`.
     """
 
     order: float = math.nan
@@ -89,6 +91,7 @@ class Offer:
     default_sweep: bool | None = None
     precisions: tuple[str, ...] = (FLOAT64,)
     deviation: KnownDeviation | None = None
+    unmodelled: str = ""
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,8 @@ from ..environment import OWN_DISTRIBUTION, entry_distribution as _distribution,
 @dataclass(frozen=True)
 class EngineRow:
     """One engine: name, origin, status (`installed` with its packages' versions, or `not installed: REASON`),
-    models (formulations), integrators (default-sweep ones marked *), precisions."""
+    models (formulations), integrators (default-sweep ones marked *), precisions, and the integrators its SDK offers
+    that the adapter does not run, each with why (Offer.unmodelled)."""
 
     name: str
     origin: str
@@ -28,6 +29,7 @@ class EngineRow:
     models: tuple[str, ...]
     integrators: tuple[str, ...]
     precisions: tuple[str, ...]
+    unmodelled: tuple[tuple[str, str], ...] = ()
 
 
 def _version(package: str) -> str:
@@ -66,12 +68,14 @@ def rows() -> list[EngineRow]:
             status = "not usable" if isinstance(engine, BrokenEngine) else "not installed"
             table.append(EngineRow(name, origin(name), f"{status}: {engine.reason}", (), (), ()))
             continue
-        integrators = engine.integrators()
+        offers = {i: engine.offer(i) for i in engine.integrators()}
+        integrators = [i for i, offer in offers.items() if not offer.unmodelled]
         packages = ", ".join(f"{p} {_version(p)}" for p in engine.packages)
         table.append(EngineRow(
             name, origin(name), "installed" + (f" ({packages})" if packages else ""), engine.formulations(),
             tuple(i + ("*" if engine.in_default_sweep(i) else "") for i in integrators),
-            tuple(dict.fromkeys(p for i in integrators for p in engine.precisions(i)))))
+            tuple(dict.fromkeys(p for i in integrators for p in engine.precisions(i))),
+            tuple((i, offer.unmodelled) for i, offer in offers.items() if offer.unmodelled)))
     return table
 
 
@@ -94,6 +98,8 @@ def render(table: list[EngineRow], wide: bool = True) -> str:
             lines += _wrapped(f"  integrators (* in the default sweep): {', '.join(row.integrators)}", wide, "    ")
         if row.precisions:
             lines += _wrapped(f"  precision: {', '.join(row.precisions)}", wide, "    ")
+        for integrator, reason in row.unmodelled:  # "not modelled by stereodyn's adapter: why"
+            lines += _wrapped(f"  {integrator}: {reason}", wide, "    ")
     return "\n".join(lines)
 
 

@@ -282,6 +282,7 @@ class MjxEngine(MujocoBackend):
     timing = Timing(pass_us=15.0, startup_s=20.0)
     about = About(packages=("mujoco-mjx", "jax", "jaxlib", "mujoco"), linestyle=(0, (3, 1, 1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
+    sdk_enum = ("mujoco.mjx._src.types", "IntegratorType")  # its integrators, read from the installed SDK (offered.py)
     run_precisions, deviations = (FLOAT64, FLOAT32), {"rk4": RK4_DEVIATION}
     torque_refusal = staticmethod(_constant_torque_only)
 

@@ -33,6 +33,7 @@ from ..scenes.cases import Case, unphysical_inertia
 from ..trajectory import (SlidingLadderTrajectory, Status, Trajectory, divergence_limit2,
                           diverged_trajectory, sample_good, samples_good)
 from .base import RIGID_BODY, SLIDING_LADDER, About, Engine, Offer, RigidBodyModel, SceneModel, Timing, singular_torque
+from .offered import names as offered_names, unmodelled as unmodelled_reason
 from ..grid import TimeGrid
 from ...reference.torques import torque_function
 
@@ -54,13 +55,38 @@ def _log_warning(message: str) -> None:
 
 mujoco.set_mju_user_warning(_log_warning)
 
-# harness name -> (MJCF option value, dynamics evaluations per step)
+# The integrators the adapter models: harness name (mjtIntegrator's member without mjINT_, lower case) -> (MJCF option
+# value, dynamics evaluations per step). Which of them a run has is read from the installed MuJoCo (offered()):
+# discrete exists from 3.13.
 INTEGRATORS: dict[str, tuple[str, int]] = {
     "euler": ("Euler", 1),
     "implicit": ("implicit", 1),
     "implicitfast": ("implicitfast", 1),
     "rk4": ("RK4", 4),
+    "discrete": ("discrete", 1),
 }
+# mjtIntegrator members the adapter knows and does not run, with why (offered.unmodelled; none today). A member in
+# neither table is named as not modelled at run time; tests/test_engine_sdk.py fails until it is in one of them.
+NOT_MODELLED: dict[str, str] = {}
+ENUM_PREFIX = "mjINT_"
+
+
+def offered() -> tuple[str, ...]:
+    """The integrators the installed MuJoCo offers: mjtIntegrator's members, in its order, as harness names."""
+    return tuple(name[len(ENUM_PREFIX):].lower() for name in mujoco.mjtIntegrator.__members__
+                 if name.startswith(ENUM_PREFIX))
+
+
+def integrator_names() -> tuple[str, ...]:
+    """The engine's integrators: the modelled ones this MuJoCo offers, then the ones it offers that are not modelled
+    (offered.names)."""
+    return offered_names(offered(), tuple(INTEGRATORS))
+
+
+def not_modelled(integrator: str) -> str:
+    """Why the adapter does not run an integrator of the installed MuJoCo ("" when it does)."""
+    return unmodelled_reason(integrator, offered(), INTEGRATORS, NOT_MODELLED,
+                             f"mujoco {mujoco.__version__}'s mjtIntegrator")
 
 # Steps per rollout call: bounds the state buffer (CHUNK_STEPS x 8 doubles) for long runs; at this size the
 # per-call cost is well under 1% of the stepping.
@@ -110,13 +136,14 @@ def mjcf(case: Case, integrator: str, dt: float) -> str:
     return scene(case, integrator, dt)
 
 
-def scene(case: Case, integrator: str, dt: float, model_name: str | None = None) -> str:
+def scene(case: Case, integrator: str, dt: float, model_name: str | None = None, raised: float = 0.0) -> str:
     """mjcf() without the export's refusal of run-time torques (the MJX and MuJoCo Warp adapters build on it).
-    model_name: the model's name (default the case's)."""
+    model_name: the model's name (default the case's). raised: kg m^2 added to each principal moment about the
+    centre of mass (compiled(): a lamina's smallest change MuJoCo accepts)."""
     if integrator not in INTEGRATORS:
         raise KeyError(f"unknown MuJoCo integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
     body = case.body
-    inertia = np.asarray(body.inertia_com, dtype=float)
+    inertia = np.asarray(body.inertia_com, dtype=float) + raised * np.eye(3)
     moments = np.linalg.eigvalsh(inertia)
     # MuJoCo silently clamps a fullinertia that is not positive definite (ENGINES.md): refuse it here instead.
     if not moments[0] > 0.0:
@@ -139,13 +166,53 @@ def scene(case: Case, integrator: str, dt: float, model_name: str | None = None)
 """
 
 
+# A lamina (a thin disk: principal moments about the centre of mass mr^2/4, mr^2/4, mr^2/2, exactly A + B = C) is a
+# physical body, but MuJoCo's compiler diagonalises fullinertia itself and checks A + B >= C without tolerance
+# (user_objects.cc: "inertia must satisfy A + B >= C; use 'balanceinertia'", which would make all three equal): the
+# rounded eigenvalues of a rotated lamina fall below the equality by an ulp or two. The smallest change it accepts is
+# found by trying: each principal moment raised by ULPS x eps x the largest one, ULPS = 1, 2, 4, ... up to this cap
+# (measured: 1 on each of 7 refused orientations of a disk, ~2e-16 relative, far below every error the rows report,
+# which are against the truth of the unchanged body). Past it, a body MuJoCo refuses stays refused.
+LAMINA_MAX_ULPS = 64
+LAMINA_REFUSAL = "A + B >= C"
+
+
+def compiled(case: Case, integrator: str, dt: float,
+             model_name: str | None = None) -> tuple[str, "mujoco.MjModel", str]:
+    """(MJCF, compiled model, note) of the case's scene: note "" when MuJoCo accepts the body as it is, else the
+    smallest raise of its principal moments (LAMINA_MAX_ULPS) that MuJoCo accepts, in words for the row."""
+    xml = scene(case, integrator, dt, model_name=model_name)
+    try:
+        return xml, mujoco.MjModel.from_xml_string(xml), ""
+    except ValueError as exc:
+        if LAMINA_REFUSAL not in str(exc) or unphysical_inertia(case):
+            raise
+        refusal = exc
+    largest = float(np.linalg.eigvalsh(np.asarray(case.body.inertia_com, dtype=float))[-1])
+    ulps = 1
+    while ulps <= LAMINA_MAX_ULPS:
+        raised = ulps * np.finfo(float).eps * largest
+        xml = scene(case, integrator, dt, model_name=model_name, raised=raised)
+        try:
+            model = mujoco.MjModel.from_xml_string(xml)
+        except ValueError:
+            ulps *= 2
+            continue
+        return xml, model, (f"MuJoCo's model: principal moments about the centre of mass raised by {raised:.3g} kg "
+                            f"m^2 ({ulps} ulp of the largest, {largest:.6g}), the smallest change its compiler "
+                            f"accepts for this lamina (A + B = C, which it checks without tolerance)")
+    raise ValueError(f"{case.name}: MuJoCo cannot represent this lamina (A + B = C about the centre of mass): its "
+                     f"compiler refuses it even with the principal moments raised by {LAMINA_MAX_ULPS} ulp "
+                     f"({refusal})") from refusal
+
+
 def scene_state(case: Case, integrator: str, dt: float, model_name: str, energy: bool = True,
                 autoreset: bool = True) -> tuple["mujoco.MjModel", "mujoco.MjData"]:
     """scene() compiled, and its data at the case's initial state (a constant torque in qfrc_applied): what MuJoCo's
     back-ends (MJX, MuJoCo Warp) put on their device, so that no other adapter imports mujoco. energy False clears
     the energy flag (MJX refuses it; the energies come from the states anyway); autoreset False clears the
     autoreset-disable flag (MuJoCo Warp has no autoreset and refuses it)."""
-    model = mujoco.MjModel.from_xml_string(scene(case, integrator, dt, model_name=model_name))
+    _, model, _ = compiled(case, integrator, dt, model_name=model_name)
     if not energy:
         model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     if not autoreset:
@@ -162,8 +229,7 @@ class MujocoSimulation:
     """A compiled scene; run() rolls it out from the case's initial state (every call starts afresh)."""
 
     def __init__(self, case: Case, integrator: str, dt: float):
-        self.xml = scene(case, integrator, dt)
-        self.model = mujoco.MjModel.from_xml_string(self.xml)
+        self.xml, self.model, self.note = compiled(case, integrator, dt)
         self.data = mujoco.MjData(self.model)
         self.stages = INTEGRATORS[integrator][1]
         self.dt = float(dt)
@@ -188,6 +254,9 @@ class MujocoSimulation:
             trajectory = self._rollout(grid)
         finally:
             mujoco.set_mju_user_warning(previous)
+        if self.note:  # the row says how MuJoCo's body differs from the case's (compiled())
+            message = f"{trajectory.message}; {self.note}" if trajectory.message else self.note
+            trajectory = dataclasses.replace(trajectory, message=message)
         return dataclasses.replace(trajectory, info={"mujoco_warnings": tuple(messages)}) if messages else trajectory
 
     def _rollout(self, grid: TimeGrid) -> Trajectory:
@@ -448,12 +517,14 @@ class LadderSimulation:
 
 
 # Declared orders of MuJoCo's integrators (ENGINES.md: its Euler is semi-implicit, implicit/implicitfast are first
-# order, RK4 on a ball joint is RKMK, 4th order in MuJoCo 4).
-ORDERS = {"euler": 1, "implicit": 1, "implicitfast": 1, "rk4": 4}
-# What each integrator is (harness.engines.methods): Euler updates the velocity first; implicitfast on a ball joint is
-# the same update (its gyroscopic treatment is for free bodies: bit-identical here, ENGINES.md); implicit is MuJoCo's
-# own.
-METHODS = {"euler": "semi_implicit_euler", "implicitfast": "semi_implicit_euler", "rk4": "rk4"}
+# order, RK4 on a ball joint is RKMK, 4th order in MuJoCo 4; discrete is the implicit velocity update in the metric
+# M + hD + h^2 K, which on this scene, without damping, stiffness or constraints, is Euler's update: first order).
+ORDERS = {"euler": 1, "implicit": 1, "implicitfast": 1, "rk4": 4, "discrete": 1}
+# What each integrator is (harness.engines.methods): Euler updates the velocity first; implicitfast and discrete on a
+# ball joint are the same update (implicitfast's gyroscopic treatment is for free bodies, discrete's metric adds only
+# damping and stiffness: both bit-identical to Euler here, ENGINES.md); implicit is MuJoCo's own.
+METHODS = {"euler": "semi_implicit_euler", "implicitfast": "semi_implicit_euler", "discrete": "semi_implicit_euler",
+           "rk4": "rk4"}
 DEFAULT_MJCF_INTEGRATOR = "rk4"
 
 
@@ -477,10 +548,11 @@ class MujocoEngine(Engine):
     about = About(packages=("mujoco",), linestyle="-", export_formats=("mjcf",))
 
     def offer(self, integrator: str) -> Offer:
-        return Offer(order=float(ORDERS.get(integrator, math.nan)), method=METHODS.get(integrator, ""))
+        return Offer(order=float(ORDERS.get(integrator, math.nan)), method=METHODS.get(integrator, ""),
+                     unmodelled=not_modelled(integrator))
 
     def integrators(self) -> tuple[str, ...]:
-        return tuple(INTEGRATORS)
+        return integrator_names()
 
     def unsupported(self, case: Case) -> str | None:
         return _unsupported(case)

@@ -158,6 +158,7 @@ class WarpEngine(MujocoBackend):
     timing = Timing(pass_us=40.0, startup_s=12.0)
     about = About(packages=("mujoco-warp", "warp-lang", "mujoco"), linestyle=(0, (1, 1)))
     stages, orders, methods, default_sweep = INTEGRATORS, ORDERS, METHODS, DEFAULT_SWEEP
+    sdk_enum = ("mujoco_warp._src.types", "IntegratorType")  # its integrators, read from the installed SDK (offered.py)
     run_precisions, coarse_default_step = (FLOAT32,), True
     torque_refusal = staticmethod(_constant_torque_only)
 

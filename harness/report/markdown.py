@@ -211,7 +211,25 @@ def _definitions_section(context: sections.Context) -> list[str]:
 
 @sections.register("environment", 100)
 def _environment(context: sections.Context) -> list[str]:
-    return ["## Environment", "", *(f"- {key}: {value}" for key, value in (context.env or environment()).items())]
+    env = context.env or environment()
+    return ["## Environment", "", *_engines_judged(context.results, env),
+            *(f"- {key}: {value}" for key, value in env.items())]
+
+
+def _engines_judged(results: pd.DataFrame, env: dict) -> list[str]:
+    """The line naming each engine of the results with the versions of its packages the sweep ran (runs.json's
+    environment), so that a report of MuJoCo 4.0.0 cannot be read as one of 3.3.7."""
+    from ..engines import EngineError, get_engine
+
+    judged = []
+    for name in dict.fromkeys(results["engine"].dropna()) if "engine" in results else ():
+        try:
+            packages = get_engine(str(name)).packages
+        except (EngineError, KeyError):
+            packages = ()
+        versions = ", ".join(f"{p} {env.get(p, 'absent')}" for p in packages)
+        judged.append(f"{name} ({versions})" if versions else str(name))
+    return [f"- engines judged: {'; '.join(judged)}"] if judged else []
 
 
 FORMULATION_COLUMNS = ("formulation", "integrator", "dt", "status", "chart_changes", "energy_drift", "attitude_err",

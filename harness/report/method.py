@@ -75,7 +75,8 @@ def integrator_rows() -> list[dict]:
                              "symmetric": "", "casimir_preserving": "",
                              "default_sweep": adapter.in_default_sweep(name),
                              "origin": f"{engine_origin(engine)} ({engine})",
-                             "description": "adaptive (error-controlled)" if adapter.adaptive(name) else ""})
+                             "description": adapter.offer(name).unmodelled
+                             or ("adaptive (error-controlled)" if adapter.adaptive(name) else "")})
     return rows
 
 

@@ -58,10 +58,12 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
             reason = model.unsupported(case)
             variants = tuple(model.variants()) or ("",)
             for integrator_rank, integrator in enumerate(model.integrators(list(selection.integrators)) or ([""] if reason else [])):
-                dts = (None,) if integrator and engine.adaptive(integrator) else case.dt
+                # an integrator the SDK offers that the adapter does not run (Offer.unmodelled): one skipped row
+                unmodelled = engine.offer(integrator).unmodelled if integrator else ""
+                dts = (None,) if integrator and (engine.adaptive(integrator) or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
                     dts = engine.default_dts(case, integrator, tuple(dts))
-                for formulation_rank, formulation in enumerate(variants):
+                for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
                     if integrator and selection.default and not model.default_run(case, formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
                     # the precisions the engine's model of this scene runs (SceneModel.precisions)
@@ -72,7 +74,8 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                                            engine_rank=engine_rank, integrator_rank=integrator_rank,
                                            formulation_rank=formulation_rank, precision_rank=precision_rank)
                             # a formulation/integrator pair that cannot model the case (Engine.unsupported_run)
-                            why = reason or (integrator and model.unsupported_run(case, formulation, integrator))
+                            why = reason or unmodelled or (integrator and model.unsupported_run(case, formulation,
+                                                                                                integrator))
                             (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
     return specs, skipped
 
