@@ -25,8 +25,8 @@ Families (FORMULARY T7–T9; L = |M| the angular momentum, E the kinetic energy)
   at rate L/I2 composed with a rotation about the fixed normal of the great circle that m(t) runs along.
 * A rotation about a principal axis (or rest) is uniform.
 
-Its home is here, outside reference/exact/ (whose euler_poinsot module re-exports it, as in 0.2.0), so that the
-splitting integrator (harness.integrators.geometric) steps the free flow without importing every exact solution.
+Its home is here, outside reference/exact/ (whose package re-exports it), so that the splitting integrator
+(harness.integrators.geometric) steps the free flow without importing every exact solution.
 """
 from __future__ import annotations
 

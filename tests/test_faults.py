@@ -117,7 +117,7 @@ def test_workers_die_with_a_parent_killed_before_they_finished_starting(tmp_path
         import os, signal, time
         from stereodyn.harness.run.sweep import worker_pool
         if __name__ == "__main__":
-            context = worker_pool(2, ())  # held: a collected context manager would end the pool
+            context = worker_pool(2)  # held: a collected context manager would end the pool
             pool = context.__enter__()
             print(" ".join(str(pid) for pid in pool.pids), flush=True)
             time.sleep({after_s})
@@ -141,7 +141,7 @@ def test_a_worker_ignores_ctrl_c_from_its_first_moment():
     """Ctrl-C to the workers while they start (still importing): none prints or dies of it, every one ignores it."""
     from stereodyn.harness.run.sweep import worker_pool
 
-    with worker_pool(2, ()) as pool:
+    with worker_pool(2) as pool:
         workers = list(pool.pids)
         for pid in workers:
             os.kill(pid, signal.SIGINT)

@@ -157,7 +157,7 @@ def run(request: Request, phases: tuple[Phase, ...] = PHASES) -> dict:
             index = 0
             while index < len(phases):
                 if phases[index].in_pool:
-                    with worker_pool(options.jobs, options.engines) as pool:
+                    with worker_pool(options.jobs) as pool:
                         while index < len(phases) and phases[index].in_pool:
                             _step(phases[index], request, values, pool, progress)
                             index += 1

@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from contextlib import contextmanager
-from dataclasses import InitVar, dataclass
+from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -16,9 +16,7 @@ from ...reference.body import RigidBody
 from .base import kinds, scene
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
 from ...reference.sliding_ladder import Ladder
-from ...reference.torque_models import (BodyTorque, CentralField, PrecessionTorque, TorqueModel, TorqueModelError,
-                                        load_plugins, merged, models)
-from ...reference.torque_models.precession import MIN_SIN_THETA  # noqa: F401 (0.2.0's name here)
+from ...reference.torque_models import TorqueModel, TorqueModelError, load_plugins, models, ordered
 from ..readers import ReadError, read_toml
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
@@ -83,8 +81,7 @@ class Case:
     quat0: (4,) initial attitude, scalar first, body -> world, unit. omega0: (3,) rad/s, body frame.
     dt: the steps to sweep, s. path: the file it came from (None for a case built in code).
     torques: the external torques beyond gravity (reference.torque_models' terms, registry order; RigidBody's);
-    body_torque=, central_field=, precession_torque= (0.2.0's keywords) add or replace that model's term, and the
-    attributes of those names read it (None: absent).
+    torque(model) reads one (None: absent).
     """
 
     name: str
@@ -102,16 +99,17 @@ class Case:
     samples: int
     oracle: str | None = None
     horizon: float | None = None
-    body_torque: InitVar[BodyTorque | None] = None
-    central_field: InitVar[CentralField | None] = None
     path: Path | None = None
-    precession_torque: InitVar[PrecessionTorque | None] = None
     kind: str = RIGID_BODY
     physical: bool = True               # [body] physical = false: the triangle inequalities are not required
     torques: tuple[TorqueModel, ...] = ()
 
-    def __post_init__(self, body_torque, central_field, precession_torque) -> None:
-        object.__setattr__(self, "torques", merged(self.torques, body_torque, central_field, precession_torque))
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "torques", ordered(self.torques))
+
+    def torque(self, model: type) -> TorqueModel | None:
+        """The case's term of a torque model (a class of reference.torque_models), or None."""
+        return next((term for term in self.torques if type(term) is model), None)
 
     @property
     def body(self) -> RigidBody:
@@ -554,14 +552,3 @@ def _short(value: Any) -> str:
 
 def _fmt(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
-
-
-# 0.2.0's attributes, read from the terms (set after the dataclass is made: its __init__ keeps their keywords).
-Case.body_torque = property(lambda self: _term(self, BodyTorque), doc="The BodyTorque term, or None.")
-Case.central_field = property(lambda self: _term(self, CentralField), doc="The CentralField term, or None.")
-Case.precession_torque = property(lambda self: _term(self, PrecessionTorque),
-                                  doc="The PrecessionTorque term, or None.")
-
-
-def _term(case: Case, model: type) -> TorqueModel | None:
-    return next((term for term in case.torques if type(term) is model), None)
