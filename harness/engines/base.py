@@ -12,7 +12,7 @@ import numpy as np
 from ..trajectory import Trajectory
 
 if TYPE_CHECKING:
-    from ..scenes.cases import Case
+    from ..scenes.case import Case
     from ..grid import TimeGrid
 
 

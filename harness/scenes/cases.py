@@ -12,11 +12,11 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ...reference import plugins
-from ...reference.body import RigidBody
 from .base import kinds, scene
+from .case import RIGID_BODY, Case
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
 from ...reference.sliding_ladder import Ladder
-from ...reference.torque_models import TorqueModel, TorqueModelError, load_plugins, models, ordered
+from ...reference.torque_models import TorqueModelError, load_plugins, models
 from ..readers import ReadError, read_toml
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
@@ -24,8 +24,9 @@ ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "
            "grioli_precession", "hess_grioli", "mlodzejowski", "self_excited_spinup", "self_excited_uniform")
 # The oracles whose exact solutions model a torque (their checks see it through Case.body; TorqueModel.oracles).
 TORQUE_ORACLES = tuple(dict.fromkeys(oracle for model in models() for oracle in model.oracles))
-# Scene kinds (top-level `kind`): a rigid body with a fixed point (default), and the sliding ladder (FORMULARY T5).
-RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"
+# Scene kinds (top-level `kind`): a rigid body with a fixed point (default, RIGID_BODY: harness.scenes.case), and the
+# sliding ladder (FORMULARY T5).
+SLIDING_LADDER = "sliding_ladder"
 
 DEFAULT_SAMPLES = 1000
 UNIT_TOL = 1e-9            # |v| within this of 1 is normalised, further off is an error (DESIGN §3)
@@ -74,55 +75,6 @@ CHAOTIC_TAGS = ("chaotic", "unstable")
 
 
 @dataclass(frozen=True, eq=False)
-class Case:
-    """One scene (DESIGN §3), validated.
-
-    inertia: (3, 3) kg m^2 about O, body frame. com: (3,) m body frame. gravity_direction: (3,) world unit.
-    quat0: (4,) initial attitude, scalar first, body -> world, unit. omega0: (3,) rad/s, body frame.
-    dt: the steps to sweep, s. path: the file it came from (None for a case built in code).
-    torques: the external torques beyond gravity (reference.torque_models' terms, registry order; RigidBody's);
-    torque(model) reads one (None: absent).
-    """
-
-    name: str
-    description: str
-    tags: tuple[str, ...]
-    mass: float
-    com: np.ndarray
-    inertia: np.ndarray
-    gravity: float                      # 0.0 when the case has no [gravity] table
-    gravity_direction: np.ndarray
-    quat0: np.ndarray
-    omega0: np.ndarray
-    t_end: float
-    dt: tuple[float, ...]
-    samples: int
-    oracle: str | None = None
-    horizon: float | None = None
-    path: Path | None = None
-    kind: str = RIGID_BODY
-    physical: bool = True               # [body] physical = false: the triangle inequalities are not required
-    torques: tuple[TorqueModel, ...] = ()
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "torques", ordered(self.torques))
-
-    def torque(self, model: type) -> TorqueModel | None:
-        """The case's term of a torque model (a class of reference.torque_models), or None."""
-        return next((term for term in self.torques if type(term) is model), None)
-
-    @property
-    def body(self) -> RigidBody:
-        return RigidBody(self.inertia, self.mass, self.com, self.gravity, self.gravity_direction,
-                         torques=self.torques)
-
-    @property
-    def source(self) -> str:
-        """Where the case came from, for messages: its file, or its name for a case built in code."""
-        return str(self.path) if self.path is not None else self.name
-
-
-@dataclass(frozen=True, eq=False)
 class LadderCase:
     """A sliding-ladder scene (kind "sliding_ladder", FORMULARY T5): a planar, constrained one-degree-of-freedom
     rod, not a body with a fixed point; harness.scenes.sliding_ladder runs it.
@@ -139,9 +91,6 @@ class LadderCase:
     kind: str = SLIDING_LADDER
     oracle: None = None
     horizon: None = None
-    body_torque: None = None
-    central_field: None = None
-    precession_torque: None = None
 
     @property
     def source(self) -> str:
