@@ -12,8 +12,8 @@ from test_import_cycles import graph, imports
 # reference.exact.heavy -> reference.body -> reference.torque_models -> reference.registry -> reference.
 # From 16 with the type-only imports (15 without them, the bound before): the engines' protocol names Case from
 # harness/scenes/case.py (the dataclass alone, below the case files' readers and the exact solutions) instead of
-# harness/scenes/cases.py, and the torque-free flow types its body as a protocol of what it reads (reference/torque_free.py:
-# FreeBody) instead of importing reference.body. 17 before issue 29's shortening: the torque-free body's home is
+# harness/scenes/cases.py, and the torque-free flow types its body as a protocol of what it reads
+# (reference/torque_free.py: FreeBody) instead of importing reference.body. 17 before issue 29's shortening: the torque-free body's home is
 # reference/torque_free.py and the exact solutions' helpers reference/closed_form.py, outside reference/exact/; the
 # Butcher tableau in harness/integrators/tableau.py; the `timing` column's SINGLE in harness/tables.py. Shorter needs
 # both tops cut (cli.run must import the pipeline, cli.matrix the history) or the torque registry below the body.
