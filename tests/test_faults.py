@@ -20,6 +20,7 @@ from child_processes import alive_in
 from helpers import FAST, one_line_error, tiny_case
 
 from stereodyn.harness import cli
+from stereodyn.harness.cli import common as cli_common
 from stereodyn.harness.run import processes
 from stereodyn.harness import engines as engine_registry
 
@@ -479,7 +480,8 @@ def test_extremes_with_a_case_file_runs_both(tmp_path):
     case = tmp_path / "case.toml"
     case.write_text(BASE)
     args = argparse.Namespace(cases=[], case_file=[str(case)], extremes=True, dt=None, t_end=None)
-    names = [c.name for c in cli.select_cases(args)]
+    cli_common.load()
+    names = [c.name for c in cli_common.select_cases(args)]
     from stereodyn.harness.scenes import cases
 
     extreme = [c.name for c in cases.load_suite(cases.suite_dir() / "extreme")]
