@@ -24,8 +24,10 @@ PAGES = {"cli.md": "Command line", "case-keys.md": "Case keys", "tables.md": "Re
 TABLES = (
     ("results.csv", "stereodyn.harness.run.results", "COLUMNS", "one row per run (DESIGN §4)"),
     ("verdicts.csv", "stereodyn.harness.analysis.verdicts", "COLUMNS", "one row per verdict"),
+    ("answers.csv", "stereodyn.harness.analysis.answers", "ANSWER_COLUMNS",
+     "what to use: per case, scope and accuracy target, the one answer the report and the terminal show"),
     ("pareto.csv", "stereodyn.harness.analysis.pareto", "PARETO_COLUMNS",
-     "per case, scope and accuracy target, the cheapest run that reaches it"),
+     "per case, scope and accuracy target, the cheapest of the runs listed that reaches it (the frontier)"),
     ("advice.csv", "stereodyn.harness.analysis.step_advice", "ADVICE_COLUMNS",
      "per laddered family and target, the largest checked dt or tolerance"),
     ("convergence.csv", "stereodyn.harness.analysis.fitting", "CONVERGENCE_COLUMNS", "one row per fitted run family"),
