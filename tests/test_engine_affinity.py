@@ -87,7 +87,7 @@ import os
 import time
 
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Engine, Timing
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class _Recorded:
@@ -120,13 +120,13 @@ class _Wrapped(Engine):
 
 class Warm(_Wrapped):
     name = "warm"
-    state_space = "lie"
+    about = About(state_space="lie")
     timing = Timing(pass_us=3.0, startup_s=5.0)
 
 
 class Cold(_Wrapped):
     name = "cold"
-    state_space = "lie"
+    about = About(state_space="lie")
     timing = Timing(pass_us=3.0)
 '''
 

@@ -81,7 +81,7 @@ PLUGIN = '''
 """Engines that hang: prepare() sleeps 1000 s (sleepy); run() loops and never calls budget.check() (spinning)."""
 import time
 
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class _Spinning:
@@ -91,8 +91,8 @@ class _Spinning:
 
 
 class _Hung(Engine):
-    state_space = "lie"
-    pass_us = 3.0
+    about = About(state_space="lie")
+    timing = Timing(pass_us=3.0)
 
     def integrators(self):
         return ("rk4",)

@@ -17,7 +17,7 @@ from stereodyn.harness.pipeline import tolerance_ladders
 from stereodyn.harness.analysis import fitting, ladders, workprecision
 from stereodyn.harness.pipeline import work_precision
 from stereodyn.harness.scenes.cases import find_case, with_overrides
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import Engine, Offer, Timing
 from stereodyn.harness.report import build
 from stereodyn.harness.report.build import write_reports
 from stereodyn.harness.trajectory import Status, Trajectory
@@ -52,13 +52,13 @@ class StubEngine(Engine):
     keyword, steps and rhs_evals filled) and one fixed-step name, which never gets a tolerance ladder."""
 
     name = "stub"
-    pass_us = 50.0
+    timing = Timing(pass_us=50.0)
 
     def integrators(self):
         return ("stub_fixed", "stub_dop853")
 
-    def adaptive(self, integrator):
-        return integrator == "stub_dop853"
+    def offer(self, integrator):
+        return Offer(adaptive=integrator == "stub_dop853")
 
     def unsupported(self, case):
         return "stub: no external torques" if case.body.has_external_torque else None
