@@ -2,7 +2,3 @@
 if __name__ != "stereodyn.harness":  # a checkout's folder imported by its bare name (import harness): refuse, loudly
     raise ImportError(f"'harness' is stereodyn's folder and imports as 'stereodyn.harness', not as {__name__!r}; "
                       "install stereodyn (pip install -e . in a checkout) and import stereodyn.harness")
-
-from .moved import install as _install_moved_paths
-
-_install_moved_paths()  # 0.2.0's paths of moved modules (stereodyn.harness.cases, .runner, ...) keep importing

@@ -1,16 +1,13 @@
 """The physical parameters of a rigid body with a fixed point O."""
 from __future__ import annotations
 
-from dataclasses import InitVar, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
-# The torque models' own modules, not the package's registry: the body and the exact solutions that read it need the
-# three 0.2.0 terms and the merge rule only (the package imports every model on its first import all the same).
-from .torque_models.base import TorqueModel, merged
-from .torque_models.body_torque import BodyTorque
-from .torque_models.central_field import CentralField
-from .torque_models.precession import PrecessionTorque
+# The torque models' base module, not the package's registry: the body needs the order rule only (the package
+# imports every model on its first import all the same).
+from .torque_models.base import TorqueModel, ordered
 
 # Relative tolerance of "u is a principal axis" and "σ is diagonal": case numbers are exact or far off.
 PRINCIPAL_RTOL = 1e-12
@@ -26,8 +23,7 @@ class RigidBody:
     gravity: m/s^2, magnitude g (0 for a torque-free body).
     gravity_direction: (3,) world frame, unit; the world gravity vector is gravity * gravity_direction.
     torques: the external torques beyond gravity, terms of reference.torque_models' registered models (at most one
-    per model), held in registry order. body_torque=, central_field=, precession_torque= (0.2.0's keywords, also
-    positional) add or replace the term of that model; the attributes of those names read it (None: absent).
+    per model), held in registry order; torque(model) reads one (None: absent).
     """
 
     inertia: np.ndarray
@@ -35,12 +31,9 @@ class RigidBody:
     com: np.ndarray
     gravity: float = 0.0
     gravity_direction: np.ndarray = None  # type: ignore[assignment]
-    body_torque: InitVar[BodyTorque | None] = None
-    central_field: InitVar[CentralField | None] = None
-    precession_torque: InitVar[PrecessionTorque | None] = None
     torques: tuple[TorqueModel, ...] = ()
 
-    def __post_init__(self, body_torque, central_field, precession_torque) -> None:
+    def __post_init__(self) -> None:
         direction = (0.0, 0.0, -1.0) if self.gravity_direction is None else self.gravity_direction
         for name, value, shape in (("inertia", self.inertia, (3, 3)), ("com", self.com, (3,)),
                                    ("gravity_direction", direction, (3,))):
@@ -49,7 +42,7 @@ class RigidBody:
                 raise ValueError(f"{name} must have shape {shape}, got {array.shape}")
             array.setflags(write=False)
             object.__setattr__(self, name, array)
-        object.__setattr__(self, "torques", merged(self.torques, body_torque, central_field, precession_torque))
+        object.__setattr__(self, "torques", ordered(self.torques))
 
     def torque(self, model: type) -> TorqueModel | None:
         """The body's term of a torque model (a class of reference.torque_models), or None."""
@@ -77,13 +70,6 @@ class RigidBody:
         """(3, 3) kg m^2, inertia about the centre of mass, body axes (Huygens–Steiner)."""
         c = self.com
         return self.inertia - self.mass * (c @ c * np.eye(3) - np.outer(c, c))
-
-
-# 0.2.0's attributes, read from the terms (set after the dataclass is made: its __init__ keeps their keywords).
-RigidBody.body_torque = property(lambda self: self.torque(BodyTorque), doc="The BodyTorque term, or None.")
-RigidBody.central_field = property(lambda self: self.torque(CentralField), doc="The CentralField term, or None.")
-RigidBody.precession_torque = property(lambda self: self.torque(PrecessionTorque),
-                                       doc="The PrecessionTorque term, or None.")
 
 
 def principal_frame_for(sigma: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

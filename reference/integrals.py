@@ -19,6 +19,7 @@ from . import torques
 from .body import RigidBody
 from .euler_poisson import downward_vertical
 from .rotations import quat_to_matrix
+from .torque_models.central_field import CentralField
 
 # Relative tolerance of the structural conditions (equal moments, com in a plane, K_H = 0, ...). A case satisfies
 # them to rounding (1e-16) or not at all; 1e-9 leaves room for moments computed from a rotated inertia tensor.
@@ -162,9 +163,10 @@ def _momentum_value(body, quat, omega):
     central field's direction D (the gravity-gradient torque H × σH has no component along H)."""
     quat, omega = _as_rows(quat, omega)
     momentum_body = omega @ body.inertia
-    if body.central_field is not None:
+    field = body.torque(CentralField)
+    if field is not None:
         world = np.einsum("...ij,...j->...i", quat_to_matrix(quat), momentum_body)
-        return world @ np.asarray(body.central_field.direction, dtype=float)
+        return world @ np.asarray(field.direction, dtype=float)
     if body.has_gravity:
         return np.einsum("...i,...i->...", momentum_body, downward_vertical(body, quat))
     return np.einsum("...ij,...j->...i", quat_to_matrix(quat), momentum_body)
@@ -327,7 +329,7 @@ def _self_excited_scale(body, quat0, omega0):
 
 def _momentum_under_torque(body: RigidBody) -> bool:
     """K along a central field's fixed direction is conserved: no orbit rate, no gravity, no other torque."""
-    field = body.central_field
+    field = body.torque(CentralField)
     return field is not None and field.orbit_rate == 0.0 and not body.has_gravity and len(body.torques) == 1
 
 

@@ -25,8 +25,8 @@ Families (FORMULARY T7–T9; L = |M| the angular momentum, E the kinetic energy)
   at rate L/I2 composed with a rotation about the fixed normal of the great circle that m(t) runs along.
 * A rotation about a principal axis (or rest) is uniform.
 
-Its home is here, outside reference/exact/ (whose euler_poinsot module re-exports it, as in 0.2.0), so that the
-splitting integrator (harness.integrators.geometric) steps the free flow without importing every exact solution.
+Its home is here, outside reference/exact/ (whose package re-exports it), so that the splitting integrator
+(harness.integrators.geometric) steps the free flow without importing every exact solution.
 """
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ import abc
 import math
 from dataclasses import dataclass
 from decimal import Decimal, localcontext
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from scipy.special import ellipkm1
@@ -43,8 +43,14 @@ from .closed_form import (PRECISE_DIGITS, SYMMETRIC_RTOL, axis_angle_quat, conti
                           jacobi, principal_frame_precise, third_kind_complete, third_kind_reduced)
 from .rotations import matrix_to_quat, quat_mul, quat_normalize, quat_to_matrix
 
-if TYPE_CHECKING:  # annotations only: the flow reads a body's inertia and has_gravity, never builds or checks one
-    from .body import RigidBody
+
+
+class FreeBody(Protocol):
+    """What the flow reads of a body (a reference.body.RigidBody, not imported: the flow never builds or checks one, and
+    the splitting integrator imports it without the body's torque registry, tests/test_import_chain.py)."""
+
+    inertia: np.ndarray  # (3, 3) kg m^2 about O, body frame
+    has_gravity: bool
 
 # |δ| below this (see separatrix_distance) is the separatrix: a state built on it in double precision has
 # |δ| ~ 1e-16, and the motion leaves the separatrix like |δ| e^{λ t}, so a looser bound would be another motion.
@@ -258,7 +264,7 @@ def _invariants(moments, w) -> tuple:
     return two_energy, momentum2, separatrix
 
 
-def _principal_state(body: RigidBody, omega0: np.ndarray) -> tuple[list, np.ndarray, list]:
+def _principal_state(body: FreeBody, omega0: np.ndarray) -> tuple[list, np.ndarray, list]:
     """Principal moments (Decimal), axes ((3, 3) float, columns e1, e2, e3) and ω in principal components
     (Decimal), refined beyond float64 (see principal_frame_precise)."""
     moments, axes, w = principal_frame_precise(body.inertia, omega0)
@@ -281,7 +287,7 @@ def _symmetric_axis(moments: list, axes: np.ndarray) -> tuple[np.ndarray, float,
     return None
 
 
-def separatrix_distance(body: RigidBody, omega0: np.ndarray) -> float:
+def separatrix_distance(body: FreeBody, omega0: np.ndarray) -> float:
     """δ = (L²/(2E) - I2) / (I1 - I3), dimensionless: > 0 circulates about the largest axis, < 0 about the smallest,
     0 on the separatrix. nan for a symmetric body or a body at rest (no separatrix)."""
     moments, axes, w = _principal_state(body, omega0)
@@ -293,7 +299,7 @@ def separatrix_distance(body: RigidBody, omega0: np.ndarray) -> float:
         return float(separatrix / (two_energy * (moments[0] - moments[2])))
 
 
-def free_motion(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> FreeMotion:
+def free_motion(body: FreeBody, quat0: np.ndarray, omega0: np.ndarray) -> FreeMotion:
     """Analyse the torque-free motion from (quat0 (4,) wxyz, omega0 (3,) rad/s body); gravity is ignored.
 
     On the separatrix (|δ| <= SEPARATRIX_TOL) the separatrix solution is used; for such states the elliptic
@@ -435,7 +441,7 @@ def _separatrix_motion(body, quat0, omega0, moments, axes, w, energy, momentum) 
                        direction=direction, momentum_world=momentum_world, normal_world=normal_world, quat0=quat0)
 
 
-def separatrix_omega(body: RigidBody, speed: float, phase: float = 0.0, sign1: float = 1.0,
+def separatrix_omega(body: FreeBody, speed: float, phase: float = 0.0, sign1: float = 1.0,
                      direction: float = 1.0) -> np.ndarray:
     """A state on the separatrix (FORMULARY T8), (3,) rad/s body frame, for a triaxial body.
 
@@ -452,30 +458,30 @@ def separatrix_omega(body: RigidBody, speed: float, phase: float = 0.0, sign1: f
     return axes @ principal
 
 
-def period(body: RigidBody, omega0: np.ndarray) -> float:
+def period(body: FreeBody, omega0: np.ndarray) -> float:
     """Period (s) of ω(t) in the body: T9's elliptic formulas (either family), 2π/|Λ| for a symmetric body,
     inf on the separatrix."""
     return free_motion(body, np.array([1.0, 0.0, 0.0, 0.0]), omega0).period
 
 
-def solid_angle(body: RigidBody, omega0: np.ndarray) -> float:
+def solid_angle(body: FreeBody, omega0: np.ndarray) -> float:
     """Signed solid angle Ω (sr) enclosed by M/L on the body-fixed unit sphere over one period (FORMULARY T9):
     the area to the left of the oriented curve; > 0 about the largest axis, < 0 about the smallest."""
     return free_motion(body, np.array([1.0, 0.0, 0.0, 0.0]), omega0).solid_angle
 
 
-def montgomery_phase(body: RigidBody, omega0: np.ndarray) -> float:
+def montgomery_phase(body: FreeBody, omega0: np.ndarray) -> float:
     """Δθ (rad, in (-π, π]) with R(t0 + T) = Rot(M̂_world, Δθ) R(t0): Δθ ≡ 2ET/L - Ω (mod 2π) (FORMULARY T9)."""
     return free_motion(body, np.array([1.0, 0.0, 0.0, 0.0]), omega0).montgomery_phase
 
 
-def precession_per_period(body: RigidBody, omega0: np.ndarray) -> float:
+def precession_per_period(body: FreeBody, omega0: np.ndarray) -> float:
     """Φ(T) (rad): the continuous precession angle about M over one period, with the encircled axis as figure axis;
     equals 2ET/L - Ω + 2π sgn Ω (FORMULARY T9)."""
     return free_motion(body, np.array([1.0, 0.0, 0.0, 0.0]), omega0).precession
 
 
-def euler_poinsot_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> str | None:
+def euler_poinsot_check(body: FreeBody, quat0: np.ndarray, omega0: np.ndarray) -> str | None:
     """None if the body is torque-free and ω0 is off the separatrix (|δ| > SEPARATRIX_TOL), else the reason."""
     if body.has_gravity:
         return "the body has a weight moment: Euler–Poinsot needs a torque-free body"
@@ -485,7 +491,7 @@ def euler_poinsot_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) 
     return None
 
 
-def separatrix_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> str | None:
+def separatrix_check(body: FreeBody, quat0: np.ndarray, omega0: np.ndarray) -> str | None:
     """None if the body is torque-free and triaxial and ω0 is on the separatrix (|δ| <= SEPARATRIX_TOL)."""
     if body.has_gravity:
         return "the body has a weight moment: Euler–Poinsot needs a torque-free body"
@@ -497,7 +503,7 @@ def separatrix_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> 
     return None
 
 
-def euler_poinsot_solve(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray,
+def euler_poinsot_solve(body: FreeBody, quat0: np.ndarray, omega0: np.ndarray,
                         times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(quat (n, 4), omega (n, 3) rad/s body) of the torque-free motion at times (n,) s (free_motion)."""
     return free_motion(body, quat0, omega0).evaluate(np.asarray(times, dtype=float))

@@ -127,7 +127,7 @@ def point_mass_torque(mu: float, radius: float, h: np.ndarray, masses: np.ndarra
 
 def field_potential(body: RigidBody, times: np.ndarray, quat: np.ndarray) -> np.ndarray:
     """MacCullagh's potential (3μ/2r³) H·σH (n,) J; zero without a central field."""
-    field = body.central_field
+    field = body.torque(CentralField)
     return np.zeros(np.shape(times)) if field is None else field.potential_energy(body, times, quat)
 
 
@@ -188,9 +188,9 @@ def energy_balance(body: RigidBody, times: np.ndarray, quat: np.ndarray, omega: 
 
 def self_excited_applies(body: RigidBody) -> bool:
     """(36) holds: the only torque is a body torque along a principal axis i3 with A3 ≠ A1, A2 (G12)."""
-    if body.body_torque is None or len(body.torques) != 1 or body.has_gravity:
+    if body.torque(BodyTorque) is None or len(body.torques) != 1 or body.has_gravity:
         return False
-    found = principal_frame_for(body.inertia, np.asarray(body.body_torque.axis))
+    found = principal_frame_for(body.inertia, np.asarray(body.torque(BodyTorque).axis))
     if found is None:
         return False
     (a1, a2, a3), _ = found
@@ -199,7 +199,7 @@ def self_excited_applies(body: RigidBody) -> bool:
 
 def self_excited_terms(body: RigidBody, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The two terms of the conic-cylinder invariant (36), A1/(A2−A3) p1² and A2/(A3−A1) p2²."""
-    (a1, a2, a3), frame = principal_frame_for(body.inertia, np.asarray(body.body_torque.axis))
+    (a1, a2, a3), frame = principal_frame_for(body.inertia, np.asarray(body.torque(BodyTorque).axis))
     p = np.asarray(omega, dtype=float) @ frame
     return a1 / (a2 - a3) * p[..., 0] ** 2, a2 / (a3 - a1) * p[..., 1] ** 2
 

@@ -71,12 +71,6 @@ def parameter_count() -> int:
     return TORQUE_OFFSET + sum(model.parameter_count for model in models())
 
 
-def __getattr__(name: str):
-    if name == "N_PARS":  # 0.2.0's constant: now the registry's (a registered model adds its block)
-        return parameter_count()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 @dataclass(frozen=True, eq=False)
 class TruthResult:
     """A truth trajectory sampled on a given time grid.

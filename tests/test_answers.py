@@ -143,3 +143,43 @@ def test_the_committed_report_gives_one_answer_per_case_engine_and_target():
         assert shown[(cells[0], engine, SUMMARY_ACCURACY)] == (name, setting), cells
         compared += 1
     assert compared == results["case"].nunique()
+
+
+def test_the_committed_answers_csv_is_what_the_committed_report_shows():
+    """reports/default/answers.csv (issue 47): for every row at a target What to use shows, report.md's What to use
+    names the same integrator and dt or tolerance (the report is rendered from the file)."""
+    from stereodyn.harness.report.what_to_use import cell, shown as is_shown
+
+    table = pd.read_csv(DEFAULT / answers.ANSWERS_FILE, keep_default_na=False, na_values=[""],
+                        dtype={c: str for c in ("engine", "formulation", "integrator", "source", "why_none")})
+    table = table.fillna({c: "" for c in ("engine", "formulation", "integrator", "source", "why_none")})
+    section = (DEFAULT / "report.md").read_text(encoding="utf-8").split("## What to use")[1].split("\n## ")[0]
+    on_page = _what_to_use(["## What to use", *section.splitlines()])
+    checked = 0
+    for _, row in table.iterrows():
+        if not is_shown(row["target"]) or not row["engine"]:
+            continue
+        key = (row["case"], row["scope"], float(row["target"]))
+        assert on_page.get(key) == _method(cell(row, row["scope"] != ANY)), key
+        checked += 1
+    assert checked >= 26  # at least one answered target per case of the default run
+
+
+def test_a_changed_answer_is_a_line_of_the_pull_request_summary(tmp_path):
+    """compare --format pr (issue 47): the answers of answers.csv that differ between A and B, one line."""
+    from stereodyn.harness.report.compare import with_answer_changes
+
+    nan = math.nan
+    rows = [("any", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5, 100.0), ("mujoco", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5,
+                                                                      100.0)]
+    a, b = tmp_path / "a", tmp_path / "b"
+    for folder, advice in ((a, None), (b, _advice([("mujoco", "rk4", 1e-3, 0.05, nan, 7e-4, 30.0)]))):
+        folder.mkdir()
+        answers.answers(_pareto(rows), advice).to_csv(folder / answers.ANSWERS_FILE, index=False)
+    summary = ["**stereodyn compare**: ...", "", "Every row: compare.md and compare.csv beside this summary."]
+    assert with_answer_changes(summary, a, a) == summary  # the same answers: nothing said
+    lines = with_answer_changes(summary, a, b)
+    assert lines[2] == ("What to use (answers.csv): 2 answers changed: c mujoco 1e-03: mujoco rk4 dt=0.01 -> "
+                        "mujoco rk4 dt=0.05; c any 1e-03: mujoco rk4 dt=0.01 -> mujoco rk4 dt=0.05")
+    assert lines[-1] == summary[-1] and len(lines) == len(summary) + 2
+    assert with_answer_changes(summary, a, tmp_path / "base.json") == summary  # a baseline file holds no answers

@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stereodyn.harness.scenes.cases import (ORACLES, BodyTorque, CaseError, CentralField, find_case, load_case, load_suite, suite_dir,
+from stereodyn.harness.scenes.cases import (ORACLES, CaseError, find_case, load_case, load_suite, suite_dir,
                            with_overrides)
 from stereodyn.reference.exact import ORACLES as EXACT_SOLUTIONS
+from stereodyn.reference.torque_models import BodyTorque, CentralField
 
 # A valid case (a Kovalevskaya top with every optional table but [central_field]); the bad files below are edits of it.
 BASE = """\
@@ -165,7 +166,7 @@ def test_free_asymmetric_values():
     np.testing.assert_array_equal(case.gravity_direction, [0.0, 0.0, -1.0])
     np.testing.assert_array_equal(case.omega0, [0.4, 0.1, 2.0])
     assert case.dt == (1e-2, 3e-3, 1e-3)
-    assert case.oracle is None and case.horizon is None and case.body_torque is None and case.central_field is None
+    assert case.oracle is None and case.horizon is None and case.torques == ()
     assert not case.body.has_gravity
 
 
@@ -226,7 +227,7 @@ def test_arrays_are_read_only():
 def test_base_parses_every_table(tmp_path):
     case = load_case(write(tmp_path, BASE))
     assert case.name == "base" and case.description == "a valid case" and case.tags == ("heavy-top",)
-    assert case.body_torque == BodyTorque(axis=(0.0, 0.0, 1.0), a=0.6, b=-0.2)
+    assert case.torque(BodyTorque) == BodyTorque(axis=(0.0, 0.0, 1.0), a=0.6, b=-0.2)
     assert case.oracle is None and case.horizon == 10.0 and case.samples == 500
     assert load_case(write(tmp_path, FREE, "free.toml")).oracle == "euler_poinsot"
 
@@ -242,7 +243,7 @@ def test_defaults(tmp_path):
 
 def test_central_field_parses(tmp_path):
     case = load_case(write(tmp_path, CENTRAL))
-    assert case.central_field == CentralField(mu=1.0, radius=10.0, direction=(0.0, 0.0, 1.0), orbit_rate=0.1)
+    assert case.torque(CentralField) == CentralField(mu=1.0, radius=10.0, direction=(0.0, 0.0, 1.0), orbit_rate=0.1)
     assert case.dt == (0.01,)   # a single number is a one-step sweep
     np.testing.assert_array_equal(case.quat0, [1.0, 0.0, 0.0, 0.0])
 

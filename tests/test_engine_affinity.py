@@ -22,7 +22,7 @@ from stereodyn.harness.scenes.cases import find_case, with_overrides
 def _sweep(tasks: list[tuple[str, float, float]], declared_startup_s: float) -> list[tuple[int, str, bool]]:
     """The tasks on a 2-worker pool, both workers ready before the first is submitted (a worker still spawning
     would leave every task to the other, whatever the scheduling)."""
-    pool = WatchedPool(2, run_pool._init_worker, ((),))
+    pool = WatchedPool(2, run_pool._init_worker, ())
     try:
         deadline = time.monotonic() + 60
         while not all(w.ready for w in pool._workers) and time.monotonic() < deadline:
@@ -87,7 +87,7 @@ import os
 import time
 
 from stereodyn.harness.engines import get_engine
-from stereodyn.harness.engines.base import Engine, Timing
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class _Recorded:
@@ -120,13 +120,13 @@ class _Wrapped(Engine):
 
 class Warm(_Wrapped):
     name = "warm"
-    state_space = "lie"
+    about = About(state_space="lie")
     timing = Timing(pass_us=3.0, startup_s=5.0)
 
 
 class Cold(_Wrapped):
     name = "cold"
-    state_space = "lie"
+    about = About(state_space="lie")
     timing = Timing(pass_us=3.0)
 '''
 
@@ -180,7 +180,7 @@ def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at
     progress = _Stages()
     options = SweepOptions(["warm", "cold"], tmp_path / "out", jobs=2, certify=False)
     if given_pool:
-        with run_pool.local_pool(2, 4, ()) as pool:
+        with run_pool.local_pool(2, 4) as pool:
             table = run_sweep([case], options, progress=progress, pool=pool)
     else:
         table = run_sweep([case], options, progress=progress)

@@ -13,7 +13,7 @@ import time
 import pytest
 
 from stereodyn.harness import budget, engines
-from stereodyn.harness.engines.base import FLOAT32, FLOAT64, Engine
+from stereodyn.harness.engines.base import FLOAT32, FLOAT64, About, Engine, Offer, RigidBodyModel, Timing
 from stereodyn.harness.run import measure, sweep, timing
 from stereodyn.harness.run.spec import RunKey
 from stereodyn.harness.grid import time_grid
@@ -38,10 +38,15 @@ class ToySimulation:
         return self.inner.run(grid)
 
 
+class _ToyBody(RigidBodyModel):
+    def variants(self):
+        return ("ball", "free")
+
+
 class ToyEngine(Engine):
     name = NAME
-    state_space = "lie"
-    process_global_precision = True
+    about = About(state_space="lie")
+    timing = Timing(process_global_precision=True)
     prepare_s = 0.0  # how long a prepare sleeps
 
     def integrators(self):
@@ -50,14 +55,11 @@ class ToyEngine(Engine):
     def unsupported(self, case):
         return None
 
-    def precisions(self, integrator):
-        return (FLOAT64, FLOAT32)
+    def offer(self, integrator):  # order 2 on "free", the registry's elsewhere
+        return Offer(precisions=(FLOAT64, FLOAT32), orders=(("free", 2.0),))
 
-    def formulations(self):
-        return ("ball", "free")
-
-    def formulation_order(self, formulation, integrator):
-        return 2.0 if formulation == "free" else self.declared_order(integrator)
+    def models(self):
+        return {**super().models(), "rigid_body": _ToyBody(self)}
 
     def prepare(self, case, integrator, dt, precision=FLOAT64, formulation="ball"):
         return ToySimulation(case, dt, precision)

@@ -22,14 +22,29 @@ PACKAGE = "stereodyn_toy_engine"
 
 ENTRY_POINTS = {"stereodyn.engines": {"toy": f"{PACKAGE}:ToyEngine", "toy_old": f"{PACKAGE}:OldStyleEngine",
                                      "toy_broken": f"{PACKAGE}:NoSuchClass",
-                                     "toy_nosdk": f"{PACKAGE}.needs_sdk:Engine"}}
+                                     "toy_nosdk": f"{PACKAGE}.needs_sdk:Engine",
+                                     "toy_v02": f"{PACKAGE}.v02:ToyEngine"}}
+# An engine of stereodyn 0.2.0: the old attribute names (issue 47: refused at load, naming the first and its new
+# spelling; nothing of it emulated)
+V02_MODULE = '''
+from stereodyn.harness.engines.base import Engine
+
+
+class ToyEngine(Engine):
+    name = "toy_v02"
+    state_space = "lie"
+    pass_us = 3.0
+
+    def integrators(self):
+        return ("rk4",)
+'''
 
 # The smallest engine a user could write: it wraps the Pinocchio adapter's simulation (the dynamics are not the point
 # here; the plug-in seam is), for bodies without external torques.
 MODULE = '''
 """A toy engine plug-in: the body stepped by the harness's Lie-group integrators on Pinocchio's dynamics."""
 from stereodyn.harness import integrators
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class _Simulation:
@@ -44,9 +59,8 @@ class _Simulation:
 
 class ToyEngine(Engine):
     name = "toy"
-    state_space = "lie"
-    linestyle = "-"
-    pass_us = 3.0
+    about = About(state_space="lie", linestyle="-")
+    timing = Timing(pass_us=3.0)
 
     def integrators(self):
         return ("rk4",)
@@ -72,7 +86,7 @@ def installed(tmp_path_factory) -> Path:
     """The package pip-installed into a target folder (the venv is not touched); removed with tmp_path."""
     return plugin_packages.install(tmp_path_factory.mktemp("engine_plugin"), {
         "pyproject.toml": plugin_packages.pyproject(PACKAGE, ENTRY_POINTS),
-        f"{PACKAGE}/__init__.py": textwrap.dedent(MODULE)})
+        f"{PACKAGE}/__init__.py": textwrap.dedent(MODULE), f"{PACKAGE}/v02.py": V02_MODULE})
 
 
 def _run(target: Path, *argv: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -126,7 +140,7 @@ def test_the_external_engine_is_listed_and_old_or_broken_plugins_are_refused(ins
     # installed), by name, then third parties' by name
     extras = ",".join(sorted(set(_OWN) - {"mujoco", "pinocchio", "reference"}))
     assert {"bullet", "drake", "genesis", "newton"} <= set(_OWN)
-    assert lines[0] == f"names mujoco,pinocchio,reference,{extras},toy,toy_broken,toy_nosdk,toy_old"
+    assert lines[0] == f"names mujoco,pinocchio,reference,{extras},toy,toy_broken,toy_nosdk,toy_old,toy_v02"
     # a module that cannot be imported (a missing SDK) makes the engine's runs skipped, with the reason
     assert lines[1].startswith("nosdk toy_nosdk engine unavailable: No module named")
     old, broken = lines[2], lines[3]
@@ -138,6 +152,17 @@ def test_an_old_style_plugin_in_a_run_is_a_one_line_error(installed, tmp_path):
     result = _run(installed, "-m", "stereodyn", "run", "free-asymmetric", "--engines", "toy_old", "--out",
                   str(tmp_path / "out"), "--quiet", cwd=tmp_path)
     assert result.returncode == 2 and result.stderr.count("\n") == 1 and "toy_old" in result.stderr
+
+
+def test_a_0_2_0_plugin_gets_one_line_naming_its_first_old_name_and_the_new_spelling(installed, tmp_path):
+    """Issue 47: `--engines toy_v02` exits 2 with one line naming the old name and the new spelling."""
+    result = _run(installed, "-m", "stereodyn", "run", "free-asymmetric", "--engines", "toy_v02", "--out",
+                  str(tmp_path / "out"), "--quiet", cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr[-3000:]
+    assert result.stderr.startswith("stereodyn: error: engine plug-in 'toy_v02'")
+    assert (f"engine {PACKAGE}.v02.ToyEngine defines 'state_space', a name of stereodyn 0.2.0's engine protocol: "
+            "since 0.3.0 declare about = About(state_space=...) (docs/ENGINE_PLUGIN.md)") in result.stderr
+    assert not (tmp_path / "out").exists()  # refused before anything is written
 
 
 def test_the_base_class_defaults():
@@ -209,12 +234,12 @@ HOSTILE = "stereodyn_hostile_plugins"
 HOSTILE_DIST = "stereodyn-hostile-plugins 0.1.0"
 HOSTILE_MODULE = '''
 """Plug-ins that break the rules: an engine without integrators(), one that claims the built-in name mujoco."""
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class NoIntegrators(Engine):
     name = "hostile_nointeg"
-    state_space = "lie"
+    about = About(state_space="lie")
 
     def unsupported(self, case):
         return None

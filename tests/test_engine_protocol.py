@@ -1,6 +1,7 @@
 """The lean engine protocol (issue 29): an author knows Engine.PROTOCOL (at most 12 names: the required methods and
 the groups); every other public name of Engine is a reader derived from them, which no built-in adapter overrides;
-an engine written against 0.2.0 (its hooks and attributes of the old names) reads the same through both."""
+an engine written against 0.2.0 (its hooks and attributes of the old names) is refused, naming the first old name and
+its spelling since 0.3.0 (issue 47)."""
 import ast
 import dataclasses
 import math
@@ -13,7 +14,7 @@ from stereodyn.harness.engines.base import About, Engine, KnownDeviation, Offer,
 from stereodyn.harness.scenes.cases import load_suite
 
 ROOT = Path(__file__).resolve().parents[1]
-# Every public name of Engine that is not in PROTOCOL: what the harness reads (0.2.0's names, derived from the groups)
+# Every public name of Engine that is not in PROTOCOL: what the harness reads, derived from the groups
 READERS = {"formulations", "default_run", "default_dts", "unsupported_run", "torque_mode", "export",
            "prepare_ensemble", "in_default_sweep", "precisions", "method", "adaptive", "declared_order",
            "formulation_order", "known_deviations", "pass_us", "startup_s", "short_warm_up",
@@ -51,49 +52,6 @@ def test_no_built_in_adapter_overrides_a_reader():
                     for target in (node.targets if isinstance(node, ast.Assign) else [node.target])
                     if isinstance(target, ast.Name)}
         assert not defined & (READERS - {"PROTOCOL"}), (file, cls.name, defined & READERS)
-
-
-class Legacy(Engine):
-    """An engine of 0.2.0: old attribute names, old hooks."""
-
-    name = "legacy"
-    state_space = "lie"
-    default_formulation = "b"
-    pass_us = 3.0
-    short_warm_up = True
-    linestyle = "-"
-    packages = ("numpy",)
-    known_deviations = (KnownDeviation("rk4", "order", 2.0, 0.3, "upstream"),)
-
-    def integrators(self):
-        return ("rk4", "euler")
-
-    def unsupported(self, case):
-        return None
-
-    def prepare(self, case, integrator, dt, **options):
-        return ("prepared", integrator, dt, options)
-
-    def formulations(self):
-        return ("a", "b")
-
-    def precisions(self, integrator):
-        return ("float64", "float32")
-
-    def declared_order(self, integrator):
-        return 7.0
-
-    def default_run(self, case, formulation, integrator):
-        return formulation == "a"
-
-    def default_dts(self, case, integrator, dts):
-        return dts[:1]
-
-    def unsupported_run(self, case, formulation, integrator):
-        return "not b" if formulation == "b" else None
-
-    def torque_mode(self, case):
-        return "legacy"
 
 
 class Lean(Engine):
@@ -153,22 +111,34 @@ def _readings(engine: Engine, case) -> dict:
     }
 
 
-def test_a_0_2_0_engine_reads_as_the_same_engine_written_on_the_protocol():
+def test_the_protocol_engine_reads_through_the_groups():
     case = load_suite()[0]
-    legacy, lean = _readings(Legacy(), case), _readings(Lean(), case)
-    assert legacy == lean
-    assert legacy["timing"] == (3.0, True, 3.0, True)  # 0.2.0's attributes folded into the group
-    assert legacy["about"] == (("numpy",), "-", "lie", "b", "b")
-    assert legacy["integrators"][0] == (("float64", "float32"), 7.0, 7.0, False, True, "rk4")
-    assert legacy["runs"] == (("a", "b"), ("a", "b"), True, False, (0.1,), "not b", "not b", "legacy", "legacy",
-                              ("float64", "float32"))
-    assert legacy["prepare"] == ("prepared", "rk4", 0.01, {"formulation": "b", "precision": "float32"})
+    lean = _readings(Lean(), case)
+    assert lean["timing"] == (3.0, True, 3.0, True)
+    assert lean["about"] == (("numpy",), "-", "lie", "b", "b")
+    assert lean["integrators"][0] == (("float64", "float32"), 7.0, 7.0, False, True, "rk4")
+    assert lean["deviations"] == (KnownDeviation("rk4", "order", 2.0, 0.3, "upstream"),)
+    assert lean["runs"] == (("a", "b"), ("a", "b"), True, False, (0.1,), "not b", "not b", "legacy", "legacy",
+                            ("float64", "float32"))
+    assert lean["prepare"] == ("prepared", "rk4", 0.01, {"formulation": "b", "precision": "float32"})
+
+
+@pytest.mark.parametrize("old", sorted(base.OLD_NAMES))
+def test_a_0_2_0_name_is_refused_naming_its_new_spelling(old):
+    """Every reader, and the sliding ladder's four 0.2.0 hooks, defined by a plug-in's class: a TypeError when the
+    class is made (the registry's guard makes it one line), naming the first old name and what to write instead."""
+    with pytest.raises(TypeError) as refused:
+        type("Old", (Engine,), {"__module__": "plugin", "name": "old", old: 3.0, "pass_us": 1.0})
+    first = old if old != "pass_us" else "pass_us"
+    assert str(refused.value) == (f"engine plugin.Old defines {first!r}, a name of stereodyn 0.2.0's engine protocol: "
+                                  f"since 0.3.0 declare {base.OLD_NAMES[first]} (docs/ENGINE_PLUGIN.md)")
+    assert READERS - {"PROTOCOL"} <= set(base.OLD_NAMES)  # every reader is an old name: none is the protocol's
 
 
 def test_the_start_up_cost_is_a_timing_declaration():
     """harness.run.pool may read engine.startup_s (or engine.timing.startup_s): 0.0 where none is declared."""
     assert Lean().startup_s == 12.5 and Lean().timing.startup_s == 12.5
-    assert Legacy().startup_s == 0.0 and Engine().startup_s == 0.0
+    assert Engine().startup_s == 0.0
     from stereodyn.harness.engines import get_engine
     assert get_engine("mujoco").startup_s == 0.0 and get_engine("mujoco").pass_us == 1.5
 

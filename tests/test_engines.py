@@ -11,11 +11,12 @@ import pytest
 
 import stereodyn.harness.integrators as integrators
 from stereodyn.harness.analysis.fitting import order_slope
-from stereodyn.harness.scenes.cases import BodyTorque, Case, CentralField
+from stereodyn.harness.scenes.cases import Case
 from stereodyn.harness.trajectory import DIVERGENCE_FACTOR, Status
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK
 from stereodyn.reference import truth as reference_truth
+from stereodyn.reference.torque_models import BodyTorque, CentralField
 from stereodyn.reference.euler_poisson import omega_dot
 from stereodyn.reference.rotations import attitude_angle, quat_mul, quat_to_matrix
 from stereodyn.harness.engines import mujoco as mujoco_engine  # noqa: E402  (base dependencies: a broken
@@ -163,15 +164,13 @@ def test_unknown_mujoco_integrator_lists_the_valid_ones():
     assert all(name in str(error.value) for name in PINOCCHIO.integrators())
 
 
-@pytest.mark.parametrize("feature, value", [
-    ("body_torque", BodyTorque(axis=(0.0, 0.0, 1.0), a=0.6, b=-0.2)),
-    ("central_field", CentralField(mu=1.0, radius=10.0, direction=(0.0, 0.0, 1.0), orbit_rate=0.0)),
-])
-def test_torques_are_modelled_by_every_engine(feature, value):
+@pytest.mark.parametrize("term", [BodyTorque(axis=(0.0, 0.0, 1.0), a=0.6, b=-0.2),
+                                  CentralField(mu=1.0, radius=10.0, direction=(0.0, 0.0, 1.0), orbit_rate=0.0)])
+def test_torques_are_modelled_by_every_engine(term):
     """Issue 5: each engine models the torque exactly (tests/test_torques.py checks how); since 0.2.0 every stage
     gets its time, so a turning field runs everywhere too."""
-    case = make_case("free-asymmetric", **{feature: value})
-    turning = make_case("free-asymmetric", central_field=CentralField(1.0, 10.0, (1.0, 0.0, 0.0), 0.5))
+    case = make_case("free-asymmetric", torques=(term,))
+    turning = make_case("free-asymmetric", torques=(CentralField(1.0, 10.0, (1.0, 0.0, 0.0), 0.5),))
     for engine in ENGINES.values():
         for scene in (case, turning):
             assert engine.unsupported(scene) is None

@@ -20,6 +20,7 @@ from child_processes import alive_in
 from helpers import FAST, one_line_error, tiny_case
 
 from stereodyn.harness import cli
+from stereodyn.harness.cli import common as cli_common
 from stereodyn.harness.run import processes
 from stereodyn.harness import engines as engine_registry
 
@@ -117,7 +118,7 @@ def test_workers_die_with_a_parent_killed_before_they_finished_starting(tmp_path
         import os, signal, time
         from stereodyn.harness.run.sweep import worker_pool
         if __name__ == "__main__":
-            context = worker_pool(2, ())  # held: a collected context manager would end the pool
+            context = worker_pool(2)  # held: a collected context manager would end the pool
             pool = context.__enter__()
             print(" ".join(str(pid) for pid in pool.pids), flush=True)
             time.sleep({after_s})
@@ -141,7 +142,7 @@ def test_a_worker_ignores_ctrl_c_from_its_first_moment():
     """Ctrl-C to the workers while they start (still importing): none prints or dies of it, every one ignores it."""
     from stereodyn.harness.run.sweep import worker_pool
 
-    with worker_pool(2, ()) as pool:
+    with worker_pool(2) as pool:
         workers = list(pool.pids)
         for pid in workers:
             os.kill(pid, signal.SIGINT)
@@ -479,7 +480,8 @@ def test_extremes_with_a_case_file_runs_both(tmp_path):
     case = tmp_path / "case.toml"
     case.write_text(BASE)
     args = argparse.Namespace(cases=[], case_file=[str(case)], extremes=True, dt=None, t_end=None)
-    names = [c.name for c in cli.select_cases(args)]
+    cli_common.load()
+    names = [c.name for c in cli_common.select_cases(args)]
     from stereodyn.harness.scenes import cases
 
     extreme = [c.name for c in cases.load_suite(cases.suite_dir() / "extreme")]

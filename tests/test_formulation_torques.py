@@ -11,6 +11,7 @@ from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status
 from stereodyn.reference import euler_angles, formulations, gibbs, torques, truth
 from stereodyn.reference.rotations import attitude_angle, quat_to_matrix
+from stereodyn.reference.torque_models import BodyTorque, CentralField, PrecessionTorque
 
 CHARTED = ("gibbs", "gibbs_hamiltonian", "euler_zxz")
 TORQUED = [case.name for case in load_suite() if case.kind == "rigid_body" and case.body.has_external_torque]
@@ -22,11 +23,13 @@ def taylor(name, case):
 
 
 def test_every_torque_of_the_suite_is_a_torqued_case():
-    kinds = {kind for name in TORQUED for kind, value in (("body", find_case(name).body_torque),
-                                                        ("field", find_case(name).central_field),
-                                                        ("precession", find_case(name).precession_torque)) if value}
+    kinds = {kind for name in TORQUED for kind, value in (("body", find_case(name).torque(BodyTorque)),
+                                                        ("field", find_case(name).torque(CentralField)),
+                                                        ("precession", find_case(name).torque(PrecessionTorque)))
+             if value}
     assert kinds == {"body", "field", "precession"}
-    assert any(find_case(name).central_field and find_case(name).central_field.orbit_rate for name in TORQUED)
+    assert any(find_case(name).torque(CentralField) and find_case(name).torque(CentralField).orbit_rate
+               for name in TORQUED)
 
 
 @pytest.mark.parametrize("case_name", TORQUED)

@@ -63,8 +63,7 @@ def test_every_stereodyn_command_of_the_readme_parses():
     flag fails here at once; the slow test below runs the three paths)."""
     from stereodyn.harness import cli
 
-    cli._load()
-    parser = cli._parser()
+    parser = cli.parser()
     commands = [line for block in _blocks(_text(), "sh") for line in block.splitlines()
                 if line.strip().startswith(("stereodyn", "pip install")) and "stereodyn " in line]
     assert len(commands) >= 9, commands  # the two commands and the three paths' commands

@@ -48,7 +48,7 @@ def _alive(pid: int) -> bool:
 def test_a_worker_past_its_budget_is_ended_after_the_grace_and_replaced(watched, task, what):
     """A sleep, a Python loop that never checks, one C call that never returns (what no signal handler in the worker
     could stop)."""
-    with local_pool(1, 2, ()) as pool:
+    with local_pool(1, 2) as pool:
         [worker] = pool.pids
         assert pool.submit(os.getpid).result(timeout=300) == worker  # started: its start-up is not timed
         start = time.monotonic()
@@ -65,13 +65,13 @@ def test_a_worker_past_its_budget_is_ended_after_the_grace_and_replaced(watched,
 def test_a_task_that_stays_within_its_budget_is_not_ended(watched):
     # the grace is only for a run that does not stop: a budget left in time, or a long task outside any budget
     # (a ladder's work between its points), is not ended
-    with local_pool(1, 2, ()) as pool:
+    with local_pool(1, 2) as pool:
         assert pool.submit(hung_tasks.within_then_outside, BUDGET_S).result(timeout=300) == "done"
 
 
 def test_jobs_1_and_a_single_run_are_one_watched_worker(watched):
     for jobs, runs in ((1, 5), (2, 1)):
-        with local_pool(jobs, runs, ()) as pool:
+        with local_pool(jobs, runs) as pool:
             assert pool is not None and len(pool.pids) == 1
 
 
@@ -81,7 +81,7 @@ PLUGIN = '''
 """Engines that hang: prepare() sleeps 1000 s (sleepy); run() loops and never calls budget.check() (spinning)."""
 import time
 
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class _Spinning:
@@ -91,8 +91,8 @@ class _Spinning:
 
 
 class _Hung(Engine):
-    state_space = "lie"
-    pass_us = 3.0
+    about = About(state_space="lie")
+    timing = Timing(pass_us=3.0)
 
     def integrators(self):
         return ("rk4",)

@@ -1,7 +1,7 @@
 """The package's modules import each other without a cycle: every `import` and `from ... import` in the source, at
-module level and inside functions (static, by ast; TYPE_CHECKING blocks left out, since they never run), plus the
-enclosing packages that such an import runs first (`from ..integrators.registry import get` runs
-integrators/__init__)."""
+module level, inside functions and in TYPE_CHECKING blocks (static, by ast: a type-only import never runs, but a
+cycle through it is still two modules that need each other to be read, issue 47), plus the enclosing packages that
+such an import runs first (`from ..integrators.registry import get` runs integrators/__init__)."""
 import ast
 import functools
 from pathlib import Path
@@ -24,22 +24,12 @@ def modules() -> dict[str, Path]:
     return found
 
 
-def _type_checking(node: ast.If) -> bool:
-    test = node.test
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or \
-        (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
-
-
 def imports(name: str, path: Path, known: set[str]) -> set[str]:
     """The package's modules that the module imports anywhere in its source."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     edges: set[str] = set()
 
     def visit(node: ast.AST) -> None:
-        if isinstance(node, ast.If) and _type_checking(node):
-            for child in node.orelse:
-                visit(child)
-            return
         if isinstance(node, ast.Import):
             for alias in node.names:
                 edges.add(alias.name)
@@ -115,6 +105,16 @@ def test_no_import_cycle():
 def test_the_cycle_finder_finds_one():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_a_type_only_import_makes_a_cycle(tmp_path):
+    """harness/engines/base.py -> harness/scenes/cases.py (Case) -> harness/scenes/base.py -> back (SceneModel) was one,
+    every link but the first at runtime; such a cycle counts (issue 47)."""
+    (tmp_path / "one.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg import two\n")
+    (tmp_path / "two.py").write_text("import pkg.one\n")
+    known = {"pkg.one", "pkg.two"}
+    edges = {name: imports(name, tmp_path / f"{name[4:]}.py", known) for name in known}
+    assert find_cycle(edges) == ["pkg.one", "pkg.two", "pkg.one"]
 
 
 def test_a_function_level_import_makes_a_cycle(tmp_path):

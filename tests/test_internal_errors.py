@@ -60,7 +60,7 @@ def test_an_internal_error_crosses_the_pool_and_is_no_row():
                              integrator="rk4")
     rows = []
     with pytest.raises(errors.InternalError, match="AttributeError") as raised:
-        with local_pool(2, 2, ()) as pool:  # the sweep's watched pool
+        with local_pool(2, 2) as pool:  # the sweep's watched pool
             run_local([broken], {}, pool, lambda spec, row: rows.append(row))
     # the traceback is the worker's, where the error was raised
     assert rows == [] and "harness/run/pool.py" in raised.value.details, raised.value.details

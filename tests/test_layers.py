@@ -7,7 +7,7 @@ import ast
 from test_import_cycles import ROOT, graph, imports, modules
 
 LAYERS = ("reference", "harness", "analysis", "report", "pipeline", "cli")
-# stereodyn.harness.testing keeps its 0.2.0 path (plug-ins import it) but measures and fits: the analysis layer.
+# stereodyn.harness.testing stays where plug-ins import it from but measures and fits: the analysis layer.
 ANALYSIS_ELSEWHERE = ("stereodyn.harness.testing",)
 
 
@@ -95,15 +95,12 @@ def test_an_upward_import_is_found():
                              "(report)", "stereodyn.reference.truth (reference) -> stereodyn.harness.engines (harness)"]
 
 
-# 0.2.0's paths of moved modules are built from names there; everything else in the package imports its own modules
-# relatively (DESIGN §1: a plain checkout then reads correctly in an editor or a static tool)
-ABSOLUTE_ALLOWED = ("stereodyn.harness.moved",)
-
-
+# The package imports its own modules relatively (DESIGN §1: a plain checkout then reads correctly in an editor or a
+# static tool)
 def test_the_package_imports_its_own_modules_relatively():
     absolute = []
     for name, path in modules().items():
-        if name in ABSOLUTE_ALLOWED or path.parent.name == "stereodyn":  # stereodyn/*.py: harness/ is not below it
+        if path.parent.name == "stereodyn":  # stereodyn/*.py: harness/ is not below it
             continue
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("stereodyn."):

@@ -26,7 +26,7 @@ ENGINE = '''
 """A toy engine plug-in, version {version}: the body stepped by the harness's Lie-group integrators on Pinocchio's
 dynamics; its rk4 is {inner}."""
 from stereodyn.harness import integrators
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class _Simulation:
@@ -41,8 +41,7 @@ class _Simulation:
 
 class MatrixToyEngine(Engine):
     name = "mtoy"
-    state_space = "lie"
-    linestyle = "-"
+    about = About(state_space="lie", linestyle="-")
 
     def integrators(self):
         return ("rk4",)

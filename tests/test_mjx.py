@@ -136,7 +136,7 @@ def test_a_sweep_imports_mjx_once_per_worker_and_compiles_each_structure_once(mj
     monkeypatch.setenv(STARTUP_LOG_ENV, str(log))  # the spawned workers inherit it
     cases = [dataclasses.replace(with_overrides(find_case(name), t_end=1.0, dt=[0.01, 0.005]), samples=151)
              for name in ("lagrange-top", "kovalevskaya")]
-    with local_pool(2, 16, ("mjx",)) as pool:
+    with local_pool(2, 16) as pool:
         workers = set(pool.pids)
         table = run_sweep(cases, SweepOptions(["mjx"], tmp_path / "out", ["euler", "rk4"], jobs=2, certify=False),
                           pool=pool, decides=lambda rows: set())

@@ -30,7 +30,8 @@ def _listed(out: Path) -> dict[str, str]:
 def test_every_file_of_the_output_folder_is_in_its_index_and_described(out):
     present = {f"{p.name}/" if p.is_dir() else p.name for p in out.iterdir() if not p.name.startswith(".")}
     listed = _listed(out)
-    assert {"results.csv", "report.html", "figures/", "store/", "runs.json", "README.md"} <= present
+    assert {"results.csv", "answers.csv", "pareto.csv", "report.html", "figures/", "store/", "runs.json",
+            "README.md"} <= present
     assert set(listed) == present
     assert not [name for name, text in listed.items() if text.startswith(index.OTHER)], listed
 
@@ -64,3 +65,21 @@ def test_compare_into_a_result_folder_keeps_its_index_complete(out, tmp_path):
     present = {f"{p.name}/" if p.is_dir() else p.name for p in b.iterdir() if not p.name.startswith(".")}
     assert {"compare.md", "compare.html", "compare.csv", "compare-pr.md"} <= present
     assert set(_listed(b)) == present
+
+
+def test_the_run_writes_the_answers_the_report_shows(out):
+    """answers.csv (issue 47): written by the run, every digit of the table the pareto.csv, advice.csv and verdicts.csv
+    make, and the report's What to use is rendered from it: a cell of the file changed by hand shows in a
+    re-rendered report."""
+    import pandas as pd
+
+    from stereodyn.harness.analysis import answers
+
+    written = pd.read_csv(out / answers.ANSWERS_FILE, keep_default_na=False, na_values=[""])
+    assert tuple(written.columns) == answers.ANSWER_COLUMNS and len(written) > 0
+    pd.testing.assert_frame_equal(answers.read(out), answers.compute(out), check_dtype=False)
+    row = written.index[(written["scope"] == "any") & (written["engine"] != "")][0]
+    written.loc[row, "dt"] = 0.0123  # not a dt of this run: only the file can put it on the page
+    written.to_csv(out / answers.ANSWERS_FILE, index=False, float_format="%.17g")
+    assert cli.main(["report", str(out), "--no-figures"]) == 0
+    assert "dt=0.0123" in (out / "report.md").read_text(encoding="utf-8").split("## What to use")[1]

@@ -29,7 +29,7 @@ def request_(tmp_path, monkeypatch):
     pools = []
 
     @contextmanager
-    def fake_pool(jobs, engines):
+    def fake_pool(jobs):
         pools.append(object())
         yield pools[-1]
 

@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import cli
+from stereodyn.harness.cli import common as cli_common
 from stereodyn.harness import integrators
 from stereodyn.harness.engines import UnavailableEngine, get_engine
 from stereodyn.harness.integrators import ButcherTableau
@@ -174,7 +175,8 @@ def test_named_integrators_have_rows_only_from_engines_that_offer_them(tmp_path)
     _, skipped = planning.plan([hlw], ["mujoco", "pinocchio"], ["rk4"])  # mujoco offers rk4: its row says why not
     assert [row["engine"] for row in skipped] == ["mujoco"]
     default = Namespace(engines=None, integrators=["rk4"], dt_ladder=False, no_ladder=True, ladder_max_steps=None)
-    cli.check_names(default)
+    cli_common.load()
+    cli_common.check_names(default)
     assert default.engines and not any(isinstance(get_engine(e), UnavailableEngine) for e in default.engines)
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from stereodyn.harness import cli
 from stereodyn.harness.analysis import compare, fitting, gate
-from stereodyn.harness.engines.base import EPS, FLOAT32, FLOAT64, Engine, prepare_keywords
+from stereodyn.harness.engines.base import EPS, FLOAT32, FLOAT64, Engine, Offer, prepare_keywords
 from stereodyn.harness.run import plan as planning
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 
@@ -73,8 +73,8 @@ class TwoPrecisions(Engine):
     def integrators(self):
         return ("euler", "rk4")
 
-    def precisions(self, integrator):
-        return (FLOAT64, FLOAT32) if integrator == "rk4" else (FLOAT64,)
+    def offer(self, integrator):
+        return Offer(precisions=(FLOAT64, FLOAT32) if integrator == "rk4" else (FLOAT64,))
 
     def unsupported(self, case):
         return None

@@ -140,7 +140,7 @@ def test_figures_drawn_on_the_runs_worker_pool_are_the_same_and_start_no_process
     monkeypatch.setattr(build, "ProcessPoolExecutor", no_processes_of_its_own)
     monkeypatch.setattr(build, "PARALLEL_FIGURES", 1)  # 4 figures: processes of its own without the pool's map
     drawn = []
-    with local_pool(2, 5, ()) as pool:
+    with local_pool(2, 5) as pool:
         def pool_map(fn, tasks):
             drawn.extend(task[:2] for task in tasks)
             return pool.map(fn, tasks)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from stereodyn.harness.pipeline import tolerance_ladders
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import Engine, Offer, RigidBodyModel
 from stereodyn.harness.run import plan as planning
 from stereodyn.harness.run.measure import measure
 from stereodyn.harness.run.spec import Family, RunKey, RunSpec, base_row
@@ -58,6 +58,14 @@ def test_the_same_path_gives_the_sweep_its_extras_and_the_ladders_their_columns(
     assert math.isnan(full["truth_err"])  # the truth was not certified: no bound
 
 
+class _Coarse(RigidBodyModel):
+    def default_dts(self, case, integrator, dts):
+        return (max(dts),)
+
+    def default_run(self, case, variant, integrator):
+        return case.name != "lagrange-top"
+
+
 class CoarseByDefault(Engine):
     """euler and rk4, rk4 alone in the default sweep, at the coarsest dt only, and not on the Lagrange top."""
 
@@ -66,14 +74,11 @@ class CoarseByDefault(Engine):
     def integrators(self):
         return ("euler", "rk4")
 
-    def in_default_sweep(self, integrator):
-        return integrator == "rk4"
+    def offer(self, integrator):
+        return Offer(default_sweep=integrator == "rk4")
 
-    def default_dts(self, case, integrator, dts):
-        return (max(dts),)
-
-    def default_run(self, case, formulation, integrator):
-        return case.name != "lagrange-top"
+    def models(self):
+        return {**super().models(), "rigid_body": _Coarse(self)}
 
     def unsupported(self, case):
         return None

@@ -90,7 +90,7 @@ def test_engines_declare_their_scenes():
     assert set(get_engine("mujoco").models()) == {"rigid_body", "sliding_ladder"}
     assert set(get_engine("reference").models()) == {"rigid_body", "sliding_ladder"}
 
-    class Plain(Engine):  # an engine written against 0.2.0: the rigid body through its own hooks
+    class Plain(Engine):  # the three required methods only: the rigid body through RigidBodyModel's defaults
         name = "plain"
 
         def integrators(self):
@@ -110,8 +110,9 @@ def test_engines_declare_their_scenes():
     assert Plain().unmodelled(scenes.scene("sliding_ladder")) == "plain adapter does not model the sliding ladder"
 
 
-def test_a_0_2_0_plugin_with_the_ladder_hooks_still_runs_it_and_is_told():
-    with pytest.warns(DeprecationWarning, match="prepare_sliding_ladder are replaced by Engine.models"):
+def test_a_0_2_0_plugin_with_the_ladder_hooks_is_refused_naming_the_new_spelling():
+    with pytest.raises(TypeError, match=r"defines 'sliding_ladder_models', a name of stereodyn 0\.2\.0's engine "
+                                        r"protocol: since 0\.3\.0 declare models\(\) returning"):
         class Old(Engine):
             name = "old"
 
@@ -120,10 +121,6 @@ def test_a_0_2_0_plugin_with_the_ladder_hooks_still_runs_it_and_is_told():
 
             def prepare_sliding_ladder(self, case, model, integrator, dt):
                 return ("ladder", model, integrator, dt)
-
-    model = Old().models()["sliding_ladder"]
-    assert isinstance(model, SceneModel) and model.variants() == ("m",) and model.integrators(["a"]) == ["a"]
-    assert model.prepare(None, "m", "a", 0.1) == ("ladder", "m", "a", 0.1)
 
 
 def test_export_asks_the_engines_model_of_the_scene():

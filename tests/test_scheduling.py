@@ -44,7 +44,7 @@ def test_a_runs_cost_is_its_accuracy_run_checks_and_single_timed_run():
 
 def test_the_pool_starts_its_workers_before_any_run_is_submitted():
     before = set(multiprocessing.active_children())
-    with local_pool(2, 5, ("mujoco",)) as pool:
+    with local_pool(2, 5) as pool:
         workers = started_since(before)
         assert pool is not None and len(workers) == 2
     assert ended(workers)  # idle workers exit on their own after the sweep
@@ -54,7 +54,7 @@ def test_a_worker_told_to_stop_runs_its_exit_handlers_and_skips_the_interpreters
     """An SDK may write its caches in an exit handler; freeing every module and model after the last task cost a worker
     of the quick suite 15-17 s of CPU while the report was drawing (harness.run.workers._exit)."""
     before = set(multiprocessing.active_children())
-    with local_pool(2, 5, ()) as pool:
+    with local_pool(2, 5) as pool:
         assert pool is not None
         pool.submit(watch_exit, str(tmp_path)).result(timeout=300)
         workers = started_since(before)
@@ -68,7 +68,7 @@ def test_a_sweep_in_process_or_without_runs_starts_no_pool(jobs, runs):
     """--jobs 1 in this process (STEREODYN_IN_PROCESS=1, tests/conftest.py), or nothing to run; a single run or
     --jobs 1 otherwise is a watched worker (tests/test_hung_engines.py)."""
     before = set(multiprocessing.active_children())
-    with local_pool(jobs, runs, ("mujoco",)) as pool:
+    with local_pool(jobs, runs) as pool:
         assert pool is None and not started_since(before)
 
 

@@ -184,13 +184,13 @@ def test_a_changed_horizon_redoes_the_runs_under_resume(tmp_path):
 ENGINE_PLUGIN = '''
 """An engine plug-in outside stereodyn (no distribution owns this module): Pinocchio's simulation under its own name."""
 from stereodyn.harness import integrators
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 
 
 class FingerprintEngine(Engine):
     name = "fingerprint_engine"
-    state_space = "lie"
-    pass_us = 3.0
+    about = About(state_space="lie")
+    timing = Timing(pass_us=3.0)
 
     def integrators(self):
         return ("rk4",)

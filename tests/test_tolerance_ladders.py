@@ -14,10 +14,10 @@ from stereodyn.harness import engines
 from stereodyn.harness.run.pool import worker_pool
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.pipeline import tolerance_ladders
-from stereodyn.harness.analysis import fitting, workprecision
+from stereodyn.harness.analysis import fitting, ladders, workprecision
 from stereodyn.harness.pipeline import work_precision
 from stereodyn.harness.scenes.cases import find_case, with_overrides
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import Engine, Offer, Timing
 from stereodyn.harness.report import build
 from stereodyn.harness.report.build import write_reports
 from stereodyn.harness.trajectory import Status, Trajectory
@@ -52,13 +52,13 @@ class StubEngine(Engine):
     keyword, steps and rhs_evals filled) and one fixed-step name, which never gets a tolerance ladder."""
 
     name = "stub"
-    pass_us = 50.0
+    timing = Timing(pass_us=50.0)
 
     def integrators(self):
         return ("stub_fixed", "stub_dop853")
 
-    def adaptive(self, integrator):
-        return integrator == "stub_dop853"
+    def offer(self, integrator):
+        return Offer(adaptive=integrator == "stub_dop853")
 
     def unsupported(self, case):
         return "stub: no external torques" if case.body.has_external_torque else None
@@ -95,7 +95,7 @@ def _short_case():
 def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine, tmp_path):
     case = _short_case()
     assert stub_engine.name == "stub" and stub_engine.adaptive("stub_dop853")
-    found = tolerance_ladders.families([case], ["stub"], None)
+    found = ladders.adaptive_families([case], ["stub"], None)
     assert [(f.engine, f.formulation, f.integrator) for f in found] == [("stub", "", "stub_dop853")]
     # the whole phase, as `stereodyn run --dt-ladder` has it: the sweep's rows, then the ladders and the tables
     df = run_sweep([case], SweepOptions(["stub"], tmp_path, ["stub_dop853"], jobs=1))
@@ -140,8 +140,8 @@ def test_the_tolerance_ladders_run_on_the_sweeps_pool(tmp_path):
     (heyoka's JIT compilation included) took over POINT_BUDGET_S once at load ~10 and the ladder stopped after it;
     the early stop has its own test below."""
     case = with_overrides(find_case("free-asymmetric"), t_end=1.0)
-    chosen = tolerance_ladders.families([case], ["reference"], ["taylor"], ("quaternion", "gibbs"))
-    with worker_pool(2, ("reference",)) as pool:
+    chosen = ladders.adaptive_families([case], ["reference"], ["taylor"], ("quaternion", "gibbs"))
+    with worker_pool(2) as pool:
         points = tolerance_ladders.run_ladders(chosen, pool, tolerances=(1e-4, 1e-8), budget_s=math.inf)
     assert [(p["formulation"], p["tolerance"]) for p in points] == [("quaternion", 1e-4), ("quaternion", 1e-8),
                                                                      ("gibbs", 1e-4), ("gibbs", 1e-8)]

@@ -156,15 +156,15 @@ def test_without_registration_the_table_is_an_unknown_key(tmp_path):
         load_case(path)
 
 
-def test_the_body_keeps_0_2_0s_keywords_and_attributes():
+def test_the_body_holds_its_terms_in_registry_order():
     torque, field = BodyTorque((0.0, 0.0, 1.0), 0.6, -0.2), CentralField(1.0, 10.0, (0.0, 0.0, 1.0), 0.0)
-    body = RigidBody(np.eye(3), 1.0, np.zeros(3), 0.0, None, torque, field)  # positional, as 0.2.0
-    assert body.torques == (torque, field) and body.body_torque == torque and body.central_field == field
-    assert body.precession_torque is None
-    swapped = RigidBody(np.eye(3), 1.0, np.zeros(3), central_field=field, torques=(torque,))
-    assert swapped.torques == (torque, field)  # registry order, whatever the order given
-    replaced = dataclasses.replace(body, body_torque=BodyTorque((1.0, 0.0, 0.0), 1.0, 0.0))
-    assert replaced.body_torque.a == 1.0 and replaced.central_field == field
+    body = RigidBody(np.eye(3), 1.0, np.zeros(3), torques=(field, torque))
+    assert body.torques == (torque, field)  # registry order, whatever the order given
+    assert body.torque(BodyTorque) == torque and body.torque(CentralField) == field
+    assert body.torque(PrecessionTorque) is None
+    for old in ("body_torque", "central_field", "precession_torque"):  # 0.2.0's keywords went in 0.3.0
+        with pytest.raises(TypeError, match=old):
+            RigidBody(np.eye(3), 1.0, np.zeros(3), **{old: torque})
     with pytest.raises(ValueError, match="not a registered torque model"):
         RigidBody(np.eye(3), 1.0, np.zeros(3), torques=(LinearDamping(1.0),))
     assert [model.key for model in models()] == ["body_torque", "central_field", "precession_torque"]
@@ -174,7 +174,7 @@ def test_the_body_keeps_0_2_0s_keywords_and_attributes():
 def test_the_truths_parameter_blocks_follow_the_registry():
     """No fixed indices: each model's block sits where the registry puts it (body torque 19..23, field 24..34,
     torque (41) 35..39), and an absent model's block is its absent() (ε = 1 for (41))."""
-    body = RigidBody(np.diag([2.0, 1.5, 1.0]), 1.0, np.zeros(3), precession_torque=PrecessionTorque(0.7, 0.1, 0.2))
+    body = RigidBody(np.diag([2.0, 1.5, 1.0]), 1.0, np.zeros(3), torques=(PrecessionTorque(0.7, 0.1, 0.2),))
     pars = truth.torque_parameters(body)
     assert pars.shape == (21,)
     np.testing.assert_array_equal(pars[:16], 0.0)

@@ -54,8 +54,8 @@ def test_the_torqued_energy_drift_is_relative(name):
     traj = get_engine("pinocchio").prepare(case, "euler", 0.05).run(grid)  # coarse Euler: a drift far from 0
     heavier = dataclasses.replace(  # the gravity-gradient torque 3 mu / r^3 (k x I k) scales with I by itself
         case, inertia=8.0 * case.inertia,
-        body_torque=case.body_torque and dataclasses.replace(case.body_torque, a=8.0 * case.body_torque.a,
-                                                             b=8.0 * case.body_torque.b))
+        torques=tuple(dataclasses.replace(term, a=8.0 * term.a, b=8.0 * term.b) if isinstance(term, torques.BodyTorque)
+                      else term for term in case.torques))
     drift = metrics.drifts(case, traj, ("energy",))["energy_drift"]
     scaled = metrics.drifts(heavier, traj, ("energy",))["energy_drift"]
     assert 1e-6 < drift < 1.0 and scaled == pytest.approx(drift, rel=1e-12)
@@ -68,7 +68,7 @@ def test_central_field_energy_or_jacobi_integral_is_conserved_by_the_truth(name)
     deviation, scale = torques.energy_balance(case.body, times, result.quat, result.omega)
     assert np.max(deviation) / scale <= 1e-13
     terms = torques.energy_terms(case.body, times, result.quat, result.omega)
-    if case.central_field.orbit_rate:  # control: without −Ω K_z, E alone is not conserved
+    if case.torque(torques.CentralField).orbit_rate:  # control: without −Ω K_z, E alone is not conserved
         energy = terms["kinetic"] + terms["field"]
         assert np.ptp(energy) / scale > 1e-3
 
@@ -93,7 +93,7 @@ def test_numpy_and_heyoka_right_hand_sides_agree_with_every_torque():
                                        atol=1e-13)
             scalar = torque(t, tuple(quat), tuple(y[4:]))
             np.testing.assert_allclose(scalar, torques.external_torque(case.body, quat, y[4:], t), atol=1e-14)
-            if case.central_field is not None and case.central_field.orbit_rate != 0.0 and t != 0.0:
+            if case.torque(torques.CentralField) is not None and case.torque(torques.CentralField).orbit_rate != 0.0 and t != 0.0:
                 # control: the time matters here
                 assert np.max(np.abs(np.subtract(scalar, torque(0.0, tuple(quat), tuple(y[4:]))))) > 1e-3
             assert euler_poisson.omega_dot(case.body, quat, y[4:]).shape == (3,)
@@ -146,10 +146,10 @@ def test_self_excited_oracles_match_the_truth(name):
 def test_self_excited_oracle_checks_see_the_torque():
     case = find_case("self-excited-spinup")
     assert ORACLES["self_excited_spinup"].check(case.body, case.quat0, case.omega0) is None
-    weaker = dataclasses.replace(case, body_torque=torques.BodyTorque((0.0, 0.0, 1.0), 0.6, 0.2))
+    weaker = dataclasses.replace(case, torques=(torques.BodyTorque((0.0, 0.0, 1.0), 0.6, 0.2),))
     assert "a > 0 > b" in ORACLES["self_excited_spinup"].check(weaker.body, case.quat0, case.omega0)
     uniform = find_case("self-excited-uniform")
-    other = dataclasses.replace(uniform, body_torque=torques.BodyTorque((0.0, 0.0, 1.0), 0.3, -0.4))
+    other = dataclasses.replace(uniform, torques=(torques.BodyTorque((0.0, 0.0, 1.0), 0.3, -0.4),))
     assert "not a uniform rotation" in ORACLES["self_excited_uniform"].check(other.body, uniform.quat0,
                                                                              uniform.omega0)
     for oracle in ("euler_poinsot", "lagrange_precession"):  # the seven older oracles are unchanged
@@ -222,7 +222,7 @@ def test_mujoco_rk4_with_a_state_dependent_torque_is_fourth_order(name, monkeypa
 def test_refreshing_the_torque_once_per_step_makes_rk4_first_order(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     case = find_case("self-excited-conic")
-    assert case.body_torque.b != 0.0
+    assert case.torque(torques.BodyTorque).b != 0.0
     order = fitted_order(attitude_errors(case, refreshed_once_per_step))
     assert 0.8 <= order <= 1.2, order  # first order, as ENGINES.md says
 
@@ -233,7 +233,7 @@ def test_constant_torque_enters_mujoco_through_qfrc_applied_set_once(monkeypatch
     sim = get_engine("mujoco").prepare(case, "rk4", 0.01)
     trajectory = sim.run(time_grid(1.0, 0.01, 11))
     assert trajectory.info["torque_mode"] == "qfrc_applied"
-    np.testing.assert_allclose(sim.data.qfrc_applied, np.asarray(case.body_torque.axis) * case.body_torque.a)
+    np.testing.assert_allclose(sim.data.qfrc_applied, np.asarray(case.torque(torques.BodyTorque).axis) * case.torque(torques.BodyTorque).a)
     assert mujoco.get_mjcb_passive() is None
 
 

@@ -204,7 +204,7 @@ def test_every_truth_row_is_certified_by_default_and_not_with_no_certify(tmp_pat
     # finite, positive, and at the truth's level (< 1e-13 on every case here; measured 5e-15..7e-14 on the suite)
     for column in ("truth_err", "truth_omega_err"):
         assert np.all(np.isfinite(ran[column])) and np.all(ran[column] > 0) and np.all(ran[column] < 1e-13), column
-    assert cli._parser().parse_args(["run", "--certify"]).no_certify is False  # accepted for old scripts: a no-op
+    assert cli.parser().parse_args(["run", "--certify"]).no_certify is False  # accepted for old scripts: a no-op
     assert cli.main(["run", *SMALL, "--no-certify", "--out", str(tmp_path / "fast")]) == 0
     fast = pd.read_csv(tmp_path / "fast" / "results.csv")
     assert fast.truth_err.isna().all() and fast.truth_omega_err.isna().all()

@@ -1,4 +1,4 @@
-"""The dt ladders run on the sweep's process pool (harness.runner.worker_pool): one pool for both, and Ctrl-C during
+"""The dt ladders run on the sweep's process pool (harness.run.pool.worker_pool): one pool for both, and Ctrl-C during
 the ladders ends its workers at once, as during the sweep (tests/test_scheduling.py)."""
 import math
 import multiprocessing
@@ -25,7 +25,7 @@ def _case():
 
 def test_the_sweep_and_the_ladders_share_one_pool(tmp_path):
     before = set(multiprocessing.active_children())
-    with worker_pool(2, ("reference",)) as pool:
+    with worker_pool(2) as pool:
         workers = started_since(before)
         df = run_sweep([_case()], SweepOptions(["reference"], tmp_path, ["rk4"]), pool=pool)
         workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full", max_steps=200,
@@ -48,7 +48,7 @@ def test_an_interrupt_during_the_ladders_ends_the_workers_at_once(tmp_path):
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        with worker_pool(2, ("reference",)) as pool:
+        with worker_pool(2) as pool:
             workers.update(started_since(before))
             df = run_sweep([_case()], SweepOptions(["reference"], tmp_path, ["rk4"]), pool=pool)
             workprecision.analyse(tmp_path, df, [_case()], ["reference"], ["rk4"], ladder="full",

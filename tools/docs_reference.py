@@ -1,5 +1,5 @@
 """The documentation site's reference pages, generated from the code so they cannot drift (issue 32): every command and
-flag from the argparse parser (harness/cli/__init__.py), every case key from the case schema and the checks that
+flag from the argparse parser (harness/cli: each command's module declares its arguments), every case key from the case schema and the checks that
 validate it (harness/scenes/cases.py, the torque models, the sliding ladder's scene), every column of every CSV from
 the constant that declares it.
 
@@ -24,8 +24,10 @@ PAGES = {"cli.md": "Command line", "case-keys.md": "Case keys", "tables.md": "Re
 TABLES = (
     ("results.csv", "stereodyn.harness.run.results", "COLUMNS", "one row per run (DESIGN §4)"),
     ("verdicts.csv", "stereodyn.harness.analysis.verdicts", "COLUMNS", "one row per verdict"),
+    ("answers.csv", "stereodyn.harness.analysis.answers", "ANSWER_COLUMNS",
+     "what to use: per case, scope and accuracy target, the one answer the report and the terminal show"),
     ("pareto.csv", "stereodyn.harness.analysis.pareto", "PARETO_COLUMNS",
-     "per case, scope and accuracy target, the cheapest run that reaches it"),
+     "per case, scope and accuracy target, the cheapest of the runs listed that reaches it (the frontier)"),
     ("advice.csv", "stereodyn.harness.analysis.step_advice", "ADVICE_COLUMNS",
      "per laddered family and target, the largest checked dt or tolerance"),
     ("convergence.csv", "stereodyn.harness.analysis.fitting", "CONVERGENCE_COLUMNS", "one row per fitted run family"),
@@ -59,8 +61,7 @@ KINDS = {"number": "number", "positive": "number > 0", "vector": "list of number
 def _parser() -> argparse.ArgumentParser:
     from stereodyn.harness import cli
 
-    cli._load()  # the parser reads the budgets' flags from harness.budget
-    return cli._parser()
+    return cli.parser()
 
 
 def commands(parser: argparse.ArgumentParser | None = None) -> dict[str, argparse.ArgumentParser]:
@@ -91,7 +92,7 @@ def cli_page(parser: argparse.ArgumentParser | None = None) -> str:
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     helps = {choice.dest: choice.help for choice in sub._choices_actions}
     lines = ["# Command line", "",
-             "Generated from the parser itself (`harness/cli/__init__.py`), so it lists every command and flag as "
+             "Generated from the parser itself (`harness/cli/`, each command's module), so it lists every command and flag as "
              "`stereodyn` accepts them. Exit codes: 0 done (failed runs are data, rows with their reason), 1 `check` "
              "or `run --strict` failed, 2 bad input (one line naming the file or option, the key and the rule), 3 a "
              "bug in stereodyn (a traceback), 130 interrupted.", ""]

@@ -9,6 +9,9 @@ Per case, scope (an engine, or `any`) and target the answer is the cheapest of:
   setting stands for it.
 Integrators that failed a verdict are no answer (as in pareto.csv). `any` is the cheapest engine's answer, so an
 engine's row and `any`'s never disagree. Costs tie to the searched answer, then name order.
+
+`stereodyn run` writes the table as DIR/answers.csv (write), beside pareto.csv, once the verdicts are in; the report,
+the Summary and the terminal read that file (read), as a CI job or a notebook would.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ import pandas as pd
 
 from .pareto import ANY, ACCURACY_TARGETS, is_failed, scopes
 
+ANSWERS_FILE = "answers.csv"
 SEARCHED, LISTED = "searched", "listed, not searched"
 ANSWER_COLUMNS = ("case", "scope", "target", "engine", "formulation", "integrator", "dt", "tolerance", "error",
                   "us_per_sim_s", "us_per_sim_s_spread", "source", "fails_at", "why_none")
@@ -132,7 +136,31 @@ def key(row) -> tuple:
 
 
 def read(out_dir: Path, failed: set | None = None) -> pd.DataFrame | None:
-    """The answers of an output folder (pareto.csv, advice.csv and verdicts.csv); None without pareto.csv."""
+    """The answers of an output folder: its answers.csv; for a folder written before it (stereodyn wrote none), the
+    table made from pareto.csv, advice.csv and verdicts.csv (compute). None without either."""
+    from ..tables import read_optional
+
+    table = read_optional(Path(out_dir) / ANSWERS_FILE, _TEXT)
+    return compute(out_dir, failed) if table is None else table
+
+
+def write(out_dir: Path, failed: set | None = None) -> Path | None:
+    """Write DIR/answers.csv (compute's table, every digit kept: what the report shows is what the file holds);
+    None, and no file (an earlier run's removed), without pareto.csv."""
+    from ..atomic import write_atomic
+
+    path = Path(out_dir) / ANSWERS_FILE
+    table = compute(out_dir, failed)
+    if table is None:
+        path.unlink(missing_ok=True)
+        return None
+    write_atomic(path, table.to_csv(index=False, float_format="%.17g"))
+    return path
+
+
+def compute(out_dir: Path, failed: set | None = None) -> pd.DataFrame | None:
+    """The answers from an output folder's pareto.csv, advice.csv and verdicts.csv (failed: the integrators that
+    failed a verdict, default verdicts.csv's); None without pareto.csv."""
     from . import verdicts, workprecision
 
     pareto = workprecision.read_optional(Path(out_dir) / workprecision.PARETO_FILE,
@@ -148,3 +176,23 @@ def read(out_dir: Path, failed: set | None = None) -> pd.DataFrame | None:
     for column in _TEXT:
         table[column] = table[column].fillna("").astype(str)
     return table
+
+
+def changed(a: pd.DataFrame | None, b: pd.DataFrame | None) -> list[dict]:
+    """The answers that differ between two answers tables (A the reference): per (case, scope, target) of either,
+    {"case", "scope", "target", "a", "b"} with each side's method and setting (key), "-" for none or absent; in B's
+    order, then A's cells that B lacks."""
+    def cells(table) -> dict:
+        if table is None:
+            return {}
+        return {(r["case"], r["scope"], _target_key(r["target"])): (r, " ".join(x for x in key(r) if x) or "-")
+                for _, r in table.iterrows()}
+
+    in_a, in_b = cells(a), cells(b)
+    out = []
+    for cell in [*in_b, *(c for c in in_a if c not in in_b)]:
+        row, said_b = in_b.get(cell, (None, "-"))
+        said_a = in_a.get(cell, (None, "-"))[1]
+        if said_a != said_b:
+            out.append({"case": cell[0], "scope": cell[1], "target": float(cell[2]), "a": said_a, "b": said_b})
+    return out

@@ -461,10 +461,3 @@ def summary_lines(verdicts: list[Verdict]) -> list[str]:
     lines += [f"verdict {words[v.status]}: {v.line}" for v in strict_failures(verdicts)]
     lines += [f"verdict {v.status}: {v.line}" for v in verdicts if v.status in (KNOWN, FIXED)]
     return lines
-
-
-def __getattr__(name: str):
-    # the verdicts that run check runs are the pipeline's since issue 29 (harness/moved.py: forwarded, warned)
-    from ..moved import forwarded
-
-    return forwarded(__name__, name, {"energy_verdicts": "pipeline.checks", "property_verdicts": "pipeline.checks"})

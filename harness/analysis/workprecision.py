@@ -31,7 +31,7 @@ from ..precision import FLOAT64
 from ..run.plan import Selection
 from ..run.results import read_csv_table, with_precision, write_atomic  # noqa: F401 (read_csv_table: this API)
 from ..run.spec import Family
-from ..tables import read_optional  # noqa: F401 (part of this module's API since 0.2.0)
+from ..tables import read_optional  # noqa: F401 (the report's and the answers' readers use it from here)
 
 __all__ = ["LADDER_FILE", "CONVERGENCE_FILE", "PARETO_FILE", "TOLERANCE_FILE", "TOLERANCE_FIT_FILE", "MIN_STEPS",
            "analyse", "read_optional", "rewrite_pareto", "pareto_table", "TIE_RTOL", "Family"]
@@ -298,10 +298,3 @@ def advice_targets(mode: str) -> tuple[float, ...]:
     """The accuracy targets advised (rad): every Pareto target with --dt-ladder ("full"), else
     DEFAULT_ADVICE_TARGETS."""
     return ACCURACY_TARGETS if mode == "full" else DEFAULT_ADVICE_TARGETS
-
-
-def __getattr__(name: str):
-    # analyse ran the ladders from here until issue 29; it is the pipeline's now (harness/moved.py: forwarded, warned)
-    from ..moved import forwarded
-
-    return forwarded(__name__, name, {"analyse": "pipeline.work_precision"})

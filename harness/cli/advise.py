@@ -5,9 +5,25 @@ from __future__ import annotations
 import math
 import sys
 
-from . import BadInput, override
+from .common import BadInput, _count, _list, override, _scale, _targets
 from ..engines import engine_names
 from ..scenes import cases as case_files
+
+
+def add_parser(commands) -> None:
+    advise = commands.add_parser("advise", help="the largest dt (or tolerance) of an engine's integrators that "
+                                                 "reaches an accuracy on a case, checked by runs")
+    advise.add_argument("case", metavar="CASE_OR_FILE", help="a suite case name or a .toml path")
+    advise.add_argument("--engine", required=True, help="the engine whose integrators to advise on")
+    advise.add_argument("--integrator", type=_list, default=None,
+                        help="comma-separated (default: the engine's default sweep with a declared order or error "
+                             "control)")
+    advise.add_argument("--formulation", default=None, help="the engine's model (default quaternion, or its first)")
+    advise.add_argument("--target", type=_targets, default=None,
+                        help="max attitude error over the case's horizon, rad, comma-separated (default 1e-3,1e-6,1e-9)")
+    advise.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing the case's t_end")
+    advise.add_argument("--max-steps", type=_count, default=None, metavar="N",
+                        help="smallest dt tried = t_end / N (default 200000)")
 
 
 def main(args) -> int:

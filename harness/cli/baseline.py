@@ -1,7 +1,18 @@
 """`stereodyn baseline DIR --out FILE`: the regression baseline of DIR/results.csv."""
 from __future__ import annotations
 
-from . import output_file, warn
+from .common import _allow_partial, GATE_MODES, output_file, _path, warn
+
+
+def add_parser(commands) -> None:
+    baseline = commands.add_parser("baseline", help="write the regression baseline of DIR/results.csv")
+    baseline.add_argument("dir", type=_path)
+    baseline.add_argument("--out", type=_path, required=True, metavar="FILE", help="baseline file to write (JSON)")
+    baseline.add_argument("--mode", choices=GATE_MODES, default=GATE_MODES[0],
+                          help="what `check` will compare against it, recorded in the file: same-machine (the "
+                               "default; the same machine and library versions, factor 1.05) or cross-machine "
+                               "(another CPU or versions, factor 2)")
+    _allow_partial(baseline)
 
 
 def main(args) -> int:

@@ -1,7 +1,11 @@
 """`stereodyn cases`: list the suite's cases with their tags."""
 from __future__ import annotations
+
 from ..scenes import cases as case_files
 
+
+def add_parser(commands) -> None:
+    commands.add_parser("cases", help="list the suite's cases with tags")
 
 
 def main(args) -> int:

@@ -6,9 +6,31 @@ import math
 import os
 from pathlib import Path
 
-from . import BadInput, output_file, warn
+from .common import _allow_partial, BadInput, GATE_MODES, output_file, _path, warn
 
 STEP_SUMMARY = "GITHUB_STEP_SUMMARY"  # set by GitHub Actions: a file whose markdown the job's page shows
+
+
+def add_parser(commands) -> None:
+    gate = commands.add_parser("check", help="exit 1 and print the rows of DIR that got worse than the baseline")
+    gate.add_argument("dir", type=_path)
+    gate.add_argument("--baseline", type=_path, required=True, metavar="FILE")
+    _allow_partial(gate)
+    gate.add_argument("--tolerances", type=_path, default=None, metavar="FILE.toml",
+                       help="[default] factor/floor, [metric.NAME] factor/floor, [time] factor")
+    gate.add_argument("--mode", choices=GATE_MODES, default=None,
+                       help="the default tolerance: same-machine (factor 1.05) or cross-machine (factor 2); default: "
+                            "the mode the baseline records (cross-machine for a baseline that records none)")
+    gate.add_argument("--factor", type=float, default=None,
+                       help="a drift or error may grow to factor * baseline + floor (default: the mode's, every "
+                            "metric)")
+    gate.add_argument("--floor", type=float, default=None, help="absolute floor (default 1e-12, every metric)")
+    gate.add_argument("--time-factor", type=float, default=None,
+                       help="also fail when us_per_step exceeds this factor times the baseline's (only on one idle "
+                            "machine: a loaded one moves timings by more, docs/DESIGN.md §4, Baselines)")
+    gate.add_argument("--junit", type=_path, default=None, metavar="FILE",
+                       help="also write JUnit XML: one test case per baseline row and fitted order")
+    gate.add_argument("--quiet", action="store_true", help="print nothing on success, only the failures otherwise")
 
 
 def main(args) -> int:

@@ -4,7 +4,19 @@ from __future__ import annotations
 import os
 from contextlib import ExitStack
 
-from . import output_folder, warn
+from .common import _allow_partial, _path, output_folder, warn
+
+
+def add_parser(commands) -> None:
+    compare = commands.add_parser("compare", help="two runs side by side: environments, then every row's metrics as "
+                                                   "ratios B/A, largest changes first (OUT/compare.md, OUT/compare.html)")
+    compare.add_argument("a", type=_path, metavar="A", help="result directory or baseline file (the reference)")
+    compare.add_argument("b", type=_path, metavar="B", help="result directory or baseline file (the new run)")
+    compare.add_argument("--out", type=_path, default=None, metavar="DIR", help="where to write (default: B)")
+    compare.add_argument("--format", choices=("pages", "pr"), default="pages",
+                         help="pages (default): write compare.md, compare.html, compare.csv; pr: also print a "
+                              "markdown summary of at most 60 lines for a pull request (OUT/compare-pr.md)")
+    _allow_partial(compare)
 
 
 def main(args) -> int:

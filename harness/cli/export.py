@@ -3,8 +3,17 @@ from __future__ import annotations
 
 import sys
 
-from . import output_file
+from .common import output_file, _path, _scale
 from ..scenes import cases as case_files
+
+
+def add_parser(commands) -> None:
+    export = commands.add_parser("export", help="write the engine model of a case (MJCF for MuJoCo, URDF)")
+    export.add_argument("case", metavar="CASE", help="a suite case name or a .toml path")
+    export.add_argument("--format", required=True, help="a model format of an engine: mjcf (MuJoCo), urdf (Pinocchio)")
+    export.add_argument("--out", type=_path, default=None, metavar="FILE", help="default: standard output")
+    export.add_argument("--integrator", default=None, help="MJCF only: MuJoCo integrator (default rk4)")
+    export.add_argument("--dt", type=_scale, default=None, help="MJCF only: timestep (default: the case's first dt)")
 
 
 def main(args) -> int:

@@ -7,7 +7,7 @@ import subprocess
 from contextlib import ExitStack
 from pathlib import Path
 
-from . import BadInput, warn
+from .common import _allow_partial, BadInput, _path, _steps, warn
 
 
 def load_point(path: Path, label: str, held: ExitStack, allow_partial: bool, warnings: list[str],
@@ -73,8 +73,22 @@ def check_steps(args) -> None:
             raise BadInput(f"{option}: must be a finite number > {low:g}, got {value:g}")
 
 
+def add_parser(commands) -> None:
+    history = commands.add_parser("history", help="result folders or baselines in order (commit, date, an engine's "
+                                                   "version): each metric, status and fitted order over the "
+                                                   "sequence, steps flagged (OUT/history.html, OUT/history*.csv)")
+    history.add_argument("dirs", type=_path, nargs="+", metavar="DIR", help="result folders or baseline files")
+    history.add_argument("--by", default="date", metavar="date|commit|given|PACKAGE",
+                         help="order by runs.json's date (default), git commit (in --repo's history), as given, or "
+                              "the version of a package the environment records (e.g. mujoco)")
+    history.add_argument("--repo", type=_path, default=Path("."), help="the git repository for --by commit")
+    history.add_argument("--out", type=_path, default=Path("history"), help="where to write (default ./history)")
+    _steps(history)
+    _allow_partial(history)
+
+
 def main(args) -> int:
-    from . import output_folder
+    from .common import output_folder
     from ..report import index
     from ..run.store import STORE_DIR, folder_lock
 

@@ -15,7 +15,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from ..atomic import write_atomic
-from . import BadInput, one_line, output_folder, warn
+from .common import BadInput, one_line, output_folder, _path, _steps, warn
 
 # The quick suite (README, "Regression CI"; .ci/run gates it against reports/baselines/quick.json).
 QUICK = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric", "--t-end", "2", "--dt", "1e-2,3e-3")
@@ -126,9 +126,35 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
     return "ok", "", False
 
 
+def add_parser(commands) -> None:
+    matrix = commands.add_parser("matrix", help="the same runs in one isolated environment per package "
+                                                "specification (uv), then their history and a compare of each "
+                                                "neighbouring pair; run arguments after --")
+    matrix.add_argument("specs", nargs="+", metavar="SPEC",
+                        help="one environment's requirements, space-separated ('mujoco==3.3.7', 'mujoco==4.0.0 "
+                             "pin==3.4.0')")
+    matrix.add_argument("--cross", action="store_true",
+                        help="one environment per combination of the specs' packages (a cross product)")
+    matrix.add_argument("--out", type=_path, default=Path("matrix"), help="where to write (default ./matrix)")
+    matrix.add_argument("--stereodyn", default=None, metavar="PATH_OR_REQUIREMENT",
+                        help="the stereodyn installed in each environment (default: this checkout's source, or "
+                             "stereodyn==VERSION)")
+    matrix.add_argument("--overlay", action="store_true",
+                        help="install only the specs over this environment's packages (their new dependencies at "
+                             "this environment's versions): fast, not isolated")
+    matrix.add_argument("--rerun", action="store_true",
+                        help="run again where an earlier matrix ran the same environment and arguments (default: "
+                             "reuse its results)")
+    _steps(matrix)
+    matrix.set_defaults(run_args=None)
+
+
 def _terminated(signum, frame) -> None:
     """SIGTERM of the matrix: as Ctrl-C, so that the run or install under way is ended with it (envs.owned)."""
     raise KeyboardInterrupt
+
+
+def main(args) -> int:
 
 
 def main(args) -> int:

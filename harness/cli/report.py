@@ -1,7 +1,16 @@
 """`stereodyn report DIR`: re-render report.md, report.html and figures/ from DIR."""
 from __future__ import annotations
 
-from . import BadInput, output_folder, warn
+from .common import _allow_partial, BadInput, _figures, output_folder, _path, warn
+
+
+def add_parser(commands) -> None:
+    report = commands.add_parser("report", help="re-render report.md, report.html and figures from DIR")
+    report.add_argument("dir", type=_path)
+    _allow_partial(report)
+    report.add_argument("--self-contained", action="store_true",
+                        help="embed the figures in report.html (one file to send; larger) instead of linking them")
+    _figures(report)
 
 
 def main(args) -> int:

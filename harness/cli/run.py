@@ -2,9 +2,70 @@
 work–precision ladders, the advice, the verdicts, "What to use" and the report), and the terminal's last lines."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import sys
 
-from . import BadInput, check_names, output_folder, select_cases
+from .common import BadInput, check_names, _count, DEFAULT_OUT, _figures, _floats, _list, output_folder, _path, _scale, _seconds, select_cases
+
+
+def add_parser(commands) -> None:
+    from .. import budget
+
+    run = commands.add_parser("run", help="run cases on engines; write results.csv, report.md and report.html")
+    run.add_argument("cases", nargs="*", metavar="CASE", help="suite case names or .toml paths (default: the suite)")
+    run.add_argument("--case-file", action="append", default=[], metavar="F.toml", help="a case outside the suite")
+    # The default is resolved by check_names, not here: building the parser loads no plug-in (one that is broken or
+    # claims a built-in's name must not stop every command, `stereodyn cases` included)
+    run.add_argument("--engines", type=_list, default=None,
+                     help="comma-separated (default: every registered engine, `stereodyn engines`, a broken plug-in "
+                          "left out with a warning)")
+    run.add_argument("--integrators", type=_list, default=None, help="comma-separated (default: each engine's all)")
+    run.add_argument("--dt", type=_floats, default=None, help="comma-separated steps, replacing each case's list")
+    run.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing each case's t_end")
+    run.add_argument("--out", type=_path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})")
+    run.add_argument("--jobs", type=_count, default=None, help="local worker processes (default: all cores)")
+    run.add_argument("--no-certify", action="store_true",
+                     help="skip the quadruple-precision rerun (~0.2 s a case) that bounds each truth's error "
+                          "(truth_err, truth_omega_err are then empty)")
+    run.add_argument("--certify", action="store_true", help="accepted for old scripts: certifying is the default")
+    run.add_argument("--save-trajectories", action="store_true",
+                     help="also write each run's recorded states, the truth's included, to "
+                          "DIR/trajectories/<key>.npz (times, quat wxyz body->world, omega body, truth_quat and "
+                          "truth_omega on the same times; case, engine, formulation, integrator, dt) and their "
+                          "index, DIR/trajectories/index.csv")
+    run.add_argument("--self-contained", action="store_true",
+                     help="embed the figures in report.html (one file to send; larger) instead of linking "
+                          "DIR/figures/")
+    _figures(run)
+    run.add_argument("--quiet", action="store_true",
+                     help="print nothing on success: no progress (a bar on a terminal, one line per phase otherwise, "
+                          "on stderr), no summary; warnings and --strict's failed verdicts still go to stderr")
+    run.add_argument("--verbose", action="store_true", help="also print every case's drift table")
+    run.add_argument("--resume", action="store_true", help="reuse the runs already stored in --out (DIR/store)")
+    run.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
+                     help="run on this Dask scheduler's cluster (needs stereodyn[dask]) instead of local processes")
+    run.add_argument("--dt-ladder", action="store_true",
+                     help="work–precision ladder (about ten dt from the stability limit to the round-off regime) for "
+                          "every case x engine x formulation x integrator, and a tolerance ladder (1e-3 ... 1e-13) "
+                          "for every adaptive one; default: only the default suite's few representative ladders")
+    run.add_argument("--no-ladder", action="store_true",
+                     help="no dt ladder and no tolerance ladder (orders from the dt lists; with --strict the short "
+                          "ladders its verdicts need still run)")
+    run.add_argument("--ladder-max-steps", type=_count, default=None, metavar="N",
+                     help="smallest ladder dt = t_end / N (default 200000 with --dt-ladder, 40000 otherwise)")
+    run.add_argument("--strict", action="store_true",
+                     help="exit 1 when a verdict fails (declared against fitted order, bounded energy, the truth's "
+                          "invariants, oracle and theory checks), one line per failed verdict")
+    for what, default, meaning in (
+            ("run", budget.RUN_BUDGET_S, "one row's accuracy run with its metrics and checks (a ladder point's too)"),
+            ("prepare", budget.PREPARE_BUDGET_S, "one Engine.prepare: model building and compilation"),
+            ("truth", budget.TRUTH_BUDGET_S, "one case's truth and its real128 certification")):
+        run.add_argument(budget.FLAGS[what], type=_seconds, default=default, metavar="S",
+                         help=f"wall-time budget of {meaning}, s (default {default:g}); past it the row is failed, "
+                              "its message naming the budget, and --resume redoes it only once the budget is raised")
+    run.add_argument("--extremes", action="store_true",
+                     help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
 
 
 def main(args) -> int:

@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
-from dataclasses import dataclass, replace
-import warnings
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -12,7 +11,7 @@ import numpy as np
 from ..trajectory import Trajectory
 
 if TYPE_CHECKING:
-    from ..scenes.cases import Case
+    from ..scenes.case import Case
     from ..grid import TimeGrid
 
 
@@ -131,11 +130,29 @@ class About:
     formulation: str = ""
 
 
-# 0.2.0's attributes, now fields of a group: a class that still sets one has it folded into its group (Engine's
-# __init_subclass__), so both spellings read the same value.
-_TIMING_ATTRIBUTES = ("pass_us", "short_warm_up", "process_global_precision", "prepare_budget_s")
-_ABOUT_ATTRIBUTES = {"packages": "packages", "linestyle": "linestyle", "export_formats": "export_formats",
-                     "state_space": "state_space", "default_formulation": "formulation"}
+_MODEL = "its RigidBodyModel subclass's {} (models())"
+# The names an engine of stereodyn 0.2.0 defined, each with its spelling since 0.3.0 (CHANGELOG.md's migration table).
+# A class that defines one is refused when it is made (Engine.__init_subclass__): its plug-in does not load, in one
+# line naming the first of them (harness.engines' guard), and nothing of it is emulated.
+OLD_NAMES = {
+    **{name: f"timing = Timing({name}=...)" for name in ("pass_us", "startup_s", "short_warm_up",
+                                                          "process_global_precision", "prepare_budget_s")},
+    **{name: f"about = About({name}=...)" for name in ("packages", "linestyle", "export_formats", "state_space")},
+    "default_formulation": "about = About(formulation=...)",
+    "formulations": _MODEL.format("variants()"),
+    **{name: _MODEL.format(f"{name}()") for name in ("default_run", "default_dts", "unsupported_run", "torque_mode",
+                                                     "export", "prepare_ensemble")},
+    "in_default_sweep": "offer(integrator) returning Offer(default_sweep=...)",
+    "precisions": "offer(integrator) returning Offer(precisions=...)",
+    "method": "offer(integrator) returning Offer(method=...)",
+    "adaptive": "offer(integrator) returning Offer(adaptive=...)",
+    "declared_order": "offer(integrator) returning Offer(order=...)",
+    "formulation_order": "offer(integrator) returning Offer(orders=...)",
+    "known_deviations": "offer(integrator) returning Offer(deviation=...)",
+    **{name: 'models() returning {**super().models(), "sliding_ladder": a SceneModel}'
+       for name in ("sliding_ladder_models", "sliding_ladder_integrators", "prepare_sliding_ladder",
+                    "sliding_ladder_unsupported")},
+}
 
 
 class Engine:
@@ -149,8 +166,8 @@ class Engine:
     and `unmodelled(scene)`.
 
     The methods and properties below PROTOCOL are what the harness reads, derived from those groups; an engine does
-    not override them. A 0.2.0 engine that does (its hooks and attributes of these names) still works: its hooks are
-    called, its attributes folded into the groups.
+    not define them: a class that defines one of them, or another name of 0.2.0's protocol (OLD_NAMES), is refused
+    with a TypeError naming it and its spelling now.
     """
 
     PROTOCOL = ("name", "integrators", "unsupported", "prepare", "offer", "timing", "about", "models", "unmodelled")
@@ -158,22 +175,13 @@ class Engine:
     name: str = ""
     timing: Timing = Timing()
     about: About = About()
-    _legacy_ladder = False  # set for a 0.2.0 plug-in that still implements the sliding ladder's four hooks
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        legacy = [hook for hook in _LEGACY_LADDER_HOOKS if hook in vars(cls)]
-        if legacy:
-            warnings.warn(f"engine {cls.__name__}: {', '.join(legacy)} are replaced by Engine.models() "
-                          "(DESIGN §7); they still run the sliding ladder through an adapter", DeprecationWarning,
-                          stacklevel=2)
-            cls._legacy_ladder = "prepare_sliding_ladder" in legacy or cls._legacy_ladder
-        timing = {name: vars(cls)[name] for name in _TIMING_ATTRIBUTES if name in vars(cls)}
-        if timing and not isinstance(vars(cls)[next(iter(timing))], property):
-            cls.timing = replace(cls.timing, **timing)
-        about = {field: vars(cls)[name] for name, field in _ABOUT_ATTRIBUTES.items() if name in vars(cls)}
-        if about and not any(isinstance(value, property) for value in about.values()):
-            cls.about = replace(cls.about, **about)
+        old = next((name for name in vars(cls) if name in OLD_NAMES), None)
+        if old is not None:
+            raise TypeError(f"engine {cls.__module__}.{cls.__qualname__} defines {old!r}, a name of stereodyn 0.2.0's "
+                            f"engine protocol: since 0.3.0 declare {OLD_NAMES[old]} (docs/ENGINE_PLUGIN.md)")
 
     # ---------------------------------------------------------------------------------------------- required
 
@@ -207,13 +215,10 @@ class Engine:
     def models(self) -> dict[str, "SceneModel"]:
         """The scenes this engine models: scene kind (harness.scenes) -> its model of that scene. A case of a kind
         not listed gives one skipped row (unmodelled). Default: the rigid body with a fixed point through
-        RigidBodyModel (prepare, unsupported and the defaults), as every engine of 0.2.0 does. An engine with
+        RigidBodyModel (prepare, unsupported and the defaults). An engine with
         formulations, default runs or an export returns its RigidBodyModel subclass; one that models another scene
         adds its model: {**super().models(), "sliding_ladder": MyLadderModel()}."""
-        models: dict[str, SceneModel] = {RIGID_BODY: RigidBodyModel(self)}
-        if type(self)._legacy_ladder:
-            models[SLIDING_LADDER] = _LegacyLadderModel(self)
-        return models
+        return {RIGID_BODY: RigidBodyModel(self)}
 
     def unmodelled(self, scene) -> str:
         """Why this engine has no model of the scene (harness.scenes.base.Scene): the skipped row's message."""
@@ -304,8 +309,6 @@ class Engine:
 
 
 RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"  # scene kinds (harness.scenes) the defaults name
-_LEGACY_LADDER_HOOKS = ("sliding_ladder_models", "sliding_ladder_integrators", "prepare_sliding_ladder",
-                        "sliding_ladder_unsupported")
 
 
 class SceneModel:
@@ -357,79 +360,38 @@ class SceneModel:
 
 
 def _overrides(engine: Engine, hook: str) -> bool:
-    """Whether the engine's class defines a 0.2.0 hook of this name itself (then the hook, not the default, holds)."""
+    """Whether the engine's class defines a method of Engine's itself (integrators: the one it must)."""
     return getattr(type(engine), hook) is not getattr(Engine, hook)
 
 
 class RigidBodyModel(SceneModel):
     """The rigid body with a fixed point as an engine models it: prepare and unsupported are the engine's, the rest
-    the defaults (SceneModel's), which an engine's subclass overrides. A 0.2.0 engine's own hooks of the old names
-    (formulations, default_run, default_dts, unsupported_run, torque_mode, export, prepare_ensemble) are called."""
+    the defaults (SceneModel's), which an engine's subclass overrides (its variants are the formulations)."""
 
     def __init__(self, engine: Engine):
         self.engine = engine
 
-    def variants(self) -> tuple[str, ...]:
-        return tuple(self.engine.formulations()) if _overrides(self.engine, "formulations") else ()
-
     def unsupported(self, case) -> str | None:
         return self.engine.unsupported(case)
 
-    def unsupported_run(self, case, variant: str, integrator: str) -> str | None:
-        if _overrides(self.engine, "unsupported_run"):
-            return self.engine.unsupported_run(case, variant, integrator)
-        return None
-
-    def default_run(self, case, variant: str, integrator: str) -> bool:
-        return self.engine.default_run(case, variant, integrator) if _overrides(self.engine, "default_run") else True
-
-    def default_dts(self, case, integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
-        if _overrides(self.engine, "default_dts"):
-            return self.engine.default_dts(case, integrator, dts)
-        return dts
-
-    def torque_mode(self, case) -> str:
-        return self.engine.torque_mode(case) if _overrides(self.engine, "torque_mode") else "none"
-
     def precisions(self, integrator: str) -> tuple[str, ...]:
-        return tuple(self.engine.precisions(integrator))
+        return tuple(self.engine.offer(integrator).precisions)
 
     def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
-        if _overrides(self.engine, "export"):
-            return self.engine.export(case, fmt, integrator, dt)
         raise NotImplementedError(f"engine {self.engine.name!r} exports no format")
 
     def prepare_ensemble(self, case, integrator: str, dt: float, quat0: np.ndarray, omega0: np.ndarray,
                          threads: int = 1) -> "EnsembleSimulation":
         """N initial states stepped together. Default: not supported."""
-        if _overrides(self.engine, "prepare_ensemble"):
-            return self.engine.prepare_ensemble(case, integrator, dt, quat0, omega0, threads)
         raise NotImplementedError(f"engine {self.engine.name!r} does not run ensembles")
 
     def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None,
                 precision: str = FLOAT64):
-        # formulation= only for an engine with formulations, tolerance= only when requested, precision= only for an
-        # engine that declares another precision than float64: the 0.2.0 signatures
+        # Engine.prepare gets formulation= only where the model has variants, tolerance= only when requested,
+        # precision= only where the engine declares another precision than float64 (prepare_keywords)
         extra = prepare_keywords(self.engine, variant, integrator, precision)
         extra |= {} if tolerance is None else {"tolerance": tolerance}
         return self.engine.prepare(case, integrator, dt, **extra)
-
-
-class _LegacyLadderModel(SceneModel):
-    """The sliding ladder of a 0.2.0 plug-in that implements Engine.prepare_sliding_ladder and its three siblings."""
-
-    def __init__(self, engine: Engine):
-        self.engine = engine
-
-    def variants(self) -> tuple[str, ...]:
-        return tuple(self.engine.sliding_ladder_models())
-
-    def integrators(self, chosen: list[str]) -> list[str]:
-        hook = getattr(self.engine, "sliding_ladder_integrators", None)  # optional in 0.2.0 (default: all)
-        return list(chosen) if hook is None else list(hook(chosen))
-
-    def prepare(self, case, variant: str, integrator: str, dt: float | None, tolerance: float | None = None):
-        return self.engine.prepare_sliding_ladder(case, variant, integrator, dt)
 
 
 class EnsembleSimulation(Protocol):
@@ -443,5 +405,3 @@ def singular_torque(case: Case) -> str | None:
     ω ∥ u = i3), so that its runs are skipped; None."""
     return next((reason for term in case.torques if (reason := term.singular(case.omega0)) is not None), None)
 
-
-precession_singular = singular_torque  # 0.2.0's name

@@ -18,8 +18,7 @@ from typing import ClassVar
 import numpy as np
 
 from .base import BatchLieSystem, Integrator, LieSystem, Stepper, StepperIntegrator
-# (ButcherTableau, EULER_TABLEAU, CLASSICAL_RK4 stay importable from here, as in 0.2.0)
-from .tableau import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau  # noqa: F401
+from .tableau import CLASSICAL_RK4, EULER_TABLEAU, ButcherTableau
 
 
 # Below this phi^2 (phi = |theta| < 0.1 rad) c(phi) is the series to phi^6: the closed form loses ~eps / phi^2 to the

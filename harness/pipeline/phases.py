@@ -92,12 +92,14 @@ def _verdicts(request: Request, values: dict, pool, progress: ProgressBar) -> di
 
 
 def _what_to_use(request: Request, values: dict, pool, progress: ProgressBar) -> dict:
-    """pareto.csv, recommending no run of an integrator that failed a verdict (it names it instead)."""
-    from ..analysis import verdicts, workprecision
+    """pareto.csv, recommending no run of an integrator that failed a verdict (it names it instead), and answers.csv,
+    the one answer per case, scope and target (analysis.answers) that the report and the terminal read."""
+    from ..analysis import answers, verdicts, workprecision
 
     path = request.options.out_dir
-    workprecision.rewrite_pareto(path, values["results"], verdicts.failed_integrators(values["verdicts"]))
-    return {"pareto": Path(path) / workprecision.PARETO_FILE}
+    failed = verdicts.failed_integrators(values["verdicts"])
+    workprecision.rewrite_pareto(path, values["results"], failed)
+    return {"pareto": Path(path) / workprecision.PARETO_FILE, "answers": answers.write(path, failed)}
 
 
 def _report(request: Request, values: dict, pool, progress: ProgressBar) -> dict:
@@ -126,7 +128,7 @@ PHASES = (
     Phase("ladders", ("results",), ("ladders",), _ladders, in_pool=True),
     Phase("advice", ("results", "ladders"), ("advice",), _advice, in_pool=True),
     Phase("verdicts", ("results",), ("verdicts",), _verdicts, in_pool=True),
-    Phase("What to use", ("results", "verdicts"), ("pareto",), _what_to_use, in_pool=True),
+    Phase("What to use", ("results", "verdicts"), ("pareto", "answers"), _what_to_use, in_pool=True),
     Phase("report", ("results", "verdicts"), ("markdown", "html", "summary"), _report, in_pool=True),
 )
 
@@ -157,7 +159,7 @@ def run(request: Request, phases: tuple[Phase, ...] = PHASES) -> dict:
             index = 0
             while index < len(phases):
                 if phases[index].in_pool:
-                    with worker_pool(options.jobs, options.engines) as pool:
+                    with worker_pool(options.jobs) as pool:
                         while index < len(phases) and phases[index].in_pool:
                             _step(phases[index], request, values, pool, progress)
                             index += 1

@@ -21,7 +21,6 @@ The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one
 """
 from __future__ import annotations
 
-import functools
 import math
 from concurrent.futures import as_completed
 from typing import Callable
@@ -29,16 +28,12 @@ from typing import Callable
 from .. import budget
 from ..analysis.ladders import (DEFAULT_TOLERANCES, POINT_BUDGET_S, TOLERANCE_COLUMNS, TOLERANCES,  # noqa: F401
                                 AdaptiveFamily, adaptive_cost, failed_point, tolerance_frame)
-from ..analysis.ladders import adaptive_families as families  # noqa: F401 (this module's name for it since 0.2.0)
 from ..scenes.metrics import state_err
 from ..trajectory import Status
 from ..run.measure import measure as run_measure, rate
 from ..run.processes import raise_unless_data
 from ..run.workers import WatchedPool
-from .points import _timed, case_truth_on, time_points as _time_points
-
-# 0.2.0's name: the one timing phase (points.time_points) at the points' tolerances
-time_points = functools.partial(_time_points, setting="tolerance")
+from .points import _timed, case_truth_on, time_points
 
 
 # ------------------------------------------------------------------------------------------------ one point
@@ -127,9 +122,9 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 progress(chosen[index].label)
     points = [point for index in range(len(chosen)) for point in results[index]]
     if timed:
-        time_points(points, {f.key: f for f in chosen})
+        time_points(points, {f.key: f for f in chosen}, setting="tolerance")
     return [{k: v for k, v in point.items() if not k.startswith("_")} for point in points]
 
 
-__all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "families",
-           "measure", "run_ladder", "run_ladders", "time_points", "tolerance_frame"]
+__all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "measure",
+           "run_ladder", "run_ladders", "tolerance_frame"]

@@ -152,6 +152,25 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
     return lines
 
 
+def with_answer_changes(summary: list[str], path_a: Path, path_b: Path, listed: int = 4) -> list[str]:
+    """The PR summary with one line of the answers (answers.csv, What to use) that changed between two result
+    folders, before its last line (within PR_LINES: in place of that line where the summary is full); unchanged for
+    a baseline file, which holds no answers, and for two folders whose answers agree."""
+    from ..analysis import answers
+
+    if not (Path(path_a).is_dir() and Path(path_b).is_dir()):
+        return summary
+    found = answers.changed(answers.read(path_a), answers.read(path_b))
+    if not found:
+        return summary
+    said = "; ".join(f"{c['case']} {c['scope']} {c['target']:.0e}: {c['a']} -> {c['b']}" for c in found[:listed])
+    line = f"What to use (answers.csv): {len(found)} answer{'s' if len(found) != 1 else ''} changed: {said}" + \
+        (f"; {len(found) - listed} more" if len(found) > listed else "")
+    if len(summary) + 2 <= PR_LINES:
+        return [*summary[:-1], line, "", summary[-1]]
+    return [*summary[:-1], line]
+
+
 def figure(changes: pd.DataFrame) -> bytes | None:
     """A bar per row of the largest accuracy changes (log10 of the ratio B / A of its most-changed metric)."""
     drawn = changes[(changes["change"] >= GROUPS[-1][0]) & (changes["change"] < math.inf)]  # NaN in B has no bar
@@ -212,6 +231,7 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
         summary = pr_lines(path_a, path_b, env_a, env_b, changes, order_changes(load_orders(path_a),
                                                                                 load_orders(path_b)),
                            verdict_changes(path_a, path_b), identical(table_a, table_b))
+        summary = with_answer_changes(summary, path_a, path_b)
         write_atomic(out / PR_FILE, "\n".join(summary) + "\n")
     if (out / index.INDEX_FILE).is_file():  # a result folder with its index (DIR/README.md) now holds these too
         index.write(out)

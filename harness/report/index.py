@@ -21,8 +21,12 @@ ENTRIES: dict[str, str] = {
     "results.csv": "one row per run: what ran, its status and reason, drifts, errors against the truth, cost",
     "verdicts.csv": "one row per verdict: declared against measured (order, bounded energy, the truth's invariants, "
                     "oracles), with its rule",
-    "pareto.csv": "per case, scope (one engine or any) and accuracy target: the cheapest run that reaches it "
-                  "(\"What to use\")",
+    "answers.csv": "what to use: per case, scope (one engine or any) and accuracy target, the one answer the report's "
+                   "What to use, its Summary and the terminal show (engine, integrator, dt or tolerance, error, cost, "
+                   "source: searched by the step-size advice, or listed by the sweep)",
+    "pareto.csv": "per case, scope and accuracy target: the cheapest of the runs the sweep and the ladders listed "
+                  "that reaches it, at the dt or tolerance it ran with (the work-precision frontier; the advice may "
+                  "have searched a larger dt since: answers.csv)",
     "advice.csv": "per laddered family and target: the largest dt (or tolerance) reaching it, checked by runs",
     "convergence.csv": "one row per run family: fitted order, round-off floor, largest stable dt",
     "ladder.csv": "every point of the dt ladders (dt, error, cost)",

@@ -52,11 +52,6 @@ BUILT_IN = tuple(f"{__package__}.{module}" for module in (
 SECTIONS = Registry("report section plug-in", ENTRY_POINT_GROUP, BUILT_IN)
 
 
-class SectionError(ImportError):
-    """A report-section plug-in that does not import: one line naming it (0.2.0's exception; a failed plug-in is now
-    a warning, and the report renders without it)."""
-
-
 def register(name: str, order: float) -> Callable:
     """Decorator: register `render(context) -> lines` as the section `name` at `order` (a name registered again is
     replaced: a module imported twice, or a plug-in's own version of a section)."""

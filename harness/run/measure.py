@@ -22,8 +22,8 @@ from .spec import RunKey, base_row
 
 
 def precision_keyword(run: RunKey) -> dict:
-    """precision= for a model's prepare, only where the run is not float64 (a model of 0.2.0's protocol, or of a
-    scene that has no precision, never gets it)."""
+    """precision= for a model's prepare, only where the run is not float64 (a model of a scene that has no
+    precision, the sliding ladder's, never gets it)."""
     return {} if run.precision == FLOAT64 else {"precision": run.precision}
 
 

@@ -130,11 +130,11 @@ def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
             "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
 
 
-def _init_worker(engines: tuple[str, ...], budgets: budget.Budgets | None = None) -> None:
+def _init_worker(budgets: budget.Budgets | None = None) -> None:
     """A pool worker's start-up: ignore Ctrl-C and take the parent's budgets (for the ladders' points, which run here
     too). The engines' adapters load on their first run here (get_engine, cached per process): a worker the
     engine-affine pool never gives an engine's run never pays for its SDK (issue 29: every worker paid for every
-    engine). `engines` stays for the pools built with 0.2.0's arguments."""
+    engine)."""
     if budgets is not None:
         budget.configure(budgets)
     # Ctrl-C reaches the whole process group: the parent handles it (stops the sweep, ends the workers), so a worker
@@ -241,15 +241,15 @@ def in_process(jobs: int) -> bool:
     return jobs == 1 and os.environ.get(IN_PROCESS_ENV) == "1"
 
 
-def worker_pool(jobs: int | None, engines: tuple[str, ...]):
+def worker_pool(jobs: int | None):
     """The local process pool of `stereodyn run`, shared by the sweep (run_sweep(pool=...)) and the dt ladders
     (harness.workprecision.analyse(pool=...)); None when the runs go in this process (in_process). A context
     manager: Ctrl-C inside it ends the workers at once."""
-    return local_pool(jobs or os.cpu_count() or 1, 2, engines)
+    return local_pool(jobs or os.cpu_count() or 1, 2)
 
 
 @contextmanager
-def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[WatchedPool | None]:
+def local_pool(jobs: int, runs: int) -> Iterator[WatchedPool | None]:
     """The process pool of a local sweep (None when there is no run, or they go in this process: in_process), its
     workers started at once so that they spawn and import (~1 s) while the parent computes the truths. Even one job
     is a worker: the parent ends one that runs past its budget (harness.run.workers). On an exception (Ctrl-C) the
@@ -258,7 +258,7 @@ def local_pool(jobs: int, runs: int, engines: tuple[str, ...]) -> Iterator[Watch
         yield None
         return
     jobs = min(jobs, runs)  # no idle worker (each spawns and imports the SDKs: ~185 MB)
-    pool = WatchedPool(jobs, _init_worker, (engines, budget.configured()))
+    pool = WatchedPool(jobs, _init_worker, (budget.configured(),))
     try:
         yield pool
     except BaseException:

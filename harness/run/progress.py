@@ -2,7 +2,7 @@
 per phase and a heartbeat line at least every HEARTBEAT_S (phase, count done of total where the phase counts, elapsed,
 ETA), so a log never goes quiet for minutes. Silent when disabled (--quiet).
 
-The ETA weighs runs by their cost estimate (estimated seconds, harness.run.sweep._cost), since the sweep starts the
+The ETA weighs runs by their cost estimate (estimated seconds, harness.run.pool.cost), since the sweep starts the
 longest runs first and a count-based estimate would be far too pessimistic early on.
 """
 from __future__ import annotations

@@ -8,7 +8,6 @@ import functools
 import math
 import os
 import time
-import warnings
 from contextlib import ExitStack, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,7 +21,6 @@ from ..engines import get_engine
 from ..environment import TIMING_END, TIMING_START, load_snapshot
 from ..environment import environment as current_environment
 from ..scenes import checks, scene_of
-from ..scenes.rigid_body import CaseTruth, compute_truth, truth_grid  # noqa: F401 (0.2.0's names here)
 from ..trajectory import Status
 from . import timing
 from .distributed import run_on_cluster
@@ -85,12 +83,9 @@ def time_spec(spec: RunSpec, steps: float) -> dict:
     return {k: v for k, v in time_specs([spec], [steps])[0].items() if not k.startswith("_")}
 
 
-_cost, _local_pool, _worker_failed_row = cost, local_pool, worker_failed_row  # the names of 0.2.0's runner
-
-
-def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar | None = None,
+def run_sweep(cases: list, options: SweepOptions, *, progress: ProgressBar | None = None,
               pool: WatchedPool | None = None, agreement: list | None = None, final: bool = True,
-              decides: Callable[[pd.DataFrame], set] | None = None, **legacy_options) -> pd.DataFrame:
+              decides: Callable[[pd.DataFrame], set] | None = None) -> pd.DataFrame:
     """Run every case as `options` says and return the table.
 
     Every finished run is stored at once (harness.run.store: out_dir/store/<key>.json) and out_dir/results.csv is
@@ -109,25 +104,10 @@ def run_sweep(cases: list, options: SweepOptions, *legacy, progress: ProgressBar
     decides: which runs to time with repeats (harness.analysis.decisive.decisive: the ok rows of one timing group,
     their us_per_sim_s a single timed run, in -> the index labels to repeat); the others keep their single time
     (results.csv `timing`). None: every run is timed with repeats.
-
-    0.2.0's form, run_sweep(cases, engines, integrators, out_dir, jobs=..., certify=..., resume=..., scheduler=...,
-    save_trajectories=..., progress=..., pool=..., agreement=..., final=...), still runs, with a DeprecationWarning.
     """
-    if not isinstance(options, SweepOptions):
-        options = _legacy_options(options, *legacy, **legacy_options)
-    elif legacy or legacy_options:
-        raise TypeError(f"run_sweep(cases, options, ...): unexpected arguments "
-                        f"{', '.join([repr(a) for a in legacy] + list(legacy_options))}")
+    if not isinstance(options, SweepOptions):  # 0.3.0 dropped run_sweep(cases, engines, integrators, out_dir, ...)
+        raise TypeError(f"run_sweep(cases, options): options must be a SweepOptions, not {type(options).__name__}")
     return _sweep(cases, options, progress or ProgressBar(enabled=False), pool, final, agreement, decides)
-
-
-def _legacy_options(engines, integrators, out_dir, jobs=None, certify=True, *, resume=False, scheduler=None,
-                    save_trajectories=False) -> SweepOptions:
-    """SweepOptions from 0.2.0's arguments of run_sweep (progress, pool, agreement and final are run_sweep's own)."""
-    warnings.warn("run_sweep(cases, engines, integrators, out_dir, jobs=..., ...) is deprecated: call "
-                  "run_sweep(cases, SweepOptions(engines, out_dir, integrators, jobs, ...))", DeprecationWarning,
-                  stacklevel=3)
-    return SweepOptions(engines, out_dir, integrators, jobs, certify, resume, scheduler, save_trajectories)
 
 
 def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: WatchedPool | None, final: bool,
@@ -205,7 +185,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         local_jobs = 1 if options.scheduler else options.jobs or os.cpu_count() or 1
         # a cluster runs the runs itself (no local worker); else the given pool, or one of the sweep's own
         own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
-            local_pool(local_jobs, len(pending), tuple(engines))
+            local_pool(local_jobs, len(pending))
         pool = open_pool.enter_context(own_pool)
         progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
                        f"{plural(local_jobs, 'worker')}")

@@ -13,7 +13,6 @@ from ...reference.registry import Registry
 
 if TYPE_CHECKING:
     from ..grid import TimeGrid
-    from ..engines.base import SceneModel
 
 
 class Scene(Protocol):
@@ -37,10 +36,11 @@ class Scene(Protocol):
         """The case's truth on the union of the grids' sample times, or None for a scene that checks each run
         against its own equation."""
 
-    def metrics(self, run: Any, model: "SceneModel", traj: Any, grid: "TimeGrid", truth: Any, full: bool,
+    def metrics(self, run: Any, model: Any, traj: Any, grid: "TimeGrid", truth: Any, full: bool,
                 rerun: Callable[[Any], Any], keep_states: bool = False) -> dict:
-        """The row's columns measured from a run (run: a RunKey) of the engine's model: drifts, errors (against truth,
-        when not None), and, when full, the sweep's extras (check rows under checks.ROW_KEY, the invariant series
+        """The row's columns measured from a run (run: a RunKey) of the engine's model (model: its SceneModel for the
+        scene, harness.engines.base; named, not imported, since the engines import the scenes): drifts, errors
+        (against truth, when not None), and, when full, the sweep's extras (check rows under checks.ROW_KEY, the invariant series
         under "_series", with keep_states the recorded states under "_states"). rerun(case) runs the same model on
         another case (a perturbed start) on the same grid, for checks that compare two runs."""
 

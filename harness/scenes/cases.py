@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from contextlib import contextmanager
-from dataclasses import InitVar, dataclass
+from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -12,13 +12,11 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ...reference import plugins
-from ...reference.body import RigidBody
 from .base import kinds, scene
+from .case import RIGID_BODY, Case
 from ...reference.exact import ORACLES as EXACT_SOLUTIONS
 from ...reference.sliding_ladder import Ladder
-from ...reference.torque_models import (BodyTorque, CentralField, PrecessionTorque, TorqueModel, TorqueModelError,
-                                        load_plugins, merged, models)
-from ...reference.torque_models.precession import MIN_SIN_THETA  # noqa: F401 (0.2.0's name here)
+from ...reference.torque_models import TorqueModelError, load_plugins, models
 from ..readers import ReadError, read_toml
 
 # The exact solutions a case may name in [expect] oracle (DESIGN §3; each lives in reference/exact).
@@ -26,8 +24,9 @@ ORACLES = ("euler_poinsot", "euler_poinsot_separatrix", "lagrange_precession", "
            "grioli_precession", "hess_grioli", "mlodzejowski", "self_excited_spinup", "self_excited_uniform")
 # The oracles whose exact solutions model a torque (their checks see it through Case.body; TorqueModel.oracles).
 TORQUE_ORACLES = tuple(dict.fromkeys(oracle for model in models() for oracle in model.oracles))
-# Scene kinds (top-level `kind`): a rigid body with a fixed point (default), and the sliding ladder (FORMULARY T5).
-RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"
+# Scene kinds (top-level `kind`): a rigid body with a fixed point (default, RIGID_BODY: harness.scenes.case), and the
+# sliding ladder (FORMULARY T5).
+SLIDING_LADDER = "sliding_ladder"
 
 DEFAULT_SAMPLES = 1000
 UNIT_TOL = 1e-9            # |v| within this of 1 is normalised, further off is an error (DESIGN §3)
@@ -76,55 +75,6 @@ CHAOTIC_TAGS = ("chaotic", "unstable")
 
 
 @dataclass(frozen=True, eq=False)
-class Case:
-    """One scene (DESIGN §3), validated.
-
-    inertia: (3, 3) kg m^2 about O, body frame. com: (3,) m body frame. gravity_direction: (3,) world unit.
-    quat0: (4,) initial attitude, scalar first, body -> world, unit. omega0: (3,) rad/s, body frame.
-    dt: the steps to sweep, s. path: the file it came from (None for a case built in code).
-    torques: the external torques beyond gravity (reference.torque_models' terms, registry order; RigidBody's);
-    body_torque=, central_field=, precession_torque= (0.2.0's keywords) add or replace that model's term, and the
-    attributes of those names read it (None: absent).
-    """
-
-    name: str
-    description: str
-    tags: tuple[str, ...]
-    mass: float
-    com: np.ndarray
-    inertia: np.ndarray
-    gravity: float                      # 0.0 when the case has no [gravity] table
-    gravity_direction: np.ndarray
-    quat0: np.ndarray
-    omega0: np.ndarray
-    t_end: float
-    dt: tuple[float, ...]
-    samples: int
-    oracle: str | None = None
-    horizon: float | None = None
-    body_torque: InitVar[BodyTorque | None] = None
-    central_field: InitVar[CentralField | None] = None
-    path: Path | None = None
-    precession_torque: InitVar[PrecessionTorque | None] = None
-    kind: str = RIGID_BODY
-    physical: bool = True               # [body] physical = false: the triangle inequalities are not required
-    torques: tuple[TorqueModel, ...] = ()
-
-    def __post_init__(self, body_torque, central_field, precession_torque) -> None:
-        object.__setattr__(self, "torques", merged(self.torques, body_torque, central_field, precession_torque))
-
-    @property
-    def body(self) -> RigidBody:
-        return RigidBody(self.inertia, self.mass, self.com, self.gravity, self.gravity_direction,
-                         torques=self.torques)
-
-    @property
-    def source(self) -> str:
-        """Where the case came from, for messages: its file, or its name for a case built in code."""
-        return str(self.path) if self.path is not None else self.name
-
-
-@dataclass(frozen=True, eq=False)
 class LadderCase:
     """A sliding-ladder scene (kind "sliding_ladder", FORMULARY T5): a planar, constrained one-degree-of-freedom
     rod, not a body with a fixed point; harness.scenes.sliding_ladder runs it.
@@ -141,9 +91,6 @@ class LadderCase:
     kind: str = SLIDING_LADDER
     oracle: None = None
     horizon: None = None
-    body_torque: None = None
-    central_field: None = None
-    precession_torque: None = None
 
     @property
     def source(self) -> str:
@@ -554,14 +501,3 @@ def _short(value: Any) -> str:
 
 def _fmt(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
-
-
-# 0.2.0's attributes, read from the terms (set after the dataclass is made: its __init__ keeps their keywords).
-Case.body_torque = property(lambda self: _term(self, BodyTorque), doc="The BodyTorque term, or None.")
-Case.central_field = property(lambda self: _term(self, CentralField), doc="The CentralField term, or None.")
-Case.precession_torque = property(lambda self: _term(self, PrecessionTorque),
-                                  doc="The PrecessionTorque term, or None.")
-
-
-def _term(case: Case, model: type) -> TorqueModel | None:
-    return next((term for term in case.torques if type(term) is model), None)

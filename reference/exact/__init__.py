@@ -9,8 +9,8 @@ Modules: stationary (Lyapunov exponent and small-oscillation frequencies, FORMUL
 Hess–Grioli, Mlodzejowski; FORMULARY G5, G9–G11), self_excited (the tanh spin-up and uniform rotations under a
 body torque, G12, G13; the torque is part of the RigidBody the check and solve receive), pendulum (the plane pendulum in Jacobi functions).
 The torque-free body (both families, symmetric body, separatrix; periods, Montgomery's phase) is
-reference/torque_free.py, outside this package so that the splitting integrator imports it alone; euler_poinsot here
-re-exports it (0.2.0's path).
+reference/torque_free.py, outside this package so that the splitting integrator imports it alone; its names are
+importable from here too.
 """
 from __future__ import annotations
 

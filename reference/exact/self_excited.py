@@ -15,11 +15,11 @@ import numpy as np
 from ..body import RigidBody, principal_frame_for
 from ..closed_form import CONDITION_RTOL
 from ..rotations import quat_exp, quat_mul
-from ..torque_models.body_torque import body_torque_components
+from ..torque_models.body_torque import BodyTorque, body_torque_components
 
 
 def _only_body_torque(body: RigidBody) -> str | None:
-    if body.body_torque is None:
+    if body.torque(BodyTorque) is None:
         return "needs a [body_torque]"
     if body.has_gravity or len(body.torques) != 1:
         return "the body torque must be the only torque (no gravity, no central field)"
@@ -35,7 +35,7 @@ def spinup_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> str 
     reason = _only_body_torque(body)
     if reason:
         return reason
-    torque = body.body_torque
+    torque = body.torque(BodyTorque)
     u = np.asarray(torque.axis, dtype=float)
     if principal_frame_for(body.inertia, u) is None:
         return "the torque axis must be a principal axis at O"
@@ -51,7 +51,7 @@ def spinup_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> str 
 
 def spinup_solve(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray,
                  times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    torque = body.body_torque
+    torque = body.torque(BodyTorque)
     u = np.asarray(torque.axis, dtype=float)
     (_, _, a3), _ = principal_frame_for(body.inertia, u)
     times = np.asarray(times, dtype=float)
@@ -70,7 +70,7 @@ def uniform_check(body: RigidBody, quat0: np.ndarray, omega0: np.ndarray) -> str
         return reason
     omega0 = np.asarray(omega0, dtype=float)
     momentum = body.inertia @ omega0
-    torque = body.body_torque
+    torque = body.torque(BodyTorque)
     residual = np.cross(momentum, omega0) + np.array(body_torque_components(torque.axis, torque.a, torque.b, omega0))
     scale = float(np.linalg.norm(momentum) * np.linalg.norm(omega0)) + abs(torque.a) \
         + abs(torque.b) * float(omega0 @ omega0)

@@ -9,16 +9,16 @@ engines' per-stage closure, energies and work), reference.truth concatenates the
     precession.py      PrecessionTorque: Grioli's torque (41) (G14)
 
 The built-ins register in this order (the order of the truth's parameter blocks), then every other module of this
-folder in name order: a new model is its file, nothing else. reference.body imports the three built-ins' modules and
-nothing else of the torques, so the body and the torque sums (reference.torques) do not import each other. 0.2.0's
-names (the three dataclasses and their *_components formulas) stay importable from here.
+folder in name order: a new model is its file, nothing else. reference.body imports the base module (the order rule)
+and nothing else of the torques, so the body and the torque sums (reference.torques) do not import each other. The
+built-ins' dataclasses and their *_components formulas are importable from here.
 """
 from __future__ import annotations
 
 import pkgutil
 
 from ..registry import Registry
-from .base import TORQUES, At, TorqueModel, merged, models, ordered, register  # noqa: F401
+from .base import TORQUES, At, TorqueModel, models, ordered, register  # noqa: F401
 from .body_torque import BodyTorque, body_torque_components  # noqa: F401
 from .central_field import CentralField, gravity_gradient_components  # noqa: F401
 from .precession import PrecessionTorque, precession_components  # noqa: F401

@@ -140,10 +140,3 @@ def ordered(terms) -> tuple[TorqueModel, ...]:
             raise ValueError(f"two [{model.key}] torques on one body (one term per model)")
         seen[model] = term
     return tuple(sorted(seen.values(), key=lambda term: order[type(term)]))
-
-
-def merged(terms, *given) -> tuple[TorqueModel, ...]:
-    """terms with each non-None term of `given` replacing that of its model (0.2.0's keywords body_torque=,
-    central_field=, precession_torque= beside torques=)."""
-    replacing = {type(term) for term in given if term is not None}
-    return ordered([term for term in terms if type(term) not in replacing] + [t for t in given if t is not None])

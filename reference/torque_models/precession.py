@@ -97,7 +97,7 @@ class PrecessionTorque(TorqueModel):
 
 def precession_axis(body, quat: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """(40) e = sin θ (ω − (ω·u)u)/|ω × u| + cos θ u in world components, u = i3: (..., 3)."""
-    theta = body.precession_torque.theta
+    theta = body.torque(PrecessionTorque).theta
     omega = np.asarray(omega, dtype=float)
     transverse = omega * np.array([1.0, 1.0, 0.0])
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -45,7 +45,7 @@ def main() -> None:
     tasks = advising.advice_tasks(chosen, adaptive, results, ladder[ladder["source"] == "ladder"], tolerance,
                                   convergence, tolerance_fits(tolerance))
     targets = tuple(float(t) for t in args.targets.split(","))
-    with runner.worker_pool(args.jobs, tuple(engines)) as pool:
+    with runner.worker_pool(args.jobs) as pool:
         start = time.perf_counter()
         table = advising.run_advice(tasks, targets, workprecision.DEFAULT_MAX_STEPS, pool)
         seconds = time.perf_counter() - start

@@ -33,7 +33,7 @@ def phase(results: pd.DataFrame, jobs: int, short: bool) -> tuple[float, pd.Data
     if not short:
         workprecision.short_ladder_families = lambda *args, **kwargs: []
     try:
-        with tempfile.TemporaryDirectory() as out, runner.worker_pool(jobs, tuple(ENGINES)) as pool:
+        with tempfile.TemporaryDirectory() as out, runner.worker_pool(jobs) as pool:
             start = time.perf_counter()
             work_precision.analyse(Path(out), results, suite, ENGINES, None, ladder="default", pool=pool)
             seconds = time.perf_counter() - start
