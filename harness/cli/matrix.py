@@ -155,9 +155,6 @@ def _terminated(signum, frame) -> None:
 
 
 def main(args) -> int:
-
-
-def main(args) -> int:
     from ..run import environments as envs
     from ..run.store import folder_lock
     from .history import check_steps
