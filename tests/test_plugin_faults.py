@@ -226,6 +226,40 @@ def test_a_section_that_raises_exits_or_returns_garbage_is_left_out_with_one_war
     assert os._exit is plugins._real_exit  # the guard put it back
 
 
+
+def test_a_section_raising_its_own_keyboard_interrupt_or_generator_exit_is_left_out(tmp_path, only_sections,
+                                                                                   monkeypatch):
+    """A section's own `raise KeyboardInterrupt` threw a finished run away (exit 130, complete: false, no report;
+    found by the independent attack of issue 46); the user's Ctrl-C still ends the command."""
+    import signal
+
+    from stereodyn.harness.run import processes
+
+    def interrupts(context):
+        raise KeyboardInterrupt
+
+    def generator_exit(context):
+        raise GeneratorExit
+
+    sections.register("interrupts", 0)(interrupts)
+    sections.register("generator-exit", 1)(generator_exit)
+    sections.register("fine", 2)(lambda c: ["## fine", ""])
+    monkeypatch.setattr(signal, "getsignal", lambda signum: processes.on_interrupt)  # the command's handler
+    processes.forget_interrupts()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            page = sections.render(_context(tmp_path))
+        except (KeyboardInterrupt, GeneratorExit) as exc:  # not out of the test: pytest would stop the session
+            pytest.fail(f"the section's own {type(exc).__name__} ended the render")
+    assert page == "## fine\n\n"
+    said = [str(w.message) for w in caught if issubclass(w.category, plugins.PluginWarning)]
+    assert [line.split("'")[1] for line in said] == ["interrupts", "generator-exit"], said
+    assert said[0].endswith("left out: KeyboardInterrupt") and said[1].endswith("left out: GeneratorExit"), said
+    monkeypatch.setattr(processes, "interrupted", lambda: True)  # the user pressed Ctrl-C: not the plug-in's fault
+    with pytest.raises(KeyboardInterrupt):
+        sections.render(_context(tmp_path))
+
 def test_the_guard_takes_os_exit_only_from_its_own_thread():
     with pytest.raises(plugins.PluginError, match=r"^scene plug-in 'x' \(x\) does not load: ProcessExit: called "
                                                   r"os._exit\(3\)$"):
