@@ -228,7 +228,7 @@ def swept(tmp_path_factory):
     ("runs.json", '{"format": 1, "runs": {"a": 1}, "environment": []}', 0),
     ("runs.json", "[1, 2]", 0),
     ("checks.csv", "", 2),
-    ("pareto.csv", "\x00garbage,\n\"x", 2),
+    ("answers.csv", "\x00garbage,\n\"x", 2),  # the report reads answers.csv, not pareto.csv
 ])
 def test_report_on_a_malformed_table_is_one_line_or_ignores_it(swept, tmp_path, capsys, name, text, code):
     """docs/limits.md: results.csv without rows is an error; a runs.json of the wrong shape counts as absent (the
@@ -348,7 +348,9 @@ def test_interrupted_while_importing_is_one_line(monkeypatch, capsys):
     def interrupted():
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "_load", interrupted)
+    from stereodyn.harness.cli import dispatch
+
+    monkeypatch.setattr(dispatch, "_load", interrupted)  # the entry point is cli.dispatch since the cli split
     assert cli.main(["cases"]) == 130
     err = capsys.readouterr().err
     assert err == "stereodyn: interrupted\n"
