@@ -64,7 +64,7 @@ def test_a_task_that_exits_interrupts_or_kills_its_worker_fails_that_task_only()
     """SystemExit, KeyboardInterrupt (a worker ignores Ctrl-C: it is the code's) and GeneratorExit come back as
     TaskEnded, an Exception every caller makes a row of (the parent raised them: `run` exited 0 or 130 with no
     report); os._exit and SIGKILL are WorkerDied saying how (it said "exit code None"); the pool goes on."""
-    pool = WatchedPool(1, run_pool._init_worker, ((), None))
+    pool = WatchedPool(1, run_pool._init_worker, (None,))  # budgets: none
     try:
         for kind, name in (("exit", "SystemExit: 0"), ("interrupt", "KeyboardInterrupt"),
                            ("generator", "GeneratorExit")):
@@ -84,7 +84,7 @@ def test_what_a_plugin_starts_in_a_worker_dies_with_the_worker():
     """A child forked (os.fork) or started (subprocess) by a task outlived the command (only the worker's pid was
     killed). Each worker leads its own process group: a worker that ends kills the rest of it, the parent kills the
     group of a worker it ends, and a forked child has the parent-death signal on the worker."""
-    pool = WatchedPool(1, run_pool._init_worker, ((), None))
+    pool = WatchedPool(1, run_pool._init_worker, (None,))  # budgets: none
     try:
         worker = pool.submit(faulty_tasks.pid).result(timeout=120)
         assert os.getpgid(worker) == worker  # its own group, in this session
