@@ -465,7 +465,7 @@ def test_hostile_engines_are_their_rows_and_the_sweep_completes(tmp_path):
     assert forked and _gone(forked), [p for p in forked if _alive(p)]
 
 
-PKG = "hostile_loads" + "/"  # the files of the package the test writes (not files of this repository: tests/test_docs.py)
+PKG = "hostile_loads" + "/"  # files the test writes, not the repository's (tests/test_docs.py reads paths)
 HOSTILE_LOADS = {
     PKG + "__init__.py": "",
     PKG + "scene_without_parse.py": '''
