@@ -84,7 +84,9 @@ def test_under_a_budget_a_run_goes_in_chunks_with_the_same_numbers_and_stops_at_
 
 
 def test_metadata_and_unsupported_torques(mjx):
-    assert mjx.integrators() == ("euler", "rk4", "implicitfast")
+    # read from the installed MJX (issue 48): the three it runs, then any it offers and says why it does not run
+    assert mjx.integrators()[:3] == ("euler", "rk4", "implicitfast")
+    assert all(name in mjx.not_modelled for name in mjx.integrators()[3:]), mjx.integrators()
     assert mjx.precisions("euler") == ("float64", "float32")
     assert mjx.method("euler") == get_engine("mujoco").method("euler") == "semi_implicit_euler"
     assert mjx.method("rk4") == "rk4" and mjx.declared_order("rk4") == 4.0
