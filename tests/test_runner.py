@@ -47,11 +47,18 @@ def test_every_run_is_a_row_with_the_contract_columns(short_suite):
     assert (absent.status == "skipped").all(), absent
     assert absent.message.astype(str).str.contains("install the extra: pip install '").all(), absent
     present = df[~df.engine.isin(missing)]
-    assert set(present.status) == {"ok"}, present[present.status != "ok"][["case", "engine", "integrator", "message"]]
+    # an integrator the installed SDK offers and the adapter does not model (MJX's and Warp's discrete, MuJoCo's
+    # cenic: issue 48) is a skipped row naming why; every other row is ok
+    unmodelled = present.apply(lambda r: bool(get_engine(r.engine).offer(r.integrator).unmodelled), axis=1)
+    assert (present[unmodelled].status == "skipped").all() and \
+        present[unmodelled].message.str.startswith("not modelled by stereodyn's adapter").all(), present[unmodelled]
+    ran = present[~unmodelled]
+    assert set(ran.status) == {"ok"}, ran[ran.status != "ok"][["case", "engine", "integrator", "message"]]
     if not isinstance(get_engine("drake"), UnavailableEngine):
         # with the extra: 3 fixed-step methods x 2 dts + adaptive RK3 on rpy_ball, and on quaternion_free only where O
         # is the centre of mass (free-asymmetric); elsewhere that model is absent from the default sweep, not skipped
-        drake = df[df.engine == "drake"]
+        # (plus one skipped row per case for each scheme the installed Drake offers and the adapter does not model)
+        drake = ran[ran.engine == "drake"]
         assert len(drake) == (4 + 1) * (3 * 2 + 1)
         assert set(drake[drake.formulation == "quaternion_free"].case) == {"free-asymmetric"}
     else:  # without it: one skipped row per case, naming the install command

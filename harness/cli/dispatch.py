@@ -1,15 +1,37 @@
-"""`stereodyn`'s entry point (harness.cli.main): load the commands inside the Ctrl-C handling, parse, run the command,
+"""`stereodyn`'s entry point (harness.cli.main): assemble the commands, load them inside the Ctrl-C handling, parse, run the command,
 and turn its errors into exit codes (DESIGN §5): 0 done (failed runs are data), 1 check failed, 2 bad input, 3 a bug
 in stereodyn (harness/errors.py), 130 stopped."""
 from __future__ import annotations
 
+import argparse
+import importlib
 import os
 import signal
 import sys
 import warnings
 
-from . import common
-from .common import BadInput, one_line, warn
+from .common import BadInput, Parser, load, one_line, warn
+from ..run.processes import interrupted_while_loading
+
+# The commands, in the order of `stereodyn --help`: each the module of its name in this package.
+COMMANDS = ("cases", "run", "report", "baseline", "check", "compare", "history", "matrix", "integrators", "engines",
+            "advise", "export")
+
+
+def command(name: str):
+    """A command's module, loaded by name (as asv loads its commands): nothing imports one before, so that
+    `import stereodyn.harness.cli` stays light and Ctrl-C while one loads is one line (main)."""
+    return importlib.import_module(f"{__package__}.{name}")
+
+
+def parser() -> argparse.ArgumentParser:
+    """`stereodyn`'s parser: every command's, in COMMANDS order (tools/docs_reference.py documents it)."""
+    load()  # the argument types check against the case format's and the budgets' limits
+    top = Parser(prog="stereodyn", description=sys.modules[__package__].__doc__.splitlines()[0])
+    commands = top.add_subparsers(dest="command", required=True)
+    for name in COMMANDS:
+        command(name).add_parser(commands)
+    return top
 
 
 # What the interrupt line adds, per command: what to run to go on (a command that keeps nothing says nothing more).
@@ -18,17 +40,13 @@ INTERRUPTED = {"run": "; every finished run is stored (rerun with --resume to go
                          "go on: it reuses them)"}
 
 def _load() -> None:
-    """The modules the commands and their checks need, and every command's module (harness.cli.COMMANDS)."""
-    from . import COMMANDS, command
-
-    common.load()
+    """The modules the commands and their checks need, and every command's module (COMMANDS)."""
+    load()
     for name in COMMANDS:
         command(name)
 
 
 def main(argv: list[str] | None = None) -> int:
-    from . import _interrupted_while_loading, command, parser
-
     # Numeric warnings (overflow in a diverging run, which is data) and MuJoCo's are not for stderr; the workers
     # inherit the environment variable.
     # A case name in a script the plot font lacks (CJK) is drawn as boxes; matplotlib's warning about it is noise too.
@@ -38,6 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _load()
         from ..analysis.gate import GateError
+        from ..engines import EngineError
+        from ..scenes.cases import CaseError
         from ..run.distributed import ClusterError
         from ..export import ExportError
         from ..run.store import FolderNotReady, StoreBusy
@@ -51,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
 
     processes.forget_interrupts()
     _plugin_warnings_on_one_line()
-    if signal.getsignal(signal.SIGINT) in (_interrupted_while_loading, signal.default_int_handler):
+    if signal.getsignal(signal.SIGINT) in (interrupted_while_loading, signal.default_int_handler):
         signal.signal(signal.SIGINT, processes.on_interrupt)  # loaded: KeyboardInterrupt, handled below
 
     argv, run_args = _run_arguments(sys.argv[1:] if argv is None else list(argv))
@@ -66,8 +86,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = command(args.command).main(args)
         sys.stdout.flush()  # here, not at exit: a reader gone (`| head -1`) is met while the status is still ours
-    except (common.CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError,
-            common.EngineError, CompareError, FolderNotReady) as exc:
+    except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError,
+            EngineError, CompareError, FolderNotReady) as exc:
         code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""

@@ -193,6 +193,12 @@ def starting_workers() -> Iterator[None]:
 _interrupts: list[float] = []  # monotonic times of the Ctrl-Cs this process took (on_interrupt)
 
 
+def interrupted_while_loading(signum, frame) -> None:
+    """SIGINT while the command's modules load (harness/cli/__init__.py puts it): one line, exit 130."""
+    sys.stderr.write("stereodyn: interrupted\n")
+    os._exit(130)
+
+
 def on_interrupt(signum, frame) -> None:
     """The command's SIGINT handler: remember the interrupt, then raise KeyboardInterrupt as Python's own does. An
     SDK that swallows or rewraps the KeyboardInterrupt (pybind11 turns one during a module's init into ImportError:
