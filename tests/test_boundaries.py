@@ -307,6 +307,7 @@ def test_the_lock_covers_the_whole_command(tmp_path, monkeypatch, capsys):
             Store(out).__enter__()
 
 
+@pytest.mark.slow  # since 2026-12-02, ~17 s; by default test_store.py's killed sweep that resumes (the default suite's 8 minutes)
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
 def test_a_sigkilled_sweep_leaves_no_process_and_the_next_run_no_temporary(tmp_path):
     path = case_file(tmp_path, BASE.replace("t_end = 0.1", "t_end = 2.0").replace("dt = [1e-2]",

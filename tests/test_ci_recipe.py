@@ -10,6 +10,8 @@ import sys
 from pathlib import Path
 from xml.etree import ElementTree
 
+import pytest
+
 import plugin_packages
 
 
@@ -48,6 +50,7 @@ def _source(root: Path, b: str) -> Path:
     return root
 
 
+@pytest.mark.slow  # since 2026-12-02, ~50 s: the whole shell recipe; by default test_ci_output.py and test_ci_truth.py check check's outputs (the default suite's 8 minutes)
 def test_the_shell_recipe_gates_a_plugin_integrator_and_writes_the_pull_request_summary(tmp_path):
     base, head = _source(tmp_path / "base", "(0.5, 0.5)"), _source(tmp_path / "head", "(0.6, 0.4)")
     site, out, summary = tmp_path / "site", tmp_path / "gate", tmp_path / "step-summary.md"

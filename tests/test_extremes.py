@@ -43,6 +43,7 @@ def test_extreme_cases_are_tagged():
     assert round(long.t_end / min(long.dt)) >= 1_000_000
 
 
+@pytest.mark.slow  # since 2026-12-02, ~24 s; the whole extremes suite is -m slow beside it (the default suite's 8 minutes)
 def test_extremes_fast_subset_runs_clean(tmp_path):
     cases = [c for c in load_suite(EXTREME_DIR) if c.name in FAST_CASES]
     df = run_sweep(cases, SweepOptions(["mujoco", "pinocchio"], tmp_path, ["euler", "rk4", "symplectic_euler"], jobs=2))

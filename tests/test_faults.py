@@ -262,6 +262,7 @@ def test_a_run_interrupted_before_its_end_leaves_the_folder_unfinished(good, tmp
     assert cli.main(["check", str(out), "--baseline", str(good[1])]) == 0
 
 
+@pytest.mark.slow  # since 2026-12-02, ~17 s; by default test_an_unfinished_folder_is_refused_or_read_as_partial (the default suite's 8 minutes)
 def test_an_unfinished_folder_stays_unfinished_when_its_runs_json_is_lost(good, tmp_path, monkeypatch, capsys):
     """W3: a killed sweep's folder whose runs.json was then deleted, cut or garbled was read with one warning ("no
     completion mark") and exit 0: the mark rested on one file. Its witness, DIR/store/unfinished, keeps it refused."""

@@ -19,6 +19,9 @@ from PIL import Image
 from stereodyn.harness import cli
 from stereodyn.harness.report import figures
 
+# -m slow since 2026-12-02: the module's report, drawn with figures, is ~45 s on 2 idle cores (the default suite's 8
+# minutes); by default tests/test_figure_layout.py checks the figures' text sizes as drawn
+pytestmark = pytest.mark.slow
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 WINDOW = (1400, 2000)
 MIN_TEXT_PX = 10.0

@@ -157,6 +157,7 @@ def _stereodyn_run(plugin: Path, tmp_path: Path, *options: str) -> tuple[subproc
     return subprocess.CompletedProcess(argv, process.returncode, stdout, stderr), took, left
 
 
+@pytest.mark.slow  # since 2026-12-02, ~55 s for both; by default the per-phase test below ends a hung worker at its budget (the default suite's 8 minutes)
 @pytest.mark.parametrize("jobs", ["1", "2"])
 def test_hung_engine_plugins_are_ended_at_their_budget_plus_grace(plugin, tmp_path, jobs):
     result, took, left = _stereodyn_run(plugin, tmp_path, "--jobs", jobs)

@@ -69,6 +69,7 @@ def installed(tmp_path_factory) -> tuple[Path, Path]:
 _env = plugin_packages.env_with
 
 
+@pytest.mark.slow  # since 2026-12-02, ~23 s; by default the README example's own tests and test_engine_example.py (the default suite's 8 minutes)
 def test_the_readme_example_is_listed_and_runs_by_its_class_name(installed, tmp_path):
     target, _ = installed
     listing = subprocess.run([sys.executable, "-m", "stereodyn.harness.cli", "integrators"], capture_output=True,

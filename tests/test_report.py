@@ -120,6 +120,7 @@ def test_one_case_is_counted_in_the_singular(reported, tmp_path):
     assert re.search(r"\n\d+ runs over 1 case: ", text) and "1 case × " in text and "1 cases" not in text
 
 
+@pytest.mark.slow  # since 2026-12-02, ~13 s; likewise (the default suite's 8 minutes)
 def test_figures_drawn_in_parallel_are_the_same(reported, tmp_path, monkeypatch):
     shutil.copytree(reported, tmp_path / "copy")
     monkeypatch.setattr(build, "PARALLEL_FIGURES", 1)  # 4 figures: two processes
@@ -128,6 +129,7 @@ def test_figures_drawn_in_parallel_are_the_same(reported, tmp_path, monkeypatch)
         assert (tmp_path / "copy" / "figures" / png.name).read_bytes() == png.read_bytes()
 
 
+@pytest.mark.slow  # since 2026-12-02, ~14 s; by default the figures drawn on a worker that dies (the default suite's 8 minutes)
 def test_figures_drawn_on_the_runs_worker_pool_are_the_same_and_start_no_process(reported, tmp_path, monkeypatch):
     """`stereodyn run` hands the report its worker pool's map (pipeline.phases): the figures are drawn there, by
     processes that have imported most of what drawing needs, and the report spawns none of its own."""
@@ -184,6 +186,7 @@ def test_our_own_bug_in_a_figure_is_raised_not_drawn_around(reported, tmp_path):
         build.write_reports(tmp_path / "copy", render_map=buggy_map)
 
 
+@pytest.mark.slow  # since 2026-12-02, ~17 s; by default every report test runs without figures (the default suite's 8 minutes)
 def test_no_figures_writes_the_tables_and_says_where_the_figures_are(reported, tmp_path, monkeypatch):
     """--no-figures (and STEREODYN_FIGURES=0, tests/conftest.py) draws nothing, removes the figures of an earlier
     render and says so in each case's section; --figures draws them again."""

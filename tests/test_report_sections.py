@@ -60,6 +60,7 @@ def test_a_registered_section_lands_at_its_order_and_leaves_the_others_alone(fol
     assert _page(folder) == before  # unregistered: gone again
 
 
+@pytest.mark.slow  # since 2026-12-02, ~16 s; by default the other section tests render beside it (the default suite's 8 minutes)
 def test_a_section_with_nothing_to_say_is_left_out(folder):
     before = _page(folder)
     sections.register("empty", 1)(lambda context: [])

@@ -7,7 +7,7 @@ import textwrap
 
 import pandas as pd
 import pytest
-from helpers import TIMINGS, store_mtimes, tiny_case
+from helpers import store_mtimes, tiny_case, without_timings
 
 from stereodyn.harness import cli, environment
 from stereodyn.harness import integrators as registry
@@ -62,6 +62,7 @@ def test_the_source_fingerprint_covers_code_and_data_but_not_case_files(source_c
     assert environment.source_fingerprint() not in (first, with_data)
 
 
+@pytest.mark.slow  # since 2026-12-02, ~11 s; by default the edited plug-in and engine plug-in tests (the default suite's 8 minutes)
 def test_an_edited_source_file_redoes_every_run_under_resume(source_copy, tmp_path):
     out = tmp_path / "out"
     argv = ["run", *SWEEP, "--integrators", "euler", "--out", str(out)]
@@ -156,7 +157,8 @@ def test_a_malformed_record_is_redone_and_not_reported(tmp_path, monkeypatch, da
     redone = json.loads(path.read_text())
     assert redone["row"]["status"] == "ok" and redone["row"]["engine"] == "pinocchio"
     assert isinstance(redone["row"]["attitude_err"], float)
-    pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv").drop(columns=TIMINGS), good.drop(columns=TIMINGS))  # timings: measured anew
+    # timings (and the "timing disturbed" marks of a loaded machine) are measured anew
+    pd.testing.assert_frame_equal(without_timings(pd.read_csv(out / "results.csv")), without_timings(good))
 
 
 HORIZON_CASE = tiny_case("horizon", t_end=0.2, samples=21, extra="[expect]\nhorizon = HORIZON\n")

@@ -39,6 +39,7 @@ def test_the_sweep_and_the_ladders_share_one_pool(tmp_path):
     assert (ladders["declared_order"] == 4.0).all()
 
 
+@pytest.mark.slow  # since 2026-12-02, ~20 s; by default test_store.py's Ctrl-C of a parallel sweep (the default suite's 8 minutes)
 def test_an_interrupt_during_the_ladders_ends_the_workers_at_once(tmp_path):
     before = set(multiprocessing.active_children())
     workers, done = set(), []
