@@ -82,28 +82,26 @@ def _floats(text: str) -> list[float]:
     return values
 
 
-def _scale(text: str) -> float:
-    """A step or a span: finite, in [MIN_SCALE, MAX_MAGNITUDE] like a case file's (docs/limits.md)."""
+def _seconds_in(text: str, low: float, high: float, what: str) -> float:
+    """A number of seconds, finite and in [low, high] (docs/limits.md); what: the noun of its error."""
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text[:40]!r}") from None
-    if not math.isfinite(value) or not case_files.MIN_SCALE <= value <= case_files.MAX_MAGNITUDE:
-        raise argparse.ArgumentTypeError(f"must be finite and in [{case_files.MIN_SCALE:g}, "
-                                         f"{case_files.MAX_MAGNITUDE:g}] s (docs/limits.md), got {value:g}")
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text[:40]!r}") from None
+    if not (math.isfinite(value) and low <= value <= high):
+        raise argparse.ArgumentTypeError(f"must be finite and in [{low:g}, {high:g}] s (docs/limits.md), "
+                                         f"got {value:g}")
     return value
+
+
+def _scale(text: str) -> float:
+    """A step or a span: in [MIN_SCALE, MAX_MAGNITUDE] like a case file's."""
+    return _seconds_in(text, case_files.MIN_SCALE, case_files.MAX_MAGNITUDE, "a number")
 
 
 def _seconds(text: str) -> float:
-    """A wall-time budget: finite, in [MIN_BUDGET_S, MAX_BUDGET_S] s (docs/limits.md)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text[:40]!r}") from None
-    if not (math.isfinite(value) and budget.MIN_BUDGET_S <= value <= budget.MAX_BUDGET_S):
-        raise argparse.ArgumentTypeError(f"must be finite and in [{budget.MIN_BUDGET_S:g}, {budget.MAX_BUDGET_S:g}] "
-                                         f"s (docs/limits.md), got {value:g}")
-    return value
+    """A wall-time budget: in [MIN_BUDGET_S, MAX_BUDGET_S]."""
+    return _seconds_in(text, budget.MIN_BUDGET_S, budget.MAX_BUDGET_S, "a number of seconds")
 
 
 def _targets(text: str) -> list[float]:
