@@ -282,13 +282,14 @@ def _rk(class_name: str, **declared) -> type:
     ({"order": math.nan}, "order = nan: must be a positive finite number"),
     ({"order": 0}, "order = 0: must be a positive finite number"),
     ({"order": True}, "order = True: must be a positive finite number"),
+    ({"order": 1e308}, "order = 1e+308: must be a positive finite number, at most 64"),  # issue 46's re-attack
     ({"stages": -3}, "stages = -3: must be a non-negative integer"),
     ({"stages": 2.5}, "stages = 2.5: must be a non-negative integer"),
     ({"symplectic": "yes"}, "symplectic = 'yes': must be True or False"),
     ({"symmetric": 1}, "symmetric = 1: must be True or False"),
     ({"iterative": None}, "iterative = None: must be True or False"),
     ({"name": ""}, "name = '': must be a non-empty string"),
-], ids=["order text", "order nan", "order 0", "order bool", "stages negative", "stages float", "symplectic text",
+], ids=["order text", "order nan", "order 0", "order bool", "order huge", "stages negative", "stages float", "symplectic text",
         "symmetric int", "iterative None", "no name"])
 def test_an_integrator_with_a_bad_declaration_is_refused_at_register(declared, words):
     cls = _rk("meta_bad", **declared)

@@ -247,19 +247,31 @@ PROPERTIES = ("symplectic", "geometric", "energy_bounded", "symmetric", "casimir
               "default_sweep")
 
 
+# The largest order a method may declare: no practical method comes near it (heyoka's Taylor method at a tolerance of
+# 1e-16 is order 20); above it a declaration is a typo (1e308 printed as 309 digits in `stereodyn integrators`).
+MAX_ORDER = 64
+
+
+def order_problem(order) -> str | None:
+    """Why a declared order cannot be used (None: it can): a number in (0, MAX_ORDER], not a boolean."""
+    if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(order) or not 0 < order <= MAX_ORDER:
+        return f"order = {order!r}: must be a positive finite number, at most {MAX_ORDER}"
+    return None
+
+
 def metadata_problem(cls: type) -> str | None:
     """Why an Integrator class's declarations cannot be used, naming the field and the rule (None: they can): name
-    and state_space non-empty text, order a positive finite number, stages a non-negative integer (an iterative
+    and state_space non-empty text, order a positive finite number (order_problem), stages a non-negative integer (an iterative
     method's least), each property (PROPERTIES) a boolean. The registry refuses such a class at load, before any run
     (an order of "four" died in the verdicts after the sweep; an order of NaN was never judged)."""
     for field in ("name", "state_space"):
         value = getattr(cls, field)
         if not isinstance(value, str) or not value:
             return f"{field} = {value!r}: must be a non-empty string"
-    order = cls.order
-    if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(order) or order <= 0:
-        return f"order = {order!r}: must be a positive finite number"
+    problem = order_problem(cls.order)
+    if problem:
+        return problem
     stages = cls.stages
     if isinstance(stages, (bool, np.bool_)) or not isinstance(stages, (int, np.integer)) or stages < 0:
         return f"stages = {stages!r}: must be a non-negative integer (an iterative method's least a step)"
