@@ -163,7 +163,7 @@ def test_taylor_takes_the_tolerance_keyword():
 
 
 def test_the_default_sweep_runs_the_explicit_scipy_methods_on_the_quaternion_only():
-    """Engine.default_run: a sweep that names no integrators plans scipy_rk45, scipy_dop853 and scipy_lsoda on the
+    """SceneModel.default_run: a sweep that names no integrators plans scipy_rk45, scipy_dop853 and scipy_lsoda on the
     quaternion formulation (the cost measured in docs/ENGINES.md); naming one runs it on every formulation."""
     from stereodyn.harness.run.plan import plan
 

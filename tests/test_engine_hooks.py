@@ -1,8 +1,8 @@
 """Engine hooks of issue 23's gaps: an engine whose precision is process-global (Genesis's gs.init releases the models
 of the other precision) gets every ok row timed, in the sweep's and the ladders' timing phases
-(Engine.process_global_precision, harness.run.timing.groups); an engine whose first preparation compiles for minutes
-declares a longer prepare budget (Engine.prepare_budget_s, harness.run.measure.prepare_budget); an integrator that is
-another method on another model declares its order there (Engine.formulation_order). A toy engine stands in for
+(Timing.process_global_precision, harness.run.timing.groups); an engine whose first preparation compiles for minutes
+declares a longer prepare budget (Timing.prepare_budget_s, harness.run.measure.prepare_budget); an integrator that is
+another method on another model declares its order there (Offer.orders). A toy engine stands in for
 Genesis: it keeps one precision per process and wraps MuJoCo's euler."""
 from __future__ import annotations
 

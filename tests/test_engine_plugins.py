@@ -117,7 +117,7 @@ def test_an_external_engine_runs_in_a_sweep(installed, tmp_path):
     assert toy["attitude_err"].iloc[0] < 1e-7
     pin = df[df["engine"] == "pinocchio"]
     assert abs(toy["attitude_err"].iloc[0] - pin["attitude_err"].iloc[0]) <= 1e-12
-    # its declared order comes from the registry through its state space (Engine.declared_order)
+    # its declared order comes from the registry through its state space (engines.declared.declared_order)
     checks = pd.read_csv(out / "convergence.csv", dtype={"formulation": str}).fillna({"formulation": ""})
     assert set(checks["engine"]) <= {"toy", "pinocchio"}
 

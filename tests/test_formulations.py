@@ -223,7 +223,7 @@ def reference_sweep(tmp_path_factory):
 def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
     _, df = reference_sweep
     assert COLUMNS[COLUMNS.index("truth_omega_err") + 1] == "chart_changes" and tuple(df.columns) == COLUMNS
-    # the truth and taylor on the 3 other formulations, scipy's default methods (Engine.default_run) on the quaternion,
+    # the truth and taylor on the 3 other formulations, scipy's default methods (default_run) on the quaternion,
     # euler and rk4 on every formulation at 3 dt
     assert len(df) == 4 + 3 + 2 * 4 * 3 and set(df.status) == {"ok"}
     truth_row = df[(df.formulation == "quaternion") & (df.integrator == "taylor")]
