@@ -199,7 +199,7 @@ SHORT = [("free-asymmetric", "reference", "quaternion", "rk4"), ("free-asymmetri
 
 @pytest.mark.parametrize("name, engine, formulation, integrator", SHORT)
 def test_a_short_warm_up_runs_the_first_steps_of_the_run(name, engine, formulation, integrator):
-    assert engines.get_engine(engine).short_warm_up
+    assert engines.get_engine(engine).timing.short_warm_up
     case = find_case(name)
     run = RunKey(case, engine, integrator, 1e-3 if integrator in ("rk4",) else None, formulation=formulation)
     sim, grid = measure.prepare(run)

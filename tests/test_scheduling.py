@@ -38,7 +38,7 @@ def test_a_runs_cost_is_its_accuracy_run_checks_and_single_timed_run():
     from stereodyn.harness.run import pool
 
     run = spec("reference", "rk4", 1e-3, formulation="gibbs")
-    one_pass = 5000 * 4 * get_engine("reference").pass_us * 1e-6  # t_end 5 s at 1e-3: 5000 steps of 4 stages
+    one_pass = 5000 * 4 * get_engine("reference").timing.pass_us * 1e-6  # t_end 5 s at 1e-3: 5000 steps of 4 stages
     assert cost(run) == pytest.approx(pool.RUN_OVERHEAD_S + (2 + pool.CHECK_PASSES) * one_pass, rel=1e-12)
 
 
