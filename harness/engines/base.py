@@ -167,7 +167,7 @@ class Engine:
 
     These are Engine's only public names: the harness reads the groups themselves, and what it derives from them
     with the registry's defaults (declared order, method, default sweep, the rigid-body model) through
-    engines.declared. A class that defines a name of 0.2.0's protocol (OLD_NAMES) is refused with a TypeError
+    harness.engines.declared. A class that defines a name of 0.2.0's protocol (OLD_NAMES) is refused with a TypeError
     naming it and its spelling now.
     """
 
