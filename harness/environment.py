@@ -13,7 +13,7 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-# The libraries whose version can change any result (heyoka: the truth); each engine adds its own (Engine.packages). A
+# The libraries whose version can change any result (heyoka: the truth); each engine adds its own (About.packages). A
 # result is keyed by all of them (harness.run.store).
 CORE_PACKAGES = ("numpy", "scipy")
 TRUTH_PACKAGES = ("heyoka", "stereodyn")
@@ -33,7 +33,7 @@ def packages() -> tuple[str, ...]:
     names = list(CORE_PACKAGES)
     for name in engine_names():
         try:
-            names += get_engine(name).packages
+            names += get_engine(name).about.packages
         except EngineError:  # a broken plug-in fails where it is used, not in every sweep
             continue
     return tuple(dict.fromkeys(names + list(TRUTH_PACKAGES)))
@@ -51,12 +51,12 @@ def library_versions() -> dict[str, str]:
 
 
 def engine_version(engine: str) -> str:
-    """The engine's packages (Engine.packages) as installed, "mujoco 4.0.0" ("jax 0.6.2, mujoco-mjx 3.17.0" for
+    """The engine's packages (About.packages) as installed, "mujoco 4.0.0" ("jax 0.6.2, mujoco-mjx 3.17.0" for
     several): the version a result or a verdict of the engine was judged under. "" for an engine not registered."""
     from .engines import EngineError, get_engine
 
     try:
-        names = get_engine(engine).packages
+        names = get_engine(engine).about.packages
     except (EngineError, KeyError):
         return ""
     return ", ".join(f"{name} {_version(name)}" for name in names)

@@ -1,6 +1,6 @@
 """`stereodyn export`: the engine model of a case, to open in the engines' own tools.
 
-Each engine lists the formats it writes (Engine.export_formats) and writes them (Engine.export): the built-ins give
+Each engine lists the formats it writes (About.export_formats) and writes them (SceneModel.export): the built-ins give
 mjcf (the MuJoCo adapter's scene, with an integrator and a timestep in its <option>) and urdf (the Pinocchio adapter's
 body, its ball joint as a three-joint gimbal).
 """
@@ -21,7 +21,7 @@ def formats() -> dict[str, str]:
     found: dict[str, str] = {}
     for name in engine_names():
         try:
-            found.update((fmt, name) for fmt in get_engine(name).export_formats if fmt not in found)
+            found.update((fmt, name) for fmt in get_engine(name).about.export_formats if fmt not in found)
         except EngineError:
             continue
     return found

@@ -1,4 +1,4 @@
-"""Floating-point precision of a run (results.csv `precision`, Engine.precisions): part of a row's identity. A table
+"""Floating-point precision of a run (results.csv `precision`, Offer.precisions): part of a row's identity. A table
 without the column (stereodyn 0.2.0) holds float64 runs. A leaf module: the result tables and the engines import it."""
 from __future__ import annotations
 

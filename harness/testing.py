@@ -15,7 +15,7 @@ declared properties (symplectic, symmetric, stages, geometric, casimir_preservin
 The integrator is a registered name or an Integrator class (harness.integrators); it runs on the Pinocchio engine
 (state space "lie") or on the reference engine's formulation (state space "vector"). With engine="NAME" it is any
 integrator that engine runs (its own names included: an engine plug-in's CI), on the engine's default formulation or
-`formulation`, against the order the engine declares (Engine.declared_order):
+`formulation`, against the order the engine declares (engines.declared.declared_order):
 
     assert_order("semi_implicit_euler", engine="bullet")
 
@@ -34,6 +34,7 @@ from . import integrators as registry
 from .scenes import metrics
 from .scenes.cases import Case, find_case, with_overrides
 from .engines import engine_for_state_space, get_engine
+from .engines.declared import declared_order
 from .analysis import claims as claim_rules
 from .analysis.fitting import order_slope
 from .trajectory import Status
@@ -77,7 +78,7 @@ def energy_bounded(short: float, long: float, long_steps: int, growth: float = E
 def _engine_for(cls: type[Integrator]) -> tuple[str, dict]:
     """The first registered engine that runs the integrator's state space, and its default formulation."""
     engine = engine_for_state_space(cls.state_space)
-    return engine.name, ({"formulation": engine.default_formulation} if engine.default_formulation else {})
+    return engine.name, ({"formulation": engine.about.formulation} if engine.about.formulation else {})
 
 
 def _resolve(integrator: str | type[Integrator], state_space: str) -> type[Integrator]:
@@ -106,7 +107,7 @@ def _run(cls: type[Integrator] | str, case: Case, dt: float, formulation: str | 
     if engine is None:
         engine, extra = _engine_for(cls)
     else:
-        default = get_engine(engine).default_formulation
+        default = get_engine(engine).about.formulation
         extra = {"formulation": default} if default else {}
     if formulation is not None:
         extra = {"formulation": formulation}
@@ -161,7 +162,7 @@ def assert_order(integrator: str | type[Integrator], cases: str | Case | Iterabl
     `engine`: the order that engine declares for it). `cases`: a name or Case, or a list of them. Returns {case name:
     fitted order}."""
     cls, name = _named(integrator, state_space, engine)
-    declared = cls.order if engine is None else get_engine(engine).declared_order(name)
+    declared = cls.order if engine is None else declared_order(get_engine(engine), name)
     orders = {}
     for case in _cases(cases):
         order = measured_order(cls, case, dts, state_space, formulation, t_end, engine)

@@ -12,6 +12,7 @@ from stereodyn.harness.pipeline import tolerance_ladders
 from stereodyn.harness.analysis import fitting
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines.reference import ReferenceEngine
+from stereodyn.harness.engines.declared import formulations
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import scipy_ivp
 from stereodyn.harness.scenes.rigid_body import truth_grid
@@ -33,8 +34,8 @@ def _attitude_error(case, run) -> float:
 
 def test_scipy_methods_are_adaptive_integrators_of_the_reference_engine():
     assert set(scipy_ivp.METHODS) <= set(ENGINE.integrators())
-    assert all(ENGINE.adaptive(name) for name in scipy_ivp.METHODS) and ENGINE.adaptive("taylor")
-    assert not ENGINE.adaptive("rk4")
+    assert all(ENGINE.offer(name).adaptive for name in scipy_ivp.METHODS) and ENGINE.offer("taylor").adaptive
+    assert not ENGINE.offer("rk4").adaptive
 
 
 def test_dop853_error_shrinks_with_the_tolerance_on_a_torque_free_case():
@@ -163,7 +164,7 @@ def test_taylor_takes_the_tolerance_keyword():
 
 
 def test_the_default_sweep_runs_the_explicit_scipy_methods_on_the_quaternion_only():
-    """Engine.default_run: a sweep that names no integrators plans scipy_rk45, scipy_dop853 and scipy_lsoda on the
+    """SceneModel.default_run: a sweep that names no integrators plans scipy_rk45, scipy_dop853 and scipy_lsoda on the
     quaternion formulation (the cost measured in docs/ENGINES.md); naming one runs it on every formulation."""
     from stereodyn.harness.run.plan import plan
 
@@ -171,6 +172,6 @@ def test_the_default_sweep_runs_the_explicit_scipy_methods_on_the_quaternion_onl
     specs, _ = plan([case], ["reference"], None)
     scipy_runs = {(s.formulation, s.integrator, s.dt) for s in specs if s.integrator in scipy_ivp.METHODS}
     assert scipy_runs == {("quaternion", name, None) for name in ("scipy_rk45", "scipy_dop853", "scipy_lsoda")}
-    assert {s.formulation for s in specs if s.integrator == "taylor"} == set(ENGINE.formulations())
+    assert {s.formulation for s in specs if s.integrator == "taylor"} == set(formulations(ENGINE))
     named, _ = plan([case], ["reference"], ["scipy_radau"])
-    assert {(s.formulation, s.integrator) for s in named} == {(f, "scipy_radau") for f in ENGINE.formulations()}
+    assert {(s.formulation, s.integrator) for s in named} == {(f, "scipy_radau") for f in formulations(ENGINE)}

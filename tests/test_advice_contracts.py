@@ -14,6 +14,7 @@ from stereodyn.harness.pipeline import advice, dt_ladders, tolerance_ladders
 from stereodyn.harness.pipeline.dt_ladders import Family
 from stereodyn.harness.analysis.step_advice import error_model, rounded, search
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.declared import rigid_body
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 
 CASE = with_overrides(find_case("free-asymmetric"), t_end=2.0, dt=[1e-2])
@@ -106,13 +107,12 @@ def test_advice_tasks_take_the_families_with_a_fitted_order_only():
 
 
 def test_advise_leaves_out_integrators_without_an_order_or_error_control_and_runs_it_cannot_do(monkeypatch):
-    engine = get_engine("mujoco")
-    cls = type(engine)
-    declared = cls.declared_order
-    monkeypatch.setattr(cls, "declared_order", lambda self, i: math.nan if i == "implicit" else declared(self, i))
+    declared = step_advice.declared_order
+    monkeypatch.setattr(step_advice, "declared_order", lambda e, i: math.nan if i == "implicit" else declared(e, i))
     chosen = [f.integrator for f, _ in advice.families_to_advise(CASE, "mujoco", None)]
     assert "implicit" not in chosen and "rk4" in chosen
-    monkeypatch.setattr(cls, "unsupported_run", lambda self, case, formulation, integrator:
+    model = type(rigid_body(get_engine("mujoco")))  # the rigid body's model class: its runs the advice checks
+    monkeypatch.setattr(model, "unsupported_run", lambda self, case, formulation, integrator:
                         "not here" if integrator == "rk4" else None)
     assert "rk4" not in [f.integrator for f, _ in advice.families_to_advise(CASE, "mujoco", ["rk4", "euler"])]
 

@@ -11,6 +11,7 @@ import pytest
 from stereodyn.harness.analysis import agreement, verdicts
 from stereodyn.harness.engines import get_engine
 from stereodyn.harness.engines.base import FLOAT32, FLOAT64, KnownDeviation
+from stereodyn.harness.engines.declared import method
 from stereodyn.harness.engines.methods import METHODS
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case, with_overrides
@@ -19,12 +20,12 @@ from stereodyn.harness.scenes.cases import find_case, with_overrides
 def test_the_vocabulary_says_what_each_integrator_is():
     """Names mislead: MuJoCo's euler is Pinocchio's symplectic_euler, not Pinocchio's (explicit) euler."""
     mujoco, pinocchio = get_engine("mujoco"), get_engine("pinocchio")
-    assert mujoco.method("euler") == pinocchio.method("symplectic_euler") == "semi_implicit_euler"
-    assert pinocchio.method("euler") == "explicit_euler" != mujoco.method("euler")
-    assert mujoco.method("rk4") == pinocchio.method("rk4") == "rk4"
-    assert mujoco.method("implicit") == "" and pinocchio.method("rk4_naive") == ""
+    assert method(mujoco, "euler") == method(pinocchio, "symplectic_euler") == "semi_implicit_euler"
+    assert method(pinocchio, "euler") == "explicit_euler" != method(mujoco, "euler")
+    assert method(mujoco, "rk4") == method(pinocchio, "rk4") == "rk4"
+    assert method(mujoco, "implicit") == "" and method(pinocchio, "rk4_naive") == ""
     for engine in (mujoco, pinocchio, get_engine("reference")):
-        assert {engine.method(i) for i in engine.integrators()} - {""} <= set(METHODS)
+        assert {method(engine, i) for i in engine.integrators()} - {""} <= set(METHODS)
 
 
 def _entry(engine, integrator, traj, rank, precision=FLOAT64, formulation=""):

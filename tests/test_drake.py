@@ -13,6 +13,7 @@ from helpers import assert_skipped_without_sdk
 from stereodyn.harness.scenes import metrics
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.declared import declared_order, formulations, in_default_sweep, rigid_body
 from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status
@@ -46,17 +47,17 @@ def test_without_the_extra_the_rows_are_skipped_naming_the_install_command():
 
 
 def test_integrators_orders_adaptivity_and_default_sweep(drake):
-    assert drake.formulations() == ("rpy_ball", "quaternion_free")
+    assert formulations(drake) == ("rpy_ball", "quaternion_free")
     for name, order in (("discrete", 1), ("explicit_euler", 1), ("runge_kutta2", 2), ("runge_kutta3", 3),
                         ("bogacki_shampine3", 3), ("runge_kutta5", 5), ("radau3", 3), ("runge_kutta5_adaptive", 5)):
-        assert name in drake.integrators() and drake.declared_order(name) == order
-    assert drake.adaptive("runge_kutta3_adaptive") and not drake.adaptive("runge_kutta3")
-    assert not drake.adaptive("discrete") and not drake.adaptive("runge_kutta2")
-    assert drake.in_default_sweep("runge_kutta3") and drake.in_default_sweep("runge_kutta3_adaptive")
-    assert not drake.in_default_sweep("radau3") and not drake.in_default_sweep("runge_kutta5")
+        assert name in drake.integrators() and declared_order(drake, name) == order
+    assert drake.offer("runge_kutta3_adaptive").adaptive and not drake.offer("runge_kutta3").adaptive
+    assert not drake.offer("discrete").adaptive and not drake.offer("runge_kutta2").adaptive
+    assert in_default_sweep(drake, "runge_kutta3") and in_default_sweep(drake, "runge_kutta3_adaptive")
+    assert not in_default_sweep(drake, "radau3") and not in_default_sweep(drake, "runge_kutta5")
     heavy, free = find_case("lagrange-top"), find_case("free-asymmetric")
-    assert drake.unsupported_run(heavy, "quaternion_free", "runge_kutta3")  # O is not the centre of mass
-    assert drake.unsupported_run(free, "quaternion_free", "runge_kutta3") is None
+    assert rigid_body(drake).unsupported_run(heavy, "quaternion_free", "runge_kutta3")  # O is not the centre of mass
+    assert rigid_body(drake).unsupported_run(free, "quaternion_free", "runge_kutta3") is None
 
 
 @pytest.mark.parametrize("model", ["rpy_ball", "quaternion_free"])
@@ -126,7 +127,7 @@ def test_fixed_step_methods_fit_their_declared_orders(drake, integrator, order):
         assert traj.status is Status.OK and traj.steps == grid.steps
         errors.append(state_error(case, grid, traj))
     fitted = order_slope(np.array(dts), np.array(errors))
-    assert abs(fitted - drake.declared_order(integrator)) < 0.3, (fitted, errors)
+    assert abs(fitted - declared_order(drake, integrator)) < 0.3, (fitted, errors)
 
 
 @pytest.mark.parametrize("rate,path", [(1.0, "stopped"), (0.9995, "crossed")])
@@ -176,11 +177,11 @@ def test_every_integrator_runs_on_both_models_and_counts_its_work(drake):
     """Each fixed-step scheme takes exactly the grid's steps; each adaptive one reports its steps and derivative
     evaluations (the tolerance contract); short span of the torqued self-excited body (a torque at every stage)."""
     case = with_overrides(find_case("self-excited-conic"), t_end=0.2)
-    for model in drake.formulations():
+    for model in formulations(drake):
         for integrator in drake.integrators():
             if drake.offer(integrator).unmodelled:  # offered by this Drake, not run (tests/test_engine_sdk.py)
                 continue
-            dt = None if drake.adaptive(integrator) else 1e-2
+            dt = None if drake.offer(integrator).adaptive else 1e-2
             grid, traj = run(drake, case, integrator, dt, model, tolerance=1e-6, samples=11)
             assert traj.status is Status.OK, (model, integrator, traj.message)
             assert traj.steps > 0 and traj.rhs_evals >= traj.steps, (model, integrator)
@@ -188,7 +189,7 @@ def test_every_integrator_runs_on_both_models_and_counts_its_work(drake):
                 assert traj.steps == grid.steps, (model, integrator, traj.steps)
             # measured <= 8.3e-4 for the first-order schemes (dt 1e-2 or tolerance 1e-6, over 0.2 s), <= 2.2e-6
             # (runge_kutta2) for the others
-            bound = 1e-2 if drake.declared_order(integrator) == 1 else 2e-5
+            bound = 1e-2 if declared_order(drake, integrator) == 1 else 2e-5
             assert state_error(case, grid, traj) < bound, (model, integrator)
 
 

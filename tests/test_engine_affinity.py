@@ -54,7 +54,6 @@ def test_both_workers_serve_an_engine_whose_runs_outweigh_its_start_up():
 
 
 @pytest.mark.parametrize("engine, expected", [
-    (SimpleNamespace(startup_s=12.0), 12.0),                               # the attribute
     (SimpleNamespace(timing=SimpleNamespace(startup_s=3.0)), 3.0),         # the Timing group
     (SimpleNamespace(), 0.0),                                              # a 0.2.0 engine declares none
     (SimpleNamespace(startup_s=float("nan")), 0.0)])

@@ -1,8 +1,8 @@
 """Engine hooks of issue 23's gaps: an engine whose precision is process-global (Genesis's gs.init releases the models
 of the other precision) gets every ok row timed, in the sweep's and the ladders' timing phases
-(Engine.process_global_precision, harness.run.timing.groups); an engine whose first preparation compiles for minutes
-declares a longer prepare budget (Engine.prepare_budget_s, harness.run.measure.prepare_budget); an integrator that is
-another method on another model declares its order there (Engine.formulation_order). A toy engine stands in for
+(Timing.process_global_precision, harness.run.timing.groups); an engine whose first preparation compiles for minutes
+declares a longer prepare budget (Timing.prepare_budget_s, harness.run.measure.prepare_budget); an integrator that is
+another method on another model declares its order there (Offer.orders). A toy engine stands in for
 Genesis: it keeps one precision per process and wraps MuJoCo's euler."""
 from __future__ import annotations
 
@@ -93,8 +93,8 @@ def test_every_ok_row_of_an_engine_with_a_process_global_precision_is_timed(toy,
     before it (their repeats fail and they keep their single time: what e2 saw with Genesis, 7 of 8 rows untimed
     before the single time in the worker). With a start-up declared, the timing phase reuses the models kept from
     the accuracy runs (pool.prepare_kept), never one that a switch of precision released."""
-    monkeypatch.setattr(ToyEngine, "process_global_precision", process_global)
-    monkeypatch.setattr(ToyEngine, "startup_s", startup_s, raising=False)
+    monkeypatch.setattr(ToyEngine, "timing", dataclasses.replace(ToyEngine.timing, startup_s=startup_s,
+                                                                 process_global_precision=process_global))
     table = sweep.run_sweep([CASE], sweep.SweepOptions([NAME], tmp_path / "out", jobs=1, certify=False))
     rows = table[table.engine == NAME]
     rows = rows[rows.formulation == "ball"]
@@ -132,7 +132,7 @@ def test_an_engine_declares_a_longer_prepare_budget(toy, monkeypatch, declared, 
     """A prepare of 0.3 s against the sweep's 0.1 s budget: failed naming the budget, unless the engine declares a
     longer one (the larger of the two holds); the message names the budget that held."""
     monkeypatch.setattr(ToyEngine, "prepare_s", 0.3)
-    monkeypatch.setattr(ToyEngine, "prepare_budget_s", declared)
+    monkeypatch.setattr(ToyEngine, "timing", dataclasses.replace(ToyEngine.timing, prepare_budget_s=declared))
     budgets = budget.Budgets(prepare_s=0.1)
     run = RunKey(CASE, NAME, "euler", 1e-2, precision=FLOAT32)
     assert measure.prepare_budget(run, budgets) == (0.1 if declared is None else declared)
@@ -173,7 +173,7 @@ class _Recorder:
 
 @pytest.mark.parametrize("short", [False, True])
 def test_a_run_is_warmed_up_whole_unless_its_engine_declares_a_short_warm_up(toy, monkeypatch, short):
-    monkeypatch.setattr(ToyEngine, "short_warm_up", short)
+    monkeypatch.setattr(ToyEngine, "timing", dataclasses.replace(ToyEngine.timing, short_warm_up=short))
     grid = time_grid(1.0, 1e-4, 101)  # 10000 steps, a sample every 100
     sim = _Recorder()
     timing.warm_up(sim, grid, NAME)
@@ -199,7 +199,7 @@ SHORT = [("free-asymmetric", "reference", "quaternion", "rk4"), ("free-asymmetri
 
 @pytest.mark.parametrize("name, engine, formulation, integrator", SHORT)
 def test_a_short_warm_up_runs_the_first_steps_of_the_run(name, engine, formulation, integrator):
-    assert engines.get_engine(engine).short_warm_up
+    assert engines.get_engine(engine).timing.short_warm_up
     case = find_case(name)
     run = RunKey(case, engine, integrator, 1e-3 if integrator in ("rk4",) else None, formulation=formulation)
     sim, grid = measure.prepare(run)

@@ -16,6 +16,7 @@ import pytest
 
 from stereodyn.harness import engines
 from stereodyn.harness.engines import Engine, EngineError
+from stereodyn.harness.engines.declared import declared_order, formulations, in_default_sweep, rigid_body
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = "stereodyn_toy_engine"
@@ -117,7 +118,7 @@ def test_an_external_engine_runs_in_a_sweep(installed, tmp_path):
     assert toy["attitude_err"].iloc[0] < 1e-7
     pin = df[df["engine"] == "pinocchio"]
     assert abs(toy["attitude_err"].iloc[0] - pin["attitude_err"].iloc[0]) <= 1e-12
-    # its declared order comes from the registry through its state space (Engine.declared_order)
+    # its declared order comes from the registry through its state space (engines.declared.declared_order)
     checks = pd.read_csv(out / "convergence.csv", dtype={"formulation": str}).fillna({"formulation": ""})
     assert set(checks["engine"]) <= {"toy", "pinocchio"}
 
@@ -170,21 +171,22 @@ def test_the_base_class_defaults():
         name = "minimal"
 
     engine = Minimal()
-    assert engine.formulations() == () and engine.adaptive("rk4") is False and engine.default_run(None, "", "rk4")
+    model = rigid_body(engine)
+    assert formulations(engine) == () and engine.offer("rk4").adaptive is False and model.default_run(None, "", "rk4")
     # the registry's default_sweep: the geometric methods run only when named; an engine's own name is run
-    assert engine.in_default_sweep("rk4") and not engine.in_default_sweep("implicit_midpoint")
-    assert engine.in_default_sweep("no_such_integrator")
-    assert engine.unsupported_run(None, "", "rk4") is None and engine.torque_mode(None) == "none"
+    assert in_default_sweep(engine, "rk4") and not in_default_sweep(engine, "implicit_midpoint")
+    assert in_default_sweep(engine, "no_such_integrator")
+    assert model.unsupported_run(None, "", "rk4") is None and model.torque_mode(None) == "none"
     # the scenes it models: the rigid body through the hooks above, nothing else (its rows of another scene are skipped)
     from stereodyn.harness.scenes import scene
     assert set(engine.models()) == {"rigid_body"}
     assert engine.unmodelled(scene("sliding_ladder")) == "minimal adapter does not model the sliding ladder"
-    assert engine.declared_order("no_such_integrator") != engine.declared_order("no_such_integrator")  # NaN
-    assert engine.declared_order("rk4") == 4.0  # the registry's Lie-group rk4
+    assert declared_order(engine, "no_such_integrator") != declared_order(engine, "no_such_integrator")  # NaN
+    assert declared_order(engine, "rk4") == 4.0  # the registry's Lie-group rk4
     with pytest.raises(NotImplementedError, match="minimal"):
         engine.prepare(None, "rk4", 0.1)
     with pytest.raises(NotImplementedError, match="ensembles"):
-        engine.prepare_ensemble(None, "rk4", 0.1, None, None)
+        model.prepare_ensemble(None, "rk4", 0.1, None, None)
 
 
 def test_engine_error_is_a_value_error():

@@ -16,6 +16,7 @@ from stereodyn.harness.engines import get_engine, offered
 from stereodyn.harness.engines import mujoco as mujoco_engine
 from stereodyn.harness.engines.backends import MujocoBackend
 from stereodyn.harness.engines.catalog import render, rows
+from stereodyn.harness.engines.declared import declared_order, in_default_sweep, method
 from stereodyn.harness.run.plan import plan
 from stereodyn.harness.scenes.cases import find_case as load_suite_case
 
@@ -50,8 +51,8 @@ def test_every_integrator_of_the_installed_mujoco_is_modelled_or_says_why():
         assert name in engine.integrators()
         if name in mujoco_engine.INTEGRATORS:  # runs: a declared order and a method, in the default sweep
             offer = engine.offer(name)
-            assert not offer.unmodelled and not math.isnan(offer.order) and engine.in_default_sweep(name)
-            assert engine.method(name) or name == "implicit", name  # implicit is MuJoCo's own (no shared method)
+            assert not offer.unmodelled and not math.isnan(offer.order) and in_default_sweep(engine, name)
+            assert method(engine, name) or name == "implicit", name  # implicit is MuJoCo's own (no shared method)
     # an adapter's name the installed MuJoCo lacks (discrete before 3.13) is not offered: no row, nothing to run
     assert set(engine.integrators()) == {m[len("mjINT_"):].lower() for m in members}
 
@@ -64,7 +65,7 @@ def test_discrete_runs_with_its_declared_order_and_is_eulers_update_on_a_ball_jo
     from stereodyn.harness.grid import time_grid
 
     engine = get_engine("mujoco")
-    assert engine.declared_order("discrete") == 1.0 and engine.method("discrete") == "semi_implicit_euler"
+    assert declared_order(engine, "discrete") == 1.0 and method(engine, "discrete") == "semi_implicit_euler"
     case = load_suite_case("heavy-asymmetric")
     grid = time_grid(1.0, 1e-3, 11)
     discrete = engine.prepare(case, "discrete", 1e-3).run(grid)
@@ -159,7 +160,7 @@ def test_every_scheme_of_the_installed_drake_is_modelled_or_says_why():
             f"Drake's GetIntegrationSchemes() has {scheme!r}: model it in harness/engines/drake.py or say why in "
             "NOT_MODELLED")
     assert "cenic" not in drake.MODELLED or "cenic" not in drake.NOT_MODELLED
-    assert engine.offer("rk4").unmodelled == "" and not engine.in_default_sweep("rk4")  # another engine's name
+    assert engine.offer("rk4").unmodelled == "" and not in_default_sweep(engine, "rk4")  # another engine's name
     for integrator in engine.integrators():
         offer = engine.offer(integrator)
         assert bool(offer.unmodelled) == (integrator not in drake.MODELLED)

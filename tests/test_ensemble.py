@@ -8,6 +8,7 @@ import pytest
 
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.declared import rigid_body
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.pinocchio import build_model, retract_rows
 from stereodyn.harness.grid import time_grid
@@ -44,7 +45,7 @@ def test_members_are_single_runs(integrator):
     dt = 1e-2
     grid = time_grid(case.t_end, dt, case.samples)
     quat0, omega0 = _members(case, 12, 0.05)
-    trajectories = ENGINE.prepare_ensemble(case, integrator, dt, quat0, omega0).run(grid)
+    trajectories = rigid_body(ENGINE).prepare_ensemble(case, integrator, dt, quat0, omega0).run(grid)
     assert len(trajectories) == 12
     for i in (0, 5, 11):
         single = _single(case, integrator, dt, omega0[i], grid)
@@ -60,7 +61,7 @@ def test_integrator_without_batch_form_runs_members_one_by_one():
     case = with_overrides(find_case("free-asymmetric"), t_end=2.0)
     grid = time_grid(case.t_end, 1e-2, 50)
     quat0, omega0 = _members(case, 3, 0.1)
-    trajectories = ENGINE.prepare_ensemble(case, "implicit_midpoint", 1e-2, quat0, omega0).run(grid)
+    trajectories = rigid_body(ENGINE).prepare_ensemble(case, "implicit_midpoint", 1e-2, quat0, omega0).run(grid)
     for i in range(3):
         single = _single(case, "implicit_midpoint", 1e-2, omega0[i], grid)
         assert np.array_equal(trajectories[i].quat, single.quat)
@@ -79,7 +80,7 @@ def test_diverging_members_leave_with_the_single_run_verdict():
     hanging = np.concatenate(([np.cos(angle / 2)], np.sin(angle / 2) * axis / np.linalg.norm(axis)))
     quat0 = np.array([case.quat0, hanging, case.quat0, hanging])
     omega0 = np.array([case.omega0, np.zeros(3), case.omega0, np.zeros(3)])
-    trajectories = ENGINE.prepare_ensemble(case, "euler", dt, quat0, omega0).run(grid)
+    trajectories = rigid_body(ENGINE).prepare_ensemble(case, "euler", dt, quat0, omega0).run(grid)
     statuses = []
     for member, q, w in zip(trajectories, quat0, omega0):
         single = _single(case, "euler", dt, w, grid, q)
@@ -96,7 +97,7 @@ def test_external_torque_enters_every_member():
     case = with_overrides(find_case("constant-torque-uniform"), t_end=1.0)
     grid = time_grid(case.t_end, 1e-2, 20)
     quat0, omega0 = _members(case, 3, 0.1)
-    trajectories = ENGINE.prepare_ensemble(case, "rk4", 1e-2, quat0, omega0).run(grid)
+    trajectories = rigid_body(ENGINE).prepare_ensemble(case, "rk4", 1e-2, quat0, omega0).run(grid)
     for i in range(3):
         assert np.abs(trajectories[i].omega - _single(case, "rk4", 1e-2, omega0[i], grid).omega).max() < 1e-12
 
@@ -104,9 +105,9 @@ def test_external_torque_enters_every_member():
 def test_bad_shapes_and_dt_are_refused():
     case = find_case("lagrange-top")
     with pytest.raises(ValueError, match=r"quat0 \(N, 4\) and omega0 \(N, 3\)"):
-        ENGINE.prepare_ensemble(case, "rk4", 1e-2, np.zeros((2, 4)), np.zeros((3, 3)))
+        rigid_body(ENGINE).prepare_ensemble(case, "rk4", 1e-2, np.zeros((2, 4)), np.zeros((3, 3)))
     with pytest.raises(KeyError, match="unknown integrator"):
-        ENGINE.prepare_ensemble(case, "nope", 1e-2, np.zeros((2, 4)), np.zeros((2, 3)))
-    ensemble = ENGINE.prepare_ensemble(case, "rk4", 1e-2, *_members(case, 2, 0.0))
+        rigid_body(ENGINE).prepare_ensemble(case, "nope", 1e-2, np.zeros((2, 4)), np.zeros((2, 3)))
+    ensemble = rigid_body(ENGINE).prepare_ensemble(case, "rk4", 1e-2, *_members(case, 2, 0.0))
     with pytest.raises(ValueError, match="differs from the prepared dt"):
         ensemble.run(time_grid(1.0, 2e-2, 10))

@@ -12,7 +12,7 @@ from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness import cli
 from stereodyn.harness.run import plan
 from stereodyn.harness.scenes.cases import Case, find_case, load_suite
-from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines import declared, get_engine
 from stereodyn.harness.trajectory import Status
 from stereodyn.harness.engines.reference import FormulationSystem, ReferenceEngine
 from stereodyn.harness.grid import time_grid
@@ -59,9 +59,10 @@ def test_registry_and_engine_lists():
     with pytest.raises(KeyError, match="valid: quaternion, gibbs"):
         formulations.get("rodrigues", FREE)
     engine = get_engine("reference")
-    assert engine.formulations() == NAMES
+    assert declared.formulations(engine) == NAMES
     assert engine.integrators()[0] == "taylor" and {"euler", "rk4", "scipy_dop853"} <= set(engine.integrators())
-    assert engine.adaptive("taylor") and engine.adaptive("scipy_dop853") and not engine.adaptive("rk4")
+    assert engine.offer("taylor").adaptive and engine.offer("scipy_dop853").adaptive
+    assert not engine.offer("rk4").adaptive
     case = make_case(FREE, np.array([1.0, 0.0, 0.0, 0.0]), np.array([0.4, 0.1, 2.0]), 1.0)
     with pytest.raises(KeyError, match="valid: quaternion"):
         engine.prepare(case, "taylor", None, formulation="rodrigues")
@@ -223,7 +224,7 @@ def reference_sweep(tmp_path_factory):
 def test_rows_carry_the_formulation_and_the_chart_changes(reference_sweep):
     _, df = reference_sweep
     assert COLUMNS[COLUMNS.index("truth_omega_err") + 1] == "chart_changes" and tuple(df.columns) == COLUMNS
-    # the truth and taylor on the 3 other formulations, scipy's default methods (Engine.default_run) on the quaternion,
+    # the truth and taylor on the 3 other formulations, scipy's default methods (default_run) on the quaternion,
     # euler and rk4 on every formulation at 3 dt
     assert len(df) == 4 + 3 + 2 * 4 * 3 and set(df.status) == {"ok"}
     truth_row = df[(df.formulation == "quaternion") & (df.integrator == "taylor")]

@@ -15,6 +15,7 @@ from helpers import assert_skipped_without_sdk
 from stereodyn.harness import budget
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.declared import declared_order, known_deviations, method, rigid_body
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status
 
@@ -87,13 +88,14 @@ def test_metadata_and_unsupported_torques(mjx):
     # read from the installed MJX (issue 48): the three it runs, then any it offers and says why it does not run
     assert mjx.integrators()[:3] == ("euler", "rk4", "implicitfast")
     assert all(name in mjx.not_modelled for name in mjx.integrators()[3:]), mjx.integrators()
-    assert mjx.precisions("euler") == ("float64", "float32")
-    assert mjx.method("euler") == get_engine("mujoco").method("euler") == "semi_implicit_euler"
-    assert mjx.method("rk4") == "rk4" and mjx.declared_order("rk4") == 4.0
-    assert [d.integrator for d in mjx.known_deviations] == ["rk4"] and mjx.known_deviations[0].expected == 2.0
+    assert mjx.offer("euler").precisions == ("float64", "float32")
+    assert method(mjx, "euler") == method(get_engine("mujoco"), "euler") == "semi_implicit_euler"
+    assert method(mjx, "rk4") == "rk4" and declared_order(mjx, "rk4") == 4.0
+    assert [d.integrator for d in known_deviations(mjx)] == ["rk4"] and known_deviations(mjx)[0].expected == 2.0
     turning = find_case("central-field-turning")
-    assert "per-stage callback" in mjx.unsupported_run(turning, "", "rk4")
-    assert not mjx.default_run(turning, "", "rk4") and mjx.default_run(find_case("lagrange-top"), "", "rk4")
+    model = rigid_body(mjx)
+    assert "per-stage callback" in model.unsupported_run(turning, "", "rk4")
+    assert not model.default_run(turning, "", "rk4") and model.default_run(find_case("lagrange-top"), "", "rk4")
     with pytest.raises(ValueError, match="per-stage callback"):
         mjx.prepare(turning, "rk4", 0.01)
     with pytest.raises(KeyError, match="precision"):

@@ -12,6 +12,7 @@ from helpers import assert_skipped_without_sdk, installed_engine
 
 from stereodyn.harness.scenes import metrics
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.declared import rigid_body
 from stereodyn.harness.analysis.fitting import order_slope
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.scenes.cases import find_case
@@ -88,8 +89,9 @@ def test_a_runaway_run_is_a_diverged_row(newton):
 
 def test_the_default_sweep_is_the_general_cases_at_one_coarse_stable_step(newton):
     heavy, torqued = find_case("heavy-asymmetric"), find_case("self-excited-conic")
-    assert newton.default_dts(heavy, "featherstone", heavy.dt) == (1e-2,)  # not 0.3: beyond Euler's stability
-    assert newton.default_run(heavy, "ball", "xpbd") and not newton.default_run(heavy, "free", "xpbd")
-    assert not newton.default_run(find_case("hess"), "ball", "featherstone")
-    assert newton.unsupported(torqued) is None and newton.torque_mode(torqued) == "step"
-    assert not newton.default_run(torqued, "ball", "featherstone")  # the general cases only
+    model = rigid_body(newton)
+    assert model.default_dts(heavy, "featherstone", heavy.dt) == (1e-2,)  # not 0.3: beyond Euler's stability
+    assert model.default_run(heavy, "ball", "xpbd") and not model.default_run(heavy, "free", "xpbd")
+    assert not model.default_run(find_case("hess"), "ball", "featherstone")
+    assert newton.unsupported(torqued) is None and model.torque_mode(torqued) == "step"
+    assert not model.default_run(torqued, "ball", "featherstone")  # the general cases only

@@ -8,6 +8,7 @@ import pytest
 from stereodyn.harness.run import measure as run_measure
 from stereodyn.harness import cli
 from stereodyn.harness.engines import Engine, UnavailableEngine, get_engine
+from stereodyn.harness.engines.declared import known_deviations
 from stereodyn.harness.run.results import COLUMNS
 
 
@@ -88,7 +89,7 @@ def test_errors_are_measured_against_the_truth(short_suite):
     # The truth is exact to round-off: rk4 at dt = 5e-3 over one second is far more accurate than Euler (but on an
     # engine that declares its rk4 a known deviation: MJX's, 2nd order, 1.3e-4 here).
     deviating = {name for name in set(engines.engine) if any(
-        d.integrator == "rk4" for d in get_engine(name).known_deviations)}
+        d.integrator == "rk4" for d in known_deviations(get_engine(name)))}
     # (float64 rows only: a float32 engine's rk4 stops at its precision floor, ~1e-5 rad, long before 1e-6)
     rk4 = engines[(engines.integrator == "rk4") & (engines.dt == 5e-3) & ~engines.engine.isin(deviating)
                   & (engines.precision == "float64")]

@@ -38,7 +38,7 @@ def test_a_runs_cost_is_its_accuracy_run_checks_and_single_timed_run():
     from stereodyn.harness.run import pool
 
     run = spec("reference", "rk4", 1e-3, formulation="gibbs")
-    one_pass = 5000 * 4 * get_engine("reference").pass_us * 1e-6  # t_end 5 s at 1e-3: 5000 steps of 4 stages
+    one_pass = 5000 * 4 * get_engine("reference").timing.pass_us * 1e-6  # t_end 5 s at 1e-3: 5000 steps of 4 stages
     assert cost(run) == pytest.approx(pool.RUN_OVERHEAD_S + (2 + pool.CHECK_PASSES) * one_pass, rel=1e-12)
 
 
@@ -96,7 +96,8 @@ def test_an_engine_whose_precision_is_process_global_gets_its_runs_one_precision
     from stereodyn.harness.run import timing
     from stereodyn.harness.run.pool import one_precision_at_a_time
 
-    monkeypatch.setattr(timing, "get_engine", lambda name: SimpleNamespace(process_global_precision=name == "g"))
+    monkeypatch.setattr(timing, "get_engine",
+                        lambda name: SimpleNamespace(timing=SimpleNamespace(process_global_precision=name == "g")))
     runs = [SimpleNamespace(engine=e, precision=p, n=i) for i, (e, p) in enumerate(
         [("g", "float64"), ("m", "float64"), ("g", "float32"), ("g", "float64"), ("m", "float32"), ("g", "float32"),
          ("g", "float64")])]
@@ -154,7 +155,7 @@ def test_the_ladders_go_to_the_pool_with_their_engines_affinity_one_precision_at
     monkeypatch.setattr(timing, "process_global_precision", lambda engine: engine == "g")
     monkeypatch.setattr(pool_module, "startup_s", lambda engine: {"g": 45.0}.get(engine, 0.0))
     monkeypatch.setattr(pool_module, "get_engine",
-                        lambda engine: SimpleNamespace(pass_us={"g": 400.0}.get(engine, 1.0)))
+                        lambda engine: SimpleNamespace(timing=SimpleNamespace(pass_us={"g": 400.0}.get(engine, 1.0))))
     submitted = []
 
     class Pool:

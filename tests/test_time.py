@@ -16,6 +16,7 @@ import pytest
 from stereodyn.harness import integrators
 from stereodyn.harness.scenes.cases import find_case
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.declared import rigid_body
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.integrators import ButcherTableau, ExplicitRK, Integrator, VectorRK, get, register
 from stereodyn.harness.integrators.base import StepperIntegrator
@@ -277,7 +278,7 @@ def test_pinocchio_ensemble_members_see_the_stage_times():
     engine, dt = get_engine("pinocchio"), 1e-2
     grid = time_grid(case.t_end, dt, 11)
     omega0 = np.asarray(case.omega0) + 0.05 * np.random.default_rng(0).standard_normal((4, 3))
-    members = engine.prepare_ensemble(case, "rk4", dt, np.tile(case.quat0, (4, 1)), omega0).run(grid)
+    members = rigid_body(engine).prepare_ensemble(case, "rk4", dt, np.tile(case.quat0, (4, 1)), omega0).run(grid)
     for member, w0 in zip(members, omega0):
         single = engine.prepare(dataclasses.replace(case, omega0=w0), "rk4", dt).run(grid)
         assert member.status is Status.OK

@@ -94,7 +94,7 @@ def _short_case():
 
 def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine, tmp_path):
     case = _short_case()
-    assert stub_engine.name == "stub" and stub_engine.adaptive("stub_dop853")
+    assert stub_engine.name == "stub" and stub_engine.offer("stub_dop853").adaptive
     found = ladders.adaptive_families([case], ["stub"], None)
     assert [(f.engine, f.formulation, f.integrator) for f in found] == [("stub", "", "stub_dop853")]
     # the whole phase, as `stereodyn run --dt-ladder` has it: the sweep's rows, then the ladders and the tables

@@ -14,6 +14,7 @@ from helpers import assert_skipped_without_sdk
 
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 from stereodyn.harness.engines import get_engine
+from stereodyn.harness.engines.declared import rigid_body
 from stereodyn.harness.grid import time_grid
 from stereodyn.harness.trajectory import Status
 
@@ -72,11 +73,12 @@ def _host(case):
 
 def test_default_sweep_is_euler_and_rk4_at_a_coarse_step_on_the_general_cases(warp):
     heavy, turning = find_case("heavy-asymmetric"), find_case("central-field-turning")
-    assert warp.precisions("euler") == ("float32",)
-    assert warp.default_run(heavy, "", "euler") and not warp.default_run(find_case("hess"), "", "euler")
-    assert warp.default_dts(heavy, "euler", heavy.dt) == (0.01,)  # 0.3 is beyond Euler's stability
-    assert not warp.default_run(turning, "", "euler") and "per-stage callback" in warp.unsupported_run(turning, "",
-                                                                                                      "euler")
+    model = rigid_body(warp)
+    assert warp.offer("euler").precisions == ("float32",)
+    assert model.default_run(heavy, "", "euler") and not model.default_run(find_case("hess"), "", "euler")
+    assert model.default_dts(heavy, "euler", heavy.dt) == (0.01,)  # 0.3 is beyond Euler's stability
+    assert not model.default_run(turning, "", "euler") and "per-stage callback" in model.unsupported_run(turning, "",
+                                                                                                        "euler")
 
 
 def test_a_sweep_on_a_machine_without_a_gpu_keeps_stderr_empty(warp, tmp_path):

@@ -1,5 +1,6 @@
-"""Cross-engine agreement (agreement.csv): for every pair of runs of the same method (Engine.method, the vocabulary of
-harness.engines.methods) and dt on a case, on two different engines, the largest state difference over the run.
+"""Cross-engine agreement (agreement.csv): for every pair of runs of the same method (engines.declared.method:
+harness.engines.methods' vocabulary) and dt on a case, on two different engines, the largest state difference over
+the run.
 
 Two engines that run the same map agree to round-off (MuJoCo's Euler and Pinocchio's symplectic Euler: 4e-13 rad);
 a difference above that is a finding: another map under the same name (MJX's RK4 is MuJoCo 3.17's, not 4.0's), other

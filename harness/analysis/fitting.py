@@ -29,6 +29,7 @@ import pandas as pd
 from ..scenes import checks
 from ..scenes.metrics import state_err
 from ..engines import EngineError, get_engine
+from ..engines.declared import formulation_order
 from ..precision import EPS as PRECISION_EPS, FLOAT64
 from ..tables import with_precision
 from ..trajectory import Status
@@ -66,10 +67,10 @@ def order_slope(dt, err) -> float:
 
 
 def declared_order(engine: str, integrator: str, formulation: str = "") -> float:
-    """The order the engine declares for an integrator on a model (Engine.formulation_order, by default
-    Engine.declared_order); NaN for an engine not registered."""
+    """The order the engine declares for an integrator on a model (engines.declared.formulation_order, by default
+    engines.declared.declared_order); NaN for an engine not registered."""
     try:
-        return get_engine(engine).formulation_order(formulation, integrator)
+        return formulation_order(get_engine(engine), formulation, integrator)
     except (KeyError, EngineError):
         return math.nan
 

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from . import fitting
-from ..engines import get_engine
+from ..engines import declared, get_engine
 from ..precision import EPS, FLOAT64
 from ..run.spec import Family
 from ..scenes.cases import CHAOTIC_TAGS, Case
@@ -260,14 +260,15 @@ AdaptiveFamily = Family  # runs of one adaptive integrator that differ only in t
 
 def adaptive_families(cases: list[Case], engines: list[str], integrators: list[str] | None,
              formulations: tuple[str, ...] | None = None) -> list[AdaptiveFamily]:
-    """Every adaptive integrator (Engine.adaptive) of the engines, on each formulation and case the engine models;
+    """Every adaptive integrator (Offer.adaptive) of the engines, on each formulation and case the engine models;
     integrators: the names chosen (None: all of them, whatever the sweep's default). formulations: only these (an
     engine with formulations but none of these: its first), None: all."""
     out = []
     for name in engines:
         engine = get_engine(name)
-        chosen = [i for i in engine.integrators() if engine.adaptive(i) and (integrators is None or i in integrators)]
-        own = tuple(engine.formulations()) or ("",)
+        chosen = [i for i in engine.integrators()
+                  if engine.offer(i).adaptive and (integrators is None or i in integrators)]
+        own, model = declared.formulations(engine) or ("",), declared.rigid_body(engine)
         if formulations is not None:
             own = tuple(f for f in own if f in formulations) or own[:1]
         for case in cases:
@@ -275,9 +276,9 @@ def adaptive_families(cases: list[Case], engines: list[str], integrators: list[s
                 continue
             for integrator in chosen:
                 for formulation in own:
-                    if engine.unsupported_run(case, formulation, integrator):
+                    if model.unsupported_run(case, formulation, integrator):
                         continue
-                    for precision in engine.precisions(integrator):
+                    for precision in engine.offer(integrator).precisions:
                         out.append(AdaptiveFamily(case, name, formulation, integrator, precision))
     return out
 
@@ -288,8 +289,8 @@ def failed_point(family: AdaptiveFamily, tolerance: float, message: str) -> dict
 
 
 def adaptive_cost(family: AdaptiveFamily) -> float:
-    """Rank of a family's cost, to start the costliest first: the engine's cost of a step (Engine.pass_us)."""
-    return get_engine(family.engine).pass_us
+    """Rank of a family's cost, to start the costliest first: the engine's cost of a step (Timing.pass_us)."""
+    return get_engine(family.engine).timing.pass_us
 
 
 def tolerance_frame(points: list[dict]) -> pd.DataFrame:

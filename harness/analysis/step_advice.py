@@ -25,6 +25,7 @@ from . import fitting
 from .fitting import FAMILY, with_state_err
 from .ladders import TOLERANCES
 from ..engines import get_engine
+from ..engines.declared import declared_order, formulations, in_default_sweep, rigid_body
 from ..precision import FLOAT64
 from ..run.results import SINGLE, with_precision
 from ..run.spec import Family
@@ -290,7 +291,7 @@ def families_to_advise(case, engine_name: str, integrators: list[str] | None,
     with a declared order or error control, on one formulation (the one named, else quaternion or the engine's
     first). Bad names raise ValueError with the valid ones."""
     engine = get_engine(engine_name)
-    own = tuple(engine.formulations())
+    own, model = formulations(engine), rigid_body(engine)
     if formulation is None:
         formulation = "quaternion" if "quaternion" in own else (own[0] if own else "")
     elif formulation not in own:
@@ -302,11 +303,11 @@ def families_to_advise(case, engine_name: str, integrators: list[str] | None,
             raise ValueError(f"--integrator: unknown for {engine_name}: {', '.join(unknown)}; valid: {', '.join(known)}")
         chosen = list(integrators)
     else:
-        chosen = [i for i in known if engine.in_default_sweep(i) and engine.default_run(case, formulation, i)
-                  and (engine.adaptive(i) or math.isfinite(engine.declared_order(i)))]
+        chosen = [i for i in known if in_default_sweep(engine, i) and model.default_run(case, formulation, i)
+                  and (engine.offer(i).adaptive or math.isfinite(declared_order(engine, i)))]
     out = []
     for integrator in chosen:
-        if engine.unsupported(case) or engine.unsupported_run(case, formulation, integrator):
+        if engine.unsupported(case) or model.unsupported_run(case, formulation, integrator):
             continue
-        out.append((Family(case, engine_name, formulation, integrator), engine.adaptive(integrator)))
+        out.append((Family(case, engine_name, formulation, integrator), engine.offer(integrator).adaptive))
     return out

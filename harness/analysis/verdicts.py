@@ -8,7 +8,7 @@ Per integrator (an engine, formulation, integrator and precision, across the run
   declared one (an order measured over a case's first part only says over what span); a family no case gave an order
   is "not measured" with each case's reason (EXCUSES: exact for this motion, at the precision floor, chaotic, no run
   ok), or NO_REASON where nothing excuses it, which --strict fails; where the engine declares a known deviation of
-  the order (Engine.known_deviations) and the fit matches it, `known` (not a failure), and `fixed upstream?` where it
+  the order (Offer.deviation) and the fit matches it, `known` (not a failure), and `fixed upstream?` where it
   stopped matching it but meets the declared one;
 - bounded energy, for a method that declares energy_bounded: its energy error over ENERGY_RATIO times a short run
   grows at most ENERGY_GROWTH times (no secular trend), on a conservative case, both floored at the round-off of the
@@ -40,6 +40,7 @@ from ..run.results import read_csv_table, with_precision, write_atomic
 from .fitting import is_failed  # noqa: F401 (the Pareto table applies it; part of this API)
 from ..engines import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR, get_engine
 from ..engines.base import KnownDeviation
+from ..engines.declared import known_deviations
 from ..precision import FLOAT64
 from ..environment import engine_version
 
@@ -58,7 +59,7 @@ EXCUSES = (("exact for this motion", "exact for this motion"),
                                                      "dt whose run finished ok)"),
            ("its error grows exponentially", "chaotic"),
            ("no run ok", "no run finished ok"))
-# An engine's declared known deviation (Engine.known_deviations) that the measurement matches: not a failure (--strict
+# An engine's declared known deviation (Offer.deviation) that the measurement matches: not a failure (--strict
 # passes it), listed in the report with its upstream reference. FIXED: the measurement stopped matching the deviation
 # and meets the declared value instead: the deviation's declaration is stale (upstream fixed it?). Neither fails.
 KNOWN, FIXED = "known", "fixed upstream?"
@@ -316,9 +317,9 @@ def _unmeasured(group: pd.DataFrame, declared: float, excluded: set[str], base: 
 
 
 def _known_deviation(engine: str, integrator: str) -> KnownDeviation | None:
-    """The engine's declared deviation of the integrator's order (Engine.known_deviations), if any."""
+    """The engine's declared deviation of the integrator's order (engines.declared.known_deviations), if any."""
     try:
-        declared = get_engine(engine).known_deviations
+        declared = known_deviations(get_engine(engine))
     except (KeyError, ValueError):  # an engine no longer registered: nothing declared
         return None
     return next((d for d in declared if d.integrator == integrator and d.quantity == "order"), None)

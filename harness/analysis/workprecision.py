@@ -23,7 +23,7 @@ from ..scenes import scene_of
 from ..scenes.cases import CHAOTIC_TAGS, Case
 from . import ladders as ladder_rules
 from .ladders import LADDER, LADDER_COLUMNS, MIN_STEPS, SHORT_LADDER, families
-from ..engines import get_engine
+from ..engines import declared, get_engine
 from .pareto import ACCURACY_TARGETS
 from .fitting import (CONVERGENCE_FILE, FAMILY, ORDER_QUANTITY, TIE_RTOL, convergence_table, declared_order, order_checks, pareto,
                       pareto_table, sweep_orders, tolerance_fits, with_state_err)
@@ -72,8 +72,8 @@ def _ladder_cost(family: Family) -> float:
     """Rank of a family's ladder cost, to start the costliest first so the pool ends together: the engine's cost of
     a step times the integrator's declared order (higher orders reach their floor at more, smaller steps)."""
     engine = get_engine(family.engine)
-    order = engine.declared_order(family.integrator)
-    return engine.pass_us * (order if math.isfinite(order) else 1.0)
+    order = declared.declared_order(engine, family.integrator)
+    return engine.timing.pass_us * (order if math.isfinite(order) else 1.0)
 
 
 def rewrite_pareto(out_dir: Path, results: pd.DataFrame, failed: set) -> None:
@@ -95,7 +95,7 @@ def short_ladder_families(results: pd.DataFrame, cases: list[Case], engines: lis
     """The families that get a short ladder (pipeline.dt_ladders.run_short_ladder), each with its sweep runs and its
     steps cap (SHORT_MAX_STEPS, or SHORT_MAX_EVALS over the evaluations a step of it costs in the sweep; at most
     SHORT_MAX_POINT_S of stepping at its cost of a step in the sweep): every
-    fixed-step family of these cases with a declared order (Engine.declared_order), not laddered, whose own dt list
+    fixed-step family of these cases with a declared order (Offer.order), not laddered, whose own dt list
     gives no order (or, for a claim (engine, formulation, integrator) in remeasure, whose order misses the rule on
     too few points: weak_claims; its non-chaotic cases), and with a run that was not failed or skipped (those keep
     their sweep row and its reason)."""

@@ -162,6 +162,6 @@ def loaded(name: str) -> Engine:
 def engine_for_state_space(state_space: str) -> Engine:
     """The first available engine whose registered integrators work on state_space (harness.testing)."""
     for engine in engines():
-        if engine.state_space == state_space and not isinstance(engine, UnavailableEngine):
+        if engine.about.state_space == state_space and not isinstance(engine, UnavailableEngine):
             return engine
     raise ValueError(f"no engine runs state space {state_space!r}")

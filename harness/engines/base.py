@@ -40,7 +40,7 @@ def prepare_keywords(engine: "Engine", formulation: str, integrator: str, precis
     has formulations, its precision where the engine declares any other than float64 only (an engine written before
     precisions existed never receives one)."""
     keywords: dict = {"formulation": formulation} if formulation else {}
-    if tuple(engine.precisions(integrator)) != (FLOAT64,):
+    if tuple(engine.offer(integrator).precisions) != (FLOAT64,):
         keywords["precision"] = precision
     return keywords
 
@@ -165,9 +165,10 @@ class Engine:
     whose subclass holds the engine's formulations, default runs and steps, run-level refusals, torque mode, export)
     and `unmodelled(scene)`.
 
-    The methods and properties below PROTOCOL are what the harness reads, derived from those groups; an engine does
-    not define them: a class that defines one of them, or another name of 0.2.0's protocol (OLD_NAMES), is refused
-    with a TypeError naming it and its spelling now.
+    These are Engine's only public names: the harness reads the groups themselves, and what it derives from them
+    with the registry's defaults (declared order, method, default sweep, the rigid-body model) through
+    harness.engines.declared. A class that defines a name of 0.2.0's protocol (OLD_NAMES) is refused with a TypeError
+    naming it and its spelling now.
     """
 
     PROTOCOL = ("name", "integrators", "unsupported", "prepare", "offer", "timing", "about", "models", "unmodelled")
@@ -224,89 +225,6 @@ class Engine:
         """Why this engine has no model of the scene (harness.scenes.base.Scene): the skipped row's message."""
         return f"{self.name} adapter does not model {scene.title}"
 
-    # ------------------------------------------------------- read by the harness: derived, never overridden
-
-    def _rigid_body(self) -> "SceneModel":
-        model = self.models().get(RIGID_BODY)
-        return model if isinstance(model, SceneModel) else RigidBodyModel(self)
-
-    def formulations(self) -> tuple[str, ...]:
-        """The rigid-body model's variants (results.csv's formulation column; none: "")."""
-        return tuple(self._rigid_body().variants())
-
-    def default_run(self, case: "Case", formulation: str, integrator: str) -> bool:
-        return self._rigid_body().default_run(case, formulation, integrator)
-
-    def default_dts(self, case: "Case", integrator: str, dts: tuple[float, ...]) -> tuple[float, ...]:
-        return tuple(self._rigid_body().default_dts(case, integrator, tuple(dts)))
-
-    def unsupported_run(self, case: "Case", formulation: str, integrator: str) -> str | None:
-        return self._rigid_body().unsupported_run(case, formulation, integrator)
-
-    def torque_mode(self, case: "Case") -> str:
-        return self._rigid_body().torque_mode(case)
-
-    def export(self, case: "Case", fmt: str, integrator: str | None, dt: float | None) -> str:
-        return self._rigid_body().export(case, fmt, integrator, dt)
-
-    def prepare_ensemble(self, case: "Case", integrator: str, dt: float, quat0: np.ndarray, omega0: np.ndarray,
-                         threads: int = 1) -> "EnsembleSimulation":
-        """N initial states (quat0 (N, 4) wxyz, omega0 (N, 3) rad/s) stepped together (RigidBodyModel)."""
-        return self._rigid_body().prepare_ensemble(case, integrator, dt, quat0, omega0, threads)
-
-    def in_default_sweep(self, integrator: str) -> bool:
-        declared = self.offer(integrator).default_sweep
-        if declared is not None:
-            return bool(declared)
-        from ..integrators.registry import in_default_sweep  # the table, not the methods' modules
-
-        return in_default_sweep(integrator)
-
-    def precisions(self, integrator: str) -> tuple[str, ...]:
-        return tuple(self.offer(integrator).precisions)
-
-    def method(self, integrator: str) -> str:
-        declared = self.offer(integrator).method
-        if declared is not None:
-            return declared
-        from .methods import registered_method  # (not `from . import methods`: the package imports this module)
-
-        return registered_method(integrator, self.state_space or "lie")
-
-    def adaptive(self, integrator: str) -> bool:
-        return bool(self.offer(integrator).adaptive)
-
-    def declared_order(self, integrator: str) -> float:
-        order = float(self.offer(integrator).order)
-        if not math.isnan(order):
-            return order
-        from ..integrators.registry import get
-
-        try:
-            return float(get(integrator, self.state_space or "lie").order)
-        except KeyError:
-            return math.nan
-
-    def formulation_order(self, formulation: str, integrator: str) -> float:
-        return float(dict(self.offer(integrator).orders).get(formulation, self.declared_order(integrator)))
-
-    @property
-    def known_deviations(self) -> tuple[KnownDeviation, ...]:
-        if not _overrides(self, "integrators"):  # none to declare (the registry refuses such an engine at load)
-            return ()
-        return tuple(d for i in self.integrators() if (d := self.offer(i).deviation) is not None)
-
-    pass_us = property(lambda self: self.timing.pass_us)
-    startup_s = property(lambda self: self.timing.startup_s)
-    short_warm_up = property(lambda self: self.timing.short_warm_up)
-    process_global_precision = property(lambda self: self.timing.process_global_precision)
-    prepare_budget_s = property(lambda self: self.timing.prepare_budget_s)
-    packages = property(lambda self: self.about.packages)
-    linestyle = property(lambda self: self.about.linestyle)
-    export_formats = property(lambda self: self.about.export_formats)
-    state_space = property(lambda self: self.about.state_space)
-    default_formulation = property(lambda self: self.about.formulation)
-
 
 RIGID_BODY, SLIDING_LADDER = "rigid_body", "sliding_ladder"  # scene kinds (harness.scenes) the defaults name
 
@@ -357,11 +275,6 @@ class SceneModel:
     def export(self, case, fmt: str, integrator: str | None, dt: float | None) -> str:
         """The model as text in one of the engine's export_formats (`stereodyn export`). Default: none."""
         raise ValueError(f"{case.name}: no {fmt} export of this scene's model")
-
-
-def _overrides(engine: Engine, hook: str) -> bool:
-    """Whether the engine's class defines a method of Engine's itself (integrators: the one it must)."""
-    return getattr(type(engine), hook) is not getattr(Engine, hook)
 
 
 class RigidBodyModel(SceneModel):

@@ -12,6 +12,7 @@ from functools import cache
 from importlib.metadata import PackageNotFoundError, distribution, version
 
 from . import BrokenEngine, UnavailableEngine, _entry_points, loaded
+from .declared import formulations, in_default_sweep
 # who registers an entry point, and the plug-in distributions of a run's environment: read there, no engine loaded;
 # importable from here as before
 from ..environment import OWN_DISTRIBUTION, entry_distribution as _distribution, plugin_distributions  # noqa: F401
@@ -70,11 +71,11 @@ def rows() -> list[EngineRow]:
             continue
         offers = {i: engine.offer(i) for i in engine.integrators()}
         integrators = [i for i, offer in offers.items() if not offer.unmodelled]
-        packages = ", ".join(f"{p} {_version(p)}" for p in engine.packages)
+        packages = ", ".join(f"{p} {_version(p)}" for p in engine.about.packages)
         table.append(EngineRow(
-            name, origin(name), "installed" + (f" ({packages})" if packages else ""), engine.formulations(),
-            tuple(i + ("*" if engine.in_default_sweep(i) else "") for i in integrators),
-            tuple(dict.fromkeys(p for i in integrators for p in engine.precisions(i))),
+            name, origin(name), "installed" + (f" ({packages})" if packages else ""), formulations(engine),
+            tuple(i + ("*" if in_default_sweep(engine, i) else "") for i in integrators),
+            tuple(dict.fromkeys(p for i in integrators for p in offers[i].precisions)),
             tuple((i, offer.unmodelled) for i, offer in offers.items() if offer.unmodelled)))
     return table
 

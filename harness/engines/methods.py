@@ -1,7 +1,7 @@
 """The shared vocabulary of integration methods: what an integrator is, whatever an engine calls it.
 
 Names mislead: MuJoCo's `euler` is semi-implicit (velocity first), like Pinocchio's `symplectic_euler`, not like the
-registry's `euler` (explicit). Each engine declares the method of each of its integrators (Engine.method); runs of
+registry's `euler` (explicit). Each engine declares the method of each of its integrators (Offer.method); runs of
 the same method and dt on a case are compared across engines (agreement.csv, harness.agreement). Two runs of one
 method on one state space agree to round-off where they are the same map; a difference above it is a finding.
 """
@@ -21,7 +21,7 @@ METHODS: dict[str, str] = {
 }
 
 # The registry's built-in integrators: (name, state space) -> method. A plug-in integrator is compared with nothing
-# until its engine says what it is (Engine.method). rk4_naive (the RK4 tableau through a retraction, 2nd order on the
+# until its engine says what it is (Offer.method). rk4_naive (the RK4 tableau through a retraction, 2nd order on the
 # group) and the geometric splittings are methods of their own: left out.
 _REGISTERED = {
     ("euler", "lie"): "explicit_euler", ("symplectic_euler", "lie"): "semi_implicit_euler", ("rk4", "lie"): "rk4",

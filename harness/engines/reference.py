@@ -21,7 +21,7 @@ from ...reference.formulations import Chart, ChartSingularity, Formulation
 from ...reference.truth import check_tolerance as truth_tolerance
 
 TAYLOR = "taylor"
-# The scipy methods a sweep that names no integrators runs, on the quaternion formulation only (Engine.default_run).
+# The scipy methods a sweep that names no integrators runs, on the quaternion formulation only (SceneModel.default_run).
 # Measured on the 2-core dev machine, one run of each at tol 1e-8 over the 25 rigid-body cases of the suite: RK45 1.0 s,
 # DOP853 0.5 s, LSODA 0.5 s, Radau 5.7 s, BDF 3.0 s in all; a row costs about 4 runs (accuracy, checks, timing), and
 # each charted formulation as much again. The implicit Radau and BDF (for stiff problems, which these scenes are not)

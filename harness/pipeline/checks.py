@@ -36,7 +36,7 @@ def energy_verdicts(results: pd.DataFrame) -> list[Verdict]:
             if name not in ran or not getattr(cls, "energy_bounded", False):
                 continue
             runner_engine = engine_for_state_space(space)  # where harness.testing runs the integrator
-            engine, formulation = runner_engine.name, runner_engine.default_formulation
+            engine, formulation = runner_engine.name, runner_engine.about.formulation
             base = dict(engine=engine, formulation=formulation, integrator=name, rule=rule)
             try:
                 short = testing.energy_error(cls, ENERGY_CASE, ENERGY_DT, ENERGY_STEPS, space,
@@ -67,7 +67,7 @@ def property_verdicts(results: pd.DataFrame) -> list[Verdict]:
     spaces = {}
     for engine in (ok["engine"].astype(str).unique() if "engine" in ok else ()):
         try:
-            spaces[engine] = get_engine(engine).state_space
+            spaces[engine] = get_engine(engine).about.state_space
         except (KeyError, ValueError):  # an engine no longer registered: its rows are no run of ours
             spaces[engine] = None
     ran = ({(spaces[e], i) for e, i in zip(ok["engine"].astype(str), ok["integrator"].astype(str))} if "engine" in ok
@@ -79,7 +79,7 @@ def property_verdicts(results: pd.DataFrame) -> list[Verdict]:
                 continue
             cls = registry.get(name, space)
             runner_engine = engine_for_state_space(space)
-            base = dict(engine=runner_engine.name, formulation=runner_engine.default_formulation, integrator=name)
+            base = dict(engine=runner_engine.name, formulation=runner_engine.about.formulation, integrator=name)
             for claim in claims.claimed(cls):
                 try:
                     found = claims.check(cls, claim)

@@ -1,5 +1,5 @@
 """Tolerance ladders, the runs (their tables and constants: harness.analysis.ladders, re-exported here): every
-adaptive integrator of every engine (Engine.adaptive) run at a sweep of requested tolerances, per point the error
+adaptive integrator of every engine (Offer.adaptive) run at a sweep of requested tolerances, per point the error
 achieved and the cost.
 
 For a case × engine × formulation × adaptive integrator (an AdaptiveFamily), a ladder is one run per tolerance of

@@ -42,13 +42,13 @@ QUANTITIES = {**{name: i.label for name, i in INTEGRALS.items() if i.label is no
 
 
 def linestyle(engine: str) -> str:
-    """The engine's line style (Engine.linestyle); an engine no longer registered gets the base class's."""
+    """The engine's line style (About.linestyle); an engine no longer registered gets the base class's."""
     from ..engines import Engine, EngineError, get_engine
 
     try:
-        return get_engine(engine).linestyle
+        return get_engine(engine).about.linestyle
     except (KeyError, EngineError):
-        return Engine.linestyle
+        return Engine.about.linestyle
 
 
 def dt_key(dt) -> str:

@@ -224,7 +224,7 @@ def _engines_judged(results: pd.DataFrame, env: dict) -> list[str]:
     judged = []
     for name in dict.fromkeys(results["engine"].dropna()) if "engine" in results else ():
         try:
-            packages = get_engine(str(name)).packages
+            packages = get_engine(str(name)).about.packages
         except (EngineError, KeyError):
             packages = ()
         versions = ", ".join(f"{p} {env.get(p, 'absent')}" for p in packages)

@@ -57,6 +57,7 @@ def integrator_rows() -> list[dict]:
                          "description": cls.description})
     from ..engines.catalog import origin as engine_origin
     from ..analysis.fitting import declared_order
+    from ..engines.declared import in_default_sweep
 
     for engine in engine_names():
         try:
@@ -65,18 +66,18 @@ def integrator_rows() -> list[dict]:
         except Exception:  # an engine that is not installed lists nothing
             continue
         # the engine's own integrators: all of them for an engine that steps its own model, those the registry does
-        # not hold for one that runs the registry's (adapter.state_space); labelled with the engine, since names
+        # not hold for one that runs the registry's (adapter.about.state_space); labelled with the engine, since names
         # repeat across engines (MuJoCo's euler is semi-implicit, the registry's explicit)
-        registered = set(registry.names(adapter.state_space)) if adapter.state_space else set()
+        registered = set(registry.names(adapter.about.state_space)) if adapter.about.state_space else set()
         for name in names:
             if name not in registered:
                 rows.append({"name": name, "state_space": f"{engine} (engine)", "order": declared_order(engine, name),
                              "stages": "", "symplectic": "", "geometric": "", "energy_bounded": "",
                              "symmetric": "", "casimir_preserving": "",
-                             "default_sweep": adapter.in_default_sweep(name),
+                             "default_sweep": in_default_sweep(adapter, name),
                              "origin": f"{engine_origin(engine)} ({engine})",
                              "description": adapter.offer(name).unmodelled
-                             or ("adaptive (error-controlled)" if adapter.adaptive(name) else "")})
+                             or ("adaptive (error-controlled)" if adapter.offer(name).adaptive else "")})
     return rows
 
 
@@ -189,7 +190,7 @@ def own_label(engine: str, integrator: str) -> str:
     from ..engines import get_engine
 
     try:
-        space = get_engine(engine).state_space
+        space = get_engine(engine).about.state_space
     except Exception:  # an engine that cannot be loaded: its rows keep their names
         return integrator
     return integrator if space and integrator in registry.names(space) else f"{integrator} ({engine})"

@@ -40,8 +40,8 @@ def prepare(run: RunKey):
 
 def prepare_budget(run: RunKey, budgets: budget.Budgets) -> float:
     """The run's prepare budget, s: the sweep's, or its engine's where that declares a longer one
-    (Engine.prepare_budget_s)."""
-    return max(budgets.prepare_s, get_engine(run.engine).prepare_budget_s or 0.0)
+    (Timing.prepare_budget_s)."""
+    return max(budgets.prepare_s, get_engine(run.engine).timing.prepare_budget_s or 0.0)
 
 
 def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = False,

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
-from ..engines import UnavailableEngine, get_engine
+from ..engines import UnavailableEngine, declared, get_engine
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
@@ -16,8 +16,8 @@ from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row
 class Selection:
     """The integrators a sweep runs on one engine, resolved from the names asked for (--integrators, SweepOptions):
     those of them the engine has, in its order; none asked for, the engine's default sweep (default True:
-    Engine.in_default_sweep), which also takes the engine's default steps (Engine.default_dts) and leaves out the
-    pairs its models decline (SceneModel.default_run)."""
+    engines.declared.in_default_sweep), which also takes the rigid body's default steps (SceneModel.default_dts) and
+    leaves out the pairs its models decline (SceneModel.default_run)."""
 
     integrators: tuple[str, ...]
     default: bool
@@ -25,7 +25,7 @@ class Selection:
     @classmethod
     def of(cls, engine, names: Sequence[str] | None) -> "Selection":
         if names is None:
-            return cls(tuple(i for i in engine.integrators() if engine.in_default_sweep(i)), True)
+            return cls(tuple(i for i in engine.integrators() if declared.in_default_sweep(engine, i)), True)
         return cls(tuple(i for i in engine.integrators() if i in names), False)
 
 
@@ -33,13 +33,13 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
     """The runs of a sweep, and the rows of runs skipped up front (engine cannot model the case).
 
     Each case runs on each engine's model of its scene (Engine.models(); an engine without one gives one skipped row,
-    Engine.unmodelled). An engine's adaptive integrators (Engine.adaptive) run once per case with dt None, the others
+    Engine.unmodelled). An engine's adaptive integrators (Offer.adaptive) run once per case with dt None, the others
     once per dt of the case; each runs every variant of the model (SceneModel.variants: the rigid body's
-    formulations, Engine.formulations; "" for a model without), except the pairs the model leaves out of a sweep
-    that names no integrators (SceneModel.default_run, the rigid body's Engine.default_run). integrators: the names
-    asked for, None for each engine's default sweep (Selection, resolved here once per engine). With integrators
-    named, an engine that offers none of them has no rows at all (an engine whose SDK is missing, whose offer is
-    unknown, keeps its skipped rows with the reason; `stereodyn run` leaves it out unless --engines names it).
+    formulations, engines.declared.formulations; "" for a model without), except the pairs the model leaves out of
+    a sweep that names no integrators (SceneModel.default_run). integrators: the names asked for, None for each
+    engine's default sweep (Selection, resolved here once per engine). With integrators named, an engine that
+    offers none of them has no rows at all (an engine whose SDK is missing, whose offer is unknown, keeps its
+    skipped rows with the reason; `stereodyn run` leaves it out unless --engines names it).
     """
     specs, skipped = [], []
     for engine_rank, name in enumerate(engines):
@@ -60,12 +60,12 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
             for integrator_rank, integrator in enumerate(model.integrators(list(selection.integrators)) or ([""] if reason else [])):
                 # an integrator the SDK offers that the adapter does not run (Offer.unmodelled): one skipped row
                 unmodelled = engine.offer(integrator).unmodelled if integrator else ""
-                dts = (None,) if integrator and (engine.adaptive(integrator) or unmodelled) else case.dt
+                dts = (None,) if integrator and (engine.offer(integrator).adaptive or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
-                    dts = engine.default_dts(case, integrator, tuple(dts))
+                    dts = tuple(declared.rigid_body(engine).default_dts(case, integrator, tuple(dts)))
                 for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
                     if integrator and selection.default and not model.default_run(case, formulation, integrator):
-                        continue  # the engine leaves this pair out of the default sweep (Engine.default_run)
+                        continue  # the engine leaves this pair out of the default sweep (SceneModel.default_run)
                     # the precisions the engine's model of this scene runs (SceneModel.precisions)
                     precisions = model.precisions(integrator) if integrator else (FLOAT64,)
                     for dt in dts:
@@ -73,7 +73,7 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                             spec = RunSpec(case, name, integrator, dt, formulation, precision=precision,
                                            engine_rank=engine_rank, integrator_rank=integrator_rank,
                                            formulation_rank=formulation_rank, precision_rank=precision_rank)
-                            # a formulation/integrator pair that cannot model the case (Engine.unsupported_run)
+                            # a formulation/integrator pair that cannot model the case (SceneModel.unsupported_run)
                             why = reason or unmodelled or (integrator and model.unsupported_run(case, formulation,
                                                                                                 integrator))
                             (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
@@ -82,11 +82,11 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
 
 def agreement_candidates(specs: list[RunSpec]) -> set[int]:
     """Indices of the fixed-step rigid-body runs whose states the cross-engine agreement compares: those whose
-    integrator names a method (Engine.method) that another engine also runs on the same case and dt."""
+    integrator names a method (engines.declared.method) that another engine also runs on the same case and dt."""
     methods = {}
     for index, spec in enumerate(specs):
         if spec.dt is not None and scene_of(spec.case).keeps_states:  # a scene whose states are (quat, omega)
-            method = get_engine(spec.engine).method(spec.integrator)
+            method = declared.method(get_engine(spec.engine), spec.integrator)
             if method:
                 methods[index] = (spec.case.name, spec.dt, method)
     engines: dict[tuple, set[str]] = {}

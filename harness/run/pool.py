@@ -21,7 +21,7 @@ from .workers import Affinity, WatchedPool
 
 # The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
 # Measured on the suite's four general cases (t_end 5 and 20, every engine, 2-core AMD EPYC): one simulation pass
-# costs about Engine.pass_us µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations
+# costs about Timing.pass_us µs per stage per step (MuJoCo 1.2-1.9, Pinocchio 2.4-2.9, the reference formulations
 # 5.6-7.5), and a run about 4.1-4.5 passes (the accuracy run, the timed runs, ~0.1-0.5 for metrics and check reruns)
 # plus ~6-25 ms. Only the ranking matters, so rough constants are enough: each engine declares its own (pass_us).
 RUN_OVERHEAD_S = 0.01   # prepare, metrics and the row, s
@@ -30,14 +30,12 @@ CHECK_PASSES = 0.3      # mean extra passes of metrics and the checks' perturbed
 
 def startup_s(engine: str) -> float:
     """The start-up a worker pays once for an engine before its first run (SDK import, compilations), s: the engine's
-    declaration (Engine.startup_s, or Engine.timing.startup_s), 0.0 where it declares none or cannot be loaded."""
+    declaration (Timing.startup_s), 0.0 where it declares none or cannot be loaded."""
     try:
         adapter = get_engine(engine)
     except Exception:  # its runs say why; nothing to schedule around
         return 0.0
-    declared = getattr(adapter, "startup_s", None)
-    if declared is None:
-        declared = getattr(getattr(adapter, "timing", None), "startup_s", 0.0)
+    declared = getattr(getattr(adapter, "timing", None), "startup_s", 0.0)
     try:
         declared = float(declared)
     except (TypeError, ValueError):
@@ -99,7 +97,7 @@ def pass_s(engine: str, integrator: str, steps: int) -> float:
     """Estimated seconds of one pass of `steps` steps: steps x the integrator's stages x the engine's cost of a stage
     (Engine pass_us). At least one stage a step: moser_veselov declares 0 (it calls no accel) yet costs a solve a
     step."""
-    return steps * max(1, integrator_registry.stages(integrator)) * get_engine(engine).pass_us * 1e-6
+    return steps * max(1, integrator_registry.stages(integrator)) * get_engine(engine).timing.pass_us * 1e-6
 
 
 def one_precision_at_a_time(specs: list, of: Callable = lambda item: item) -> list:

@@ -26,7 +26,7 @@ class RunKey:
     dt: float | None = None
     formulation: str = ""
     tolerance: float | None = None
-    precision: str = FLOAT64  # the run's floating-point precision (Engine.precisions)
+    precision: str = FLOAT64  # the run's floating-point precision (Offer.precisions)
 
     @property
     def family_label(self) -> str:

@@ -18,6 +18,7 @@ import pandas as pd
 
 from .. import budget
 from ..engines import get_engine
+from ..engines.declared import method
 from ..environment import TIMING_END, TIMING_START, load_snapshot
 from ..environment import environment as current_environment
 from ..scenes import checks, scene_of
@@ -171,7 +172,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         def _compare(spec: RunSpec, states: dict) -> None:
             agreement.append({"case": spec.case.name, "engine": spec.engine, "formulation": spec.formulation,
                               "integrator": spec.integrator, "precision": spec.precision, "dt": spec.dt,
-                              "method": get_engine(spec.engine).method(spec.integrator), "horizon": spec.case.horizon,
+                              "method": method(get_engine(spec.engine), spec.integrator), "horizon": spec.case.horizon,
                               "rank": tuple(_ranks(spec).values()), **states})
 
         for spec in specs:  # resumed runs: their states where the earlier run saved them

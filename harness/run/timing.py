@@ -38,7 +38,7 @@ from ..tables import SINGLE, disturbed
 REPEATS = 3          # timed runs at most
 MIN_REPEATS = 2      # timed runs at least, even past the budget: one run has no spread
 BUDGET_S = 2.0       # stop repeating once the timed runs have taken this long (after MIN_REPEATS)
-# The short warm-up's length (Engine.short_warm_up), steps: a few ms of a Python-stepped run. The full warm-up was a
+# The short warm-up's length (Timing.short_warm_up), steps: a few ms of a Python-stepped run. The full warm-up was a
 # quarter of the default run's timing phase (54 of 205 s of its main process, sampled), most of it Python-stepped runs.
 WARM_UP_STEPS = 256
 # A timing whose spread is larger than its best time measured the machine, not the run: re-timed once, and if still so,
@@ -216,11 +216,11 @@ def _warmed(items: dict, prepare: Callable, engine_of: Callable) -> dict:
 
 def warm_up(sim, grid: TimeGrid, engine: str) -> None:
     """Run sim once, untimed, before it is timed: its caches, lazily compiled code, first-call costs. The whole grid,
-    or for an engine that declares Engine.short_warm_up only the grid's first WARM_UP_STEPS steps (to the first sample
+    or for an engine that declares Timing.short_warm_up only the grid's first WARM_UP_STEPS steps (to the first sample
     at or past them): the timed repeats of a run lie a whole round apart (measure_interleaved), so a warm-up leaves
     no cache warm for them anyway; only its first-call costs matter, and a few hundred steps pay them."""
     try:
-        short = bool(get_engine(engine).short_warm_up)
+        short = bool(get_engine(engine).timing.short_warm_up)
     except (KeyError, ValueError):  # not an engine of this registry: the whole run
         short = False
     sim.run(first_steps(grid, WARM_UP_STEPS) if short else grid)
@@ -235,7 +235,7 @@ def first_steps(grid: TimeGrid, steps: int) -> TimeGrid:
 def groups(keys: list[tuple[str, str]]) -> list[list[int]]:
     """The timing groups of runs given by (engine, precision): the indices of the runs prepared side by side and
     timed in rounds together. One group for every engine's runs, except an engine whose precision is process-global
-    (Engine.process_global_precision: building a model of one precision releases the models of the other), whose runs
+    (Timing.process_global_precision: building a model of one precision releases the models of the other), whose runs
     form a group per precision, after the shared one: the precision met last first, since the sweep ran its runs last
     (pool.one_precision_at_a_time), so its workers still hold that precision and the models they kept
     (pool.prepare_kept): one switch of precision, not two. Empty groups are left out."""
@@ -249,10 +249,10 @@ def groups(keys: list[tuple[str, str]]) -> list[list[int]]:
 
 
 def process_global_precision(engine: str) -> bool:
-    """Whether building a model of one precision releases the other's in a process (Engine.process_global_precision:
+    """Whether building a model of one precision releases the other's in a process (Timing.process_global_precision:
     Genesis re-initialises itself); False for a name this registry does not know."""
     try:
-        return bool(get_engine(engine).process_global_precision)
+        return bool(get_engine(engine).timing.process_global_precision)
     except (KeyError, ValueError):
         return False
 

@@ -2,7 +2,7 @@
 
     python tests/benchmarks/bench_adaptive.py [--jobs N]
 
-adaptive_sweep_s      the default sweep's scipy rows (Engine.default_run: scipy_rk45, scipy_dop853, scipy_lsoda on the
+adaptive_sweep_s      the default sweep's scipy rows (default_run: scipy_rk45, scipy_dop853, scipy_lsoda on the
                       quaternion formulation of every rigid-body case): each row's accuracy run, metrics and checks
                       (harness.run.sweep.execute), then their timing phase (time_specs), all in this process: an upper
                       bound, since the default run spreads the accuracy runs over its workers.

@@ -42,6 +42,7 @@ from stereodyn.harness.scenes import metrics  # noqa: E402
 from stereodyn.harness.run import truth as run_truth  # noqa: E402
 from stereodyn.harness.scenes.cases import find_case, with_overrides  # noqa: E402
 from stereodyn.harness.engines import get_engine  # noqa: E402
+from stereodyn.harness.engines.declared import rigid_body  # noqa: E402
 from stereodyn.harness.engines.pinocchio import build_model  # noqa: E402
 from stereodyn.harness.grid import time_grid  # noqa: E402
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep  # noqa: E402
@@ -67,7 +68,7 @@ def pinocchio_vs_native(repeats: int, members: int = 1024, steps: int = 200) -> 
     qf, vf = np.asfortranarray(np.stack((x, y, z, w))), np.asfortranarray(omega0.T)
     tau, acc = np.zeros((3, members), order="F"), np.zeros((3, members), order="F")
     engine = get_engine("pinocchio")
-    ensemble = engine.prepare_ensemble(case, "rk4", dt, quat0, omega0, threads=threads)
+    ensemble = rigid_body(engine).prepare_ensemble(case, "rk4", dt, quat0, omega0, threads=threads)
     ensemble_grid = time_grid(steps * dt, dt, 10)
     sim = engine.prepare(case, "rk4", dt)
     single_grid = time_grid(bench_overhead.PINOCCHIO_STEPS * dt, dt, bench_overhead.SAMPLES)
