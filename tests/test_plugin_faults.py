@@ -21,6 +21,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import integrators
+from stereodyn.harness.engines.base import Offer
 from stereodyn.harness.errors import InternalError
 from stereodyn.harness.integrators import registry
 from stereodyn.harness.integrators.base import metadata_problem
@@ -556,3 +557,46 @@ def test_hostile_loads_are_warnings_and_the_report_renders(tmp_path):
         assert len(left_out) == 2 and "RuntimeError: section broke" in left_out[0] and "SystemExit: 5" in left_out[1]
         assert any("report section plug-in 'ends'" in line and "ProcessExit" in line for line in said), said
         assert "malformed" not in result.stderr
+
+
+# ------------------------------------------------------------------------ an engine's offer, checked at load
+
+def _offering(offer):
+    """A toy engine of one integrator whose offer() is `offer` (a callable)."""
+    from stereodyn.harness.engines.base import Engine
+
+    return type("OfferingEngine", (Engine,), {"name": "offering", "integrators": lambda self: ("rk4",),
+                                              "unsupported": lambda self, case: None,
+                                              "prepare": lambda self, *a, **k: None, "offer": offer})()
+
+
+@pytest.mark.parametrize("offer, words", [
+    (lambda self, i: Offer(order="four"),
+     "offer('rk4').order = 'four': must be a positive finite number"),
+    (lambda self, i: Offer(order=math.inf),
+     "offer('rk4').order = inf: must be a positive finite number"),
+    (lambda self, i: Offer(order=-1),
+     "offer('rk4').order = -1: must be a positive finite number"),
+    (lambda self, i: Offer(orders=(("q", 0),)),
+     "offer('rk4').orders['q'] = 0: must be a positive finite number"),
+    (lambda self, i: 4, "offer('rk4') returned 4, not an Offer"),
+    (lambda self, i: 1 / 0, "offer('rk4') failed: ZeroDivisionError"),
+], ids=["order text", "order inf", "order negative", "formulation order 0", "not an offer", "raises"])
+def test_an_engine_whose_offer_no_verdict_can_judge_is_refused_at_load(offer, words):
+    """Issue 46's re-attack: an engine plug-in's Offer(order="four") ran the sweep and died in the verdicts (exit 1,
+    a traceback), order inf or -1 got no order verdict even under --strict, and an offer() that raised was a traceback
+    of the plan. Refused when the engine loads, one line naming the integrator, the field and the rule (a command
+    naming the engine exits 2 with it: harness.engines.EngineError). Break-checked: without _check_offer every case
+    passes the load."""
+    from stereodyn.harness import engines
+
+    with pytest.raises((engines.EngineError, plugins.PluginError)) as caught:
+        engines._check(_offering(offer), "engine plug-in 'offering'")
+    assert words in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_an_engine_offering_the_registrys_order_loads():
+    from stereodyn.harness import engines
+
+    engines._check(_offering(lambda self, i: Offer()), "engine plug-in 'offering'")  # NaN: the registry's order
+    engines._check(_offering(lambda self, i: Offer(order=4, orders=(("q", 2.0),))), "engine plug-in 'offering'")

@@ -7,12 +7,13 @@ naming it where it is asked for, and is left out of every listing of all engines
 claims a built-in's name is refused with a warning; the built-in keeps it."""
 from __future__ import annotations
 
+import math
 from functools import cache
 from importlib.metadata import EntryPoint
 
 from ...reference import plugins
 from ...reference.registry import Registry
-from .base import Engine, RigidBodyModel
+from .base import Engine, Offer, RigidBodyModel
 from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
@@ -130,6 +131,29 @@ def _check(engine: Engine, where: str) -> None:
         raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
     if not isinstance(models, dict):
         raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
+    for integrator in names:  # what the plan, the verdicts and the listing read of each integrator
+        _check_offer(engine, integrator, where)
+
+
+def _check_offer(engine: Engine, integrator: str, where: str) -> None:
+    """Refuse, at load, an offer() that raises or is no Offer, or an order no verdict can judge (NaN: the registry's;
+    otherwise harness.integrators.base.order_problem's rule, the integrators' own)."""
+    from ..integrators.base import order_problem
+
+    with plugins.guard(f"{where}: offer({integrator!r}) failed"):
+        offer = engine.offer(integrator)
+    if not isinstance(offer, Offer):
+        raise EngineError(f"{where}: offer({integrator!r}) returned {offer!r:.80}, not an Offer")
+    orders = [("order", offer.order)] if not (isinstance(offer.order, float) and math.isnan(offer.order)) else []
+    try:
+        orders += [(f"orders[{formulation!r}]", order) for formulation, order in offer.orders]
+    except (TypeError, ValueError):
+        raise EngineError(f"{where}: offer({integrator!r}).orders = {offer.orders!r:.80}: must be (formulation, "
+                          "order) pairs") from None
+    for field, order in orders:
+        problem = order_problem(order)
+        if problem:
+            raise EngineError(f"{where}: offer({integrator!r}).{field}{problem.removeprefix('order')}")
 
 
 @cache
