@@ -98,3 +98,22 @@ def test_the_plan_resolves_no_integrators_to_each_engines_default_sweep_once(mon
     assert sorted((s.case.name, s.integrator, s.dt) for s in named) == [
         ("free-asymmetric", "rk4", 5e-3), ("free-asymmetric", "rk4", 1e-2),
         ("lagrange-top", "rk4", 5e-3), ("lagrange-top", "rk4", 1e-2)]
+
+
+class RaisingUnsupported(CoarseByDefault):
+    name = "raising_unsupported"
+
+    def unsupported(self, case):
+        raise ValueError("no idea")
+
+
+def test_an_engine_whose_unsupported_raises_gives_skipped_rows_naming_it(monkeypatch):
+    """Issue 46's re-attack: a plug-in's unsupported(case) that raised was a traceback of the plan (exit 1, no rows).
+    Its rows are skipped with the reason, the sweep goes on; break-checked: calling model.unsupported directly again
+    fails here with the ValueError."""
+    engine = RaisingUnsupported()
+    monkeypatch.setattr(planning, "get_engine", lambda name: engine)
+    specs, skipped = planning.plan([find_case("free-asymmetric")], ["raising_unsupported"], ["rk4"])
+    assert specs == [] and skipped
+    assert all(r["status"] == "skipped" and "unsupported(case) raised ValueError: no idea" in r["message"]
+               for r in skipped)

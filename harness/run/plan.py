@@ -9,6 +9,7 @@ from typing import Sequence
 from ..engines import UnavailableEngine, declared, get_engine
 from ..precision import FLOAT64
 from ..scenes import scene_of
+from .processes import raise_unless_data
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
 
 
@@ -55,7 +56,7 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                 skipped.append(skipped_row(RunSpec(case, name, "", None, engine_rank=engine_rank),
                                            engine.unmodelled(scene)))
                 continue
-            reason = model.unsupported(case)
+            reason = _unsupported(model, case, name)
             variants = tuple(model.variants()) or ("",)
             for integrator_rank, integrator in enumerate(model.integrators(list(selection.integrators)) or ([""] if reason else [])):
                 # an integrator the SDK offers that the adapter does not run (Offer.unmodelled): one skipped row
@@ -93,3 +94,13 @@ def agreement_candidates(specs: list[RunSpec]) -> set[int]:
     for index, key in methods.items():
         engines.setdefault(key, set()).add(specs[index].engine)
     return {index for index, key in methods.items() if len(engines[key]) > 1}
+
+
+def _unsupported(model, case, engine: str) -> str | None:
+    """The model's reason not to run the case (SceneModel.unsupported); a plug-in's that raises is the reason of its
+    skipped rows, named (our own code's is a bug: raise_unless_data)."""
+    try:
+        return model.unsupported(case)
+    except Exception as exc:
+        raise_unless_data(exc)
+        return f"engine {engine!r}: unsupported(case) raised {type(exc).__name__}: {exc}"[:300]
