@@ -181,6 +181,40 @@ def test_history_flags_a_nan_on_an_order_and_a_recovery_better(tmp_path):
         ("order", "3", "better")], steps
 
 
+def test_an_order_that_fell_toward_its_declared_one_is_worse_where_the_gate_fails_it(tmp_path, capsys):
+    """Issue 46's re-attack: a baseline's fitted 4.8 (declared 4) against a run's 4.01 fails check ("fell" by more than
+    gate.ORDER_DROP), while compare --format pr called it better (nearer the declared order) and history flagged
+    "0 worse". Both call it worse now; a rise toward the declared order stays better. Break-checked: compare's
+    old sign rule fails the pr assertion."""
+    from stereodyn.harness.analysis import compare, history
+
+    run = folder(tmp_path / "run")
+    baseline = tmp_path / "baseline.json"
+    assert cli.main(["baseline", str(run), "--out", str(baseline)]) == 0
+    data = json.loads(baseline.read_text())
+    data["orders"][0]["fitted"] = 4.8
+    baseline.write_text(json.dumps(data))
+    assert cli.main(["check", str(run), "--baseline", str(baseline)]) == 1
+    capsys.readouterr()
+    assert cli.main(["compare", str(baseline), str(run), "--format", "pr"]) == 0
+    pr = capsys.readouterr().out
+    assert "no change for the worse" not in pr and "**1 changes for the worse**" in pr, pr
+    key = ("c",)
+    assert [c["sign"] for c in compare.order_changes({key: {"fitted": 3.0, "declared": 4.0}},
+                                                     {key: {"fitted": 4.0, "declared": 4.0}})] == ["better"]
+
+    def point(label, order):
+        table = pd.DataFrame([dict(case="c", engine="e", formulation="", integrator="i", precision="float64",
+                                   dt=0.01, status="ok", attitude_err=1e-6)])
+        orders = pd.DataFrame([dict(case="c", engine="e", formulation="", integrator="i", precision="float64",
+                                    fitted=order, declared=4.0)])
+        return history.Point(label, label, table, orders, {})
+
+    for before, after, direction in ((4.8, 4.0, "worse"), (3.0, 4.0, "better"), (4.0, 4.8, "changed")):
+        _, steps = history.history([point("1", before), point("2", after)])
+        assert list(zip(steps["label"], steps["direction"])) == [("2", direction)], (before, after, steps)
+
+
 # ---------------------------------------------------- finding 9: the PR summary is markdown of <= 60 lines
 
 def test_the_pr_summary_escapes_every_value_and_stays_within_60_lines(tmp_path, capsys):

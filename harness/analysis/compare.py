@@ -152,8 +152,8 @@ def load_orders(path: Path) -> dict[tuple, dict]:
 
 def order_changes(a: dict[tuple, dict], b: dict[tuple, dict]) -> list[dict]:
     """The run families whose fitted order moved by more than ORDER_CHANGE, appeared, or went (NaN counts as none):
-    {key, declared, a, b, sign}; sign: better when B is nearer the declared order, worse when farther (or gone), new
-    when only B has one, changed without a declared order. Worst first."""
+    {key, declared, a, b, sign}; sign: worse where the gate fails it (B fell more than gate.ORDER_DROP below A, or
+    went), better when B is nearer the declared order, new when only B has one, changed otherwise. Worst first."""
     out = []
     for key in dict.fromkeys([*a, *b]):
         x, y = (gate._number((side.get(key) or {}).get("fitted")) for side in (a, b))
@@ -162,10 +162,12 @@ def order_changes(a: dict[tuple, dict], b: dict[tuple, dict]) -> list[dict]:
             continue
         if math.isnan(y) or math.isnan(x):  # gone is worse (the gate fails it); a new fit has no direction
             sign = "worse" if math.isnan(y) else "new"
-        elif math.isnan(declared):
+        elif y < x - gate.ORDER_DROP:  # worse exactly where the gate fails it (fell), so pr.md agrees with check
+            sign = "worse"
+        elif not math.isnan(declared) and abs(y - declared) < abs(x - declared):
+            sign = "better"
+        else:  # farther from the declared order, within what the gate passes, or none declared
             sign = "changed"
-        else:
-            sign = "better" if abs(y - declared) < abs(x - declared) else "worse"
         out.append({"key": key, "declared": declared, "a": x, "b": y, "sign": sign})
     moved = lambda c: math.inf if math.isnan(c["a"] - c["b"]) else abs(c["b"] - c["a"])  # noqa: E731
     return sorted(out, key=lambda c: (c["sign"] != "worse", -moved(c)))

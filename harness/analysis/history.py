@@ -130,7 +130,8 @@ def flag(table: pd.DataFrame, points: list[Point], factor: float = STEP_FACTOR,
     """(history, steps): `series`'s table with `step` (worse, better, changed or "") and `change` (B/A of a metric's
     fitted levels, the difference of an order's, "A -> B" of a status) at each point where a series steps, and the
     steps alone (STEP_COLUMNS: before and after the fitted levels, or the statuses). Lower is better for a metric; for
-    an order, nearer the declared order (a higher one where none is declared); a worse status ranks as the gate
+    an order, a fall the gate fails (gate.ORDER_DROP) is worse, else nearer the declared order (a higher one where none
+    is declared) better, else a change; a worse status ranks as the gate
     ranks it (ok < diverged < failed, skipped), a row gone missing is worse, a row that appears a change."""
     declared = _declared(points)
     records = table.to_dict("records")
@@ -158,7 +159,9 @@ def flag(table: pd.DataFrame, points: list[Point], factor: float = STEP_FACTOR,
             if quantity == ORDER:
                 target = declared.get(key)
                 better = (abs(after - target) < abs(before - target)) if target is not None else after > before
-                found.append((finite[s][0], before, after, f"{after - before:+.2f}", "better" if better else "worse"))
+                # worse exactly where the gate fails it (fell by more than its ORDER_DROP), so history agrees with check
+                direction = "worse" if after < before - gate.ORDER_DROP else "better" if better else "changed"
+                found.append((finite[s][0], before, after, f"{after - before:+.2f}", direction))
             else:
                 ratio = 10 ** (after - before)
                 found.append((finite[s][0], 10 ** before, 10 ** after, f"{ratio:.3g}x",
