@@ -227,7 +227,7 @@ def test_the_pr_summary_escapes_every_value_and_stays_within_60_lines(tmp_path, 
     names = {i: f"case{i}\n{nasty}" for i in range(3)}
     a = folder(tmp_path / "a", env=env_a, case_names=names)
     b = folder(tmp_path / "b", env=env_b, case_names=names,
-               values={(i, m): 10.0 for i in range(3) for m in ("attitude_err", "energy_drift")})
+               values={(i, m): 3.0 for i in range(3) for m in ("attitude_err", "energy_drift")})  # <= pi
     assert cli.main(["compare", str(a), str(b), "--format", "pr"]) == 0
     printed = capsys.readouterr().out
     lines = printed.splitlines()
@@ -247,15 +247,15 @@ def test_a_value_above_the_bound_is_refused_where_it_is_read(tmp_path, capsys):
     file, the row, the column and the bound: history no longer dies of an OverflowError (exit 1, "a row got worse");
     a baseline holding one, or an order below 0, is refused too (either could never fail)."""
     a = folder(tmp_path / "a")
-    b = folder(tmp_path / "b", date="2026-11-02T10:00:00+00:00", values={(0, "attitude_err"): 1e308})
+    b = folder(tmp_path / "b", date="2026-11-02T10:00:00+00:00", values={(0, "energy_drift"): 1e308})
     capsys.readouterr()
     assert cli.main(["history", str(a), str(b), "--out", str(tmp_path / "h")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "row 1, column attitude_err: '1e+308': must be <= 1e+100" in err, err
+    assert err.count("\n") == 1 and "row 1, column energy_drift: '1e+308': must be <= 1e+100" in err, err
     baseline = tmp_path / "baseline.json"
     assert cli.main(["baseline", str(a), "--out", str(baseline)]) == 0
     data = json.loads(baseline.read_text())
-    for edit, words in ((lambda d: d["rows"][0].update(attitude_err=1e308), "rows[0].attitude_err: must be <= 1e+100"),
+    for edit, words in ((lambda d: d["rows"][0].update(energy_drift=1e308), "rows[0].energy_drift: must be <= 1e+100"),
                         (lambda d: d["orders"][0].update(fitted=-50), "orders[0].fitted: must be >= 0"),
                         (lambda d: d["rows"][0].update(attitude_err=10 ** 400), "rows[0].attitude_err: must be finite")):
         edited = json.loads(json.dumps(data))
@@ -269,12 +269,70 @@ def test_a_value_above_the_bound_is_refused_where_it_is_read(tmp_path, capsys):
             assert err.count("\n") == 1 and words in err, err
 
 
+def edited_baselines(tmp_path, base: Path, edits):
+    """(path, words) for each (edit, words): base's JSON changed by edit(data), written beside it."""
+    data = json.loads(base.read_text())
+    for index, (edit, words) in enumerate(edits):
+        edited = json.loads(json.dumps(data))
+        edit(edited)
+        path = tmp_path / f"edited-{index}.json"
+        path.write_text(json.dumps(edited))
+        yield path, words
+
+
+# Each quantity's range where a baseline is read: an angle in rad up to pi (9.9e99 passed the global 1e100 bound, and
+# check could then never fail the row), an order up to MAX_ORDER, only the keys write_baseline writes, text in the
+# environment. None: the file is accepted (the bound itself, and pi as results.csv writes it, 10 digits).
+BASELINE_EDITS = [
+    (lambda d: d["rows"][0].update(attitude_err=9.9e99), "rows[0].attitude_err: must be <= pi (an angle in rad)"),
+    (lambda d: d["rows"][0].update(attitude_err_end=3.2), "rows[0].attitude_err_end: must be <= pi"),
+    (lambda d: d["rows"][0].update(attitude_err=3.141592654), None),
+    (lambda d: d["orders"][0].update(fitted=101), "orders[0].fitted: must be <= 100 (a convergence order)"),
+    (lambda d: d["orders"][0].update(declared=1e99), "orders[0].declared: must be <= 100"),
+    (lambda d: d["orders"][0].update(fitted=100), None),
+    (lambda d: d["orders"][0].update(fited=4.0), "orders[0].fited: unknown key (allowed: case, engine, formulation"),
+    (lambda d: d.update(order=d["orders"]), ": order: unknown key (allowed: format, mode, environment, rows, orders)"),
+    (lambda d: d["environment"].update(numpy=2), "environment.numpy: must be a string, got 2"),
+]
+
+
+def test_a_baseline_value_outside_its_quantitys_range_or_an_unknown_key_is_one_line(tmp_path, capsys):
+    a = folder(tmp_path / "a")
+    baseline = tmp_path / "baseline.json"
+    assert cli.main(["baseline", str(a), "--out", str(baseline)]) == 0
+    for path, words in edited_baselines(tmp_path, baseline, BASELINE_EDITS):
+        for argv in (["check", str(a), "--baseline", str(path)], ["compare", str(path), str(a)]):
+            capsys.readouterr()
+            code = cli.main(argv)
+            err = capsys.readouterr().err
+            if words is None:
+                assert code in (0, 1) and "error" not in err, (argv, err)
+            else:
+                assert code == 2 and err.count("\n") == 1 and f"{path}: " in err and words in err, (argv, words, err)
+
+
+@pytest.mark.parametrize("value, code", [(3.5, 2), (3.141592654, 0)])
+def test_an_angle_above_pi_in_results_csv_is_refused_by_every_reader(tmp_path, capsys, value, code):
+    a = folder(tmp_path / "a")
+    b = folder(tmp_path / "b", date="2026-11-02T10:00:00+00:00", values={(1, "attitude_err_end"): value})
+    baseline = tmp_path / "baseline.json"
+    assert cli.main(["baseline", str(a), "--out", str(baseline)]) == 0
+    for argv in (["check", str(b), "--baseline", str(baseline)], ["compare", str(a), str(b)],
+                 ["history", str(a), str(b), "--out", str(tmp_path / "h")], ["baseline", str(b), "--out",
+                                                                             str(tmp_path / "b.json")]):
+        capsys.readouterr()
+        assert cli.main(argv) == code, argv  # a's baseline holds no attitude_err_end: check passes pi
+        err = capsys.readouterr().err
+        if code:
+            assert err.count("\n") == 1 and "row 2, column attitude_err_end: '3.5': must be <= pi" in err, (argv, err)
+
+
 def test_the_largest_accepted_values_leave_every_command_finite(tmp_path, capsys):
     """At the bound (1e100, against the floor's 1e-12) history, compare and check compute without overflow."""
     from stereodyn.harness.run.results import MAX_VALUE
 
-    a = folder(tmp_path / "a", values={(0, "attitude_err"): 0.0})
-    b = folder(tmp_path / "b", date="2026-11-02T10:00:00+00:00", values={(0, "attitude_err"): MAX_VALUE})
+    a = folder(tmp_path / "a", values={(0, "energy_drift"): 0.0})  # a relative drift: an angle stays <= pi
+    b = folder(tmp_path / "b", date="2026-11-02T10:00:00+00:00", values={(0, "energy_drift"): MAX_VALUE})
     assert cli.main(["history", str(a), str(b), "--out", str(tmp_path / "h")]) == 0
     assert cli.main(["compare", str(a), str(b), "--format", "pr"]) == 0
     baseline = tmp_path / "baseline.json"
@@ -343,11 +401,15 @@ def test_a_garbled_or_huge_runs_json_is_named(tmp_path, capsys):
     b = folder(tmp_path / "b", date="2026-11-02T10:00:00+00:00")
     baseline = tmp_path / "baseline.json"
     assert cli.main(["baseline", str(a), "--out", str(baseline)]) == 0
+    from stereodyn.harness.run.results import frame, read_results, write_results
+
+    write_results(frame(read_results(b / "results.csv").to_dict("records")), b / "results.csv")  # report's columns
     for content, words in (("{garbled", "invalid JSON"), (None, "larger than")):
         with open(b / "runs.json", "w") as handle:
             handle.write(content) if content else handle.truncate(300 << 20)  # sparse: 300 MB on no disk
         for argv, code in ((["history", str(a), str(b), "--out", str(tmp_path / "h")], 2),
-                           (["compare", str(a), str(b)], 0), (["check", str(b), "--baseline", str(baseline)], 0)):
+                           (["compare", str(a), str(b)], 0), (["check", str(b), "--baseline", str(baseline)], 0),
+                           (["report", str(b), "--no-figures"], 0)):
             capsys.readouterr()
             assert cli.main(argv) == code, argv
             warning = capsys.readouterr().err.splitlines()[0]
@@ -367,7 +429,8 @@ def test_history_refuses_a_duplicated_row_as_every_reader_does(tmp_path, capsys)
 
 
 @pytest.mark.parametrize("value, kept", [(None, True), (2.5e-7, True), ("inf", True), (-1e-9, False),
-                                         (1e308, False), (float("nan"), False), (10 ** 400, False), ("1e-3", False)])
+                                         (1e308, False), (float("nan"), False), (10 ** 400, False), ("1e-3", False),
+                                         (3.2, False)])
 def test_resume_keeps_only_records_whose_numbers_results_csv_would_accept(value, kept):
     """A hand-edited store record (a negative error, 1e308, a NaN literal where the store writes null) counts as
     absent on --resume and is redone, never copied into a results.csv that check then refuses; what the store itself

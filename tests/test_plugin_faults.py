@@ -168,6 +168,47 @@ def test_garbage_from_a_plugins_run_is_its_failed_row(monkeypatch, answer, words
     assert words in row["message"], row["message"]
 
 
+class _Scene:
+    """A plug-in's scene (the built-in rigid body's, but for its metrics): metrics() returns `metrics`."""
+
+    def __init__(self, metrics):
+        from stereodyn.harness.scenes import scene
+
+        self.builtin, self.metrics_out = scene("rigid_body"), metrics
+
+    def __getattr__(self, name):
+        return getattr(self.builtin, name)
+
+    def metrics(self, *args, **options):
+        return dict(self.metrics_out)
+
+
+@pytest.mark.parametrize("metrics, words", [
+    ({"attitude_err": 4.0}, "attitude_err = 4.0: must be <= pi (an angle in rad)"),
+    ({"energy_drift": -1e-9}, "energy_drift = -1e-09: must be >= 0"),
+    ({"omega_err": math.inf}, "omega_err = inf: must be finite or NaN"),
+    ({"momentum_drift": 1e200}, "momentum_drift = 1e+200: must be <= 1e+100"),
+], ids=["angle", "negative", "inf", "huge"])
+def test_a_scene_plugins_metric_no_reader_accepts_is_its_failed_row(monkeypatch, metrics, words):
+    """A run wrote such a number into results.csv, which check, report and compare then refused as a malformed
+    table: the plug-in's scene is the culprit, its run the failed row. NaN, text and the rule's edges pass."""
+    monkeypatch.setattr(measure, "scene_of", lambda case: _Scene(metrics))
+    row = _row(monkeypatch, _Model(lambda grid: _states(grid)))
+    assert row["status"] == "failed" and row["message"].startswith("BadMetric: "), row
+    assert f"_Scene.metrics(): {words}" in row["message"], row["message"]
+    fine = {"attitude_err": math.pi, "energy_drift": 0.0, "omega_err": math.nan, "torque_mode": "none"}
+    monkeypatch.setattr(measure, "scene_of", lambda case: _Scene(fine))
+    assert _row(monkeypatch, _Model(lambda grid: _states(grid)))["status"] == "ok"
+
+
+def test_a_metric_of_stereodyns_own_scene_no_reader_accepts_is_our_bug():
+    class Scene:  # stands in for a built-in scene
+        pass
+    Scene.__module__ = "stereodyn.harness.scenes.fake"
+    with pytest.raises(InternalError, match="BadMetric: .*attitude_err = 3.5: must be <= pi"):
+        measure.checked_metrics(Scene(), {"attitude_err": 3.5})
+
+
 def test_garbage_from_stereodyns_own_simulation_is_our_bug():
     class Simulation:  # stands in for a built-in adapter's
         pass
@@ -283,14 +324,15 @@ def _rk(class_name: str, **declared) -> type:
     ({"order": math.nan}, "order = nan: must be a positive finite number"),
     ({"order": 0}, "order = 0: must be a positive finite number"),
     ({"order": True}, "order = True: must be a positive finite number"),
-    ({"order": 1e308}, "order = 1e+308: must be a positive finite number, at most 64"),  # issue 46's re-attack
+    ({"order": 101}, "order = 101: must be a positive finite number, at most 100"),
+    ({"order": 1e308}, "order = 1e+308: must be a positive finite number, at most 100"),  # issue 46's re-attack
     ({"stages": -3}, "stages = -3: must be a non-negative integer"),
     ({"stages": 2.5}, "stages = 2.5: must be a non-negative integer"),
     ({"symplectic": "yes"}, "symplectic = 'yes': must be True or False"),
     ({"symmetric": 1}, "symmetric = 1: must be True or False"),
     ({"iterative": None}, "iterative = None: must be True or False"),
     ({"name": ""}, "name = '': must be a non-empty string"),
-], ids=["order text", "order nan", "order 0", "order bool", "order huge", "stages negative", "stages float", "symplectic text",
+], ids=["order text", "order nan", "order 0", "order bool", "order 101", "order huge", "stages negative", "stages float", "symplectic text",
         "symmetric int", "iterative None", "no name"])
 def test_an_integrator_with_a_bad_declaration_is_refused_at_register(declared, words):
     cls = _rk("meta_bad", **declared)
@@ -321,7 +363,7 @@ def test_an_entry_point_with_a_bad_order_is_one_line_and_named_exit_2(monkeypatc
         warnings.simplefilter("always")
         assert "meta_four" not in integrators.names(None)
     line = ("integrator plug-in 'four' (plugin_meta:Four) not loaded: ValueError: integrator plugin_x.meta_four: "
-            "order = 'four': must be a positive finite number")
+            "order = 'four': must be a positive finite number, at most 100")
     assert [str(w.message) for w in caught] == [line]
     assert registry.failed_plugin("meta_four") == line
 

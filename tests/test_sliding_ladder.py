@@ -128,3 +128,24 @@ def test_pinocchio_ladder_plans_only_the_integrators_of_a_vector_state():
     specs, skipped = plan([case], ["pinocchio"], None)
     assert not skipped and {s.integrator for s in specs} == {"euler", "rk4"}  # symplectic_euler & co. are SO(3)'s
     assert {s.formulation for s in specs} == {"bilateral"} and len(specs) == 2 * len(case.dt)
+
+
+def test_the_ladders_attitude_error_is_the_angle_on_the_circle():
+    """attitude_err is an angle in [0, pi] in every scene (results.ANGLES, which every reader checks): a rod a full turn
+    and a bit ahead of the equation (theta - theta_equation = 2 pi + 0.1) is 0.1 rad from it, one 3 rad behind is 3."""
+    from types import SimpleNamespace
+
+    from stereodyn.harness.scenes.sliding_ladder import ladder_metrics
+
+    ladder = ref_ladder.Ladder(mass=1.0, half_length=1.0, theta0=0.3, theta_dot0=0.0, g=9.81)
+    times = np.array([0.0, 0.1, 0.2])
+    theta = np.array([0.3, 0.35, 0.4])
+    equation = ref_ladder.LadderMotion(times, theta, np.zeros(3), math.nan, math.nan)
+    state = ref_ladder.planar_state(ladder, theta + np.array([0.0, 2 * np.pi + 0.1, -3.0]), np.zeros(3))
+    traj = SimpleNamespace(state=state, times=times, violation=np.zeros(3))
+    out = ladder_metrics(SimpleNamespace(case=SimpleNamespace(ladder=ladder), formulation="bilateral"), traj, equation)
+    assert out["attitude_err"] == pytest.approx(3.0, abs=1e-12)
+    assert out["attitude_err_end"] == pytest.approx(3.0, abs=1e-12)
+    traj.state = ref_ladder.planar_state(ladder, theta + np.array([0.0, 0.05, 2 * np.pi + 0.1]), np.zeros(3))
+    out = ladder_metrics(SimpleNamespace(case=SimpleNamespace(ladder=ladder), formulation="bilateral"), traj, equation)
+    assert out["attitude_err"] == pytest.approx(0.1, abs=1e-12)

@@ -34,6 +34,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..environment import OWN_SOURCE, differences
+from ..integrators.base import MAX_ORDER
 from ..precision import FLOAT64
 from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
 from ..run.results import (KEY, METRIC_SUFFIXES, NAMED, SINGLE, STATUSES, TableError, describe_key, dt_key, duplicate,
@@ -45,6 +46,10 @@ STATUS_RANK = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2}
 BASELINE_FORMAT = "stereodyn-baseline/1"  # "orders" (the fitted convergence orders) is optional: older files lack it
 CONVERGENCE_FILE = "convergence.csv"  # written by harness.analysis.workprecision
 ORDER_KEY = ("case", "engine", "formulation", "integrator", "precision")
+# The keys write_baseline writes, at the top and in an order entry: any other is refused (a typed "order" for
+# "orders" would be a baseline without orders, a "fited" an order never checked).
+BASELINE_KEYS = ("format", "mode", "environment", "rows", "orders")
+ORDER_ENTRY_KEYS = (*ORDER_KEY, "fitted", "declared")
 # A fitted order may fall this much below the baseline's. The fits are deterministic: on one machine kind round-off
 # moves them by < 0.01; a method that lost an order (MuJoCo 3.17's ball-joint RK4: 2.00 against 4.07) moves >= 1.
 ORDER_DROP = 0.5
@@ -256,6 +261,24 @@ def _validate_rows(path: Path, name: str, rows, required: tuple, text: tuple, nu
                 raise GateError(f"{where}.{key}: must be finite, got {str(value)[:40]}")
 
 
+def order_rule(key: str, value: float) -> str | None:
+    """Why value cannot be a baseline's fitted or declared order, or None: a fitted order in [0, MAX_ORDER] (one
+    below 0 would be a method whose error grows as its step shrinks), a declared one in (0, MAX_ORDER] (as an
+    integrator declares it, integrators.base.metadata_problem)."""
+    if value < 0 or (key == "declared" and value == 0):
+        return "must be >= 0" if key == "fitted" else "must be > 0"
+    if value > MAX_ORDER:
+        return f"must be <= {MAX_ORDER}"
+    return None
+
+
+def _known_keys(where: str, entry: dict, allowed: tuple) -> None:
+    """GateError naming the first key of entry that is not in allowed (where: the file and the entry, up to the key)."""
+    for key in entry:
+        if key not in allowed:
+            raise GateError(f"{where}{str(key)[:80]}: unknown key (allowed: {', '.join(allowed)})")
+
+
 def _check_rows(path: Path, rows: list[dict]) -> None:
     """What read_results asks of a results table, asked of a baseline's rows: a case and an engine named, a status of
     STATUSES exactly, no metric (nor timing) negative and a dt > 0, only the keys write_baseline writes (a metric the
@@ -296,6 +319,7 @@ def read_baseline_file(path: Path) -> Baseline:
         raise GateError(f"{path}: not a baseline file ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != BASELINE_FORMAT or not isinstance(data.get("rows"), list):
         raise GateError(f"{path}: not a baseline file (format must be {BASELINE_FORMAT!r} with a list of rows)")
+    _known_keys(f"{path}: ", data, BASELINE_KEYS)
     rows, orders, environment = data["rows"], data.get("orders", []), data.get("environment", {})
     if not rows:
         raise GateError(f"{path}: rows: empty (a baseline must hold at least one row)")
@@ -307,17 +331,21 @@ def read_baseline_file(path: Path) -> Baseline:
         raise GateError(f"{path}: orders: must be a list")
     _validate_rows(path, "orders", orders, (*ORDER_KEY[:4], "fitted"), ORDER_KEY,
                    lambda key: key in ("fitted", "declared"))
-    for index, row in enumerate(orders):  # an order below 0 could never fall by ORDER_DROP below itself and fail
-        for key, low in (("fitted", "must be >= 0"), ("declared", "must be > 0")):
-            value = row.get(key)
-            if value is not None and (value < 0 or (key == "declared" and value == 0)):
-                raise GateError(f"{path}: orders[{index}].{key}: {low} (a convergence order), got {value}")
+    for index, row in enumerate(orders):
+        _known_keys(f"{path}: orders[{index}].", row, ORDER_ENTRY_KEYS)
+        for key in ("fitted", "declared"):
+            rule = None if row.get(key) is None else order_rule(key, row[key])
+            if rule:
+                raise GateError(f"{path}: orders[{index}].{key}: {rule} (a convergence order), got {row[key]}")
     twice = duplicate([_order_key(row) for row in orders])
     if twice:
         raise GateError(f"{path}: orders[{twice[1]}]: duplicate key {describe_key(_order_key(orders[twice[1]]))} "
                         f"(also orders[{twice[0]}]): one fitted order per run family")
     if not isinstance(environment, dict):
         raise GateError(f"{path}: environment: must be an object")
+    for name, value in environment.items():  # what runs.json records: versions and names, all text
+        if not isinstance(value, str):
+            raise GateError(f"{path}: environment.{name[:80]}: must be a string, got {json.dumps(value)[:40]}")
     mode = data.get("mode")
     if mode is not None and mode not in MODES:
         raise GateError(f"{path}: mode: must be one of {', '.join(MODES)}, got {json.dumps(mode)[:40]}")

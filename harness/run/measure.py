@@ -7,6 +7,7 @@ row."""
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from typing import Callable
 
@@ -18,6 +19,7 @@ from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status, judged, problem
 from .processes import plugin_fault, raise_unless_data
+from .results import METRIC_SUFFIXES, value_rule
 from .spec import RunKey, base_row
 
 
@@ -70,7 +72,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
                 return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance,
                                      **precision_keyword(run)).run(grid)
 
-            row.update(scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states))
+            row.update(checked_metrics(scene, scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states)))
             budget.check()  # a loop that could not be stopped inside (one compiled call, MJX's) is judged here
         if timed is not None and traj.status is Status.OK:
             row.update(timed(sim, grid))
@@ -104,6 +106,27 @@ def checked(sim, traj, grid, expected: type | None = None):
             raise InternalError(f"NoTrajectory: {text}", f"NoTrajectory: {text}\n")
         raise NoTrajectory(text)
     return judged(traj)
+
+
+class BadMetric(ValueError):
+    """A scene plug-in's metric that no reader of results.csv would accept: a failed row of that run."""
+
+
+def checked_metrics(scene, metrics: dict) -> dict:
+    """A scene's metrics, each number within its column's rule (results.value_rule, which every reader of results.csv
+    applies: no negative error, no angle above pi, nothing above 1e100; a metric finite or NaN), so that a run never
+    writes a table its readers refuse. BadMetric from a plug-in's scene, InternalError from stereodyn's own."""
+    for column, value in metrics.items():
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or math.isnan(value):
+            continue
+        why = ("must be finite or NaN" if math.isinf(value) and column.endswith(METRIC_SUFFIXES)
+               else value_rule(column, float(value)))
+        if why:
+            text = f"{type(scene).__module__}.{type(scene).__qualname__}.metrics(): {column} = {value!r}: {why}"
+            if plugins.own(type(scene)):
+                raise InternalError(f"BadMetric: {text}", f"BadMetric: {text}\n")
+            raise BadMetric(text)
+    return metrics
 
 
 def rate(count: float, t_end: float) -> float:

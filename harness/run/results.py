@@ -94,16 +94,25 @@ def dt_key(value) -> str:
 # initial scale below 1e-69 (the largest metric of the committed default report's 1337 ok rows: an energy drift of
 # 8.1e4). A value above it is a hand-edited or foreign table.
 MAX_VALUE = 1e100
+# The columns that are angles (rad): a geodesic angle between two attitudes lies in [0, pi]
+# (reference.rotations.attitude_angle; the sliding ladder's |theta - theta_equation| taken modulo 2 pi, the same angle
+# on the circle), truth_err such an angle plus an allowance of 4e-15 (reference/truth.py). MAX_ANGLE admits pi as the
+# table writes it, to 10 significant digits (3.141592654 > math.pi): the largest attitude_err of the committed default
+# report is 3.14150, a run that lost its attitude altogether.
+ANGLES = ("attitude_err", "attitude_err_end", "oracle_err", "truth_err")
+MAX_ANGLE = math.pi * (1 + 1e-9)
 
 
 def value_rule(column: str, value: float) -> str | None:
-    """Why value cannot be in column (negative, a step of 0, or above MAX_VALUE), or None. The one rule of every
-    reader of results rows."""
+    """Why value cannot be in column (negative, a step of 0, an angle above pi, or above MAX_VALUE), or None. The one
+    rule of every reader of results rows (read_results, a baseline's rows, a stored record on --resume)."""
     if column in POSITIVE and value <= 0:
         return "must be > 0"
     checked = column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES)
     if checked and value < 0:
         return "must be >= 0"
+    if column in ANGLES and value > MAX_ANGLE:
+        return "must be <= pi (an angle in rad)"
     if (checked or column in POSITIVE) and value > MAX_VALUE:
         return f"must be <= {MAX_VALUE:g} (docs/limits.md)"
     return None

@@ -5,11 +5,11 @@ Rows: the equation (engine reference, formulation "theta", integrator taylor: re
 gives the detachment), every MuJoCo model (formulation "bilateral" or "unilateral", harness.engines.mujoco) with each
 MuJoCo integrator and dt, Pinocchio's bilateral model (its constrained dynamics, harness.engines.pinocchio) with
 each of its integrators that works on a vector state (its LadderModel.integrators) and dt. Columns: energy_drift
-(the rod's energy, ½ m|v_G|² + ½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err / attitude_err_end (|θ − θ_equation|, rad),
-omega_err (|θ̇ − θ̇_equation| / max |θ̇_equation|) — for the unilateral model only up to the equation's detachment,
-after which the equation (both ends on the axes) no longer describes it. checks.csv: detachment_angle (the
-equation's event and the unilateral model's wall push, against arccos((2/3) cos θ0 + 4ℓθ̇0²/(9g))), energy_drift
-and constraint_violation (m; theory 0).
+(the rod's energy, ½ m|v_G|² + ½ (mℓ²/3) θ̇² + m g y, relative to its terms at t = 0), attitude_err /
+attitude_err_end (|θ − θ_equation| modulo 2π, in [0, π], rad), omega_err (|θ̇ − θ̇_equation| /
+max |θ̇_equation|) — for the unilateral model only up to the equation's detachment, after which the equation (both
+ends on the axes) no longer describes it. checks.csv: detachment_angle (the equation's event and the unilateral
+model's wall push, against arccos((2/3) cos θ0 + 4ℓθ̇0²/(9g))), energy_drift and constraint_violation (m; theory 0).
 """
 from __future__ import annotations
 
@@ -89,7 +89,8 @@ def ladder_metrics(spec, traj: SlidingLadderTrajectory, equation: ref_ladder.Lad
     if spec.formulation == "unilateral" and math.isfinite(equation.detach_time):
         keep = traj.times <= equation.detach_time
     if finite[keep].all():
-        angle = np.abs(state[keep, 2] - equation.theta[keep])
+        # the angle between the two rods on the circle, in [0, pi] as every attitude error (results.ANGLES)
+        angle = np.abs(np.remainder(state[keep, 2] - equation.theta[keep] + np.pi, 2 * np.pi) - np.pi)
         out.update(attitude_err=float(np.max(angle)), attitude_err_end=float(angle[-1]),
                    omega_err=float(np.max(np.abs(state[keep, 5] - equation.theta_dot[keep]))
                                    / (np.max(np.abs(equation.theta_dot[keep])) or 1.0)))
