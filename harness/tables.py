@@ -4,6 +4,7 @@ of rows: results.csv's validation of its cells is harness/run/results.py's read_
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
@@ -104,3 +105,45 @@ def disturbed(best, spread):
     not). Here, not in run.timing or run.results (both re-export it), so that the Pareto table (analysis) reads it
     without the timing machinery or the results table's columns."""
     return np.asarray(spread, dtype=float) > np.asarray(best, dtype=float)
+
+
+# ------------------------------------------------ what a number of a results row may be (every reader's rule)
+# The accuracy metrics the gate, baselines and compare read (every column with one of these suffixes), the timing,
+# and the step of a row's key: finite or empty. Elsewhere a number may be inf (as the store writes it).
+METRIC_SUFFIXES = ("_drift", "_err", "_err_end")
+# Numbers that are sizes, counts or durations (every metric is a max of norms or absolute values): never negative, a
+# step never 0 either. A negative one is a hand-edited or foreign table (wall_s -1 drew matplotlib warnings).
+NON_NEGATIVE = ("t_end", "steps", "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s",
+                "chart_changes")
+POSITIVE = ("dt",)
+# The largest number a reader accepts in a metric, timing or count column (read_results, a baseline's rows, a stored
+# record on --resume): one bound, so that whatever a reader accepts every command can compute with (the ratios to the
+# 1e-12 floor, the powers of ten of their logs in history, factor x baseline in check: 1e100 / 1e-12 = 1e112, far from
+# a double's 1.8e308). What a run can report stays far below it: an attitude error is an angle (<= pi); an ok run's
+# angular speed stays below 1e6 (1 + |omega0|) (the divergence rule, harness/trajectory.py) and a case's numbers within
+# 1e6 (docs/limits.md), so its energy stays below ~1e31 J and a relative drift or error above 1e100 would need an
+# initial scale below 1e-69 (the largest metric of the committed default report's 1337 ok rows: an energy drift of
+# 8.1e4). A value above it is a hand-edited or foreign table.
+MAX_VALUE = 1e100
+# The columns that are angles (rad): a geodesic angle between two attitudes lies in [0, pi]
+# (reference.rotations.attitude_angle; the sliding ladder's |theta - theta_equation| taken modulo 2 pi, the same angle
+# on the circle), truth_err such an angle plus an allowance of 4e-15 (reference/truth.py). MAX_ANGLE admits pi as the
+# table writes it, to 10 significant digits (3.141592654 > math.pi): the largest attitude_err of the committed default
+# report is 3.14150, a run that lost its attitude altogether.
+ANGLES = ("attitude_err", "attitude_err_end", "oracle_err", "truth_err")
+MAX_ANGLE = math.pi * (1 + 1e-9)
+
+
+def value_rule(column: str, value: float) -> str | None:
+    """Why value cannot be in column (negative, a step of 0, an angle above pi, or above MAX_VALUE), or None. The one
+    rule of every reader of results rows (read_results, a baseline's rows, a stored record on --resume)."""
+    if column in POSITIVE and value <= 0:
+        return "must be > 0"
+    checked = column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES)
+    if checked and value < 0:
+        return "must be >= 0"
+    if column in ANGLES and value > MAX_ANGLE:
+        return "must be <= pi (an angle in rad)"
+    if (checked or column in POSITIVE) and value > MAX_VALUE:
+        return f"must be <= {MAX_VALUE:g} (docs/limits.md)"
+    return None

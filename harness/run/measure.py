@@ -19,7 +19,7 @@ from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status, judged, problem
 from .processes import plugin_fault, raise_unless_data
-from .results import METRIC_SUFFIXES, value_rule
+from ..tables import METRIC_SUFFIXES, value_rule
 from .spec import RunKey, base_row
 
 

@@ -11,6 +11,8 @@ from ..atomic import write_atomic  # noqa: F401 (imported from here too)
 from ..tables import TableError, read_csv_table  # noqa: F401 (imported from here too)
 # (home: harness/tables.py, so that analysis reads them without the columns here, which need the integrals)
 from ..tables import SINGLE, disturbed, with_precision  # noqa: F401 (imported from here too)
+from ..tables import (ANGLES, MAX_ANGLE, MAX_VALUE, METRIC_SUFFIXES, NON_NEGATIVE, POSITIVE,  # noqa: F401 (here too)
+                      value_rule)
 from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 
@@ -57,15 +59,7 @@ REQUIRED_COLUMNS = ("case", "engine", "integrator", "status")
 TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "timing",
                 "torque_mode")
 NAMED = ("case", "engine")  # never empty (the integrator is, on a skipped row of an engine that cannot run a case)
-# The accuracy metrics the gate, baselines and compare read (every column with one of these suffixes), the timing,
-# and the step of a row's key: finite or empty. Elsewhere a number may be inf (as the store writes it).
-METRIC_SUFFIXES = ("_drift", "_err", "_err_end")
 FINITE = ("dt", "us_per_step")
-# Numbers that are sizes, counts or durations (every metric is a max of norms or absolute values): never negative, a
-# step never 0 either. A negative one is a hand-edited or foreign table (wall_s -1 drew matplotlib warnings).
-NON_NEGATIVE = ("t_end", "steps", "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s",
-                "chart_changes")
-POSITIVE = ("dt",)
 STATUSES = ("ok", "diverged", "failed", "skipped")  # trajectory.Status
 # A row's identity (the gate's and compare's): one row per key in a table or a baseline.
 KEY = ("case", "engine", "formulation", "integrator", "precision", "dt")
@@ -83,39 +77,6 @@ def dt_key(value) -> str:
     except (TypeError, ValueError):
         return ""
     return "" if math.isnan(value) else f"{value:.10g}"
-
-
-# The largest number a reader accepts in a metric, timing or count column (read_results, a baseline's rows, a stored
-# record on --resume): one bound, so that whatever a reader accepts every command can compute with (the ratios to the
-# 1e-12 floor, the powers of ten of their logs in history, factor x baseline in check: 1e100 / 1e-12 = 1e112, far from
-# a double's 1.8e308). What a run can report stays far below it: an attitude error is an angle (<= pi); an ok run's
-# angular speed stays below 1e6 (1 + |omega0|) (the divergence rule, harness/trajectory.py) and a case's numbers within
-# 1e6 (docs/limits.md), so its energy stays below ~1e31 J and a relative drift or error above 1e100 would need an
-# initial scale below 1e-69 (the largest metric of the committed default report's 1337 ok rows: an energy drift of
-# 8.1e4). A value above it is a hand-edited or foreign table.
-MAX_VALUE = 1e100
-# The columns that are angles (rad): a geodesic angle between two attitudes lies in [0, pi]
-# (reference.rotations.attitude_angle; the sliding ladder's |theta - theta_equation| taken modulo 2 pi, the same angle
-# on the circle), truth_err such an angle plus an allowance of 4e-15 (reference/truth.py). MAX_ANGLE admits pi as the
-# table writes it, to 10 significant digits (3.141592654 > math.pi): the largest attitude_err of the committed default
-# report is 3.14150, a run that lost its attitude altogether.
-ANGLES = ("attitude_err", "attitude_err_end", "oracle_err", "truth_err")
-MAX_ANGLE = math.pi * (1 + 1e-9)
-
-
-def value_rule(column: str, value: float) -> str | None:
-    """Why value cannot be in column (negative, a step of 0, an angle above pi, or above MAX_VALUE), or None. The one
-    rule of every reader of results rows (read_results, a baseline's rows, a stored record on --resume)."""
-    if column in POSITIVE and value <= 0:
-        return "must be > 0"
-    checked = column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES)
-    if checked and value < 0:
-        return "must be >= 0"
-    if column in ANGLES and value > MAX_ANGLE:
-        return "must be <= pi (an angle in rad)"
-    if (checked or column in POSITIVE) and value > MAX_VALUE:
-        return f"must be <= {MAX_VALUE:g} (docs/limits.md)"
-    return None
 
 
 def duplicate(keys: list[tuple]) -> tuple[int, int] | None:
