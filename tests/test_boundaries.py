@@ -357,6 +357,7 @@ def test_interrupted_while_importing_is_one_line(monkeypatch, capsys):
     assert err == "stereodyn: interrupted\n"
 
 
+@pytest.mark.slow  # since 2026-12-02, ~6 s; by default test_warp.py's and the CI output tests' empty stderr (the default suite's 8 minutes)
 def test_no_warnings_on_stderr_and_the_mujoco_log_under_out(tmp_path):
     """A diverging MuJoCo run (explicit Euler far past its stability limit) warns; nothing of it reaches stderr
     nor the working directory."""

@@ -140,6 +140,7 @@ def test_check_rows_are_stored_and_survive_resume(mujoco_rk4):
     assert (mujoco_rk4 / "checks.csv").read_text() == before
 
 
+@pytest.mark.slow  # since 2026-12-02, ~6 s; by default the checks' sweep of this file (the default suite's 8 minutes)
 def test_a_sweep_without_checks_writes_an_empty_table(tmp_path):
     assert cli.main(["run", "kovalevskaya", "--engines", "mujoco", "--integrators", "rk4", "--t-end", "0.5",
                      "--quiet", "--out", str(tmp_path)]) == 0

@@ -83,6 +83,7 @@ def test_listed_run_and_named_in_the_environment_and_compare(installed, tmp_path
     assert DISTRIBUTION in (runs[1] / "compare.md").read_text()
 
 
+@pytest.mark.slow  # since 2026-12-02, ~10 s; by default the README example's own tests (the default suite's 8 minutes)
 def test_the_examples_own_tests_pass(installed):
     target, source = installed
     result = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests"],

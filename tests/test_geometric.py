@@ -43,6 +43,7 @@ def test_implicit_midpoint_energy_bounded_fast():
     assert long <= 2.0 * max(short, testing.ENERGY_NOISE)
 
 
+@pytest.mark.slow  # since 2026-12-02, ~11 s: 1e5 steps; by default the energy verdicts' long runs (the default suite's 8 minutes)
 def test_implicit_midpoint_no_secular_drift_1e5_steps():
     """The acceptance: max energy error after 1e5 steps within 2x that after 1e3 (both at round-off: the midpoint rule
     conserves the free body's energy exactly, and compensated summation keeps 1e5 additions from drifting); ~3 s."""

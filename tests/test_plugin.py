@@ -59,6 +59,7 @@ def installed(tmp_path_factory) -> Path:
 _env = plugin_packages.env_with
 
 
+@pytest.mark.slow  # since 2026-12-02, ~10 s; by default test_engine_plugins.py's external engine in a sweep (the default suite's 8 minutes)
 def test_plugin_runs_by_name_on_pinocchio_and_reference(installed, tmp_path):
     out = tmp_path / "out"
     result = subprocess.run([sys.executable, "-m", "stereodyn.harness.cli", "run", "free-asymmetric", "--engines",

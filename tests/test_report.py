@@ -100,6 +100,7 @@ def test_every_figure_is_a_non_empty_image(reported):
         f"{build.figure_stem(case)}-{kind}.png" for case in CASES for kind in ("invariants", "work-precision"))
 
 
+@pytest.mark.slow  # since 2026-12-02, ~10 s; by default test_report_md_has_every_section (the default suite's 8 minutes)
 def test_a_results_table_alone_still_gives_every_section(reported, tmp_path):
     shutil.copy(reported / "results.csv", tmp_path / "results.csv")
     assert cli.main(["report", str(tmp_path), "--figures"]) == 0

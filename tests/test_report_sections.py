@@ -36,6 +36,7 @@ def test_the_built_in_sections_in_their_order():
     assert orders == sorted(orders)
 
 
+@pytest.mark.slow  # since 2026-12-02, ~15 s; by default the broken-section and plug-in fault tests render with a registered section (the default suite's 8 minutes)
 def test_a_registered_section_lands_at_its_order_and_leaves_the_others_alone(folder):
     before = _page(folder)
 
@@ -88,6 +89,7 @@ def _installed(tmp_path, module: str):
     return plugin_packages.env_with(site)
 
 
+@pytest.mark.slow  # since 2026-12-02, ~9 s; likewise (the default suite's 8 minutes)
 def test_a_distributions_section_is_discovered_through_its_entry_point(folder, tmp_path):
     copy = tmp_path / "run"
     shutil.copytree(folder, copy)

@@ -92,6 +92,7 @@ def _short_case():
     return with_overrides(find_case("free-asymmetric"), t_end=4.0)
 
 
+@pytest.mark.slow  # since 2026-12-02, ~12 s; by default the tolerance ladders on the sweep's pool (the default suite's 8 minutes)
 def test_a_stub_engines_adaptive_integrator_gets_a_tolerance_ladder(stub_engine, tmp_path):
     case = _short_case()
     assert stub_engine.name == "stub" and stub_engine.offer("stub_dop853").adaptive

@@ -114,6 +114,7 @@ def test_the_work_of_a_new_non_potential_torque_balances_the_energy(damping):
     assert np.ptp(energy) / scale > 0.1  # control: the energy itself falls
 
 
+@pytest.mark.slow  # since 2026-12-02, ~6 s each; by default the torque plug-in tests of this file (the default suite's 8 minutes)
 def test_a_new_torque_model_runs_through_a_sweep_against_its_exact_solution(damping, tmp_path):
     path = tmp_path / "damped.toml"
     path.write_text(CASE)

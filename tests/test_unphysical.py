@@ -66,6 +66,7 @@ def test_physical_false_lifts_only_the_triangle_inequality(tmp_path):
     assert unphysical_inertia(load_case(write(tmp_path, physical, "physical.toml"))) is None
 
 
+@pytest.mark.slow  # since 2026-12-02, ~7 s; by default this file's refusals (the default suite's 8 minutes)
 def test_truth_and_reference_run_it_mujoco_skips_it_naming_the_rule(tmp_path):
     out = tmp_path / "out"
     drake = not isinstance(get_engine("drake"), UnavailableEngine)

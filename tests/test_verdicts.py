@@ -447,6 +447,7 @@ def test_a_time_the_run_already_has_counts_among_its_repeats_but_never_replaces_
     assert measured[1].best == pytest.approx(5.0) and measured[1].spread == pytest.approx(0.0)  # 9 s: the slowest
 
 
+@pytest.mark.slow  # since 2026-12-02, ~7 s; by default test_scheduling.py and test_engine_affinity.py time runs alone (the default suite's 8 minutes)
 def test_sweep_times_every_run_alone_after_the_accuracy_runs(tmp_path, monkeypatch):
     """A run's row is measured in its worker and timed once there, after its accuracy run (measure.measure's timed
     hook, timing.timed_once); without a decides() the timing phase then times each ok run again in the parent, one at
