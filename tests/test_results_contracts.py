@@ -63,3 +63,18 @@ def test_steps_that_differ_in_the_fourth_digit_are_two_rows_not_a_duplicate(tmp_
     assert sorted(df["dt"]) == [0.001, 0.001001]
     with pytest.raises(TableError, match="duplicate key"):
         _read(tmp_path, GOOD, GOOD)
+
+
+def test_a_table_cut_inside_its_last_field_is_refused(tmp_path):
+    """A file cut inside its last row's last field has every field but no newline after it (stereodyn ends every
+    table with one): refused, naming the row. The cut tables of tests/test_faults.py lose whole fields since the
+    committed report was regenerated (2026-12-02), which the field count already refuses; this keeps the newline rule
+    pinned (mutant tables-5)."""
+    from stereodyn.harness.tables import read_csv_table
+
+    path = tmp_path / "notes.csv"
+    path.write_text("case,note\nfree-asymmetric,settled\nlagrange-top,pre-asymptotic\n")
+    assert len(read_csv_table(path)) == 2
+    path.write_text("case,note\nfree-asymmetric,settled\nlagrange-top,pre-asym")
+    with pytest.raises(TableError, match=r"notes\.csv: row 2: no newline at its end"):
+        read_csv_table(path)
