@@ -162,7 +162,7 @@ def order_changes(a: dict[tuple, dict], b: dict[tuple, dict]) -> list[dict]:
             continue
         if math.isnan(y) or math.isnan(x):  # gone is worse (the gate fails it); a new fit has no direction
             sign = "worse" if math.isnan(y) else "new"
-        elif y < x - gate.ORDER_DROP:  # worse exactly where the gate fails it (fell), so pr.md agrees with check
+        elif y < x - gate.ORDER_DROP:  # worse exactly where the gate fails it (fell): the PR summary agrees with check
             sign = "worse"
         elif not math.isnan(declared) and abs(y - declared) < abs(x - declared):
             sign = "better"
