@@ -194,6 +194,26 @@ def test_unwritable_output_paths_exit_2_with_one_line(tmp_path, capsys):
     one_line_error(cli.main(["baseline", str(good), "--out", str(a_file / "b.json")]), capsys, "--out")
 
 
+def test_run_out_into_a_folder_of_another_tools_tables_is_refused(tmp_path, capsys):
+    """A folder holding results.csv (or report.md) but no runs.json is not a run of ours: `run --out` refuses it and
+    leaves the file as it was (issue 46's re-attack: it was overwritten); a folder of other files, and a run folder of
+    ours, are run into."""
+    path = case_file(tmp_path, BASE)
+    for name in ("results.csv", "report.md"):
+        theirs = tmp_path / f"theirs-{name}"
+        theirs.mkdir()
+        (theirs / name).write_text("their,table\n1,2\n")
+        one_line_error(cli.main(["run", "--case-file", str(path), "--out", str(theirs), *FAST]), capsys,
+                       f"holds {name} but no runs.json")
+        assert (theirs / name).read_text() == "their,table\n1,2\n" and not (theirs / "store").exists()
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    (mixed / "notes.txt").write_text("mine")
+    for _ in range(2):  # then a run folder of ours: rerun in place
+        assert cli.main(["run", "--case-file", str(path), "--out", str(mixed), *FAST]) == 0
+    assert (mixed / "notes.txt").read_text() == "mine"
+
+
 @pytest.mark.parametrize("name, text", [
     ("results.csv", ""),
     ("results.csv", "\x00\x01garbage\n\"unclosed"),

@@ -81,6 +81,7 @@ def main(args) -> int:
     options = SweepOptions(args.engines, args.out, args.integrators, jobs=args.jobs, certify=not args.no_certify,
                            resume=args.resume, scheduler=args.scheduler, save_trajectories=args.save_trajectories)
     mode = ladder_mode(args)
+    refuse_foreign_tables(args.out)
     output_folder(args.out, "--out")
     request = Request(chosen, options, mode, args.ladder_max_steps,
                       budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget), figures=args.figures,
@@ -94,6 +95,25 @@ def main(args) -> int:
         print("\n".join(verdicts.summary_lines(found)[1:]), file=sys.stderr)
         return 1
     return 0
+
+
+def refuse_foreign_tables(out: Path) -> None:
+    """--out naming a folder that holds a run's tables (results.csv, report.md, ...) but no runs.json: they are not a
+    stereodyn run's (another tool's, or a user's own), and the sweep would overwrite them. A run folder of ours (its
+    runs.json, even a killed sweep's) is rerun or resumed in place."""
+    from ..report.index import ENTRIES, INDEX_FILE
+    from ..run.store import MANIFEST, STORE_DIR
+
+    if not out.is_dir() or (out / MANIFEST).exists() or (out / STORE_DIR).is_dir():
+        return
+    # the tables and pages a run writes: the index's entries but folders, the index (a README.md not ours is left as
+    # it is), MuJoCo's log (appended to) and other commands' files
+    written = [name for name, what in ENTRIES.items() if not name.endswith("/") and name not in (INDEX_FILE, "MUJOCO_LOG.TXT")
+               and not what.startswith("`stereodyn")]
+    found = [name for name in written if (out / name).exists()]
+    if found:
+        raise BadInput(f"--out {out}: holds {', '.join(found)} but no {MANIFEST}: not a stereodyn run folder, and the "
+                       "run would overwrite them; give an empty folder or a new path")
 
 
 def ladder_mode(args) -> str:
