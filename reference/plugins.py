@@ -4,8 +4,9 @@ integrators()).
 
 Whatever the plug-in raises, any Exception and SystemExit too (a plug-in calling sys.exit(3) at import must not end
 the command with code 3 and nothing said), becomes PluginError: one line naming the plug-in (its entry point and
-distribution) and the error; each registry turns it into that plug-in's unavailability, or bad input. KeyboardInterrupt
-is never caught, nor an ImportError an extension module's init raised from one: Ctrl-C stays Ctrl-C. A plug-in that
+distribution) and the error; each registry turns it into that plug-in's unavailability, or bad input. The user's
+Ctrl-C is never caught, nor an ImportError an extension module's init raised from one: Ctrl-C stays Ctrl-C; a
+KeyboardInterrupt the plug-in's code raised (code_raised) is its failure like any other. A plug-in that
 calls os._exit inside the guard (at import, in a report section) would end the command at once, saying nothing: in
 the guarded thread os._exit raises ProcessExit (a SystemExit) instead, and is that plug-in's failure. Here, in the bottom
 layer, because reference/ (torque models) may not import harness/ and harness/ imports reference/.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import threading
 import warnings
 from contextlib import contextmanager
@@ -93,6 +95,18 @@ def interrupted(exc: BaseException | None) -> bool:
     return False
 
 
+def code_raised(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt was raised by code (a plug-in's `raise KeyboardInterrupt`), not by the user's
+    Ctrl-C: where SIGINT is ignored (a pool worker), or where the process's SIGINT handler says it took no Ctrl-C (a
+    handler with a `took_ctrl_c()` attribute: harness.run.processes.on_interrupt). Under Python's own handler it
+    cannot be told apart: the user's."""
+    if not isinstance(exc, KeyboardInterrupt):
+        return False
+    handler = signal.getsignal(signal.SIGINT)
+    took = getattr(handler, "took_ctrl_c", None)
+    return handler is signal.SIG_IGN or (took is not None and not took())
+
+
 @contextmanager
 def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
     """Run a plug-in's code: PluginError(where, error) for any Exception or SystemExit it raises, except the types in
@@ -101,6 +115,10 @@ def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator
         with _exits_raise():
             yield
     except passing:
+        raise
+    except KeyboardInterrupt as exc:
+        if code_raised(exc):
+            raise PluginError(where, exc) from exc
         raise
     except (Exception, SystemExit) as exc:
         if interrupted(exc):  # not the plug-in's failure: Ctrl-C while it loaded

@@ -530,6 +530,7 @@ HOSTILE_LOADS = {
         scenes.register(NoParse())
         ''',
     PKG + "ends_the_process.py": "import os\nos._exit(0)\n",
+    PKG + "interrupts_at_import.py": "raise KeyboardInterrupt\n",
     PKG + "sections.py": '''
         import os, sys
         from stereodyn.harness.report import sections
@@ -560,13 +561,54 @@ HOSTILE_LOADS = {
 }
 
 
+
+def test_a_plugins_own_keyboard_interrupt_at_import_is_its_warning(tmp_path):
+    """A scene plug-in whose import raises KeyboardInterrupt (no Ctrl-C came): `stereodyn cases` lists the suite and
+    warns once, naming it (issue 46's re-attack: exit 130, "interrupted"). The default suite's guard of the slow
+    hostile-loads test (~2 s)."""
+    env = _package(tmp_path / "site", "interrupts", {"interrupts_at_import.py": "raise KeyboardInterrupt\n"},
+                   {"stereodyn.scenes": {"interrupts": "interrupts_at_import"}})
+    done = subprocess.run([sys.executable, "-m", "stereodyn", "cases"], capture_output=True, text=True, env=env,
+                          timeout=120)
+    assert done.returncode == 0 and "free-asymmetric" in done.stdout, done.stderr
+    (said,) = done.stderr.splitlines()
+    assert said.startswith("stereodyn: warning: scene plug-in 'interrupts'") and ": KeyboardInterrupt" in said, said
+
+
+def test_a_keyboard_interrupt_in_the_guard_is_the_users_only_after_a_ctrl_c():
+    """Under the command's handler: a KeyboardInterrupt with no Ctrl-C taken is the plug-in's (PluginError); after a
+    Ctrl-C, and under Python's own handler, it goes on as Ctrl-C."""
+    from stereodyn.harness.run import processes
+
+    def raising():
+        with plugins.guard("scene plug-in 'x'"):
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, processes.on_interrupt)
+    try:
+        processes.forget_interrupts()
+        with pytest.raises(plugins.PluginError, match="scene plug-in 'x': KeyboardInterrupt"):
+            raising()
+        with pytest.raises(KeyboardInterrupt):
+            processes.on_interrupt(signal.SIGINT, None)  # the user's Ctrl-C, recorded
+        with pytest.raises(KeyboardInterrupt):
+            raising()
+        processes.forget_interrupts()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        with pytest.raises(KeyboardInterrupt):
+            raising()
+    finally:
+        processes.forget_interrupts()
+        signal.signal(signal.SIGINT, previous)
+
 @pytest.mark.slow
 def test_hostile_loads_are_warnings_and_the_report_renders(tmp_path):
-    """Findings 1 (os._exit at import: `run`, `report`, `cases` exit 0 in silence), 3 (a section that raises: exit 1,
+    """Findings 1 (os._exit or a KeyboardInterrupt at import: `run`, `report`, `cases` exit 0 in silence, or 130), 3 (a section that raises: exit 1,
     complete false, no report; `report` said "malformed tables"; sys.exit(5): exit 5) and 4 (order "four": a
     traceback after the sweep; a scene re-registering rigid_body without parse: an AttributeError)."""
     env = _package(tmp_path / "site", "hostile-loads", HOSTILE_LOADS, {
-        "stereodyn.scenes": {"noparse": "hostile_loads.scene_without_parse", "ends": "hostile_loads.ends_the_process"},
+        "stereodyn.scenes": {"noparse": "hostile_loads.scene_without_parse", "ends": "hostile_loads.ends_the_process",
+                             "interrupts": "hostile_loads.interrupts_at_import"},
         "stereodyn.report_sections": {"hostile": "hostile_loads.sections", "ends": "hostile_loads.ends_the_process"},
         "stereodyn.integrators": {"four": "hostile_loads.integrators:Four"}})
 
@@ -577,9 +619,11 @@ def test_hostile_loads_are_warnings_and_the_report_renders(tmp_path):
     cases = command("cases")
     assert cases.returncode == 0 and "free-asymmetric" in cases.stdout, cases.stderr
     said = cases.stderr.splitlines()
-    assert all(line.startswith("stereodyn: warning: scene plug-in ") for line in said) and len(said) == 2, said
+    assert all(line.startswith("stereodyn: warning: scene plug-in ") for line in said) and len(said) == 3, said
     assert any("'noparse'" in line and "parse: missing; a scene defines parse(parser, data)" in line for line in said)
     assert any("'ends'" in line and "ProcessExit: called os._exit(0)" in line for line in said)
+    # its own KeyboardInterrupt at import: its warning, not "interrupted" and exit 130 (issue 46's re-attack)
+    assert any("'interrupts'" in line and ": KeyboardInterrupt" in line for line in said)
     named = command("run", *QUICK[:1], "--integrators", "hostile_four", "--engines", "pinocchio", "--out",
                     str(tmp_path / "named"))
     assert named.returncode == 2 and named.stderr.splitlines()[-1].startswith(

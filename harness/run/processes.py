@@ -33,6 +33,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from ...reference.plugins import code_raised
 from ..errors import raise_if_internal
 
 PARENT_POLL_S = 0.5   # the thread's poll: a killed sweep's workers are gone ~0.5 s later at the latest
@@ -217,27 +218,20 @@ def interrupted() -> bool:
     return bool(_interrupts)
 
 
+on_interrupt.took_ctrl_c = interrupted  # reference.plugins.code_raised asks the handler (reference/ imports no harness/)
+
+
 def raise_if_interrupted(exc: BaseException) -> None:
     """In an `except Exception` that records a failure as data: a failure the interrupt caused is no data."""
     if interrupted():
         raise KeyboardInterrupt from exc
 
 
-def plugin_interrupt(exc: BaseException) -> bool:
-    """Whether a KeyboardInterrupt was raised by code (a plug-in's `raise KeyboardInterrupt`), not by the user's
-    Ctrl-C: always in a pool worker, which ignores SIGINT; in the command's process, when its handler (on_interrupt)
-    took no Ctrl-C. Under Python's own handler it cannot be told apart: the user's."""
-    if not isinstance(exc, KeyboardInterrupt):
-        return False
-    handler = signal.getsignal(signal.SIGINT)
-    return handler is signal.SIG_IGN or (handler is on_interrupt and not interrupted())
-
-
 def plugin_fault(exc: BaseException) -> bool:
     """Whether exc, not an Exception, is a plug-in's way out that its run's failure must hold (SystemExit,
-    GeneratorExit, a KeyboardInterrupt its code raised: plugin_interrupt), rather than Ctrl-C or our bug."""
+    GeneratorExit, a KeyboardInterrupt its code raised: reference.plugins.code_raised), rather than Ctrl-C or our bug."""
     if isinstance(exc, KeyboardInterrupt):
-        return plugin_interrupt(exc)
+        return code_raised(exc)
     return isinstance(exc, (SystemExit, GeneratorExit))
 
 
