@@ -306,6 +306,19 @@ def general(inertia: np.ndarray, omega: np.ndarray) -> bool:
 GENERAL = 0.05
 
 
+
+def stages_counted(cls, start, h: float) -> float:
+    """The right-hand-side calls a step of cls from the case's start at h, or at h / 4, h / 16 where its step does not
+    solve at h: Moser-Veselov's fixed-point iteration converges for h |omega| I_max / I_min below ~1, so on a rod
+    (moments 0.05, 1.79, 1.80; seed 7's 500 bodies) it raises NotConverged at h = 0.115 s, a failed row in a run."""
+    for k in range(3):
+        try:
+            return properties.rhs_evals_per_step(cls, start.body, start.quat0, start.omega0, h / 4 ** k,
+                                                 claims.STAGE_STEPS)
+        except ArithmeticError:
+            if k == 2:
+                raise
+
 def judge_properties(body: dict) -> None:
     """Each declared property's rule passes on the body; each planted false claim fails where the motion is general;
     the stages are counted."""
@@ -337,8 +350,7 @@ def judge_properties(body: dict) -> None:
         # counted with a torque, as on claims.CHECK_CASE (strang_free_flow calls it only for the torque's kick: 0
         # a step on a free body), or torque-free where the method refuses one
         start = free if name == "moser_veselov" else heavy
-        counted = properties.rhs_evals_per_step(cls, start.body, start.quat0, start.omega0, claims.STAGE_STEP * scale,
-                                                claims.STAGE_STEPS)
+        counted = stages_counted(cls, start, claims.STAGE_STEP * scale)
         assert counted >= cls.stages if getattr(cls, "iterative", False) else counted == cls.stages, (name, counted)
 
 
