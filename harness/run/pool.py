@@ -6,17 +6,19 @@ import math
 import os
 import signal
 from collections.abc import Iterator
-from concurrent.futures import Future, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from contextlib import contextmanager
 from typing import Callable, NamedTuple
 
 from .. import budget, integrators as integrator_registry
 from ..engines import get_engine
+from ..scenes import scene_of
 from ..trajectory import Status
 from . import timing
 from .measure import measure, prepare
 from .processes import exit_with_parent, raise_unless_data
 from .spec import RunSpec, base_row
+from .truth import case_truth, truth_failure
 from .workers import Affinity, WatchedPool
 
 # The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
@@ -287,23 +289,60 @@ def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> di
     return row
 
 
-def run_local(specs: list[RunSpec], truths: dict, pool: WatchedPool | None,
-              finished: Callable[[RunSpec, dict], None], budgets: budget.Budgets | None = None) -> None:
-    """Run the specs in this process (pool None) or on the pool, in the order given; finished(spec, row) as each
-    completes."""
+def run_local(specs: list[RunSpec], pool: WatchedPool | None, finished: Callable[[RunSpec, dict], None],
+              certify: bool, budgets: budget.Budgets | None = None,
+              phase: Callable[[str], None] = lambda text: None) -> None:
+    """Each case's truth, then its runs, in this process (pool None: every truth first, phase(text) saying which) or
+    on the pool, in the order given; finished(spec, row) as each run completes. On the pool each case's truth is a
+    task of its own, the truths first, those of the costliest cases first; a case's runs are queued the moment its
+    own truth is back, whatever the other truths are doing (the parent computed them all first: a serial part no
+    worker could take, issue 49). A truth that fails fails its case's runs (truth.truth_failure)."""
+    budgets = budgets or budget.configured()
+    by_case: dict[int, list[RunSpec]] = {}
+    for spec in specs:
+        by_case.setdefault(id(spec.case), []).append(spec)
+
+    def fail_case(runs: list[RunSpec], exc: Exception) -> None:
+        failure = truth_failure(exc)
+        for spec in runs:
+            finished(spec, {**base_row(spec, None), **failure})
+
     if pool is None:
+        truths = {}
+        for runs in by_case.values():
+            case = runs[0].case
+            if scene_of(case).needs_truth:
+                phase(f"truth {case.name}")
+            try:
+                truths[id(case)] = case_truth(case, certify, budgets.truth_s)
+            except Exception as exc:
+                fail_case(runs, exc)
         for spec in specs:
-            finished(spec, sweep_run(spec, truths.get(spec.case.name)))  # this process's budgets
+            if id(spec.case) in truths:
+                finished(spec, sweep_run(spec, truths[id(spec.case)]))  # this process's budgets
         return
-    futures: dict[Future, RunSpec] = {pool.submit(sweep_run, s, truths.get(s.case.name), budgets,
-                                                  affinity=affinity(s)): s for s in specs}
-    for future in as_completed(futures):
-        spec = futures[future]
-        try:
-            row = future.result()
-        except budget.BudgetExceeded as exc:  # its worker ended past its budget (harness.run.workers)
-            row = {**base_row(spec, spec.grid), **budget.failed_row(exc)}
-        except Exception as exc:  # the worker died or the task was lost; a bug of ours raised there is no row
-            raise_unless_data(exc)
-            row = worker_failed_row(spec, exc)
-        finished(spec, row)
+    ordered = sorted(by_case.values(), key=lambda runs: sum(cost(s) for s in runs), reverse=True)  # stable
+    truths: dict[Future, list[RunSpec]] = {pool.submit(case_truth, runs[0].case, certify, budgets.truth_s): runs
+                                           for runs in ordered}
+    running: dict[Future, RunSpec] = {}
+    while truths or running:
+        done, _ = wait([*truths, *running], return_when=FIRST_COMPLETED)
+        for future in done:
+            if future in truths:
+                runs = truths.pop(future)
+                try:
+                    truth = future.result()
+                except Exception as exc:  # past its budget, the worker died, an error; our bug raises (exit 3)
+                    fail_case(runs, exc)
+                    continue
+                running |= {pool.submit(sweep_run, s, truth, budgets, affinity=affinity(s)): s for s in runs}
+                continue
+            spec = running.pop(future)
+            try:
+                row = future.result()
+            except budget.BudgetExceeded as exc:  # its worker ended past its budget (harness.run.workers)
+                row = {**base_row(spec, spec.grid), **budget.failed_row(exc)}
+            except Exception as exc:  # the worker died or the task was lost; a bug of ours raised there is no row
+                raise_unless_data(exc)
+                row = worker_failed_row(spec, exc)
+            finished(spec, row)

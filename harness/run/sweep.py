@@ -35,7 +35,7 @@ from ..words import plural
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
-from .truth import sweep_truths
+from .truth import case_truth
 
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
 
@@ -188,27 +188,18 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
             local_pool(local_jobs, len(pending))
         pool = open_pool.enter_context(own_pool)
-        progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
-                       f"{plural(local_jobs, 'worker')}")
-
-        def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
-            nonlocal pending
-            for spec in [s for s in pending if s.case is case]:
-                finished(spec, {**base_row(spec, None), **failure})
-            pending = [s for s in pending if s.case is not case]
-
-        charge = startup_charges([], local_jobs)  # a failed truth's runs finish before the bar starts: no charge
-        truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
-                              progress.phase, truth_failed, budgets)
+        progress.stage(f"truths of {plural(len({id(s.case) for s in pending}), 'case')} and "
+                       f"{plural(len(pending), 'run')} on {plural(local_jobs, 'worker')}")
         progress.start(len(pending), sum(cost(s) for s in pending) + startup_cost(pending, local_jobs),
                        resumed=len(specs) - len(pending))
         charge = startup_charges(pending, local_jobs)
         try:
             if options.scheduler:
-                run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
+                run_on_cluster(options.scheduler, pending, functools.partial(sweep_run, budgets=budgets),
+                               functools.partial(case_truth, certify=options.certify, budget_s=budgets.truth_s),
                                finished, worker_failed_row)
             else:
-                run_local(pending, truths, pool, finished, budgets)
+                run_local(pending, pool, finished, options.certify, budgets, progress.phase)
         finally:
             publish()
             progress.close()
