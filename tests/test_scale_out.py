@@ -7,8 +7,6 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
-
-
 from stereodyn.harness.run import pool as run_pool
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 

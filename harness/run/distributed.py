@@ -94,3 +94,33 @@ def run_on_cluster(address: str, specs: Sequence, execute: Callable, truth: Call
         except BaseException:
             client.cancel(list(futures) + list(truths.values()))
             raise
+
+
+def cluster_timer(address: str) -> tuple[Callable, int]:
+    """(spread, ways): timing.time_runs' `elsewhere` on the cluster at `address`, and how many timings it takes at
+    once (its worker threads). Each chunk a task (pool.time_on_a_free_core: on a core of its machine that no other
+    timing holds, waiting for one, so that one timing runs per core and per worker thread at a time); a chunk whose
+    task was lost keeps its runs' single times (None each); our bug raises."""
+    with _connect(address) as client:
+        ways = max(1, sum(client.nthreads().values()))
+
+    def spread(chunks: list) -> list:
+        from distributed import as_completed
+
+        from .pool import time_on_a_free_core
+
+        results = [[None] * len(chunk.runs) for chunk in chunks]
+        with _connect(address) as client:
+            futures = {client.submit(time_on_a_free_core, chunk, pure=False, priority=len(chunks) - k): k
+                       for k, chunk in enumerate(chunks)}
+            try:
+                for future in as_completed(futures, loop=client.loop):
+                    try:
+                        results[futures[future]] = future.result()
+                    except Exception as exc:  # lost with its worker: the runs keep their single times
+                        raise_if_internal(exc)
+            except BaseException:
+                client.cancel(list(futures))
+                raise
+        return results
+    return spread, ways

@@ -222,14 +222,46 @@ def family_affinity(family, max_steps: int) -> Affinity:
     return Affinity(family.engine, startup_s(family.engine), 2.0 * pass_s(family.engine, family.integrator, max_steps))
 
 
-def on_paid_worker(pool: WatchedPool | None, engine: str) -> Callable | None:
-    """send(fn, *args) -> fn(*args)'s result from a worker of the pool that has paid the engine's start-up (submitted
-    with its Affinity, waited for); None where there is no pool or the engine declares no start-up (startup_s 0): the
-    sweep's timing phase times those in the parent (timing.time_runs' `elsewhere`)."""
-    declared = startup_s(engine)
-    if pool is None or declared <= 0.0:
-        return None
-    return lambda fn, *args: pool.submit(fn, *args, affinity=Affinity(engine, declared)).result()
+def time_pinned(core: int | None, chunk: timing.Chunk) -> list:
+    """A worker's timing task (time_on_pool): the chunk's runs timed here (timing.time_here, the models it kept from
+    their accuracy runs where it has them: prepare_kept), the whole process pinned to `core` meanwhile (None:
+    unpinned)."""
+    with timing.on_core(core):
+        return timing.time_here(chunk.runs, prepare_kept, chunk.first, chunk.repeats)
+
+
+def time_on_pool(pool: WatchedPool) -> Callable[[list[timing.Chunk]], list]:
+    """timing.time_runs' `elsewhere` on the pool: each chunk a task (time_pinned), as many at once as the pool has
+    workers, each holding a core of its own (timing.timing_cores) until it is done, so no two timings share a core;
+    a chunk of a start-up engine's runs with its Affinity (a worker that paid it). In the order given; a chunk whose
+    worker died keeps its runs' single times (None each); our bug raises."""
+    def spread(chunks: list[timing.Chunk]) -> list:
+        free = timing.timing_cores(pool.jobs)
+        results: list = [[None] * len(chunk.runs) for chunk in chunks]
+        queue, flying = list(range(len(chunks))), {}
+        while queue or flying:
+            while queue and free:
+                k, core = queue.pop(0), free.pop(0)
+                chunk = chunks[k]
+                needs = None if chunk.engine is None else Affinity(chunk.engine, startup_s(chunk.engine))
+                flying[pool.submit(time_pinned, core, chunk, affinity=needs)] = k, core
+            done, _ = wait(flying, return_when=FIRST_COMPLETED)
+            for future in done:
+                k, core = flying.pop(future)
+                free.append(core)
+                try:
+                    results[k] = future.result()
+                except Exception as exc:  # its worker died: the runs keep their single times
+                    raise_unless_data(exc)
+        return results
+    return spread
+
+
+def time_on_a_free_core(chunk: timing.Chunk) -> list:
+    """A Dask worker's timing task (distributed.time_on_cluster): the chunk's runs timed on a core of the machine
+    that no other timing holds (timing.on_a_free_core), this thread pinned to it."""
+    with timing.on_a_free_core():
+        return timing.time_here(chunk.runs, prepare_kept, chunk.first, chunk.repeats)
 
 
 IN_PROCESS_ENV = "STEREODYN_IN_PROCESS"  # "1": --jobs 1 runs in the command's own process (in_process)

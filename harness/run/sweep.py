@@ -24,10 +24,10 @@ from ..environment import environment as current_environment
 from ..scenes import checks, scene_of
 from ..trajectory import Status
 from . import timing
-from .distributed import run_on_cluster
+from .distributed import cluster_timer, run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
-from .pool import (cost, forget_kept, local_pool, on_paid_worker, one_precision_at_a_time,  # noqa: F401 (worker_pool)
+from .pool import (cost, forget_kept, local_pool, one_precision_at_a_time, time_on_pool,  # noqa: F401 (worker_pool)
                    prepare_kept, queue_key, run_local, startup_charges, startup_cost, sweep_run, worker_failed_row,
                    worker_pool)
 from .workers import WatchedPool
@@ -203,13 +203,19 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         finally:
             publish()
             progress.close()
-        # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone,
-        # here or, for an engine with a start-up, on a worker of the pool that paid it (pool.on_paid_worker)
+        # The timing phase: every accuracy run is done and the workers idle: each run whose time decides is timed on
+        # a worker (or a cluster's), as many at once as workers, each on a core of its own; none in this process
+        # (only without workers: --jobs 1 in process, a debugger's mode)
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
+        if options.scheduler:
+            elsewhere, ways = cluster_timer(options.scheduler) if untimed else (None, 1)
+        else:
+            elsewhere, ways = (None, 1) if pool is None else (time_on_pool(pool), pool.jobs)
         if untimed:
-            progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, one "
-                           f"at a time, those whose time decides an answer" if decides is not None else
-                           f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
+            where = f"on {plural(ways, 'worker')}, one per core" if elsewhere is not None else "here, one at a time"
+            progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, "
+                           f"{where}, those whose time decides an answer" if decides is not None else
+                           f"timing {plural(len(untimed), 'run')}, {where}, in rounds")
             environment[TIMING_START] = load_snapshot()  # how busy the machine was: the report's Environment
 
         def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() for one timing group's runs
@@ -227,8 +233,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # prepare_kept: a run timed where its accuracy run was (a worker that paid its engine) reuses its model
         timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed],
                                    prepare_kept, select if decides is not None else None,
-                                   [timing.single(stored[keys[id(s)]]) for s in untimed],
-                                   functools.partial(on_paid_worker, pool))
+                                   [timing.single(stored[keys[id(s)]]) for s in untimed], elsewhere, ways)
         forget_kept()
         if untimed:
             environment[TIMING_END] = load_snapshot()
