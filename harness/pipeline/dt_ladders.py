@@ -214,6 +214,6 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None =
     for index in range(len(tasks)):
         points += results[index][0]
         rows.append(results[index][1])
-    if timed:  # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
-        time_points([p for p in points if p.get("source") == LADDER], {f.key: f for f in chosen})
+    if timed:  # the timing phase, once every accuracy run is done and the pool idle: on its workers, a core each
+        time_points([p for p in points if p.get("source") == LADDER], {f.key: f for f in chosen}, pool=pool)
     return points, rows

@@ -122,7 +122,7 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 progress(chosen[index].label)
     points = [point for index in range(len(chosen)) for point in results[index]]
     if timed:
-        time_points(points, {f.key: f for f in chosen}, setting="tolerance")
+        time_points(points, {f.key: f for f in chosen}, setting="tolerance", pool=pool)
     return [{k: v for k, v in point.items() if not k.startswith("_")} for point in points]
 
 

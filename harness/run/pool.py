@@ -227,7 +227,8 @@ def time_pinned(core: int | None, chunk: timing.Chunk) -> list:
     their accuracy runs where it has them: prepare_kept), the whole process pinned to `core` meanwhile (None:
     unpinned)."""
     with timing.on_core(core):
-        return timing.time_here(chunk.runs, prepare_kept, chunk.first, chunk.repeats)
+        return timing.time_here(chunk.runs, chunk.prepare or prepare_kept, chunk.first, chunk.repeats,
+                                chunk.budget_s)
 
 
 def time_on_pool(pool: WatchedPool) -> Callable[[list[timing.Chunk]], list]:
@@ -261,7 +262,8 @@ def time_on_a_free_core(chunk: timing.Chunk) -> list:
     """A Dask worker's timing task (distributed.time_on_cluster): the chunk's runs timed on a core of the machine
     that no other timing holds (timing.on_a_free_core), this thread pinned to it."""
     with timing.on_a_free_core():
-        return timing.time_here(chunk.runs, prepare_kept, chunk.first, chunk.repeats)
+        return timing.time_here(chunk.runs, chunk.prepare or prepare_kept, chunk.first, chunk.repeats,
+                                chunk.budget_s)
 
 
 IN_PROCESS_ENV = "STEREODYN_IN_PROCESS"  # "1": --jobs 1 runs in the command's own process (in_process)

@@ -57,12 +57,14 @@ ONCE = "_once_s"   # a row's single timed run in its worker (s), before the row 
 class Timing(NamedTuple):
     """best: the fastest timed run (s); spread: the second fastest minus the fastest (s), how far the best is from
     being reproduced (the slowest would mostly measure the one repeat another process preempted); repeats: how many
-    ran; disturbed: still disturbed (spread > best) after measure_interleaved re-timed it once."""
+    ran; disturbed: still disturbed (spread > best) after measure_interleaved re-timed it once; t_end: the timed
+    grid's span (s), where time_here knows it."""
 
     best: float
     spread: float
     repeats: int
     disturbed: bool = False
+    t_end: float = math.nan
 
 
 def measure(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S,
@@ -176,26 +178,26 @@ def _timing(times: list[float]) -> Timing:
 
 
 def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: int, budget_s: float,
-                select: Callable[[list[int]], set[int]] | None = None) -> None:
-    """A ladder's timing phase (dt ladders, tolerance ladders, the advised runs): the ok points timed in this process
-    after all the accuracy runs, best of `repeats` in rounds over the points of each timing group (measure_interleaved,
-    groups). prepare(point) -> (simulation, grid). select(indices of the ok points) -> those to time here (None: all);
-    the others keep the single time their worker took (timing SINGLE). Sets wall_s (s), us_per_sim_s,
-    us_per_sim_s_spread (µs of stepping per simulated second) and timing on each timed point, in place; a point that
-    fails here keeps what it had."""
+                select: Callable[[list[int]], set[int]] | None = None,
+                elsewhere: Callable[[list[Chunk]], list[list[Timing | None]]] | None = None, ways: int = 1) -> None:
+    """A ladder's timing phase (dt ladders, tolerance ladders, the advised runs): the ok points timed after all the
+    accuracy runs, best of `repeats` in rounds over the points of each chunk (chunks_of, per timing group: groups),
+    timed by elsewhere(chunks) as time_runs' are (pool.time_on_pool: on the workers, each on a core of its own; None:
+    here, in turn). prepare(point) -> (simulation, grid), picklable where elsewhere sends it to a worker.
+    select(indices of the ok points) -> those to time (None: all); the others keep the single time their worker took
+    (timing SINGLE). Sets wall_s (s), us_per_sim_s, us_per_sim_s_spread (µs of stepping per simulated second) and
+    timing on each timed point, in place; a point that fails there keeps what it had."""
     ok = [p for p in points if p.get("status") == Status.OK.value]
     chosen = sorted(select(list(range(len(ok))))) if select is not None else range(len(ok))
     ok = [ok[i] for i in chosen]
-    for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok]):
-        warm = _warmed({i: ok[i] for i in group}, prepare, lambda point: point["engine"])
-        first = [single(ok[i]) for i in warm]  # its worker's single time is its first repeat, as in time_runs
-        for i, measured in zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s,
-                                                         first=first)):
-            if measured is not None:
-                ok[i].update(columns(measured, warm[i][1].t_end))
-                if measured.disturbed:
-                    ok[i]["message"] = with_disturbed(ok[i].get("message"), measured)
-        warm.clear()  # this group's models go before the next group's are built
+    first = [single(p) for p in ok]  # its worker's single time is its first repeat, as in time_runs
+    pieces = [chunks_of(group, ok, first, repeats, ways, prepare, budget_s)
+              for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok])]
+    for i, measured in _timed_at_once(elsewhere or in_turn(prepare), pieces).items():
+        if measured is not None:
+            ok[i].update(columns(measured, measured.t_end))
+            if measured.disturbed:
+                ok[i]["message"] = with_disturbed(ok[i].get("message"), measured)
 
 
 def single(row: dict) -> float | None:
@@ -294,47 +296,61 @@ def step_columns(measured: Timing, steps: float) -> dict:
 class Chunk(NamedTuple):
     """Runs timed together, in rounds, on one core (time_here): runs (RunSpecs of one timing group), first (each
     run's time so far, s, or None: timing.measure_interleaved's first), repeats (REPEATS, or 1: a single time), engine
-    (the start-up engine, Timing.startup_s, whose runs these all are, for a worker that paid it; None: any worker)."""
+    (the start-up engine, Timing.startup_s, whose runs these all are, for a worker that paid it; None: any worker),
+    prepare (item -> (simulation, grid); None: the worker's own, pool.prepare_kept), budget_s (time_here's)."""
 
     runs: list
     first: list
     repeats: int = REPEATS
     engine: str | None = None
+    prepare: Callable | None = None
+    budget_s: float = BUDGET_S
 
 
-def time_here(runs: list, prepare: Callable, first: list[float | None], repeats: int = REPEATS) -> list[Timing | None]:
-    """The timings of runs (one timing group's) in this process, on its core alone: each prepared and warmed up, then
-    best of `repeats` in rounds (measure_interleaved), first[i] counted among run i's repeats; None for a run that
-    fails here. What a pool worker runs for time_runs (pool.time_on_pool), and time_runs itself without workers."""
-    warm = _warmed(dict(enumerate(runs)), prepare, lambda run: run.engine)
+def time_here(runs: list, prepare: Callable, first: list[float | None], repeats: int = REPEATS,
+              budget_s: float = BUDGET_S) -> list[Timing | None]:
+    """The timings of runs (RunSpecs, or ladder points: dicts with their engine) in this process, on its core alone:
+    each prepared and warmed up, then best of `repeats` in rounds (measure_interleaved), first[i] counted among run
+    i's repeats, each with its grid's t_end; None for a run that fails here. What a pool worker runs for time_runs and
+    time_points (pool.time_on_pool), and they themselves without workers (in_turn)."""
+    warm = _warmed(dict(enumerate(runs)), prepare, _engine_of)
     if repeats <= 1:  # a single time: no spread to judge, no re-time
-        measured = dict(zip(warm, _rounds([run for run, _ in warm.values()], 1, BUDGET_S, 1)))
+        measured = dict(zip(warm, _rounds([run for run, _ in warm.values()], 1, budget_s, 1)))
     else:
-        measured = dict(zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats,
+        measured = dict(zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s,
                                                       first=[first[i] for i in warm])))
-    return [measured.get(i) for i in range(len(runs))]
+    return [None if measured.get(i) is None else measured[i]._replace(t_end=getattr(warm[i][1], "t_end", math.nan))
+            for i in range(len(runs))]
+
+
+def _engine_of(item) -> str:
+    """A timed item's engine: a ladder point's (a dict) or a run's."""
+    return item["engine"] if isinstance(item, dict) else item.engine
 
 
 def in_turn(prepare: Callable) -> Callable[[list[Chunk]], list[list[Timing | None]]]:
     """time_runs' `elsewhere` without workers (--jobs 1 in this process: a debugger's mode): each chunk timed here,
     one after the other."""
-    return lambda chunks: [time_here(c.runs, prepare, c.first, c.repeats) for c in chunks]
+    return lambda chunks: [time_here(c.runs, c.prepare or prepare, c.first, c.repeats, c.budget_s)
+                           for c in chunks]
 
 
-def chunks_of(indices: list[int], runs: list, first: list[float | None], repeats: int, ways: int) -> list[tuple]:
+def chunks_of(indices: list[int], runs: list, first: list[float | None], repeats: int, ways: int,
+              prepare: Callable | None = None, budget_s: float = BUDGET_S) -> list[tuple]:
     """(indices, Chunk) pieces of one timing group's runs, to time at once on `ways` cores: the runs of an engine
     with a declared start-up (Timing.startup_s) apart, for a worker that has paid it, the others together; each split
     round-robin into at most `ways` chunks, so that each chunk's rounds still spread its runs' repeats (in the order
     given: the plan's, mixing cheap and costly runs)."""
     by_engine: dict[str | None, list[int]] = {}
     for i in indices:
-        engine = runs[i].engine
+        engine = _engine_of(runs[i])
         by_engine.setdefault(engine if _start_up(engine) else None, []).append(i)
     pieces = []
     for engine, members in by_engine.items():
         for k in range(min(max(1, ways), len(members))):
             part = members[k::max(1, ways)]
-            pieces.append((part, Chunk([runs[i] for i in part], [first[i] for i in part], repeats, engine)))
+            pieces.append((part, Chunk([runs[i] for i in part], [first[i] for i in part], repeats, engine, prepare,
+                                       budget_s)))
     return pieces
 
 
