@@ -74,8 +74,8 @@ def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tup
                pool: WatchedPool | None = None,
                progress: Callable[[str], None] | None = None) -> pd.DataFrame:
     """advice.csv's table for tasks (family, adaptive, known points, order): the searches in this process (pool
-    None) or on the sweep's pool, one task per family, then the advised runs not yet timed timed here, alone, in
-    rounds (the ladders' timing phase)."""
+    None) or on the sweep's pool, one task per family, then the advised runs not yet timed timed on the pool's
+    workers, a core each (here without a pool), in rounds (the ladders' timing phase)."""
     results: dict[int, tuple[list[dict], list[dict]]] = {}
     if pool is None:
         for index, (family, adaptive, known, order) in enumerate(tasks):

@@ -98,7 +98,7 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S,
                 timed: bool = True) -> list[dict]:
     """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, each point timed
-    once there, then with timed its points timed again here (time_points; timed False leaves that to the caller).
+    once there, then with timed its points timed again on its workers (time_points; timed False leaves that to the caller).
     Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose to tight. budget_s:
     run_ladder's point budget."""
     results: dict[int, list[dict]] = {}

@@ -153,10 +153,10 @@ def started_engines() -> dict[str, int]:
 
 
 # The simulations this process prepared for the ok runs of start-up engines in the sweep (sweep_run), by run, for the
-# sweep's timing phase: it times those runs on a worker that ran them (on_paid_worker), which would otherwise build
-# each model again (Genesis: ~2.7 s a scene; its 8 scenes were ~22 of the quick suite's 48 s of timing). A pool serves
-# one sweep; the parent forgets its own after the timing phase (forget_kept: --jobs 1 in process). At most KEPT_MAX,
-# the oldest dropped first (a Genesis scene holds ~10 MB).
+# sweep's timing phase: it times those runs on a worker that ran them (time_on_pool, Affinity), which would otherwise
+# build each model again (Genesis: ~2.7 s a scene; its 8 scenes were ~22 of the quick suite's 48 s of timing). A pool
+# serves one sweep; the parent forgets its own after the timing phase (forget_kept: --jobs 1 in process). At most
+# KEPT_MAX, the oldest dropped first (a Genesis scene holds ~10 MB).
 KEPT_MAX = 32
 
 

@@ -65,8 +65,8 @@ class SweepOptions:
 
 
 def execute(spec: RunSpec, truth, timed: bool = False, budgets: budget.Budgets | None = None) -> dict:
-    """One sweep run's row (measure.measure with the sweep's extras), timed when asked (the sweep times afterwards,
-    alone: time_specs)."""
+    """One sweep run's row (measure.measure with the sweep's extras), timed when asked (the sweep times afterwards, on
+    its workers: timing.time_runs)."""
     row = sweep_run(spec, truth, budgets)
     if timed and row.get("status") == Status.OK.value:
         row.update(time_spec(spec, row["steps"]))

@@ -1,14 +1,17 @@
 """Stepping time, measured apart from accuracy (DESIGN §6.4). Every ok run is timed once in its worker, right after its
 accuracy run, which is its warm-up (once: the sweep's runs, the ladders' points); only the runs whose time decides
-something are then timed again, best of N in rounds, with no other run on the machine (time_runs, time_points, their
-`select`: harness.analysis.decisive), with the spread of the N recorded so that a ranking can tell a difference from
-noise. The others keep their single time, and say so (results.csv's and the ladders' `timing` column). The repeats
-are timed in the parent, except the sweep's runs of an engine with a declared start-up (Engine startup_s: MJX, Warp,
-Genesis, Newton): those go, one task at a time, to a pool worker that has paid it (time_runs' `elsewhere`, time_here);
-in the parent they paid the SDK's import and every compilation again (19 MJX rollouts, 44 s of a 70 s timing phase of
-the quick suite). Why a time once, in the worker: issue 29 (the timing phase, every run timed alone, was a third of
-the default run); why the accuracy run itself is no timing: with its counting and its first-call costs it measured
-Pinocchio's and the reference's runs 2-3x slower than their best of 3, up to 20x."""
+something are then timed again, best of N in rounds, each timing on a core that no other timing shares (time_runs,
+time_points, their `select`: harness.analysis.decisive), with the spread of the N recorded so that a ranking can tell
+a difference from noise. The others keep their single time, and say so (results.csv's and the ladders' `timing`
+column). The repeats are timed on the workers, in chunks (chunks_of), as many at once as workers, each worker pinned
+to a core of its own for its chunk (pool.time_on_pool, timing_cores, on_core; on Dask on_a_free_core), never in the
+command's process: there they were a serial phase after the sweep that no worker could take (issue 49: 2 workers
+were 1.2-1.6x one). A start-up engine's runs (Engine startup_s: MJX, Warp, Genesis, Newton) go in chunks of their
+own to a worker that has paid it (in the parent they paid the SDK's import and every compilation again: 19 MJX
+rollouts, 44 s of a 70 s timing phase of the quick suite). Why a time once, in the worker: issue 29 (the timing
+phase, every run timed alone, was a third of the default run); why the accuracy run itself is no timing: with its
+counting and its first-call costs it measured Pinocchio's and the reference's runs 2-3x slower than their best of 3,
+up to 20x."""
 from __future__ import annotations
 
 import gc
