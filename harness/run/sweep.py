@@ -212,7 +212,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         else:
             elsewhere, ways = (None, 1) if pool is None else (time_on_pool(pool), pool.jobs)
         if untimed:
-            where = f"on {plural(ways, 'worker')}, one per core" if elsewhere is not None else "here, one at a time"
+            where = f"on {plural(ways, 'worker')} at once" if elsewhere is not None else "here, one at a time"
             progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, "
                            f"{where}, those whose time decides an answer" if decides is not None else
                            f"timing {plural(len(untimed), 'run')}, {where}, in rounds")
