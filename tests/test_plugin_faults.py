@@ -414,7 +414,7 @@ HOSTILE_ENGINES = '''
 import os, signal, sys, time
 import numpy as np
 from stereodyn.harness import integrators
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 from stereodyn.harness.trajectory import Trajectory
 
 
@@ -455,8 +455,8 @@ class Simulation:
 def engine(how):
     class Hostile(Engine):
         name = how
-        state_space = "lie"
-        pass_us = 3.0
+        about = About(state_space="lie")
+        timing = Timing(pass_us=3.0)
 
         def integrators(self):
             return ("rk4",)
