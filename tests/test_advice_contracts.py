@@ -62,7 +62,7 @@ def test_a_point_that_did_not_finish_ok_never_reaches_a_target(law):
 
 
 def test_the_advised_runs_are_timed_and_their_cost_is_in_the_row(law, monkeypatch):
-    def time_points(points, families, setting="dt"):
+    def time_points(points, families, setting="dt", pool=None):
         for p in points:
             p["us_per_sim_s"] = 1e4 * p[setting]
     monkeypatch.setattr(dt_ladders, "time_points", time_points)
@@ -78,7 +78,7 @@ def test_adaptive_advice_carries_the_cost_of_its_timed_run(monkeypatch):
     point = {**family.columns, "tolerance": 1e-8, "status": "ok", "attitude_err": 5e-7}
     monkeypatch.setattr(advice, "advise_family", lambda *a: ([dict(row)], [dict(point)]))
 
-    def time_points(points, families, setting="dt"):  # the one timing phase, at the points' tolerances here
+    def time_points(points, families, setting="dt", pool=None):  # the one timing phase, at the points' tolerances here
         assert setting == "tolerance"
         for p in points:
             p["us_per_sim_s"] = 321.0

@@ -92,8 +92,9 @@ def test_time_runs_repeats_only_the_selected_runs(monkeypatch):
 
     rows = timing.time_runs(specs, [100, 100, 100], prepare, select)
     assert seen == [{0: pytest.approx(0.01), 1: pytest.approx(1.5), 2: pytest.approx(0.02)}]
-    # warm-up + one timed run for the slow one; warm-up + 3 repeats (the single one the first) for the others
-    assert calls == {"fast": 4, "slow": 2, "mid": 4}
+    # warm-up + one timed run for each (no single time: timed once first, a chunk of its own); then for the chosen
+    # a warm-up + 2 repeats where they are timed again (the single one counts among the 3)
+    assert calls == {"fast": 5, "slow": 2, "mid": 5}
     assert rows[1]["timing"] == SINGLE and math.isnan(rows[1]["us_per_step_spread"])
     assert rows[1]["us_per_step"] == pytest.approx(1.5 / 100 * 1e6)
     assert rows[0]["timing"] == "best of 3" and rows[0]["us_per_step_spread"] == pytest.approx(0.0)
@@ -101,7 +102,7 @@ def test_time_runs_repeats_only_the_selected_runs(monkeypatch):
     # after its single time (which counts among REPEATS: timing.measure_interleaved's first)
     calls.clear()
     rows = timing.time_runs(specs, [100, 100, 100], prepare)
-    assert calls == {"fast": 4, "slow": 4, "mid": 4} and rows[1]["timing"] == "best of 3"
+    assert calls == {"fast": 5, "slow": 5, "mid": 5} and rows[1]["timing"] == "best of 3"
 
 
 def test_the_gate_checks_the_time_of_repeated_rows_only():

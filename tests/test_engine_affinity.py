@@ -16,7 +16,7 @@ from stereodyn.harness import engines
 from stereodyn.harness.run import pool as run_pool, timing
 from stereodyn.harness.run.progress import ProgressBar
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep
-from stereodyn.harness.run.workers import Affinity, WatchedPool, WorkerDied
+from stereodyn.harness.run.workers import Affinity, WatchedPool
 from stereodyn.harness.scenes.cases import find_case, with_overrides
 
 def _sweep(tasks: list[tuple[str, float, float]], declared_startup_s: float) -> list[tuple[int, str, bool]]:
@@ -101,7 +101,8 @@ class _Recorded:
         finally:
             end = time.monotonic()
             with open(os.path.join(os.environ["STEREODYN_TEST_CALLS"], f"{os.getpid()}.jsonl"), "a") as out:
-                out.write(json.dumps([self.engine, os.getpid(), start, end]) + "\\n")
+                cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+                out.write(json.dumps([self.engine, os.getpid(), start, end, cores]) + "\\n")
 
 
 class _Wrapped(Engine):
@@ -168,13 +169,13 @@ def timed_plugin(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("given_pool", [False, True])
-def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at_a_time(timed_plugin, tmp_path,
-                                                                                       given_pool):
+def test_the_deciding_runs_are_timed_on_the_workers_each_on_a_core_of_its_own(timed_plugin, tmp_path, given_pool):
     """A sweep on a pool of 2 workers (its own, or one it is given as `stereodyn run`'s pipeline gives it), every ok
-    run timed with repeats (no decides): the runs of `warm`
-    (declared start-up 5 s) are timed on a worker that ran `warm`'s accuracy runs, not in the parent (which would pay
-    the SDK and every compilation again); `cold`'s (none declared) in the parent, as before. No two calls of the
-    timing phase overlap, whichever process made them: each timed run had the machine alone."""
+    run timed with repeats (no decides): every run is timed on a worker, none in the parent (issue 49: the parent's
+    serial timing phase); the runs of `warm` (declared start-up 5 s) on a worker that ran `warm`'s accuracy runs
+    (which would otherwise pay the SDK and every compilation again). On a machine with 2 cores each timing is pinned
+    to one core, and two timings at once are never on the same core. Break-checked: timing_cores giving both workers
+    core 0 fails the last assertion; elsewhere None (the parent times) the second."""
     case = dataclasses.replace(with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3]), samples=11)
     progress = _Stages()
     options = SweepOptions(["warm", "cold"], tmp_path / "out", jobs=2, certify=False)
@@ -187,15 +188,20 @@ def test_an_engine_with_a_start_up_is_timed_on_a_worker_that_paid_it_one_task_at
     assert table.timing.str.startswith("best of").all(), table[["engine", "timing"]]
     calls = [json.loads(line) for path in timed_plugin.glob("*.jsonl") for line in path.read_text().splitlines()]
     assert progress.timing_from is not None
-    accuracy = {(engine, pid) for engine, pid, start, _ in calls if start < progress.timing_from}
-    timed = sorted((start, end, engine, pid) for engine, pid, start, end in calls if start >= progress.timing_from)
+    accuracy = {(engine, pid) for engine, pid, start, _, _ in calls if start < progress.timing_from}
+    timed = sorted((start, end, engine, pid, cores) for engine, pid, start, end, cores in calls
+                   if start >= progress.timing_from)
     parent = os.getpid()
     assert parent not in {pid for _, pid in accuracy}  # the accuracy runs ran on the pool
-    warm_timed = {pid for _, _, engine, pid in timed if engine == "warm"}
+    assert timed and parent not in {pid for *_, pid, _ in timed}, timed  # ... and so did the timings
+    warm_timed = {pid for _, _, engine, pid, _ in timed if engine == "warm"}
     assert warm_timed and warm_timed <= {pid for engine, pid in accuracy if engine == "warm"}, (warm_timed, accuracy)
-    assert {pid for _, _, engine, pid in timed if engine == "cold"} == {parent}
-    for (_, end, *first), (start, _, *second) in zip(timed, timed[1:]):
-        assert end <= start, (first, second)
+    if len(os.sched_getaffinity(0)) >= 2:
+        assert all(len(cores) == 1 for *_, cores in timed), timed
+        for k, (start, end, *_, cores) in enumerate(timed):
+            for other_start, _, *_, other_cores in timed[k + 1:]:
+                if other_start < end:  # at the same time: on another core
+                    assert other_cores != cores, timed
 
 
 def test_a_run_timed_on_the_worker_that_ran_it_is_not_prepared_again(timed_plugin, tmp_path):
@@ -220,33 +226,35 @@ class _Sim:
 
 
 def test_runs_whose_worker_dies_while_timing_them_keep_their_single_time():
-    """timing.time_runs with an `elsewhere` for engine x: its worker dies (the send raises WorkerDied), so x's run
-    keeps its single time ({}), and y's, timed here, is timed all the same; Ctrl-C while waiting stops the phase."""
+    """timing.time_runs with an `elsewhere` whose chunk of engine x is lost (its worker died: None each), so x's run
+    keeps its single time ({}), and y's, timed, is timed all the same; Ctrl-C while waiting stops the phase."""
     runs = [SimpleNamespace(engine="x", precision="float64"), SimpleNamespace(engine="y", precision="float64")]
 
-    def died(fn, *args):
-        raise WorkerDied("worker process died (exit code -9)")
+    def spread(chunks):
+        return [[None] * len(c.runs) if c.runs[0].engine == "x" else timing.in_turn(lambda run: (_Sim(), None))([c])[0]
+                for c in chunks]
 
-    rows = timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01],
-                            elsewhere=lambda engine: died if engine == "x" else None)
+    rows = timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01], elsewhere=spread,
+                            ways=2)
     assert rows[0] == {} and rows[1]["timing"].startswith("best of"), rows
 
-    def interrupted(fn, *args):
+    def interrupted(chunks):
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01],
-                         elsewhere=lambda engine: interrupted if engine == "x" else None)
+        timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01], elsewhere=interrupted)
 
 
-def test_an_engine_with_a_run_to_time_once_first_is_timed_here():
-    """A run with no single time (--resume of a run stored before single times) is timed once here first, so its
-    engine's runs are warm here: none is sent elsewhere."""
+def test_a_run_with_no_single_time_is_timed_once_first_elsewhere_too():
+    """A run with no single time (--resume of a run stored before single times) is timed once first, in a chunk of
+    single times given to `elsewhere` as well, then with the others, best of: nothing is timed in this process."""
     runs = [SimpleNamespace(engine="x", precision="float64")] * 2
     sent = []
-    rows = timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[None, 0.01],
-                            elsewhere=lambda engine: lambda fn, *args: sent.append(args) or fn(*args))
-    assert not sent and all(row["timing"].startswith("best of") for row in rows), rows
-    rows = timing.time_runs(runs, [10, 10], lambda run: (_Sim(), None), singles=[0.01, 0.01],
-                            elsewhere=lambda engine: lambda fn, *args: sent.append(args) or fn(*args))
-    assert len(sent) == 1 and all(row["timing"].startswith("best of") for row in rows), rows
+
+    def spread(chunks):
+        sent.append([(len(c.runs), c.repeats) for c in chunks])
+        return timing.in_turn(lambda run: (_Sim(), None))(chunks)
+
+    rows = timing.time_runs(runs, [10, 10], lambda run: None, singles=[None, 0.01], elsewhere=spread, ways=2)
+    assert sent == [[(1, 1)], [(1, timing.REPEATS), (1, timing.REPEATS)]], sent
+    assert all(row["timing"].startswith("best of") for row in rows), rows

@@ -53,15 +53,16 @@ def test_an_internal_error_crosses_the_pool_and_is_no_row():
     from types import SimpleNamespace
 
     from stereodyn.harness.run.pool import local_pool, run_local
+    from stereodyn.harness.scenes.cases import find_case, with_overrides
 
-    # enough for the parent's scheduling (pool.affinity: engine, dt, integrator, case.t_end), no grid: measure()
-    # breaks on it in the worker
-    broken = SimpleNamespace(case=SimpleNamespace(name="x", t_end=1.0, dt=[0.01]), engine="mujoco", dt=0.01,
-                             integrator="rk4")
+    # a real case, whose truth (a pool task of its own) works; enough of a spec for the parent's scheduling
+    # (pool.affinity: engine, dt, integrator, case), no grid: measure() breaks on it in the worker
+    case = with_overrides(find_case("free-asymmetric"), t_end=0.1, dt=[0.01])
+    broken = SimpleNamespace(case=case, engine="mujoco", dt=0.01, integrator="rk4")
     rows = []
     with pytest.raises(errors.InternalError, match="AttributeError") as raised:
         with local_pool(2, 2) as pool:  # the sweep's watched pool
-            run_local([broken], {}, pool, lambda spec, row: rows.append(row))
+            run_local([broken], pool, lambda spec, row: rows.append(row), certify=False)
     # the traceback is the worker's, where the error was raised
     assert rows == [] and "harness/run/pool.py" in raised.value.details, raised.value.details
 

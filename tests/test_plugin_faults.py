@@ -414,7 +414,7 @@ HOSTILE_ENGINES = '''
 import os, signal, sys, time
 import numpy as np
 from stereodyn.harness import integrators
-from stereodyn.harness.engines.base import Engine
+from stereodyn.harness.engines.base import About, Engine, Timing
 from stereodyn.harness.trajectory import Trajectory
 
 
@@ -455,8 +455,8 @@ class Simulation:
 def engine(how):
     class Hostile(Engine):
         name = how
-        state_space = "lie"
-        pass_us = 3.0
+        about = About(state_space="lie")
+        timing = Timing(pass_us=3.0)
 
         def integrators(self):
             return ("rk4",)
@@ -508,6 +508,70 @@ def test_hostile_engines_are_their_rows_and_the_sweep_completes(tmp_path):
     assert json.loads((out / "runs.json").read_text())["complete"] is True and (out / "report.md").is_file()
     forked = [int(pid) for pid in (tmp_path / "forked").read_text().split()]
     assert forked and _gone(forked), [p for p in forked if _alive(p)]
+
+
+FORKS_EVERY_RUN = '''
+import os, time
+from stereodyn.harness import integrators
+from stereodyn.harness.engines.base import About, Engine, Timing
+
+
+class Simulation:
+    def __init__(self, case, dt):
+        from stereodyn.harness.engines.pinocchio import PinocchioSimulation
+        self.inner = PinocchioSimulation(case, integrators.get("rk4")(), float(dt))
+
+    def run(self, grid):
+        traj = self.inner.run(grid)
+        pid = os.fork()
+        if pid == 0:
+            time.sleep(300)
+            os._exit(0)
+        with open(os.environ["FORKED_PIDS"], "a") as out:
+            out.write(f"{pid} {os.getpid()}\\n")  # the child, and the process that ran run()
+        return traj
+
+
+class Forks(Engine):
+    name = "forks_always"
+    about = About(state_space="lie")
+    timing = Timing(pass_us=3.0)
+
+    def integrators(self):
+        return ("rk4",)
+
+    def unsupported(self, case):
+        return None
+
+    def prepare(self, case, integrator, dt):
+        return Simulation(case, dt)
+'''
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_plugin_never_runs_in_the_command_so_its_children_die_with_the_command(tmp_path):
+    """Issue 46 finding 1's remainder, closed by issue 49: the runs whose time decides were timed in the command's
+    own process, where a child a plug-in forks in run() outlived the command. Now the timing too runs on the
+    workers: every call of run() (accuracy, single time, best of 3) is in a worker, never the command's process, and
+    every child it forked is gone once the command has ended. Break-checked: with the sweep's timing `elsewhere`
+    None (the parent times) the forker set holds the command's pid."""
+    env = _package(tmp_path / "site", "forks-always", {"forks_always.py": FORKS_EVERY_RUN},
+                   {"stereodyn.engines": {"forks_always": "forks_always:Forks"}})
+    env["FORKED_PIDS"] = str(tmp_path / "forked")
+    command = subprocess.Popen([sys.executable, "-m", "stereodyn", "run", "free-asymmetric", "--integrators", "rk4",
+                                "--t-end", "0.2", "--dt", "1e-2,5e-3", "--no-ladder", "--quiet", "--jobs", "2",
+                                "--engines", "forks_always", "--out", str(tmp_path / "out")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+    _, err = command.communicate(timeout=600)
+    assert command.returncode == 0, err[-3000:]
+    rows = pd.read_csv(tmp_path / "out" / "results.csv")
+    assert set(rows.status) == {"ok"} and rows.timing.str.startswith("best of").all(), rows
+    forked = [tuple(int(v) for v in line.split()) for line in (tmp_path / "forked").read_text().splitlines()]
+    # 2 runs: accuracy + single time each in the sweep, then best of 3 for the deciding ones
+    assert len(forked) >= 4 and command.pid not in {forker for _, forker in forked}, (command.pid, forked)
+    children = [child for child, _ in forked]
+    assert _gone(children), [p for p in children if _alive(p)]
 
 
 PKG = "hostile_loads" + "/"  # files the test writes, not the repository's (tests/test_docs.py reads paths)

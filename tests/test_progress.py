@@ -52,8 +52,8 @@ def test_run_prints_one_line_per_phase_when_stderr_is_not_a_terminal(tmp_path, c
     assert cli.main(["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2",
                      "--jobs", "1", "--out", str(tmp_path)]) == 0
     assert capsys.readouterr().err.splitlines() == [
-        "stereodyn: truths of 1 case, then 3 runs on 1 worker",
-        "stereodyn: timing 3 runs timed once: again, best of 3, one at a time, those whose time decides an answer",
+        "stereodyn: truths of 1 case and 3 runs on 1 worker",
+        "stereodyn: timing 3 runs timed once: again, best of 3, here, one at a time, those whose time decides an answer",
         "stereodyn: report: report.md, report.html"]  # STEREODYN_FIGURES=0 (tests/conftest.py)
     assert cli.main(["run", "free-asymmetric", "--engines", "mujoco", "--integrators", "euler", "--t-end", "0.2",
                      "--jobs", "1", "--out", str(tmp_path / "quiet"), "--quiet"]) == 0

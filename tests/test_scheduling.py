@@ -4,7 +4,6 @@ import multiprocessing
 import pytest
 from child_processes import ended, started_since, watch_exit
 
-from stereodyn.harness.run import truth as run_truth
 from stereodyn.harness.run.pool import cost, local_pool
 from stereodyn.harness.run.sweep import SweepOptions, run_sweep
 from stereodyn.harness.scenes.cases import find_case, with_overrides
@@ -73,13 +72,16 @@ def test_a_sweep_in_process_or_without_runs_starts_no_pool(jobs, runs):
 
 
 def test_an_interrupt_while_computing_the_truth_ends_the_started_workers(tmp_path, monkeypatch):
+    """Ctrl-C while the parent waits for the truths, which are pool tasks (issue 49): the workers end at once."""
+    from stereodyn.harness.run import pool as run_pool
+
     before, workers = set(multiprocessing.active_children()), set()
 
     def interrupted(*args, **kwargs):
-        workers.update(started_since(before))  # the workers start while the truth is computed
+        workers.update(started_since(before))  # the workers compute the truth: the parent waits for it here
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(run_truth, "case_truth", interrupted)
+    monkeypatch.setattr(run_pool, "wait", interrupted)
     case = with_overrides(find_case("free-asymmetric"), t_end=0.2, dt=[1e-2, 5e-3])
     with pytest.raises(KeyboardInterrupt):
         run_sweep([case], SweepOptions(["mujoco"], tmp_path, ["euler"], jobs=2))

@@ -77,6 +77,8 @@ class _OneWorkerDies:
     """A pool that runs each task here, except the first dt ladder's, whose worker dies under it (as
     WatchedPool reports a process killed by an SDK's crash or the memory killer)."""
 
+    jobs = 1  # one task at a time, here (the timing phases hand it one chunk at a time)
+
     def __init__(self):
         self.died = []
 

@@ -74,8 +74,8 @@ def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tup
                pool: WatchedPool | None = None,
                progress: Callable[[str], None] | None = None) -> pd.DataFrame:
     """advice.csv's table for tasks (family, adaptive, known points, order): the searches in this process (pool
-    None) or on the sweep's pool, one task per family, then the advised runs not yet timed timed here, alone, in
-    rounds (the ladders' timing phase)."""
+    None) or on the sweep's pool, one task per family, then the advised runs not yet timed timed on the pool's
+    workers, a core each (here without a pool), in rounds (the ladders' timing phase)."""
     results: dict[int, tuple[list[dict], list[dict]]] = {}
     if pool is None:
         for index, (family, adaptive, known, order) in enumerate(tasks):
@@ -98,22 +98,22 @@ def run_advice(tasks: list[tuple[Family, bool, list[dict], float]], targets: tup
             if progress:
                 progress(family.label)
     rows = [row for index in range(len(tasks)) for row in results[index][0]]
-    _time_advised(rows, {index: results[index][1] for index in results}, tasks)
+    _time_advised(rows, {index: results[index][1] for index in results}, tasks, pool)
     return pd.DataFrame(rows, columns=list(ADVICE_COLUMNS)).fillna({"formulation": "", "note": ""})
 
 
-def _time_advised(rows: list[dict], untimed: dict[int, list[dict]], tasks) -> None:
-    """Time the advised runs that have no timing yet (each once, whatever the targets sharing it), here and alone,
-    and fill their rows' us_per_sim_s, in place."""
+def _time_advised(rows: list[dict], untimed: dict[int, list[dict]], tasks, pool: WatchedPool | None = None) -> None:
+    """Time the advised runs that have no timing yet (each once, whatever the targets sharing it), on the pool's
+    workers, each on a core of its own (None: here), and fill their rows' us_per_sim_s, in place."""
     fixed = {family.key: family for family, adaptive, _, _ in tasks if not adaptive}
     adaptive = {family.key: family for family, is_adaptive, _, _ in tasks if is_adaptive}
     points = [point for index in sorted(untimed) for point in untimed[index]]
     dt_points = [p for p in points if family_key(p) in fixed]
     tol_points = [p for p in points if family_key(p) in adaptive]
     if dt_points:
-        dt_ladders.time_points(dt_points, fixed)
+        dt_ladders.time_points(dt_points, fixed, pool=pool)
     if tol_points:
-        dt_ladders.time_points(tol_points, adaptive, "tolerance")
+        dt_ladders.time_points(tol_points, adaptive, "tolerance", pool)
     cost = {}
     for p in dt_points:
         cost[(*family_key(p), "dt", p["dt"])] = p.get("us_per_sim_s")

@@ -178,7 +178,7 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None =
     """Every family's ladder, every short ladder (short: (family, its sweep runs, its steps cap), run_short_ladder)
     and every first part (first_parts: (family, its points, its steps cap, its row), run_first_part), their accuracy
     runs in this process (pool None) or on the sweep's pool, each ladder point timed once there, then with timed the
-    ladders' points timed again here (time_points; the short ladders' points stay untimed; timed False leaves that to
+    ladders' points timed again on its workers (time_points; the short ladders' points stay untimed; timed False leaves that to
     the caller: pipeline.work_precision times only those that decide). Returns (points, convergence rows): the
     ladders' in the order of `chosen`, then the short ladders' in the order of `short`, then the first parts',
     whatever order the families finish in."""
@@ -214,6 +214,6 @@ def run_ladders(chosen: list[Family], max_steps: int, pool: WatchedPool | None =
     for index in range(len(tasks)):
         points += results[index][0]
         rows.append(results[index][1])
-    if timed:  # the timing phase, once every accuracy run is done and the pool idle: each point timed alone, here
-        time_points([p for p in points if p.get("source") == LADDER], {f.key: f for f in chosen})
+    if timed:  # the timing phase, once every accuracy run is done and the pool idle: on its workers, a core each
+        time_points([p for p in points if p.get("source") == LADDER], {f.key: f for f in chosen}, pool=pool)
     return points, rows

@@ -3,10 +3,14 @@ advice: below both ladders' modules, so that tolerance_ladders reads them withou
 them, their home before issue 29)."""
 from __future__ import annotations
 
+import functools
+
 from ..scenes import scene_of
 from ..run import timing
 from ..run.measure import prepare as prepare_run
+from ..run.pool import time_on_pool
 from ..run.spec import Family
+from ..run.workers import WatchedPool
 
 TIMING_REPEATS, TIMING_BUDGET_S = 3, 0.3
 
@@ -21,13 +25,19 @@ def _timed(sim, grid) -> dict:
     return timing.columns(timing.Timing(timing.once(lambda: sim.run(grid)), 0.0, 1), grid.t_end)
 
 
-def time_points(points: list[dict], families_by_key: dict[tuple, Family], setting: str = "dt") -> None:
+def time_points(points: list[dict], families_by_key: dict[tuple, Family], setting: str = "dt",
+                pool: WatchedPool | None = None) -> None:
     """The timing phase of the dt ladders, the tolerance ladders and the advice, its one home (harness.run.timing.
-    time_points: a timed run shares the cores with no other run; best of TIMING_REPEATS): each point's run prepared
-    again from its family (families_by_key: Family.key -> Family) at the point's setting, "dt" or "tolerance"."""
-    def prepare(row: dict):
-        family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"],
-                                  row["precision"])]
-        return prepare_run(family.run(**{setting: row[setting]}))
+    time_points: best of TIMING_REPEATS, each timing on a core no other timing shares): on the pool's workers
+    (pool.time_on_pool; None: here), each point's run prepared again from its family (families_by_key: Family.key ->
+    Family) at the point's setting, "dt" or "tolerance"."""
+    prepare = functools.partial(prepare_point, families_by_key, setting)
+    elsewhere, ways = (None, 1) if pool is None else (time_on_pool(pool), pool.jobs)
+    timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S, elsewhere=elsewhere, ways=ways)
 
-    timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S)
+
+def prepare_point(families_by_key: dict[tuple, Family], setting: str, row: dict) -> tuple:
+    """(simulation, grid) of a ladder point's run, from its family at the point's setting (a function of the module,
+    so that a worker that times the point unpickles it)."""
+    family = families_by_key[(row["case"], row["engine"], row["formulation"], row["integrator"], row["precision"])]
+    return prepare_run(family.run(**{setting: row[setting]}))

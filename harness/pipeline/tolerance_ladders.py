@@ -98,7 +98,7 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S,
                 timed: bool = True) -> list[dict]:
     """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, each point timed
-    once there, then with timed its points timed again here (time_points; timed False leaves that to the caller).
+    once there, then with timed its points timed again on its workers (time_points; timed False leaves that to the caller).
     Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose to tight. budget_s:
     run_ladder's point budget."""
     results: dict[int, list[dict]] = {}
@@ -122,7 +122,7 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 progress(chosen[index].label)
     points = [point for index in range(len(chosen)) for point in results[index]]
     if timed:
-        time_points(points, {f.key: f for f in chosen}, setting="tolerance")
+        time_points(points, {f.key: f for f in chosen}, setting="tolerance", pool=pool)
     return [{k: v for k, v in point.items() if not k.startswith("_")} for point in points]
 
 

@@ -56,7 +56,7 @@ def ladders(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     convergence = workprecision.convergence_rows(ladder_rows, plan.sweep_rows)
     tolerance_points = run_tolerance_ladders(plan.adaptive, pool, progress, plan.tolerances, timed=False) \
         if plan.adaptive else []
-    _time_deciding(results, points, tolerance_points, plan)
+    _time_deciding(results, points, tolerance_points, plan, pool)
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     tolerance_df = tolerance_frame(tolerance_points)
     paths = workprecision.write_tables(out_dir, results, ladder_df, convergence, tolerance_df, write_pareto)
@@ -65,15 +65,16 @@ def ladders(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
 
 
 def _time_deciding(results: pd.DataFrame, points: list[dict], tolerance_points: list[dict],
-                   plan: workprecision.LadderPlan) -> None:
+                   plan: workprecision.LadderPlan, pool: WatchedPool | None = None) -> None:
     """The ladders' timing phase: of the points their workers timed once, those whose time can change a "What to use"
-    cell (analysis.decisive, among the sweep's runs and every ladder point) timed again here, alone, best of
-    points.TIMING_REPEATS (the others keep their single time: `timing` SINGLE). In place."""
+    cell (analysis.decisive, among the sweep's runs and every ladder point) timed again on the pool's workers, each
+    on a core of its own (None: here), best of points.TIMING_REPEATS (the others keep their single time: `timing`
+    SINGLE). In place."""
     dt_points = [p for p in points if p.get("source") == LADDER]
     chosen = decisive.deciding_points(results, dt_points + tolerance_points)
-    time_points([p for i, p in enumerate(dt_points) if i in chosen], {f.key: f for f in plan.chosen})
+    time_points([p for i, p in enumerate(dt_points) if i in chosen], {f.key: f for f in plan.chosen}, pool=pool)
     time_points([p for i, p in enumerate(tolerance_points, len(dt_points)) if i in chosen],
-                {f.key: f for f in plan.adaptive}, "tolerance")
+                {f.key: f for f in plan.adaptive}, "tolerance", pool)
 
 
 def advice(out_dir: Path, results: pd.DataFrame, measured: Ladders, pool: WatchedPool | None = None,

@@ -6,17 +6,19 @@ import math
 import os
 import signal
 from collections.abc import Iterator
-from concurrent.futures import Future, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from contextlib import contextmanager
 from typing import Callable, NamedTuple
 
 from .. import budget, integrators as integrator_registry
 from ..engines import get_engine
+from ..scenes import scene_of
 from ..trajectory import Status
 from . import timing
 from .measure import measure, prepare
 from .processes import exit_with_parent, raise_unless_data
 from .spec import RunSpec, base_row
+from .truth import case_truth, truth_failure
 from .workers import Affinity, WatchedPool
 
 # The cost model of a run (measure + its timing), to start the longest runs first and to weigh the progress bar's ETA.
@@ -151,10 +153,10 @@ def started_engines() -> dict[str, int]:
 
 
 # The simulations this process prepared for the ok runs of start-up engines in the sweep (sweep_run), by run, for the
-# sweep's timing phase: it times those runs on a worker that ran them (on_paid_worker), which would otherwise build
-# each model again (Genesis: ~2.7 s a scene; its 8 scenes were ~22 of the quick suite's 48 s of timing). A pool serves
-# one sweep; the parent forgets its own after the timing phase (forget_kept: --jobs 1 in process). At most KEPT_MAX,
-# the oldest dropped first (a Genesis scene holds ~10 MB).
+# sweep's timing phase: it times those runs on a worker that ran them (time_on_pool, Affinity), which would otherwise
+# build each model again (Genesis: ~2.7 s a scene; its 8 scenes were ~22 of the quick suite's 48 s of timing). A pool
+# serves one sweep; the parent forgets its own after the timing phase (forget_kept: --jobs 1 in process). At most
+# KEPT_MAX, the oldest dropped first (a Genesis scene holds ~10 MB).
 KEPT_MAX = 32
 
 
@@ -220,14 +222,48 @@ def family_affinity(family, max_steps: int) -> Affinity:
     return Affinity(family.engine, startup_s(family.engine), 2.0 * pass_s(family.engine, family.integrator, max_steps))
 
 
-def on_paid_worker(pool: WatchedPool | None, engine: str) -> Callable | None:
-    """send(fn, *args) -> fn(*args)'s result from a worker of the pool that has paid the engine's start-up (submitted
-    with its Affinity, waited for); None where there is no pool or the engine declares no start-up (startup_s 0): the
-    sweep's timing phase times those in the parent (timing.time_runs' `elsewhere`)."""
-    declared = startup_s(engine)
-    if pool is None or declared <= 0.0:
-        return None
-    return lambda fn, *args: pool.submit(fn, *args, affinity=Affinity(engine, declared)).result()
+def time_pinned(core: int | None, chunk: timing.Chunk) -> list:
+    """A worker's timing task (time_on_pool): the chunk's runs timed here (timing.time_here, the models it kept from
+    their accuracy runs where it has them: prepare_kept), the whole process pinned to `core` meanwhile (None:
+    unpinned)."""
+    with timing.on_core(core):
+        return timing.time_here(chunk.runs, chunk.prepare or prepare_kept, chunk.first, chunk.repeats,
+                                chunk.budget_s)
+
+
+def time_on_pool(pool: WatchedPool) -> Callable[[list[timing.Chunk]], list]:
+    """timing.time_runs' `elsewhere` on the pool: each chunk a task (time_pinned), as many at once as the pool has
+    workers, each holding a core of its own (timing.timing_cores) until it is done, so no two timings share a core;
+    a chunk of a start-up engine's runs with its Affinity (a worker that paid it). In the order given; a chunk whose
+    worker died keeps its runs' single times (None each); our bug raises."""
+    def spread(chunks: list[timing.Chunk]) -> list:
+        free = timing.timing_cores(pool.jobs)
+        results: list = [[None] * len(chunk.runs) for chunk in chunks]
+        queue, flying = list(range(len(chunks))), {}
+        while queue or flying:
+            while queue and free:
+                k, core = queue.pop(0), free.pop(0)
+                chunk = chunks[k]
+                needs = None if chunk.engine is None else Affinity(chunk.engine, startup_s(chunk.engine))
+                flying[pool.submit(time_pinned, core, chunk, affinity=needs)] = k, core
+            done, _ = wait(flying, return_when=FIRST_COMPLETED)
+            for future in done:
+                k, core = flying.pop(future)
+                free.append(core)
+                try:
+                    results[k] = future.result()
+                except Exception as exc:  # its worker died: the runs keep their single times
+                    raise_unless_data(exc)
+        return results
+    return spread
+
+
+def time_on_a_free_core(chunk: timing.Chunk) -> list:
+    """A Dask worker's timing task (distributed.time_on_cluster): the chunk's runs timed on a core of the machine
+    that no other timing holds (timing.on_a_free_core), this thread pinned to it."""
+    with timing.on_a_free_core():
+        return timing.time_here(chunk.runs, chunk.prepare or prepare_kept, chunk.first, chunk.repeats,
+                                chunk.budget_s)
 
 
 IN_PROCESS_ENV = "STEREODYN_IN_PROCESS"  # "1": --jobs 1 runs in the command's own process (in_process)
@@ -287,23 +323,60 @@ def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> di
     return row
 
 
-def run_local(specs: list[RunSpec], truths: dict, pool: WatchedPool | None,
-              finished: Callable[[RunSpec, dict], None], budgets: budget.Budgets | None = None) -> None:
-    """Run the specs in this process (pool None) or on the pool, in the order given; finished(spec, row) as each
-    completes."""
+def run_local(specs: list[RunSpec], pool: WatchedPool | None, finished: Callable[[RunSpec, dict], None],
+              certify: bool, budgets: budget.Budgets | None = None,
+              phase: Callable[[str], None] = lambda text: None) -> None:
+    """Each case's truth, then its runs, in this process (pool None: every truth first, phase(text) saying which) or
+    on the pool, in the order given; finished(spec, row) as each run completes. On the pool each case's truth is a
+    task of its own, the truths first, those of the costliest cases first; a case's runs are queued the moment its
+    own truth is back, whatever the other truths are doing (the parent computed them all first: a serial part no
+    worker could take, issue 49). A truth that fails fails its case's runs (truth.truth_failure)."""
+    budgets = budgets or budget.configured()
+    by_case: dict[int, list[RunSpec]] = {}
+    for spec in specs:
+        by_case.setdefault(id(spec.case), []).append(spec)
+
+    def fail_case(runs: list[RunSpec], exc: Exception) -> None:
+        failure = truth_failure(exc)
+        for spec in runs:
+            finished(spec, {**base_row(spec, None), **failure})
+
     if pool is None:
+        truths = {}
+        for runs in by_case.values():
+            case = runs[0].case
+            if scene_of(case).needs_truth:
+                phase(f"truth {case.name}")
+            try:
+                truths[id(case)] = case_truth(case, certify, budgets.truth_s)
+            except Exception as exc:
+                fail_case(runs, exc)
         for spec in specs:
-            finished(spec, sweep_run(spec, truths.get(spec.case.name)))  # this process's budgets
+            if id(spec.case) in truths:
+                finished(spec, sweep_run(spec, truths[id(spec.case)]))  # this process's budgets
         return
-    futures: dict[Future, RunSpec] = {pool.submit(sweep_run, s, truths.get(s.case.name), budgets,
-                                                  affinity=affinity(s)): s for s in specs}
-    for future in as_completed(futures):
-        spec = futures[future]
-        try:
-            row = future.result()
-        except budget.BudgetExceeded as exc:  # its worker ended past its budget (harness.run.workers)
-            row = {**base_row(spec, spec.grid), **budget.failed_row(exc)}
-        except Exception as exc:  # the worker died or the task was lost; a bug of ours raised there is no row
-            raise_unless_data(exc)
-            row = worker_failed_row(spec, exc)
-        finished(spec, row)
+    ordered = sorted(by_case.values(), key=lambda runs: sum(cost(s) for s in runs), reverse=True)  # stable
+    truths: dict[Future, list[RunSpec]] = {pool.submit(case_truth, runs[0].case, certify, budgets.truth_s): runs
+                                           for runs in ordered}
+    running: dict[Future, RunSpec] = {}
+    while truths or running:
+        done, _ = wait([*truths, *running], return_when=FIRST_COMPLETED)
+        for future in done:
+            if future in truths:
+                runs = truths.pop(future)
+                try:
+                    truth = future.result()
+                except Exception as exc:  # past its budget, the worker died, an error; our bug raises (exit 3)
+                    fail_case(runs, exc)
+                    continue
+                running |= {pool.submit(sweep_run, s, truth, budgets, affinity=affinity(s)): s for s in runs}
+                continue
+            spec = running.pop(future)
+            try:
+                row = future.result()
+            except budget.BudgetExceeded as exc:  # its worker ended past its budget (harness.run.workers)
+                row = {**base_row(spec, spec.grid), **budget.failed_row(exc)}
+            except Exception as exc:  # the worker died or the task was lost; a bug of ours raised there is no row
+                raise_unless_data(exc)
+                row = worker_failed_row(spec, exc)
+            finished(spec, row)

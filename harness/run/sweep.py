@@ -24,10 +24,10 @@ from ..environment import environment as current_environment
 from ..scenes import checks, scene_of
 from ..trajectory import Status
 from . import timing
-from .distributed import run_on_cluster
+from .distributed import cluster_timer, run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
-from .pool import (cost, forget_kept, local_pool, on_paid_worker, one_precision_at_a_time,  # noqa: F401 (worker_pool)
+from .pool import (cost, forget_kept, local_pool, one_precision_at_a_time, time_on_pool,  # noqa: F401 (worker_pool)
                    prepare_kept, queue_key, run_local, startup_charges, startup_cost, sweep_run, worker_failed_row,
                    worker_pool)
 from .workers import WatchedPool
@@ -35,7 +35,7 @@ from ..words import plural
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
 from .store import Store, mark_complete, run_key
-from .truth import sweep_truths
+from .truth import case_truth
 
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
 
@@ -65,8 +65,8 @@ class SweepOptions:
 
 
 def execute(spec: RunSpec, truth, timed: bool = False, budgets: budget.Budgets | None = None) -> dict:
-    """One sweep run's row (measure.measure with the sweep's extras), timed when asked (the sweep times afterwards,
-    alone: time_specs)."""
+    """One sweep run's row (measure.measure with the sweep's extras), timed when asked (the sweep times afterwards, on
+    its workers: timing.time_runs)."""
     row = sweep_run(spec, truth, budgets)
     if timed and row.get("status") == Status.OK.value:
         row.update(time_spec(spec, row["steps"]))
@@ -188,37 +188,34 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         own_pool = nullcontext(None) if options.scheduler else nullcontext(pool) if pool is not None else \
             local_pool(local_jobs, len(pending))
         pool = open_pool.enter_context(own_pool)
-        progress.stage(f"truths of {plural(len(cases), 'case')}, then {plural(len(pending), 'run')} on "
-                       f"{plural(local_jobs, 'worker')}")
-
-        def truth_failed(case, failure: dict) -> None:  # a truth that cannot be computed fails its case's runs
-            nonlocal pending
-            for spec in [s for s in pending if s.case is case]:
-                finished(spec, {**base_row(spec, None), **failure})
-            pending = [s for s in pending if s.case is not case]
-
-        charge = startup_charges([], local_jobs)  # a failed truth's runs finish before the bar starts: no charge
-        truths = sweep_truths(cases, lambda case: any(s.case is case for s in pending), options.certify,
-                              progress.phase, truth_failed, budgets)
+        progress.stage(f"truths of {plural(len({id(s.case) for s in pending}), 'case')} and "
+                       f"{plural(len(pending), 'run')} on {plural(local_jobs, 'worker')}")
         progress.start(len(pending), sum(cost(s) for s in pending) + startup_cost(pending, local_jobs),
                        resumed=len(specs) - len(pending))
         charge = startup_charges(pending, local_jobs)
         try:
             if options.scheduler:
-                run_on_cluster(options.scheduler, pending, truths, functools.partial(sweep_run, budgets=budgets),
+                run_on_cluster(options.scheduler, pending, functools.partial(sweep_run, budgets=budgets),
+                               functools.partial(case_truth, certify=options.certify, budget_s=budgets.truth_s),
                                finished, worker_failed_row)
             else:
-                run_local(pending, truths, pool, finished, budgets)
+                run_local(pending, pool, finished, options.certify, budgets, progress.phase)
         finally:
             publish()
             progress.close()
-        # The timing phase: every accuracy run is done and the pool idle (or gone): each timed run has the cores alone,
-        # here or, for an engine with a start-up, on a worker of the pool that paid it (pool.on_paid_worker)
+        # The timing phase: every accuracy run is done and the workers idle: each run whose time decides is timed on
+        # a worker (or a cluster's), as many at once as workers, each on a core of its own; none in this process
+        # (only without workers: --jobs 1 in process, a debugger's mode)
         untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
+        if options.scheduler:
+            elsewhere, ways = cluster_timer(options.scheduler) if untimed else (None, 1)
+        else:
+            elsewhere, ways = (None, 1) if pool is None else (time_on_pool(pool), pool.jobs)
         if untimed:
-            progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, one "
-                           f"at a time, those whose time decides an answer" if decides is not None else
-                           f"timing {plural(len(untimed), 'run')}, one at a time, in rounds")
+            where = f"on {plural(ways, 'worker')} at once" if elsewhere is not None else "here, one at a time"
+            progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, "
+                           f"{where}, those whose time decides an answer" if decides is not None else
+                           f"timing {plural(len(untimed), 'run')}, {where}, in rounds")
             environment[TIMING_START] = load_snapshot()  # how busy the machine was: the report's Environment
 
         def select(indices: list[int], seconds: list[float]) -> set[int]:  # decides() for one timing group's runs
@@ -236,8 +233,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # prepare_kept: a run timed where its accuracy run was (a worker that paid its engine) reuses its model
         timings = timing.time_runs(untimed, [stored[keys[id(s)]].get("steps", math.nan) for s in untimed],
                                    prepare_kept, select if decides is not None else None,
-                                   [timing.single(stored[keys[id(s)]]) for s in untimed],
-                                   functools.partial(on_paid_worker, pool))
+                                   [timing.single(stored[keys[id(s)]]) for s in untimed], elsewhere, ways)
         forget_kept()
         if untimed:
             environment[TIMING_END] = load_snapshot()

@@ -1,19 +1,27 @@
 """Stepping time, measured apart from accuracy (DESIGN §6.4). Every ok run is timed once in its worker, right after its
 accuracy run, which is its warm-up (once: the sweep's runs, the ladders' points); only the runs whose time decides
-something are then timed again, best of N in rounds, with no other run on the machine (time_runs, time_points, their
-`select`: harness.analysis.decisive), with the spread of the N recorded so that a ranking can tell a difference from
-noise. The others keep their single time, and say so (results.csv's and the ladders' `timing` column). The repeats
-are timed in the parent, except the sweep's runs of an engine with a declared start-up (Engine startup_s: MJX, Warp,
-Genesis, Newton): those go, one task at a time, to a pool worker that has paid it (time_runs' `elsewhere`, time_here);
-in the parent they paid the SDK's import and every compilation again (19 MJX rollouts, 44 s of a 70 s timing phase of
-the quick suite). Why a time once, in the worker: issue 29 (the timing phase, every run timed alone, was a third of
-the default run); why the accuracy run itself is no timing: with its counting and its first-call costs it measured
-Pinocchio's and the reference's runs 2-3x slower than their best of 3, up to 20x."""
+something are then timed again, best of N in rounds, each timing on a core that no other timing shares (time_runs,
+time_points, their `select`: harness.analysis.decisive), with the spread of the N recorded so that a ranking can tell
+a difference from noise. The others keep their single time, and say so (results.csv's and the ladders' `timing`
+column). The repeats are timed on the workers, in chunks (chunks_of), as many at once as workers, each worker pinned
+to a core of its own for its chunk (pool.time_on_pool, timing_cores, on_core; on Dask on_a_free_core), never in the
+command's process: there they were a serial phase after the sweep that no worker could take (issue 49: 2 workers
+were 1.2-1.6x one). A start-up engine's runs (Engine startup_s: MJX, Warp, Genesis, Newton) go in chunks of their
+own to a worker that has paid it (in the parent they paid the SDK's import and every compilation again: 19 MJX
+rollouts, 44 s of a 70 s timing phase of the quick suite). Why a time once, in the worker: issue 29 (the timing
+phase, every run timed alone, was a third of the default run); why the accuracy run itself is no timing: with its
+counting and its first-call costs it measured Pinocchio's and the reference's runs 2-3x slower than their best of 3,
+up to 20x."""
 from __future__ import annotations
 
 import gc
 import math
+import os
+import sys
+import tempfile
 import time
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -23,6 +31,7 @@ from ..grid import TimeGrid
 from ..integrators.base import uncounted
 from ..precision import FLOAT64
 from ..trajectory import Status
+from ..words import plural
 from .processes import plugin_fault, raise_unless_data
 
 
@@ -51,12 +60,14 @@ ONCE = "_once_s"   # a row's single timed run in its worker (s), before the row 
 class Timing(NamedTuple):
     """best: the fastest timed run (s); spread: the second fastest minus the fastest (s), how far the best is from
     being reproduced (the slowest would mostly measure the one repeat another process preempted); repeats: how many
-    ran; disturbed: still disturbed (spread > best) after measure_interleaved re-timed it once."""
+    ran; disturbed: still disturbed (spread > best) after measure_interleaved re-timed it once; t_end: the timed
+    grid's span (s), where time_here knows it."""
 
     best: float
     spread: float
     repeats: int
     disturbed: bool = False
+    t_end: float = math.nan
 
 
 def measure(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S,
@@ -170,26 +181,26 @@ def _timing(times: list[float]) -> Timing:
 
 
 def time_points(points: list[dict], prepare: Callable[[dict], tuple], repeats: int, budget_s: float,
-                select: Callable[[list[int]], set[int]] | None = None) -> None:
-    """A ladder's timing phase (dt ladders, tolerance ladders, the advised runs): the ok points timed in this process
-    after all the accuracy runs, best of `repeats` in rounds over the points of each timing group (measure_interleaved,
-    groups). prepare(point) -> (simulation, grid). select(indices of the ok points) -> those to time here (None: all);
-    the others keep the single time their worker took (timing SINGLE). Sets wall_s (s), us_per_sim_s,
-    us_per_sim_s_spread (µs of stepping per simulated second) and timing on each timed point, in place; a point that
-    fails here keeps what it had."""
+                select: Callable[[list[int]], set[int]] | None = None,
+                elsewhere: Callable[[list[Chunk]], list[list[Timing | None]]] | None = None, ways: int = 1) -> None:
+    """A ladder's timing phase (dt ladders, tolerance ladders, the advised runs): the ok points timed after all the
+    accuracy runs, best of `repeats` in rounds over the points of each chunk (chunks_of, per timing group: groups),
+    timed by elsewhere(chunks) as time_runs' are (pool.time_on_pool: on the workers, each on a core of its own; None:
+    here, in turn). prepare(point) -> (simulation, grid), picklable where elsewhere sends it to a worker.
+    select(indices of the ok points) -> those to time (None: all); the others keep the single time their worker took
+    (timing SINGLE). Sets wall_s (s), us_per_sim_s, us_per_sim_s_spread (µs of stepping per simulated second) and
+    timing on each timed point, in place; a point that fails there keeps what it had."""
     ok = [p for p in points if p.get("status") == Status.OK.value]
     chosen = sorted(select(list(range(len(ok))))) if select is not None else range(len(ok))
     ok = [ok[i] for i in chosen]
-    for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok]):
-        warm = _warmed({i: ok[i] for i in group}, prepare, lambda point: point["engine"])
-        first = [single(ok[i]) for i in warm]  # its worker's single time is its first repeat, as in time_runs
-        for i, measured in zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s,
-                                                         first=first)):
-            if measured is not None:
-                ok[i].update(columns(measured, warm[i][1].t_end))
-                if measured.disturbed:
-                    ok[i]["message"] = with_disturbed(ok[i].get("message"), measured)
-        warm.clear()  # this group's models go before the next group's are built
+    first = [single(p) for p in ok]  # its worker's single time is its first repeat, as in time_runs
+    pieces = [chunks_of(group, ok, first, repeats, ways, prepare, budget_s)
+              for group in groups([(p["engine"], p.get("precision") or FLOAT64) for p in ok])]
+    for i, measured in _timed_at_once(elsewhere or in_turn(prepare), pieces).items():
+        if measured is not None:
+            ok[i].update(columns(measured, measured.t_end))
+            if measured.disturbed:
+                ok[i]["message"] = with_disturbed(ok[i].get("message"), measured)
 
 
 def single(row: dict) -> float | None:
@@ -285,80 +296,225 @@ def step_columns(measured: Timing, steps: float) -> dict:
             "timing": label(measured)}
 
 
-def time_here(runs: list, prepare: Callable, first: list[float | None]) -> list[Timing | None]:
-    """The timings of runs (one timing group's) in this process, on the machine alone: each prepared and warmed up,
-    then best of REPEATS in rounds (measure_interleaved), first[i] counted among run i's repeats; None for a run that
-    fails here. What a pool worker that has paid the runs' engine runs for time_runs (its `elsewhere`)."""
-    warm = _warmed(dict(enumerate(runs)), prepare, lambda run: run.engine)
-    measured = dict(zip(warm, measure_interleaved([run for run, _ in warm.values()], first=[first[i] for i in warm])))
-    return [measured.get(i) for i in range(len(runs))]
+class Chunk(NamedTuple):
+    """Runs timed together, in rounds, on one core (time_here): runs (RunSpecs of one timing group), first (each
+    run's time so far, s, or None: timing.measure_interleaved's first), repeats (REPEATS, or 1: a single time), engine
+    (the start-up engine, Timing.startup_s, whose runs these all are, for a worker that paid it; None: any worker),
+    prepare (item -> (simulation, grid); None: the worker's own, pool.prepare_kept), budget_s (time_here's)."""
+
+    runs: list
+    first: list
+    repeats: int = REPEATS
+    engine: str | None = None
+    prepare: Callable | None = None
+    budget_s: float = BUDGET_S
 
 
-def _time_there(send: Callable, runs: list, prepare: Callable, first: list[float | None]) -> list[Timing | None]:
-    """time_here(runs, prepare, first) through send(fn, *args) -> its result (another process, waited for); all None
-    when that fails (its worker died): the runs keep their single time."""
+def time_here(runs: list, prepare: Callable, first: list[float | None], repeats: int = REPEATS,
+              budget_s: float = BUDGET_S) -> list[Timing | None]:
+    """The timings of runs (RunSpecs, or ladder points: dicts with their engine) in this process, on its core alone:
+    each prepared and warmed up, then best of `repeats` in rounds (measure_interleaved), first[i] counted among run
+    i's repeats, each with its grid's t_end; None for a run that fails here. What a pool worker runs for time_runs and
+    time_points (pool.time_on_pool), and they themselves without workers (in_turn)."""
+    warm = _warmed(dict(enumerate(runs)), prepare, _engine_of)
+    if repeats <= 1:  # a single time: no spread to judge, no re-time
+        measured = dict(zip(warm, _rounds([run for run, _ in warm.values()], 1, budget_s, 1)))
+    else:
+        measured = dict(zip(warm, measure_interleaved([run for run, _ in warm.values()], repeats, budget_s,
+                                                      first=[first[i] for i in warm])))
+    return [None if measured.get(i) is None else measured[i]._replace(t_end=getattr(warm[i][1], "t_end", math.nan))
+            for i in range(len(runs))]
+
+
+def _engine_of(item) -> str:
+    """A timed item's engine: a ladder point's (a dict) or a run's."""
+    return item["engine"] if isinstance(item, dict) else item.engine
+
+
+def in_turn(prepare: Callable) -> Callable[[list[Chunk]], list[list[Timing | None]]]:
+    """time_runs' `elsewhere` without workers (--jobs 1 in this process: a debugger's mode): each chunk timed here,
+    one after the other."""
+    return lambda chunks: [time_here(c.runs, c.prepare or prepare, c.first, c.repeats, c.budget_s)
+                           for c in chunks]
+
+
+def chunks_of(indices: list[int], runs: list, first: list[float | None], repeats: int, ways: int,
+              prepare: Callable | None = None, budget_s: float = BUDGET_S) -> list[tuple]:
+    """(indices, Chunk) pieces of one timing group's runs, to time at once on `ways` cores: the runs of an engine
+    with a declared start-up (Timing.startup_s) apart, for a worker that has paid it, the others together; each split
+    round-robin into at most `ways` chunks, so that each chunk's rounds still spread its runs' repeats (in the order
+    given: the plan's, mixing cheap and costly runs)."""
+    by_engine: dict[str | None, list[int]] = {}
+    for i in indices:
+        engine = _engine_of(runs[i])
+        by_engine.setdefault(engine if _start_up(engine) else None, []).append(i)
+    pieces = []
+    for engine, members in by_engine.items():
+        for k in range(min(max(1, ways), len(members))):
+            part = members[k::max(1, ways)]
+            pieces.append((part, Chunk([runs[i] for i in part], [first[i] for i in part], repeats, engine, prepare,
+                                       budget_s)))
+    return pieces
+
+
+def _start_up(engine: str) -> bool:
+    """Whether an engine declares a start-up (Timing.startup_s > 0); False for a name this registry does not know."""
     try:
-        return send(time_here, runs, prepare, first)
-    except Exception as exc:
-        raise_unless_data(exc)
-        return [None] * len(runs)
+        declared = float(get_engine(engine).timing.startup_s)
+    except (KeyError, ValueError, TypeError, AttributeError):
+        return False
+    return math.isfinite(declared) and declared > 0.0
 
 
 def time_runs(runs: list, steps: list[float], prepare: Callable,
               select: Callable[[list[int], list[float]], set[int]] | None = None,
               singles: list[float | None] | None = None,
-              elsewhere: Callable[[str], Callable | None] | None = None) -> list[dict]:
-    """The sweep's timing phase: the step_columns of finished ok runs, with no other run sharing the cores, in this
-    process (or elsewhere, below): each timing group (groups: by engine and precision where an engine's precision is
-    process-global) prepared (prepare(run) -> (simulation, grid)) and warmed up, then timed in rounds over the group
-    (measure_interleaved), before the next group is prepared. {} for a run that fails here (the row keeps what it
-    had); a timing still disturbed when re-timed carries it as `_disturbed`.
+              elsewhere: Callable[[list[Chunk]], list[list[Timing | None]]] | None = None,
+              ways: int = 1) -> list[dict]:
+    """The sweep's timing phase: the step_columns of finished ok runs, each timing on a core that no other run
+    shares. The runs are cut into chunks (chunks_of: per timing group, groups(), into `ways` pieces) and
+    elsewhere(chunks) times them (pool.time_on_pool: on the workers, as many at once as workers, each pinned to a
+    core of its own; distributed's on the cluster's workers; None: in_turn(prepare), here) -> each chunk's timings,
+    None for a run that failed there or whose worker died: its row keeps what it had ({}). A timing still disturbed
+    when re-timed carries it as `_disturbed`.
 
-    singles: each run's single time from its worker (s; None: none, then it is timed once here first, alone); a run
-    timed with repeats counts its single time among its REPEATS (after MIN_REPEATS timed here, alone).
-    select(indices, seconds) -> the indices to time with repeats, from the single times (None: every run); the others
-    keep their single time (timing SINGLE, no spread, never re-timed as disturbed): {} for a run whose single time
-    came from its worker, which its row has already.
-
-    elsewhere(engine) -> send(fn, *args) -> fn(*args)'s result from another process, waited for (None: here): where an
-    engine's runs chosen for repeats are timed (time_here), one send at a time, so each still has the machine alone;
-    only where none of that engine's runs in the group had to be timed once here first (they are warm here)."""
+    singles: each run's single time from its worker (s; None: none, then it is timed once first, in a chunk of
+    single times); a run timed with repeats counts its single time among its REPEATS (after MIN_REPEATS timed
+    alone). select(indices, seconds) -> the indices to time with repeats, from the single times (None: every run);
+    the others keep their single time (timing SINGLE, no spread, never re-timed as disturbed): {} for a run whose
+    single time came from its worker, which its row has already."""
     singles = list(singles) if singles is not None else [None] * len(runs)
+    spread = elsewhere or in_turn(prepare)
+    timing_groups = groups([(run.engine, run.precision) for run in runs])
     rows: list[dict] = [{} for _ in runs]
-    senders: dict[str, Callable | None] = {}
-    for group in groups([(run.engine, run.precision) for run in runs]):
-        alone = [i for i in group if singles[i] is None]
-        warm = _warmed({i: runs[i] for i in alone}, prepare, lambda run: run.engine)
-        once = dict(zip(warm, _rounds([run for run, _ in warm.values()], 1, BUDGET_S, 1)))
-        seconds = {i: singles[i] for i in group if singles[i] is not None}
-        seconds |= {i: m.best for i, m in once.items() if m is not None}
+    once = _timed_at_once(spread, [chunks_of([i for i in group if singles[i] is None], runs, singles, 1, ways)
+                                   for group in timing_groups])
+    seconds = {i: singles[i] for i in range(len(runs)) if singles[i] is not None}
+    seconds |= {i: m.best for i, m in once.items() if m is not None}
+    repeated = []
+    for group in timing_groups:
         known = [i for i in group if i in seconds]
         repeat = set(known) if select is None else set(select(known, [seconds[i] for i in known])) & set(known)
-        here = {runs[i].engine for i in alone}
-        away: dict[str, list[int]] = {}  # engine -> its runs timed elsewhere
-        for i in known:
-            engine = runs[i].engine
-            if i in repeat and elsewhere is not None and engine not in here:
-                if engine not in senders:
-                    senders[engine] = elsewhere(engine)
-                if senders[engine] is not None:
-                    away.setdefault(engine, []).append(i)
-        far = {i for indices in away.values() for i in indices}
-        warm |= _warmed({i: runs[i] for i in known if i in repeat and i not in warm and i not in far}, prepare,
-                        lambda run: run.engine)
-        order = [i for i in known if i in repeat and i in warm]
-        # its single time counts among its repeats, whether taken here or in its worker right after its accuracy run
-        # (beside another run it is no faster: it lowers neither the best nor, the slowest, the spread); at least
-        # MIN_REPEATS are timed here, alone, whatever it was (one timed-alone repeat of a ladder point, a single slow
-        # period of the machine, once changed a "What to use" winner)
-        first = [seconds[i] for i in order]
-        measured = dict(zip(order, measure_interleaved([warm[i][0] for i in order], first=first)))
-        warm.clear()  # this group's models go before the next group's are built, or another process times its own
-        for engine, indices in away.items():
-            there = _time_there(senders[engine], [runs[i] for i in indices], prepare, [seconds[i] for i in indices])
-            measured |= {i: m for i, m in zip(indices, there) if m is not None}
-        for i in known:
-            m = measured.get(i) or once.get(i)  # repeated, else the single time taken here (if any)
-            if m is not None:
-                rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
+        # its single time counts among its repeats, whether taken once here or in its worker right after its
+        # accuracy run (beside another run it is no faster: it lowers neither the best nor, the slowest, the
+        # spread); at least MIN_REPEATS are timed alone, whatever it was (one timed-alone repeat of a ladder
+        # point, a single slow period of the machine, once changed a "What to use" winner)
+        repeated.append(chunks_of([i for i in known if i in repeat], runs,
+                                  [seconds.get(i) for i in range(len(runs))], REPEATS, ways))
+    measured = _timed_at_once(spread, repeated)
+    for i in seconds:
+        m = measured.get(i) or once.get(i)  # repeated, else the single time taken here (if any)
+        if m is not None:
+            rows[i] = step_columns(m, steps[i]) | ({"_disturbed": m} if m.disturbed else {})
     return rows
+
+
+def _timed_at_once(spread: Callable, pieces_by_group: list[list[tuple]]) -> dict[int, Timing | None]:
+    """run index -> its timing, every group's chunks given to spread() at once (they are independent: each chunk
+    prepares its own models where it is timed)."""
+    pieces = [piece for group in pieces_by_group for piece in group]
+    if not pieces:
+        return {}
+    results = spread([chunk for _, chunk in pieces])
+    return {i: m for (indices, _), timed in zip(pieces, results) for i, m in zip(indices, timed)}
+
+
+# ------------------------------------------------------------------------------------------ a core for each timing
+_SAID: set[str] = set()  # what timing_cores has said on this process's terminal (once each)
+
+
+def timing_cores(workers: int) -> list[int | None]:
+    """The core each of `workers` simultaneous timings is pinned to (os.sched_setaffinity): this process's first
+    `workers` cores; [None] * workers (unpinned) where the platform cannot pin or has fewer cores than workers, said
+    once on the terminal: two timings then share a core, and the times say so (their spread, DISTURBED)."""
+    workers = max(1, workers)
+    try:
+        cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_setaffinity") else []
+    except OSError:
+        cores = []
+    if len(cores) >= workers:
+        return cores[:workers]
+    why = (f"only {plural(len(cores), 'core')} for {plural(workers, 'worker')}" if cores else
+           "this platform cannot pin a process to a core")
+    if why not in _SAID:
+        _SAID.add(why)
+        print(f"stereodyn: warning: timing on {plural(workers, 'worker')} unpinned ({why}): a timed run may share "
+              "its core with another", file=sys.stderr)
+    return [None] * workers
+
+
+def _threads() -> list[int]:
+    """This process's threads (Linux: /proc/self/task), else [0]: this thread."""
+    try:
+        return [int(tid) for tid in os.listdir("/proc/self/task")]
+    except OSError:
+        return [0]
+
+
+@contextmanager
+def on_core(core: int | None, whole_process: bool = True):
+    """Pin this process (whole_process: every thread; else the calling thread only, a Dask worker's) to `core` for
+    the block, then give back the mask it had; nothing for None. A thread started inside inherits the pin and gets
+    the mask back too."""
+    if core is None:
+        yield
+        return
+    tids = _threads() if whole_process else [0]
+    before = os.sched_getaffinity(0)
+    for tid in tids:
+        try:
+            os.sched_setaffinity(tid, {core})
+        except OSError:  # a thread that ended meanwhile
+            pass
+    try:
+        yield
+    finally:
+        for tid in (_threads() if whole_process else [0]):
+            try:
+                os.sched_setaffinity(tid, before)
+            except OSError:
+                pass
+
+
+LOCK_PREFIX = "stereodyn-timing-core-"  # in the temporary folder: one lock file per core, for on_a_free_core
+FREE_CORE_POLL_S = 0.05
+
+
+@contextmanager
+def on_a_free_core():
+    """The calling thread pinned, for the block, to a core of this machine on which no other timing runs (one lock
+    file per core, flock: machine-wide, across processes, released when its holder dies), waiting for one: a Dask
+    worker's timing task (its threads, and other workers' processes on the machine, share its cores). Unpinned where
+    the platform cannot pin or lock."""
+    try:
+        import fcntl
+        cores = sorted(os.sched_getaffinity(0))
+    except (ImportError, AttributeError, OSError):
+        yield
+        return
+    held = None
+    while held is None:
+        for core in cores:
+            try:
+                handle = open(Path(tempfile.gettempdir()) / f"{LOCK_PREFIX}{core}.lock", "a")
+            except OSError:  # another user's file: not ours to lock
+                continue
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                handle.close()
+                continue
+            held = core, handle
+            break
+        else:
+            if not any(os.access(Path(tempfile.gettempdir()) / f"{LOCK_PREFIX}{c}.lock", os.W_OK)
+                       or not (Path(tempfile.gettempdir()) / f"{LOCK_PREFIX}{c}.lock").exists() for c in cores):
+                yield  # no core's lock can be taken by this user: unpinned
+                return
+            time.sleep(FREE_CORE_POLL_S)
+    core, handle = held
+    try:
+        with on_core(core, whole_process=False):
+            yield
+    finally:
+        handle.close()

@@ -1,8 +1,6 @@
 """The truths of a sweep's cases, each computed once in the parent by the case's scene on every grid its runs use."""
 from __future__ import annotations
 
-from typing import Callable
-
 from .. import budget
 from ..grid import TimeGrid, time_grid
 from ..scenes import scene_of
@@ -23,24 +21,13 @@ def case_truth(case, certify: bool, budget_s: float | None = None):
         return scene_of(case).truth(case, case_grids(case), certify)
 
 
-def sweep_truths(cases: list, needed: Callable[[object], bool], certify: bool, phase: Callable[[str], None],
-                 failed: Callable[[object, dict], None], budgets: budget.Budgets | None = None) -> dict:
-    """case name -> truth of every case with runs still to do (needed(case)). A truth that cannot be computed fails
-    its case's runs, as data: failed(case, the failure's columns); one stopped by its budget says so (`_budget`),
-    so that --resume redoes it once the budget is raised."""
-    budgets = budgets or budget.configured()
-    truths = {}
-    for case in cases:
-        if not needed(case):
-            continue
-        if scene_of(case).needs_truth:
-            phase(f"truth {case.name}")
-        try:
-            truths[case.name] = case_truth(case, certify, budgets.truth_s)
-        except budget.BudgetExceeded as exc:
-            failed(case, {**budget.failed_row(exc), "message": f"truth failed: {exc}"})
-        except Exception as exc:
-            raise_unless_data(exc)
-            failed(case, {"status": Status.FAILED.value,
-                          "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]})
-    return truths
+def truth_failure(exc: Exception) -> dict:
+    """The columns that fail a case's runs when its truth raised `exc` (here or in a worker): the budget's failure
+    (`_budget`, so that --resume redoes it once the budget is raised), else the error's first line; a truth whose
+    worker died fails them unstored (`_lost`: --resume tries again, the cause may have passed). Our own bug raises."""
+    if isinstance(exc, budget.BudgetExceeded):
+        return {**budget.failed_row(exc), "message": f"truth failed: {exc}"}
+    raise_unless_data(exc)
+    lost = {"_lost": True} if type(exc).__name__ == "WorkerDied" else {}
+    return {"status": Status.FAILED.value, **lost,
+            "message": f"truth failed: {type(exc).__name__}: {exc}".splitlines()[0]}

@@ -116,6 +116,11 @@ class WatchedPool:
         self._thread.start()
 
     @property
+    def jobs(self) -> int:
+        """How many workers it keeps."""
+        return self._jobs
+
+    @property
     def pids(self) -> list[int]:
         """The workers' process ids, now."""
         return [w.process.pid for w in list(self._workers)]
