@@ -686,3 +686,49 @@ def test_an_engine_offering_the_registrys_order_loads():
 
     engines._check(_offering(lambda self, i: Offer()), "engine plug-in 'offering'")  # NaN: the registry's order
     engines._check(_offering(lambda self, i: Offer(order=4, orders=(("q", 2.0),))), "engine plug-in 'offering'")
+
+
+# --- GeneratorExit is a plug-in's failure like SystemExit (issue 46's second attack: a traceback, exit 1)
+
+def _raise_generator_exit(*args):
+    raise GeneratorExit
+
+
+@pytest.mark.parametrize("hook", ["integrators", "offer"])
+def test_an_engine_hook_raising_generator_exit_is_refused_at_load(hook):
+    """integrators() or offer() raising GeneratorExit got past the guard: `stereodyn engines` and a run naming the
+    engine printed a traceback, exit 1. Break-checked: without GeneratorExit in plugins.guard it escapes the test."""
+    from stereodyn.harness import engines
+
+    engine = _offering(lambda self, i: Offer())
+    setattr(type(engine), hook, _raise_generator_exit)
+    try:
+        with pytest.raises((engines.EngineError, plugins.PluginError)) as caught:
+            engines._check(engine, "engine plug-in 'offering'")
+    except GeneratorExit:  # not out of the test: pytest would end the session
+        pytest.fail("the plug-in's GeneratorExit got past the guard")
+    assert str(caught.value).startswith(f"engine plug-in 'offering': {hook}(") and str(caught.value).endswith(
+        "failed: GeneratorExit"), str(caught.value)
+
+
+def test_a_plugin_raising_generator_exit_at_import_is_one_line(monkeypatch, tmp_path):
+    """An integrator plug-in's module that raises GeneratorExit at import: one warning line naming it (the torque
+    models', sections' and scenes' entry points load through the same guard)."""
+    from importlib.metadata import EntryPoint
+
+    (tmp_path / "plugin_generator_exit.py").write_text("raise GeneratorExit\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(registry, "entry_points", lambda group: [
+        EntryPoint("genexit", "plugin_generator_exit:Thing", registry.ENTRY_POINT_GROUP)])
+    monkeypatch.setattr(registry, "_plugins_loaded", False)
+    monkeypatch.setattr(registry, "_failed", {})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            names = integrators.names(None)
+        except GeneratorExit:
+            pytest.fail("the plug-in's GeneratorExit got past the guard")
+    assert "rk4" in names
+    assert [str(w.message) for w in caught] == [
+        "integrator plug-in 'genexit' (plugin_generator_exit:Thing) not loaded: GeneratorExit"]
+    sys.modules.pop("plugin_generator_exit", None)
