@@ -732,3 +732,75 @@ def test_a_plugin_raising_generator_exit_at_import_is_one_line(monkeypatch, tmp_
     assert [str(w.message) for w in caught] == [
         "integrator plug-in 'genexit' (plugin_generator_exit:Thing) not loaded: GeneratorExit"]
     sys.modules.pop("plugin_generator_exit", None)
+
+
+# --- a scene plug-in's parse behind the guard, and a built-in kind refused (issue 46's second attack, B3)
+
+class _ParsingScene:
+    """A plug-in's scene whose parse does `fault(parser)`."""
+    kind, title, needs_truth, keeps_states, work_precision, columns = "atk_parse", "a toy", False, False, False, ()
+
+    def __init__(self, fault):
+        self.fault = fault
+
+    def parse(self, parser, data):
+        return self.fault(parser)
+
+    def truth(self, case, grids, certify):
+        return None
+
+    def metrics(self, *args, **kwargs):
+        return {}
+
+
+@pytest.mark.parametrize("fault, words", [
+    (lambda parser: sys.exit(9), "SystemExit: 9"),
+    (lambda parser: os._exit(0), "ProcessExit: called os._exit(0)"),
+    (lambda parser: 1 / 0, "ZeroDivisionError: division by zero"),
+    (_raise_generator_exit, "GeneratorExit"),
+], ids=["sys.exit", "os._exit", "raises", "generator exit"])
+def test_a_scene_plugins_parse_that_fails_is_the_case_files_error(tmp_path, fault, words):
+    """A scene plug-in's parse ran unguarded: sys.exit(9) ended `run` with exit 9 and nothing said, a raise was a
+    traceback, os._exit(0) exit 0 with no folder. Now one CaseError naming the file, `kind` and the plug-in (exit 2).
+    Break-checked: with parse called outside Parser.plugin each case escapes (the os._exit one ends pytest: run
+    alone)."""
+    from stereodyn.harness.scenes.cases import CaseError, load_case
+
+    path = tmp_path / "k.toml"
+    path.write_text('kind = "atk_parse"\n')
+    scenes.register(_ParsingScene(fault))
+    try:
+        with pytest.raises(CaseError) as caught:
+            load_case(path)
+    finally:
+        scenes.unregister("atk_parse")
+    assert str(caught.value).startswith(f"{path}: kind: scene plug-in 'atk_parse' ("), str(caught.value)
+    assert "test_plugin_faults._ParsingScene" in str(caught.value)
+    assert str(caught.value).endswith(f"failed: {words}"), str(caught.value)
+    assert os._exit is plugins._real_exit
+
+
+def test_a_scene_plugins_own_case_error_passes_as_the_files_error(tmp_path):
+    from stereodyn.harness.scenes.cases import CaseError, load_case
+
+    path = tmp_path / "k.toml"
+    path.write_text('kind = "atk_parse"\n')
+    scenes.register(_ParsingScene(lambda parser: (_ for _ in ()).throw(parser.fail("pendulum.mass", "must be > 0"))))
+    try:
+        with pytest.raises(CaseError, match=rf"^{path}: pendulum.mass: must be > 0$"):
+            load_case(path)
+    finally:
+        scenes.unregister("atk_parse")
+
+
+def test_a_scene_plugin_claiming_the_rigid_body_kind_is_refused():
+    """A plug-in's scene registering kind rigid_body replaced the built-in for every case, silently (its parse then
+    decided every run). Break-checked: without the built-in check in scenes.register the plug-in's scene is taken."""
+    builtin = scenes.scene("rigid_body")
+    claim = _ParsingScene(lambda parser: None)
+    claim.kind = "rigid_body"
+    with pytest.raises(TypeError, match=r"^scene 'rigid_body' \(\S*test_plugin_faults._ParsingScene\): kind "
+                                        r"'rigid_body' is a built-in scene's; a plug-in's scene takes a kind of its "
+                                        r"own$"):
+        scenes.register(claim)
+    assert scenes.scene("rigid_body") is builtin
