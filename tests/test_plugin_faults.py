@@ -160,7 +160,13 @@ def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
     (lambda grid: Trajectory(grid.times, np.zeros((11, 3)), np.zeros((11, 3))), "whose quat has shape (11, 3)"),
     (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), status="ok"), "not a Status"),
     (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), steps=-1), "steps is -1"),
-], ids=["None", "text", "short", "quat shape", "status text", "negative steps"])
+    # issue 46's second attack: rhs_per_sim_s of these was no number a reader accepts, exit 3 "a bug in stereodyn"
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), rhs_evals=math.inf),
+     "rhs_evals is inf, not a count"),
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), rhs_evals=10**200),
+     f"rhs_evals is {10**200!r}, not a count"),
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), steps=math.nan), "steps is nan"),
+], ids=["None", "text", "short", "quat shape", "status text", "negative steps", "rhs inf", "rhs huge", "steps nan"])
 def test_garbage_from_a_plugins_run_is_its_failed_row(monkeypatch, answer, words):
     """It was exit 3, "a bug in stereodyn" (an AttributeError in our metrics): the bug is the plug-in's."""
     row = _row(monkeypatch, _Model(answer))
