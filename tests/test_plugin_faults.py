@@ -338,8 +338,13 @@ def _rk(class_name: str, **declared) -> type:
     ({"symmetric": 1}, "symmetric = 1: must be True or False"),
     ({"iterative": None}, "iterative = None: must be True or False"),
     ({"name": ""}, "name = '': must be a non-empty string"),
+    # issue 46's second attack: "bad\nname" loaded, and split the rows of check's, history's and the listing's tables
+    ({"name": "bad\nname"}, "name = 'bad\\nname': must be one line of printable characters, no space at its ends"),
+    ({"name": "red\x1b[31m"}, "name = 'red\\x1b[31m': must be one line of printable characters"),
+    ({"name": "rk4 "}, "name = 'rk4 ': must be one line of printable characters, no space at its ends"),
+    ({"state_space": "lie\u2028"}, "state_space = 'lie\\u2028': must be one line of printable characters"),
 ], ids=["order text", "order nan", "order 0", "order bool", "order 101", "order huge", "stages negative", "stages float", "symplectic text",
-        "symmetric int", "iterative None", "no name"])
+        "symmetric int", "iterative None", "no name", "name newline", "name escape", "name space", "space separator"])
 def test_an_integrator_with_a_bad_declaration_is_refused_at_register(declared, words):
     cls = _rk("meta_bad", **declared)
     with pytest.raises(ValueError) as caught:
