@@ -142,6 +142,21 @@ def _row(monkeypatch, model) -> dict:
     return measure.measure(RUN, None, full=False)
 
 
+def test_a_plugins_message_is_one_printable_line_in_its_row(monkeypatch):
+    """A failed trajectory's message "bad\\n| x | y |\\x1b[31m" * 50 printed 50 raw lines (with ESC) in the run's
+    summary and broke report.md's table (issue 46's second attack, B5); a raise's text the same. Break-checked:
+    without one_line in measure the newline and ESC reach the row."""
+    hostile = "bad\n| x | y |\x1b[31m" * 50
+    row = _row(monkeypatch, _Model(lambda grid: Trajectory(grid.times, np.tile([1.0, 0, 0, 0], (11, 1)),
+                                                           np.zeros((11, 3)), status=Status.FAILED, message=hostile)))
+    assert row["status"] == "failed" and row["message"].startswith("bad | x | y |\\x1b[31mbad | x"), row
+    assert row["message"].isprintable() and "\x1b" not in row["message"]
+    row = _row(monkeypatch, _Model(RuntimeError("two\nlines\x1b[0m")))
+    assert row["message"] == "RuntimeError: two", row  # the first line of what it raised, as before
+    row = _row(monkeypatch, _Model(SystemExit("gave\nup\x07")))
+    assert row["message"] == "SystemExit: gave up\\x07", row
+
+
 def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
     """A plug-in's ok trajectory with NaN states was an `ok` row with no metrics (the rule ran only inside the
     harness's integrators): now measure applies it to every trajectory."""
