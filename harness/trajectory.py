@@ -132,6 +132,13 @@ def _array_problem(name: str, value, shape: tuple) -> str | None:
     return None
 
 
+# The most steps or right-hand-side evaluations a run can report: 1e15 is some 11 days of one run at 1e9 evaluations a
+# second; divided by the shortest t_end a case may have (1e-9 s, docs/limits.md) it stays far below the 1e100 every
+# reader of results.csv accepts (harness.tables.MAX_VALUE). A larger count (inf, 10**200) made rhs_per_sim_s a number
+# no reader accepts: the run ended as "a bug in stereodyn" (issue 46's second attack).
+MAX_COUNT = 1e15
+
+
 def problem(traj, samples: int, expected: type | None = None) -> str | None:
     """Why what a simulation's run() returned is no trajectory of `samples` samples (its grid's), or None: an object
     of the scene's class (expected; None: any with the fields below), a Status, a message in words, and arrays of
@@ -156,8 +163,8 @@ def problem(traj, samples: int, expected: type | None = None) -> str | None:
     for name in ("steps", "rhs_evals"):
         value = getattr(traj, name, 0)
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                or value < 0:  # an SDK's integer type or a float count is read as a count; text or -1 is not
-            return f"{whose} {name} is {value!r}, not a count"
+                or not 0 <= value <= MAX_COUNT:  # an SDK's integer type or a float count is read as a count; text,
+            return f"{whose} {name} is {value!r}, not a count"  # -1, NaN, inf or 1e200 is not
     if not isinstance(getattr(traj, "info", {}), dict):
         return f"{whose} info is {type(traj.info).__name__}, not a dict"
     return None

@@ -1,15 +1,16 @@
 """The one guard around another distribution's code (DESIGN §7): loading a plug-in's entry point (engines,
-integrators, torque models, report sections) or calling one of its hooks (a torque model's parse, an engine's
-integrators()).
+integrators, torque models, report sections, scenes) or calling one of its hooks (a torque model's parse and
+components, a scene's parse, an engine's integrators()).
 
-Whatever the plug-in raises, any Exception and SystemExit too (a plug-in calling sys.exit(3) at import must not end
-the command with code 3 and nothing said), becomes PluginError: one line naming the plug-in (its entry point and
-distribution) and the error; each registry turns it into that plug-in's unavailability, or bad input. The user's
-Ctrl-C is never caught, nor an ImportError an extension module's init raised from one: Ctrl-C stays Ctrl-C; a
-KeyboardInterrupt the plug-in's code raised (code_raised) is its failure like any other. A plug-in that
-calls os._exit inside the guard (at import, in a report section) would end the command at once, saying nothing: in
-the guarded thread os._exit raises ProcessExit (a SystemExit) instead, and is that plug-in's failure. Here, in the bottom
-layer, because reference/ (torque models) may not import harness/ and harness/ imports reference/.
+Whatever the plug-in raises, any Exception, SystemExit and GeneratorExit too (a plug-in calling sys.exit(3) at import
+must not end the command with code 3 and nothing said, nor a `raise GeneratorExit` with a traceback), becomes
+PluginError: one line naming the plug-in (its entry point and distribution) and the error; each registry turns it into
+that plug-in's unavailability, or bad input. The user's Ctrl-C is never caught, nor an ImportError an extension module's
+init raised from one: Ctrl-C stays Ctrl-C; a KeyboardInterrupt the plug-in's code raised (code_raised) is its failure
+like any other. A plug-in that calls os._exit inside the guard (at import, in a report section) would end the command at
+once, saying nothing: in the guarded thread os._exit raises ProcessExit (a SystemExit) instead, and is that plug-in's
+failure. Here, in the bottom layer, because reference/ (torque models) may not import harness/ and harness/ imports
+reference/.
 """
 from __future__ import annotations
 
@@ -109,8 +110,8 @@ def code_raised(exc: BaseException) -> bool:
 
 @contextmanager
 def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
-    """Run a plug-in's code: PluginError(where, error) for any Exception or SystemExit it raises, except the types in
-    `passing` (a hook's own way to refuse input, e.g. a case file's error), which go through unchanged."""
+    """Run a plug-in's code: PluginError(where, error) for any Exception, SystemExit or GeneratorExit it raises, except
+    the types in `passing` (a hook's own way to refuse input, e.g. a case file's error), which go through unchanged."""
     try:
         with _exits_raise():
             yield
@@ -120,7 +121,7 @@ def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator
         if code_raised(exc):
             raise PluginError(where, exc) from exc
         raise
-    except (Exception, SystemExit) as exc:
+    except (Exception, SystemExit, GeneratorExit) as exc:
         if interrupted(exc):  # not the plug-in's failure: Ctrl-C while it loaded
             raise KeyboardInterrupt from exc
         raise PluginError(where, exc) from exc

@@ -30,6 +30,7 @@ from .rotations import quat_to_matrix
 from .torque_models import (At, BodyTorque, CentralField, PrecessionTorque,  # noqa: F401
                             body_torque_components, gravity_gradient_components,
                             precession_components)
+from .torque_models import components as model_components
 from .torque_models.central_field import (field_direction_body,  # noqa: F401
                                           field_direction_world)
 from .torque_models.precession import (PRECESSION_SINGULAR_ANGLE, precession_axis,  # noqa: F401
@@ -85,7 +86,7 @@ def _numpy_at(body: RigidBody, t, quat, omega: np.ndarray) -> At:
 
 def _term_torque(term, at: At, shape: tuple) -> np.ndarray:
     """One term's torque (shape) N m, body frame, at the numpy point at."""
-    return np.stack([np.broadcast_to(m, shape[:-1]) for m in term.components(term.parameters(), at)], axis=-1)
+    return np.stack([np.broadcast_to(m, shape[:-1]) for m in model_components(term, term.parameters(), at)], axis=-1)
 
 
 def nonpotential_torque(body: RigidBody, omega: np.ndarray, quat: np.ndarray | None = None, t=0.0) -> np.ndarray:

@@ -30,7 +30,7 @@ import numpy as np
 from .body import RigidBody
 from .deadline import OutOfTime  # noqa: F401 (its path before issue 29; reference.* raise it)
 from .rotations import attitude_angle, quat_to_matrix
-from .torque_models import At, models
+from .torque_models import At, components, models
 
 TRUTH_TOL = 1e-16       # double precision; the issue requires <= 1e-15
 TRUTH_TOL_QUAD = 1e-32  # real128 (about 34 significant digits)
@@ -150,8 +150,8 @@ def body_torque_expressions(body_components, omega, sigma) -> list:
     for model in models():
         block = [hy.par[offset + i] for i in range(model.parameter_count)]
         offset += model.parameter_count
-        components = model.components(block, at)
-        total = components if total is None else [total[i] + components[i] for i in range(3)]
+        terms = components(model, block, at)
+        total = terms if total is None else [total[i] + terms[i] for i in range(3)]
     return total if total is not None else [hy.expression(0.0)] * 3
 
 

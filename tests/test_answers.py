@@ -183,3 +183,9 @@ def test_a_changed_answer_is_a_line_of_the_pull_request_summary(tmp_path):
                         "mujoco rk4 dt=0.05; c any 1e-03: mujoco rk4 dt=0.01 -> mujoco rk4 dt=0.05")
     assert lines[-1] == summary[-1] and len(lines) == len(summary) + 2
     assert with_answer_changes(summary, a, tmp_path / "base.json") == summary  # a baseline file holds no answers
+    # a case name with markup and a newline (issue 46's second attack: the line split, its markup rendered)
+    for folder in (a, b):
+        table = pd.read_csv(folder / answers.ANSWERS_FILE, keep_default_na=True)
+        table.assign(case="a|b*c`x`\n<b>").to_csv(folder / answers.ANSWERS_FILE, index=False)
+    line = with_answer_changes(summary, a, b)[2]
+    assert "\n" not in line and line.split(": ", 2)[2].startswith(r"a\|b\*c\`x\`\\n\<b\> mujoco 1e-03: "), line

@@ -419,3 +419,33 @@ def test_fallen_orders_are_counted_as_run_families_over_cases():
                                       "(3 families over 2 cases)"]
     verdict = gate.Verdict(10, 5, (), tuple(findings[:2]) + (replace(findings[2], what="missing order"),))
     assert verdict.headline("b.json") == "check failed: 2 of 5 fitted orders fell; 1 of 5 fitted orders missing"
+
+
+@pytest.mark.parametrize("column, value", [("order", "1e308"), ("order", "inf"), ("order", "-inf"),
+                                           ("order", "-150"), ("declared_order", "0"), ("declared_order", "1e308")])
+def test_a_fitted_order_no_fit_gives_is_refused_where_convergence_csv_is_read(tmp_path, column, value):
+    """Issue 46's second attack: an order of 1e308 in convergence.csv went into a baseline check then refused, and
+    compare --format pr printed it with 309 digits; inf passed check and was "NaN" in history. Every reader
+    (baseline, check, compare, history) reads it through gate.read_orders: one line naming the file, row and column.
+    Break-checked: without the bound in read_orders each value is read as given."""
+    row = {"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4", "order": "4.07",
+           "declared_order": "4"}
+    good = {**row, "engine": "pinocchio", "order": "nan"}
+    pd.DataFrame([good, {**row, column: value}]).to_csv(tmp_path / "convergence.csv", index=False)
+    with pytest.raises(gate.GateError) as caught:
+        gate.read_orders(tmp_path)
+    assert str(caught.value).startswith(f"{tmp_path / 'convergence.csv'}: row 2: {column} = ")
+    assert "must be a finite number" in str(caught.value) and "\n" not in str(caught.value)
+    from stereodyn.harness.analysis.compare import CompareError, load_orders
+    with pytest.raises(CompareError):
+        load_orders(tmp_path)
+
+
+def test_every_fitted_order_read_from_convergence_csv_is_one_a_baseline_holds(tmp_path):
+    rows = [{"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4", "order": order,
+             "declared_order": 4.0} for order in (4.07, 100.0, 0.0)]
+    rows[1]["engine"], rows[2]["engine"] = "pinocchio", "drake"
+    pd.DataFrame(rows).to_csv(tmp_path / "convergence.csv", index=False)
+    orders = gate._order_rows(gate.read_orders(tmp_path))
+    assert [row["fitted"] for row in orders] == [4.07, 100.0, 0.0]
+    assert all(gate.order_rule("fitted", row["fitted"]) is None for row in orders)

@@ -83,3 +83,17 @@ def test_the_run_writes_the_answers_the_report_shows(out):
     written.to_csv(out / answers.ANSWERS_FILE, index=False, float_format="%.17g")
     assert cli.main(["report", str(out), "--no-figures"]) == 0
     assert "dt=0.0123" in (out / "report.md").read_text(encoding="utf-8").split("## What to use")[1]
+
+
+def test_a_new_render_removes_only_the_reports_own_figures(out, tmp_path):
+    """`run --out .` in a folder whose figures/ held a user's plot.png deleted it (issue 46's second attack, B7): a
+    render removes or replaces only CASE-KIND.png names it writes; a user's PNG, compare's and history's stay.
+    Break-checked: with every *.png counted stale, plot.png and history-steps.png are deleted."""
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    mine = {"plot.png": b"mine", "history-steps.png": b"history's", "compare-largest-changes.png": b"compare's"}
+    for name, data in mine.items():
+        (copy / "figures" / name).write_bytes(data)
+    (copy / "figures" / "gone-case-invariants.png").write_bytes(b"a figure of a case no longer in results.csv")
+    assert cli.main(["report", str(copy), "--no-figures"]) == 0
+    assert {p.name: p.read_bytes() for p in (copy / "figures").iterdir()} == mine

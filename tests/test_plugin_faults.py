@@ -142,6 +142,21 @@ def _row(monkeypatch, model) -> dict:
     return measure.measure(RUN, None, full=False)
 
 
+def test_a_plugins_message_is_one_printable_line_in_its_row(monkeypatch):
+    """A failed trajectory's message "bad\\n| x | y |\\x1b[31m" * 50 printed 50 raw lines (with ESC) in the run's
+    summary and broke report.md's table (issue 46's second attack, B5); a raise's text the same. Break-checked:
+    without one_line in measure the newline and ESC reach the row."""
+    hostile = "bad\n| x | y |\x1b[31m" * 50
+    row = _row(monkeypatch, _Model(lambda grid: Trajectory(grid.times, np.tile([1.0, 0, 0, 0], (11, 1)),
+                                                           np.zeros((11, 3)), status=Status.FAILED, message=hostile)))
+    assert row["status"] == "failed" and row["message"].startswith("bad | x | y |\\x1b[31mbad | x"), row
+    assert row["message"].isprintable() and "\x1b" not in row["message"]
+    row = _row(monkeypatch, _Model(RuntimeError("two\nlines\x1b[0m")))
+    assert row["message"] == "RuntimeError: two", row  # the first line of what it raised, as before
+    row = _row(monkeypatch, _Model(SystemExit("gave\nup\x07")))
+    assert row["message"] == "SystemExit: gave up\\x07", row
+
+
 def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
     """A plug-in's ok trajectory with NaN states was an `ok` row with no metrics (the rule ran only inside the
     harness's integrators): now measure applies it to every trajectory."""
@@ -160,7 +175,13 @@ def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
     (lambda grid: Trajectory(grid.times, np.zeros((11, 3)), np.zeros((11, 3))), "whose quat has shape (11, 3)"),
     (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), status="ok"), "not a Status"),
     (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), steps=-1), "steps is -1"),
-], ids=["None", "text", "short", "quat shape", "status text", "negative steps"])
+    # issue 46's second attack: rhs_per_sim_s of these was no number a reader accepts, exit 3 "a bug in stereodyn"
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), rhs_evals=math.inf),
+     "rhs_evals is inf, not a count"),
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), rhs_evals=10**200),
+     f"rhs_evals is {10**200!r}, not a count"),
+    (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), steps=math.nan), "steps is nan"),
+], ids=["None", "text", "short", "quat shape", "status text", "negative steps", "rhs inf", "rhs huge", "steps nan"])
 def test_garbage_from_a_plugins_run_is_its_failed_row(monkeypatch, answer, words):
     """It was exit 3, "a bug in stereodyn" (an AttributeError in our metrics): the bug is the plug-in's."""
     row = _row(monkeypatch, _Model(answer))
@@ -332,8 +353,13 @@ def _rk(class_name: str, **declared) -> type:
     ({"symmetric": 1}, "symmetric = 1: must be True or False"),
     ({"iterative": None}, "iterative = None: must be True or False"),
     ({"name": ""}, "name = '': must be a non-empty string"),
+    # issue 46's second attack: "bad\nname" loaded, and split the rows of check's, history's and the listing's tables
+    ({"name": "bad\nname"}, "name = 'bad\\nname': must be one line of printable characters, no space at its ends"),
+    ({"name": "red\x1b[31m"}, "name = 'red\\x1b[31m': must be one line of printable characters"),
+    ({"name": "rk4 "}, "name = 'rk4 ': must be one line of printable characters, no space at its ends"),
+    ({"state_space": "lie\u2028"}, "state_space = 'lie\\u2028': must be one line of printable characters"),
 ], ids=["order text", "order nan", "order 0", "order bool", "order 101", "order huge", "stages negative", "stages float", "symplectic text",
-        "symmetric int", "iterative None", "no name"])
+        "symmetric int", "iterative None", "no name", "name newline", "name escape", "name space", "space separator"])
 def test_an_integrator_with_a_bad_declaration_is_refused_at_register(declared, words):
     cls = _rk("meta_bad", **declared)
     with pytest.raises(ValueError) as caught:
@@ -750,3 +776,121 @@ def test_an_engine_offering_the_registrys_order_loads():
 
     engines._check(_offering(lambda self, i: Offer()), "engine plug-in 'offering'")  # NaN: the registry's order
     engines._check(_offering(lambda self, i: Offer(order=4, orders=(("q", 2.0),))), "engine plug-in 'offering'")
+
+
+# --- GeneratorExit is a plug-in's failure like SystemExit (issue 46's second attack: a traceback, exit 1)
+
+def _raise_generator_exit(*args):
+    raise GeneratorExit
+
+
+@pytest.mark.parametrize("hook", ["integrators", "offer"])
+def test_an_engine_hook_raising_generator_exit_is_refused_at_load(hook):
+    """integrators() or offer() raising GeneratorExit got past the guard: `stereodyn engines` and a run naming the
+    engine printed a traceback, exit 1. Break-checked: without GeneratorExit in plugins.guard it escapes the test."""
+    from stereodyn.harness import engines
+
+    engine = _offering(lambda self, i: Offer())
+    setattr(type(engine), hook, _raise_generator_exit)
+    try:
+        with pytest.raises((engines.EngineError, plugins.PluginError)) as caught:
+            engines._check(engine, "engine plug-in 'offering'")
+    except GeneratorExit:  # not out of the test: pytest would end the session
+        pytest.fail("the plug-in's GeneratorExit got past the guard")
+    assert str(caught.value).startswith(f"engine plug-in 'offering': {hook}(") and str(caught.value).endswith(
+        "failed: GeneratorExit"), str(caught.value)
+
+
+def test_a_plugin_raising_generator_exit_at_import_is_one_line(monkeypatch, tmp_path):
+    """An integrator plug-in's module that raises GeneratorExit at import: one warning line naming it (the torque
+    models', sections' and scenes' entry points load through the same guard)."""
+    from importlib.metadata import EntryPoint
+
+    (tmp_path / "plugin_generator_exit.py").write_text("raise GeneratorExit\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(registry, "entry_points", lambda group: [
+        EntryPoint("genexit", "plugin_generator_exit:Thing", registry.ENTRY_POINT_GROUP)])
+    monkeypatch.setattr(registry, "_plugins_loaded", False)
+    monkeypatch.setattr(registry, "_failed", {})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            names = integrators.names(None)
+        except GeneratorExit:
+            pytest.fail("the plug-in's GeneratorExit got past the guard")
+    assert "rk4" in names
+    assert [str(w.message) for w in caught] == [
+        "integrator plug-in 'genexit' (plugin_generator_exit:Thing) not loaded: GeneratorExit"]
+    sys.modules.pop("plugin_generator_exit", None)
+
+
+# --- a scene plug-in's parse behind the guard, and a built-in kind refused (issue 46's second attack, B3)
+
+class _ParsingScene:
+    """A plug-in's scene whose parse does `fault(parser)`."""
+    kind, title, needs_truth, keeps_states, work_precision, columns = "atk_parse", "a toy", False, False, False, ()
+
+    def __init__(self, fault):
+        self.fault = fault
+
+    def parse(self, parser, data):
+        return self.fault(parser)
+
+    def truth(self, case, grids, certify):
+        return None
+
+    def metrics(self, *args, **kwargs):
+        return {}
+
+
+@pytest.mark.parametrize("fault, words", [
+    (lambda parser: sys.exit(9), "SystemExit: 9"),
+    (lambda parser: os._exit(0), "ProcessExit: called os._exit(0)"),
+    (lambda parser: 1 / 0, "ZeroDivisionError: division by zero"),
+    (_raise_generator_exit, "GeneratorExit"),
+], ids=["sys.exit", "os._exit", "raises", "generator exit"])
+def test_a_scene_plugins_parse_that_fails_is_the_case_files_error(tmp_path, fault, words):
+    """A scene plug-in's parse ran unguarded: sys.exit(9) ended `run` with exit 9 and nothing said, a raise was a
+    traceback, os._exit(0) exit 0 with no folder. Now one CaseError naming the file, `kind` and the plug-in (exit 2).
+    Break-checked: with parse called outside Parser.plugin each case escapes (the os._exit one ends pytest: run
+    alone)."""
+    from stereodyn.harness.scenes.cases import CaseError, load_case
+
+    path = tmp_path / "k.toml"
+    path.write_text('kind = "atk_parse"\n')
+    scenes.register(_ParsingScene(fault))
+    try:
+        with pytest.raises(CaseError) as caught:
+            load_case(path)
+    finally:
+        scenes.unregister("atk_parse")
+    assert str(caught.value).startswith(f"{path}: kind: scene plug-in 'atk_parse' ("), str(caught.value)
+    assert "test_plugin_faults._ParsingScene" in str(caught.value)
+    assert str(caught.value).endswith(f"failed: {words}"), str(caught.value)
+    assert os._exit is plugins._real_exit
+
+
+def test_a_scene_plugins_own_case_error_passes_as_the_files_error(tmp_path):
+    from stereodyn.harness.scenes.cases import CaseError, load_case
+
+    path = tmp_path / "k.toml"
+    path.write_text('kind = "atk_parse"\n')
+    scenes.register(_ParsingScene(lambda parser: (_ for _ in ()).throw(parser.fail("pendulum.mass", "must be > 0"))))
+    try:
+        with pytest.raises(CaseError, match=rf"^{path}: pendulum.mass: must be > 0$"):
+            load_case(path)
+    finally:
+        scenes.unregister("atk_parse")
+
+
+def test_a_scene_plugin_claiming_the_rigid_body_kind_is_refused():
+    """A plug-in's scene registering kind rigid_body replaced the built-in for every case, silently (its parse then
+    decided every run). Break-checked: without the built-in check in scenes.register the plug-in's scene is taken."""
+    builtin = scenes.scene("rigid_body")
+    claim = _ParsingScene(lambda parser: None)
+    claim.kind = "rigid_body"
+    with pytest.raises(TypeError, match=r"^scene 'rigid_body' \(\S*test_plugin_faults._ParsingScene\): kind "
+                                        r"'rigid_body' is a built-in scene's; a plug-in's scene takes a kind of its "
+                                        r"own$"):
+        scenes.register(claim)
+    assert scenes.scene("rigid_body") is builtin

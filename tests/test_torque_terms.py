@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import re
+import sys
 
 import numpy as np
 import pandas as pd
@@ -352,3 +355,60 @@ def test_a_torque_plug_in_that_exits_at_import_is_one_line_naming_it(monkeypatch
                                                      "not load: SystemExit: 5\n"), err
     finally:
         sys.modules.pop("stereodyn_exiting_torque", None)
+
+
+@dataclasses.dataclass(frozen=True)
+class FailingTorque(TorqueModel):
+    """A plug-in's torque whose components() does FAULT (set by the test): [failing_torque] k."""
+
+    k: float
+
+    key = "failing_torque"
+    schema = (frozenset({"k"}), frozenset({"k"}))
+    parameter_count = 1
+    FAULT = staticmethod(lambda: None)
+
+    @classmethod
+    def parse(cls, reader, data):
+        reader.table(data, cls.key, cls.schema)
+        return cls(k=reader.number(data["k"], "failing_torque.k"))
+
+    def parameters(self, frame=None):
+        return (self.k,)
+
+    @staticmethod
+    def components(p, at):
+        FailingTorque.FAULT()
+        return [-p[0] * at.omega[0], -p[0] * at.omega[1], -p[0] * at.omega[2]]
+
+
+@pytest.mark.parametrize("fault, error", [
+    (lambda: sys.exit(6), "SystemExit: 6"), (lambda: os._exit(0), "ProcessExit: called os._exit(0)"),
+    (lambda: 1 / 0, "ZeroDivisionError: division by zero")], ids=["sys.exit", "os._exit", "raises"])
+def test_a_torque_plug_in_whose_components_fail_is_its_cases_truth_failed(monkeypatch, tmp_path, fault, error):
+    """components() runs in the parent while the truth is built: sys.exit(6) ended `run` with exit 6 and nothing
+    said, os._exit(0) with exit 0, the folder unfinished (issue 46's second attack, B4); a raise was already the
+    case's `truth failed` rows. Now all three are, naming the plug-in; the numpy torques say the same.
+    Break-checked: with model.components called directly in reference.truth the sys.exit case escapes (exit 6)."""
+    from stereodyn.harness.run.truth import sweep_truths
+    from stereodyn.reference import plugins
+
+    monkeypatch.setitem(TORQUES, FailingTorque.key, FailingTorque)
+    monkeypatch.setattr(FailingTorque, "FAULT", staticmethod(fault))
+    path = tmp_path / "failing.toml"
+    path.write_text(CASE.replace("[linear_damping]\nk = 2.0", "[failing_torque]\nk = 2.0"))
+    case = load_case(path)
+    rows = []
+    try:
+        truths = sweep_truths([case], lambda c: True, False, lambda phase: None,
+                              lambda c, row: rows.append((c.name, row)))
+    except SystemExit as exc:  # not out of the test: pytest would end the session
+        pytest.fail(f"the plug-in's components() ended the sweep: {exc!r}")
+    assert truths == {} and len(rows) == 1, rows
+    name, row = rows[0]
+    assert name == "damped-sphere" and row["status"] == "failed", row
+    assert row["message"].startswith("truth failed: PluginError: torque model plug-in 'failing_torque' ("), row
+    assert row["message"].endswith(f"FailingTorque): components() failed: {error}"), row
+    with pytest.raises(plugins.PluginError, match=re.escape(f"components() failed: {error}") + "$"):
+        torques.external_torque(case.body, np.array([1.0, 0, 0, 0]), np.array([0.1, 0.2, 0.3]), 0.0)
+    assert os._exit is plugins._real_exit

@@ -182,6 +182,14 @@ def read_orders(results_dir: Path) -> pd.DataFrame | None:
     missing = [column for column in (*ORDER_KEY, "order") if column not in df.columns and column != "precision"]
     if missing:
         raise GateError(f"{path}: missing columns {', '.join(missing)} (not a stereodyn convergence table)")
+    for number, row in enumerate(df.to_dict("records"), 1):  # what no fit gives, bounded where read (issue 46: 1e308
+        for column in ("order", "declared_order"):  # was written into a baseline that check then refused)
+            value = _number(row.get(column))
+            if not math.isnan(value) and (math.isinf(value) or abs(value) > MAX_ORDER
+                                          or (column == "declared_order" and value <= 0)):
+                rule = f"in (0, {MAX_ORDER}]" if column == "declared_order" else f"within -{MAX_ORDER} .. {MAX_ORDER}"
+                raise GateError(f"{path}: row {number}: {column} = {row[column]!r}: must be a finite number {rule} (a "
+                                "convergence order)")
     return with_precision(df).fillna({"formulation": ""})
 
 

@@ -264,13 +264,16 @@ def order_problem(order) -> str | None:
 
 def metadata_problem(cls: type) -> str | None:
     """Why an Integrator class's declarations cannot be used, naming the field and the rule (None: they can): name
-    and state_space non-empty text, order a positive finite number <= MAX_ORDER (order_problem), stages a
-    non-negative integer (an iterative method's least), each property (PROPERTIES) a boolean. The registry refuses such
-    a class at load, before any run (an order of "four" died in the verdicts after the sweep; NaN was never judged)."""
+    and state_space non-empty text on one line (printable, no space at either end), order a positive finite number
+    <= MAX_ORDER (order_problem), stages a non-negative integer (an iterative method's least), each property
+    (PROPERTIES) a boolean. The registry refuses such a class at load, before any run (an order of "four" died in the
+    verdicts after the sweep; NaN was never judged)."""
     for field in ("name", "state_space"):
         value = getattr(cls, field)
         if not isinstance(value, str) or not value:
             return f"{field} = {value!r}: must be a non-empty string"
+        if not value.isprintable() or value != value.strip():  # a newline split every table and listing row
+            return f"{field} = {value!r}: must be one line of printable characters, no space at its ends"
     problem = order_problem(cls.order)
     if problem:
         return problem

@@ -31,6 +31,8 @@ from ..run.store import read_manifest, read_records
 from ..words import plural
 
 FIGURES_DIR = "figures"
+# The endings of the report's figures, CASE-KIND.png: the only PNGs of figures/ a new render removes or replaces.
+FIGURE_KINDS = ("-work-precision.png", "-invariants.png", "-tolerance.png")
 CHECKS_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "quantity", "theory", "measured", "error")
 # "Good enough" attitude error for the summary's cheapest-run column: a microradian over the case's span.
 SUMMARY_ACCURACY = 1e-6
@@ -290,9 +292,9 @@ def write_reports(out_dir: Path, df: pd.DataFrame | None = None, self_contained:
     figures_dir.mkdir(exist_ok=True)
     for path, png in images.items():
         write_atomic(out_dir / path, png)
-    for stale in figures_dir.glob("*.png"):  # figures of cases no longer in results.csv
-        if f"{FIGURES_DIR}/{stale.name}" not in images:
-            stale.unlink()
+    for stale in figures_dir.glob("*.png"):  # figures of cases no longer in results.csv: only names the report
+        if stale.name.endswith(FIGURE_KINDS) and f"{FIGURES_DIR}/{stale.name}" not in images:  # writes (a user's
+            stale.unlink()  # plot.png, compare's and history's figures stay)
     md_path, html_path = out_dir / "report.md", out_dir / "report.html"
     write_atomic(md_path, markdown)
     write_atomic(html_path, html.render(markdown, images, out_dir, embed=self_contained))

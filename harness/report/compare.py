@@ -163,7 +163,8 @@ def with_answer_changes(summary: list[str], path_a: Path, path_b: Path, listed: 
     found = answers.changed(answers.read(path_a), answers.read(path_b))
     if not found:
         return summary
-    said = "; ".join(f"{c['case']} {c['scope']} {c['target']:.0e}: {c['a']} -> {c['b']}" for c in found[:listed])
+    said = "; ".join(f"{_md(c['case'])} {_md(c['scope'])} {c['target']:.0e}: {_md(c['a'])} -> {_md(c['b'])}"
+                     for c in found[:listed])  # each name one line, shown as itself (_md)
     line = f"What to use (answers.csv): {len(found)} answer{'s' if len(found) != 1 else ''} changed: {said}" + \
         (f"; {len(found) - listed} more" if len(found) > listed else "")
     if len(summary) + 2 <= PR_LINES:

@@ -17,7 +17,6 @@ from typing import Callable
 import pandas as pd
 
 from ...reference import plugins
-from ..run import processes
 from ...reference.registry import Registry
 
 
@@ -92,11 +91,6 @@ def _lines(section: Section, context: Context) -> list[str]:
                 raise TypeError(f"render returned {type(lines).__name__}, not a list of lines of text")
     except plugins.PluginError as exc:
         plugins.warn(str(exc))
-        return []
-    except (KeyboardInterrupt, GeneratorExit) as exc:  # the guard passes these: only the plug-in's own are its fault
-        if not processes.plugin_fault(exc):
-            raise  # the user's Ctrl-C
-        plugins.warn(f"{where} left out: {type(exc).__name__}")
         return []
     return lines
 

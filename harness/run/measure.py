@@ -88,7 +88,16 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         text = " ".join(str(exc).split())
         row = {**base_row(run, grid), "status": Status.FAILED.value, "_accuracy_s": time.perf_counter() - start,
                "message": f"{type(exc).__name__}: {text}" if text else type(exc).__name__}
+    if isinstance(row.get("message"), str):
+        row["message"] = one_line(row["message"])
     return row
+
+
+def one_line(text: str) -> str:
+    """A row's message as one line of printable characters: a plug-in's with newlines and escape sequences printed
+    50 raw lines in the run's summary and broke report.md's tables (issue 46's second attack). Runs of whitespace are
+    one space, any other unprintable character its escape (ESC: \\x1b)."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in " ".join(text.split()))
 
 
 class NoTrajectory(ValueError):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Callable, Protocol
 
+from ...reference import plugins
 from ...reference.registry import Registry
 
 if TYPE_CHECKING:
@@ -82,10 +83,14 @@ def scene_problem(scene: Any) -> str | None:
 
 def register(scene: Scene) -> Scene:
     """Make a scene known by its kind (a case file names it with `kind = "..."`). Registering a kind again replaces
-    the scene (a test's toy scene, a plug-in's newer version). TypeError, naming the field and the rule, for what is
-    not a Scene (a plug-in's register at import: that plug-in is left out with a warning, the scene it would have
-    replaced stays)."""
+    the scene (a test's toy scene, a plug-in's newer version), but a plug-in's scene never takes a built-in's kind (it
+    silently changed every built-in case). TypeError, naming the field and the rule, for what is not a Scene or claims
+    a built-in's kind (a plug-in's register at import: that plug-in is left out with one warning line naming it, the
+    scene it would have replaced stays)."""
     why = scene_problem(scene)
+    builtin = _SCENES.get(getattr(scene, "kind", None))
+    if why is None and builtin is not None and plugins.own(builtin) and not plugins.own(scene):
+        why = f"kind {scene.kind!r} is a built-in scene's; a plug-in's scene takes a kind of its own"
     if why is not None:
         raise TypeError(f"scene {getattr(scene, 'kind', None)!r} ({type(scene).__module__}."
                         f"{type(scene).__qualname__}): {why}")

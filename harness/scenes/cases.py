@@ -204,19 +204,19 @@ class _Parser:
         return CaseError(self.path, key, rule)
 
     @contextmanager
-    def plugin(self, model: type):
-        """Run a torque model's parse and check: a plug-in's failure (any Exception or SystemExit but the CaseError
-        it may raise through fail(), reference.plugins' guard) refuses the file, one line naming its table, the
-        plug-in and the error. stereodyn's own models run unguarded: a bug of ours is a traceback."""
-        if plugins.own(model):
+    def plugin(self, cls: type, key: str, what: str):
+        """Run a plug-in's hook on the file (a torque model's parse and check, a scene's parse; cls: its class, what:
+        "torque model plug-in 'KEY'"): its failure (any Exception, SystemExit, GeneratorExit or os._exit but the
+        CaseError it may raise through fail(), reference.plugins' guard) refuses the file, one line naming the key,
+        the plug-in and the error. stereodyn's own run unguarded: a bug of ours is a traceback."""
+        if plugins.own(cls):
             yield
             return
         try:
-            with plugins.guard(plugins.describe_class(model, f"torque model plug-in {model.key!r}") + " failed",
-                               passing=(CaseError,)):
+            with plugins.guard(plugins.describe_class(cls, what) + " failed", passing=(CaseError,)):
                 yield
         except plugins.PluginError as exc:
-            raise self.fail(model.key, str(exc)) from None
+            raise self.fail(key, str(exc)) from None
 
     # --- shapes and types
 
@@ -308,7 +308,9 @@ class _Parser:
             kind = self.string(data["kind"], "kind")
             if kind not in kinds():
                 raise self.fail("kind", f"unknown scene kind {kind!r} (known: {', '.join(kinds())})")
-        return scene(kind).parse(self, data)
+        parser = scene(kind)
+        with self.plugin(type(parser), "kind", f"scene plug-in {kind!r}"):
+            return parser.parse(self, data)
 
     def rigid_body(self, data: dict) -> Case:
         """A rigid body with a fixed point (DESIGN §3)."""
@@ -322,7 +324,7 @@ class _Parser:
         terms = []
         for model in models():  # each torque model parses and checks its own table (reference.torque_models)
             if model.key in data:
-                with self.plugin(model):
+                with self.plugin(model, model.key, f"torque model plug-in {model.key!r}"):
                     term = model.parse(self, data[model.key])
                     term.check(self, data, inertia, com)
                 terms.append(term)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import pkgutil
 
 from ..registry import Registry
-from .base import TORQUES, At, TorqueModel, models, ordered, register  # noqa: F401
+from .base import TORQUES, At, TorqueModel, components, models, ordered, register  # noqa: F401
 from .body_torque import BodyTorque, body_torque_components  # noqa: F401
 from .central_field import CentralField, gravity_gradient_components  # noqa: F401
 from .precession import PrecessionTorque, precession_components  # noqa: F401
