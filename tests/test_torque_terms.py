@@ -386,11 +386,12 @@ class FailingTorque(TorqueModel):
     (lambda: sys.exit(6), "SystemExit: 6"), (lambda: os._exit(0), "ProcessExit: called os._exit(0)"),
     (lambda: 1 / 0, "ZeroDivisionError: division by zero")], ids=["sys.exit", "os._exit", "raises"])
 def test_a_torque_plug_in_whose_components_fail_is_its_cases_truth_failed(monkeypatch, tmp_path, fault, error):
-    """components() runs in the parent while the truth is built: sys.exit(6) ended `run` with exit 6 and nothing
+    """components() runs while the case's truth is built (a pool task since issue 49; it was the parent, where
+    sys.exit(6) ended `run` with exit 6 and nothing
     said, os._exit(0) with exit 0, the folder unfinished (issue 46's second attack, B4); a raise was already the
     case's `truth failed` rows. Now all three are, naming the plug-in; the numpy torques say the same.
     Break-checked: with model.components called directly in reference.truth the sys.exit case escapes (exit 6)."""
-    from stereodyn.harness.run.truth import sweep_truths
+    from stereodyn.harness.run.truth import case_truth, truth_failure
     from stereodyn.reference import plugins
 
     monkeypatch.setitem(TORQUES, FailingTorque.key, FailingTorque)
@@ -398,15 +399,13 @@ def test_a_torque_plug_in_whose_components_fail_is_its_cases_truth_failed(monkey
     path = tmp_path / "failing.toml"
     path.write_text(CASE.replace("[linear_damping]\nk = 2.0", "[failing_torque]\nk = 2.0"))
     case = load_case(path)
-    rows = []
-    try:
-        truths = sweep_truths([case], lambda c: True, False, lambda phase: None,
-                              lambda c, row: rows.append((c.name, row)))
+    try:  # the case's truth task (a pool worker computes it since issue 49; here in this process)
+        with pytest.raises(plugins.PluginError) as raised:
+            case_truth(case, False)
     except SystemExit as exc:  # not out of the test: pytest would end the session
-        pytest.fail(f"the plug-in's components() ended the sweep: {exc!r}")
-    assert truths == {} and len(rows) == 1, rows
-    name, row = rows[0]
-    assert name == "damped-sphere" and row["status"] == "failed", row
+        pytest.fail(f"the plug-in's components() ended the truth: {exc!r}")
+    row = truth_failure(raised.value)
+    assert row["status"] == "failed", row
     assert row["message"].startswith("truth failed: PluginError: torque model plug-in 'failing_torque' ("), row
     assert row["message"].endswith(f"FailingTorque): components() failed: {error}"), row
     with pytest.raises(plugins.PluginError, match=re.escape(f"components() failed: {error}") + "$"):
