@@ -1,4 +1,4 @@
-"""The verdicts on bodies nobody here chose (issue 45): Hypothesis draws physical bodies (principal moments about the
+"""The verdicts on bodies nobody here chose (issue 45): random physical bodies (principal moments about the
 centre of mass that satisfy the triangle inequality, any orientation of the principal axes, the centre of mass up to
 0.2 m off the fixed point, |omega| from 0.5 to 30 rad/s, gravity on or off) and ladders of 6 dt over 16-64x placed
 anywhere from |omega| dt ~ 2 down to the round-off floor or the steps cap. On each body:
@@ -10,7 +10,8 @@ anywhere from |omega| dt ~ 2 down to the round-off floor or the steps cap. On ea
 - the declared properties' rules (analysis.claims) hold on the body: no symplectic, symmetric, geometric or
   casimir-preserving method is failed, and rk4 claiming any of them is (its stages too, counted on the body).
 
-The default run draws SEED's bodies (CI is deterministic); `VERDICT_BODIES=500 VERDICT_SEED=7 pytest -m slow
+The default run draws SEED's bodies from numpy's seeded generator (the same in every process: CI is deterministic);
+Hypothesis draws the slow runs' (its edge values too): `VERDICT_BODIES=500 VERDICT_SEED=7 pytest -m slow
 tests/test_verdict_properties.py` runs many more with a seed of one's choosing. A failing example is printed as a
 case file and a `stereodyn run` command a person can run.
 """
@@ -20,11 +21,13 @@ import math
 import os
 import tempfile
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
 import pytest
 from hypothesis import HealthCheck, Phase, given, note, seed, settings
+from hypothesis.control import currently_in_test_context
 from hypothesis import strategies as st
 
 from stereodyn.harness.analysis import claims, fitting, verdicts
@@ -57,47 +60,65 @@ class Heun(ExplicitRK):
     description = "Heun's method (explicit trapezoid) on the group, second order, declaring 4"
 
 
-@st.composite
-def bodies(draw) -> dict:
-    """A physical body as a case's numbers: principal moments about the centre of mass (a, b, c) with c strictly
-    between |a - b| and a + b, rotated by a random quaternion, a point mass's term added for the offset centre of
-    mass (so the triangle inequality holds about O too); attitude and omega direction random."""
-    unit = st.floats(-1.0, 1.0)
-
+def body_of(uniform: Callable[[float, float], float], coin: Callable[[], bool]) -> dict:
+    """A physical body as a case's numbers, from a source of uniform floats in [lo, hi] and of coin flips: principal
+    moments about the centre of mass (a, b, c) with c strictly between |a - b| and a + b, rotated by a random
+    quaternion, a point mass's term added for the offset centre of mass (so the triangle inequality holds about O
+    too); attitude and omega direction random."""
     def direction():
-        v = np.array([draw(unit) for _ in range(3)]) + np.array([1e-3, 0, 0])
+        v = np.array([uniform(-1.0, 1.0) for _ in range(3)]) + np.array([1e-3, 0, 0])
         return v / np.linalg.norm(v)
 
     def quaternion():
-        q = np.array([draw(unit) for _ in range(4)]) + np.array([1e-3, 0, 0, 0])
+        q = np.array([uniform(-1.0, 1.0) for _ in range(4)]) + np.array([1e-3, 0, 0, 0])
         return q / np.linalg.norm(q)
 
-    a, b = draw(st.floats(0.05, 2.0)), draw(st.floats(0.05, 2.0))
-    c = abs(a - b) + draw(st.floats(0.02, 0.98)) * (a + b - abs(a - b))
-    mass = draw(st.floats(0.2, 3.0))
+    a, b = uniform(0.05, 2.0), uniform(0.05, 2.0)
+    c = abs(a - b) + uniform(0.02, 0.98) * (a + b - abs(a - b))
+    mass = uniform(0.2, 3.0)
     q = quaternion()
     w, x, y, z = q
     rot = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-    com = direction() * draw(st.floats(0.0, 0.2))
+    com = direction() * uniform(0.0, 0.2)
     inertia = rot @ np.diag([a, b, c]) @ rot.T + mass * (com @ com * np.eye(3) - np.outer(com, com))
-    speed = math.exp(draw(st.floats(math.log(0.5), math.log(30.0))))
-    gravity = draw(st.booleans())
+    speed = math.exp(uniform(math.log(0.5), math.log(30.0)))
+    gravity = coin()
     omega = direction() * speed
     # the fastest rate of the motion: the spin, or gravity's pendulum frequency about O
     rate = speed + (math.sqrt(mass * 9.81 * np.linalg.norm(com) / min(np.linalg.eigvalsh(inertia))) if gravity else 0)
-    turns = math.exp(draw(st.floats(math.log(2.0), math.log(80.0))))  # rad of motion over the span (issue 45: 75)
+    turns = math.exp(uniform(math.log(2.0), math.log(80.0)))  # rad of motion over the span (issue 45: 75)
     t_end = min(3.0, max(0.05, turns / rate))
     return dict(mass=mass, com=com, inertia=0.5 * (inertia + inertia.T), gravity=gravity, quat0=quaternion(),
                 omega=omega, rate=rate, t_end=float(f"{t_end:.3g}"))
 
 
-@st.composite
-def ladders(draw) -> tuple[float, float]:
+def ladder_of(uniform: Callable[[float, float], float]) -> tuple[float, float]:
     """(top, ratio): the coarsest step as a fraction of 1/rate (|omega| dt from ~2 down to 3e-3), and finest/coarsest
     (16 to 64x); the finest point may reach the round-off floor (rk4: |omega| dt ~ 1e-3) or the steps cap."""
-    return 10.0 ** draw(st.floats(-2.5, 0.3)), 2.0 ** draw(st.floats(4.0, 6.0))
+    return 10.0 ** uniform(-2.5, 0.3), 2.0 ** uniform(4.0, 6.0)
+
+
+@st.composite
+def bodies(draw) -> dict:
+    """body_of, drawn by Hypothesis (the slow runs: its edge values, and the literals of the modules it has seen)."""
+    return body_of(lambda lo, hi: draw(st.floats(lo, hi)), lambda: draw(st.booleans()))
+
+
+@st.composite
+def ladders(draw) -> tuple[float, float]:
+    return ladder_of(lambda lo, hi: draw(st.floats(lo, hi)))
+
+
+def seeded(examples: int, chosen_seed: int) -> list[tuple[dict, tuple[float, float]]]:
+    """`examples` (body, ladder) pairs from numpy's generator seeded with chosen_seed: the default tests' draw, the
+    same in every process. Not Hypothesis there: since 6.131 it draws, 5 % of the time, a literal of the modules the
+    process has imported, so a seeded draw depended on which test files an xdist worker ran first (CI, 2026-12-02:
+    the same seed gave euler's ladders 2 settled of 20 where a process of this file alone gives 12)."""
+    rng = np.random.default_rng(chosen_seed)
+    uniform, coin = (lambda lo, hi: float(rng.uniform(lo, hi))), (lambda: bool(rng.integers(2)))
+    return [(body_of(uniform, coin), ladder_of(uniform)) for _ in range(examples)]
 
 
 def toml(body: dict, dts=()) -> str:
@@ -171,7 +192,8 @@ def judge_body(body: dict, ladder: tuple[float, float], tally: dict, wrong: list
                  f"{toml(body, dts)}--- run it: stereodyn run --case-file random-body.toml --engines {engine} "
                  f"--integrators {integrator} --no-ladder\n(errors "
                  + ", ".join(f"{e:.3g}" for e in points["state_err"]) + ")")
-        note(where)
+        if currently_in_test_context():  # a Hypothesis draw prints it with its failing example
+            note(where)
         settled = row["points"] >= fitting.MIN_POINTS
         tally.setdefault(name, []).append((verdict.status, settled))
         bad = verdict.status == verdicts.FAIL if correct else settled and verdict.status != verdicts.FAIL
@@ -181,8 +203,9 @@ def judge_body(body: dict, ladder: tuple[float, float], tally: dict, wrong: list
             assert not bad, where
 
 
-def run_bodies(examples: int, chosen_seed: int, wrong: list | None = None) -> dict:
-    """judge_body on `examples` bodies drawn with chosen_seed; the tally of outcomes per claim."""
+def run_bodies(examples: int, chosen_seed: int, wrong: list | None = None, drawn_by_hypothesis: bool = False) -> dict:
+    """judge_body on `examples` bodies drawn with chosen_seed (numpy's generator: seeded; with drawn_by_hypothesis,
+    Hypothesis's); the tally of outcomes per claim."""
     tally: dict = {}
 
     @seed(chosen_seed)
@@ -194,7 +217,11 @@ def run_bodies(examples: int, chosen_seed: int, wrong: list | None = None) -> di
     saved = dict(registry._registry)
     registry.register(Heun)
     try:
-        check()
+        if drawn_by_hypothesis:
+            check()
+        else:
+            for body, ladder in seeded(examples, chosen_seed):
+                judge_body(body, ladder, tally, wrong)
     finally:
         registry._registry.clear()
         registry._registry.update(saved)
@@ -221,16 +248,18 @@ def _rates(tally: dict) -> str:
     return "\n".join(lines)
 
 
-# default: SEED's 20 bodies, every claim on each: 160 ladders, ~22 s on one core of the 2-core machine (00:40 UTC
-# 2026-12-02, other helpers running)
+# default: SEED's 20 bodies (seeded), every claim on each: 160 ladders, ~22 s on one core of the 2-core machine (00:40
+# UTC 2026-12-02, other helpers running)
 def test_order_verdicts_on_random_bodies():
     tally = run_bodies(20, SEED)
     print(_rates(tally))
     for name, outcomes in tally.items():
         assert len(outcomes) >= 20, name
-        # not vacuous: most ladders judge a settled range (measured 13-20 of 20 with SEED; euler's error, ~ |omega|
-        # dt |omega| t, is above the range on the coarse ladders more often), and the false claims fail on those
-        assert sum(1 for _, s in outcomes if s) >= 10, (name, outcomes)
+        # not vacuous: ladders judge a settled range (measured with SEED's numpy draw, the same in every process:
+        # 7 of 20 for the reference's euler, whose error ~ |omega| dt |omega| t lies above the range on the coarse
+        # ladders more often, 14 for MuJoCo's rk4 and euler, 19-20 for the others; at least 5, a margin for a ladder or
+        # two that settles on one machine's round-off and not another's), and the false claims fail on those
+        assert sum(1 for _, s in outcomes if s) >= 5, (name, outcomes)
 
 
 @pytest.mark.slow
@@ -238,7 +267,7 @@ def test_order_verdicts_on_many_random_bodies():
     """VERDICT_BODIES bodies (500) drawn with VERDICT_SEED: every false failure and false pass is collected, the
     rates printed (-s), and the test fails if either is not 0, showing the first few as case files."""
     wrong: list = []
-    tally = run_bodies(BODIES, SLOW_SEED, wrong)
+    tally = run_bodies(BODIES, SLOW_SEED, wrong, drawn_by_hypothesis=True)
     print(f"seed {SLOW_SEED}, {BODIES} bodies\n" + _rates(tally))
     assert not wrong, f"{len(wrong)} wrong verdicts; the first:\n" + "\n\n".join(wrong[:3])
 
@@ -345,19 +374,21 @@ def judge_properties(body: dict) -> None:
             except ArithmeticError:  # the Gibbs chart of the canonical coordinates is singular near this attitude
                 continue
             where = f"{space} {name} {claim} ({'declared' if declared else 'planted'}): {value:.2e} vs {limit:g}"
-            note(where + "\n" + toml(body))
+            where += "\n" + toml(body)
+            if currently_in_test_context():
+                note(where)
             assert (value <= limit) == declared, where
         # counted with a torque, as on claims.CHECK_CASE (strang_free_flow calls it only for the torque's kick: 0
         # a step on a free body), or torque-free where the method refuses one
         start = free if name == "moser_veselov" else heavy
         counted = stages_counted(cls, start, claims.STAGE_STEP * scale)
-        assert counted >= cls.stages if getattr(cls, "iterative", False) else counted == cls.stages, (name, counted)
+        assert counted >= cls.stages if getattr(cls, "iterative", False) else counted == cls.stages, (
+            name, counted, toml(body))
 
 
-@seed(SEED)
-@settings(max_examples=5, **SETTINGS)
-@given(body=bodies())
-def test_property_rules_on_random_bodies(body):
+@pytest.mark.parametrize("index", range(5))
+def test_property_rules_on_random_bodies(index):
+    body, _ = seeded(5, SEED)[index]
     judge_properties(body)
 
 
