@@ -34,7 +34,7 @@ from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
-from .store import Store, mark_complete, run_key
+from .store import COMPLETE, STORE_DIR, UNFINISHED, Store, mark_complete, read_manifest, run_key
 from .truth import case_truth
 
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
@@ -124,6 +124,10 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
     specs = one_precision_at_a_time(sorted(specs, key=queue_key, reverse=True))
     results_path = out_dir / "results.csv"
     budgets = budget.configured()  # the command's (harness.budget.configure), for every run, truth and --resume
+    # --resume of a folder whose sweep ended: its timing phase has chosen and re-timed what decides, so its runs keep
+    # their records (a choice made again with the new best times would pick another run, and rewrite it); of a killed
+    # sweep, its finished runs never met a timing phase: they are candidates as the new ones are
+    timed_before = options.resume and _finished(out_dir)
     with Store(out_dir) as store, ExitStack() as open_pool:  # the pool, open until the timing phase is done
         identities = {id(s): s.identity(store, options.certify) for s in specs}
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
@@ -206,7 +210,9 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         # The timing phase: every accuracy run is done and the workers idle: each run whose time decides is timed on
         # a worker (or a cluster's), as many at once as workers, each on a core of its own; none in this process
         # (only without workers: --jobs 1 in process, a debugger's mode)
-        untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])]
+        new = {keys[id(s)] for s in pending}
+        untimed = [s for s in specs if keys[id(s)] in stored and _needs_timing(stored[keys[id(s)]])
+                   and not (timed_before and keys[id(s)] not in new)]
         if options.scheduler:
             elsewhere, ways = cluster_timer(options.scheduler) if untimed else (None, 1)
         else:
@@ -253,6 +259,12 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         if final:
             mark_complete(out_dir)
         return table()
+
+
+def _finished(out_dir: Path) -> bool:
+    """Whether DIR holds a sweep that ended (runs.json complete, no unfinished witness)."""
+    manifest = read_manifest(out_dir)
+    return bool(manifest) and manifest.get(COMPLETE) is True and not (Path(out_dir) / STORE_DIR / UNFINISHED).exists()
 
 
 def _needs_timing(row: dict) -> bool:

@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import pkgutil
 
+from typing import Any, Sequence
+
+from .. import plugins
 from ..registry import Registry
-from .base import TORQUES, At, TorqueModel, components, models, ordered, register  # noqa: F401
+from .base import TORQUES, At, TorqueModel, models, ordered, register  # noqa: F401
 from .body_torque import BodyTorque, body_torque_components  # noqa: F401
 from .central_field import CentralField, gravity_gradient_components  # noqa: F401
 from .precession import PrecessionTorque, precession_components  # noqa: F401
@@ -30,6 +33,22 @@ BUILT_IN = tuple(f"{__name__}.{info.name}" for info in sorted(pkgutil.iter_modul
 TORQUE_MODELS = Registry("torque model plug-in", ENTRY_POINT_GROUP, BUILT_IN)
 for _module in BUILT_IN:  # registered with the package: the results columns are the registry's at import
     __import__(_module)
+
+
+def components(model: Any, p: Sequence, at: At) -> list:
+    """model.components(p, at) (model: a TorqueModel class or term) where the sweep's parent evaluates it (the truth's
+    equations, the metrics' torques): a plug-in's behind the guard (reference.plugins), so that its sys.exit or
+    os._exit is PluginError naming it, its case's `truth failed` rows, not the end of the command. stereodyn's own
+    unguarded: a bug of ours is a traceback. Not an engine's per-stage closure: that runs in a worker."""
+    if plugins.own(model):
+        return model.components(p, at)
+    try:
+        with plugins.guard("components() failed"):
+            return model.components(p, at)
+    except plugins.PluginError as exc:  # named only now: describe_class reads the installed distributions
+        cls = model if isinstance(model, type) else type(model)
+        where = plugins.describe_class(cls, f"torque model plug-in {getattr(cls, 'key', '?')!r}")
+        raise plugins.PluginError(f"{where}: components() failed", exc.error) from exc.error
 
 
 class TorqueModelError(ImportError):

@@ -13,8 +13,6 @@ from typing import Any, Callable, ClassVar, NamedTuple, Sequence
 
 import numpy as np
 
-from .. import plugins
-
 
 class At(NamedTuple):
     """Where a torque is evaluated, in one arithmetic (floats, numpy arrays or heyoka expressions).
@@ -122,22 +120,6 @@ def register(model: type[TorqueModel]) -> type[TorqueModel]:
         raise ValueError(f"torque model key {model.key!r} is taken by {present.__module__}.{present.__qualname__}")
     TORQUES[model.key] = model
     return model
-
-
-def components(model: Any, p: Sequence, at: At) -> list:
-    """model.components(p, at) (model: a TorqueModel class or term) where the sweep's parent evaluates it (the truth's
-    equations, the metrics' torques): a plug-in's behind the guard (reference.plugins), so that its sys.exit or
-    os._exit is PluginError naming it, its case's `truth failed` rows, not the end of the command. stereodyn's own
-    unguarded: a bug of ours is a traceback. Not an engine's per-stage closure: that runs in a worker."""
-    if plugins.own(model):
-        return model.components(p, at)
-    try:
-        with plugins.guard("components() failed"):
-            return model.components(p, at)
-    except plugins.PluginError as exc:  # named only now: describe_class reads the installed distributions
-        cls = model if isinstance(model, type) else type(model)
-        where = plugins.describe_class(cls, f"torque model plug-in {getattr(cls, 'key', '?')!r}")
-        raise plugins.PluginError(f"{where}: components() failed", exc.error) from exc.error
 
 
 def models() -> tuple[type[TorqueModel], ...]:
