@@ -58,7 +58,7 @@ def test_both_workers_serve_an_engine_whose_runs_outweigh_its_start_up():
     (SimpleNamespace(), 0.0),                                              # a 0.2.0 engine declares none
     (SimpleNamespace(startup_s=float("nan")), 0.0)])
 def test_an_engines_start_up_is_read_from_its_declaration(monkeypatch, engine, expected):
-    monkeypatch.setattr(run_pool, "get_engine", lambda name: engine)
+    monkeypatch.setattr(timing, "get_engine", lambda name: engine)  # startup_s's home: timing (the chunks read it)
     assert run_pool.startup_s("x") == expected
     specs = [SimpleNamespace(engine="x")] * 3
     assert run_pool.startup_cost(specs, jobs=2) == 2 * expected  # once per worker that needs it: min(jobs, runs)

@@ -8,7 +8,7 @@ import functools
 from ..scenes import scene_of
 from ..run import timing
 from ..run.measure import prepare as prepare_run
-from ..run.pool import time_on_pool
+from ..run.pool import pool_timer
 from ..run.spec import Family
 from ..run.workers import WatchedPool
 
@@ -32,7 +32,7 @@ def time_points(points: list[dict], families_by_key: dict[tuple, Family], settin
     (pool.time_on_pool; None: here), each point's run prepared again from its family (families_by_key: Family.key ->
     Family) at the point's setting, "dt" or "tolerance"."""
     prepare = functools.partial(prepare_point, families_by_key, setting)
-    elsewhere, ways = (None, 1) if pool is None else (time_on_pool(pool), pool.jobs)
+    elsewhere, ways = pool_timer(pool)
     timing.time_points(points, prepare, TIMING_REPEATS, TIMING_BUDGET_S, elsewhere=elsewhere, ways=ways)
 
 

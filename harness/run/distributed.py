@@ -2,7 +2,7 @@
 
 The parent keeps the roles it has with local processes: it plans, submits the tasks and gathers: each case's truth is
 a task on a worker, each run a task that depends on its own case's truth, and the timing of the runs that decide an
-answer tasks too (pool.time_on_cluster); it stores every row the moment it comes back, so the result store,
+answer tasks too (cluster_timer: pool.time_on_a_free_core); it stores every row the moment it comes back, so the result store,
 `--resume` and results.csv behave exactly as in a local sweep. Workers need the same stereodyn and libraries: a worker
 with other library versions than this process is refused, since results are keyed by this process's versions.
 """

@@ -15,6 +15,7 @@ from ..engines import get_engine
 from ..scenes import scene_of
 from ..trajectory import Status
 from . import timing
+from .timing import startup_s
 from .measure import measure, prepare
 from .processes import exit_with_parent, raise_unless_data
 from .spec import RunSpec, base_row
@@ -28,21 +29,6 @@ from .workers import Affinity, WatchedPool
 # plus ~6-25 ms. Only the ranking matters, so rough constants are enough: each engine declares its own (pass_us).
 RUN_OVERHEAD_S = 0.01   # prepare, metrics and the row, s
 CHECK_PASSES = 0.3      # mean extra passes of metrics and the checks' perturbed reruns
-
-
-def startup_s(engine: str) -> float:
-    """The start-up a worker pays once for an engine before its first run (SDK import, compilations), s: the engine's
-    declaration (Timing.startup_s), 0.0 where it declares none or cannot be loaded."""
-    try:
-        adapter = get_engine(engine)
-    except Exception:  # its runs say why; nothing to schedule around
-        return 0.0
-    declared = getattr(getattr(adapter, "timing", None), "startup_s", 0.0)
-    try:
-        declared = float(declared)
-    except (TypeError, ValueError):
-        return 0.0
-    return declared if math.isfinite(declared) and declared > 0.0 else 0.0
 
 
 def _startups(specs: list, jobs: int) -> dict[str, tuple[float, int]]:
@@ -227,8 +213,7 @@ def time_pinned(core: int | None, chunk: timing.Chunk) -> list:
     their accuracy runs where it has them: prepare_kept), the whole process pinned to `core` meanwhile (None:
     unpinned)."""
     with timing.on_core(core):
-        return timing.time_here(chunk.runs, chunk.prepare or prepare_kept, chunk.first, chunk.repeats,
-                                chunk.budget_s)
+        return _time_chunk(chunk)
 
 
 def time_on_pool(pool: WatchedPool) -> Callable[[list[timing.Chunk]], list]:
@@ -258,12 +243,23 @@ def time_on_pool(pool: WatchedPool) -> Callable[[list[timing.Chunk]], list]:
     return spread
 
 
+def pool_timer(pool: WatchedPool | None) -> tuple[Callable | None, int]:
+    """(elsewhere, ways) of timing.time_runs and time_points: on the pool's workers (time_on_pool), as many at once as
+    it has; (None, 1) without a pool: here, in turn."""
+    return (None, 1) if pool is None else (time_on_pool(pool), pool.jobs)
+
+
 def time_on_a_free_core(chunk: timing.Chunk) -> list:
     """A Dask worker's timing task (distributed.time_on_cluster): the chunk's runs timed on a core of the machine
     that no other timing holds (timing.on_a_free_core), this thread pinned to it."""
     with timing.on_a_free_core():
-        return timing.time_here(chunk.runs, chunk.prepare or prepare_kept, chunk.first, chunk.repeats,
-                                chunk.budget_s)
+        return _time_chunk(chunk)
+
+
+def _time_chunk(chunk: timing.Chunk) -> list:
+    """timing.time_here of a chunk in a worker, with the models it kept from the runs' accuracy runs
+    (prepare_kept) unless the chunk brings its own prepare (ladder points)."""
+    return timing.time_here(chunk.runs, chunk.prepare or prepare_kept, chunk.first, chunk.repeats, chunk.budget_s)
 
 
 IN_PROCESS_ENV = "STEREODYN_IN_PROCESS"  # "1": --jobs 1 runs in the command's own process (in_process)

@@ -414,6 +414,12 @@ class FolderNotReady(ValueError):
     """A result folder a command may not read (yet): a sweep left it unfinished. Bad input, exit 2, one line."""
 
 
+def sweep_ended(out_dir: Path) -> bool:
+    """Whether DIR holds a sweep that ended: runs.json complete and no unfinished witness (completeness's mark)."""
+    manifest = read_manifest(out_dir)
+    return bool(manifest) and manifest.get(COMPLETE) is True and not (Path(out_dir) / STORE_DIR / UNFINISHED).exists()
+
+
 def completeness(out_dir: Path, allow_partial: bool = False) -> list[str]:
     """Whether a command may read DIR, by its completion mark (runs.json "complete") and its witness (DIR/store/
     unfinished, UNFINISHED): FolderNotReady for an unfinished one, by either (unless allow_partial); the warnings to

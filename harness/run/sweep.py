@@ -27,14 +27,14 @@ from . import timing
 from .distributed import cluster_timer, run_on_cluster
 from .measure import prepare
 from .plan import RunSpec, agreement_candidates, base_row, plan
-from .pool import (cost, forget_kept, local_pool, one_precision_at_a_time, time_on_pool,  # noqa: F401 (worker_pool)
+from .pool import (cost, forget_kept, local_pool, one_precision_at_a_time, pool_timer,  # noqa: F401 (worker_pool)
                    prepare_kept, queue_key, run_local, startup_charges, startup_cost, sweep_run, worker_failed_row,
                    worker_pool)
 from .workers import WatchedPool
 from ..words import plural
 from .progress import ProgressBar
 from .results import frame, row_order, write_results
-from .store import COMPLETE, STORE_DIR, UNFINISHED, Store, mark_complete, read_manifest, run_key
+from .store import Store, mark_complete, run_key, sweep_ended
 from .truth import case_truth
 
 PUBLISH_EVERY_S = 2.0  # results.csv / checks.csv refresh interval during a sweep (s)
@@ -127,7 +127,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
     # --resume of a folder whose sweep ended: its timing phase has chosen and re-timed what decides, so its runs keep
     # their records (a choice made again with the new best times would pick another run, and rewrite it); of a killed
     # sweep, its finished runs never met a timing phase: they are candidates as the new ones are
-    timed_before = options.resume and _finished(out_dir)
+    timed_before = options.resume and sweep_ended(out_dir)
     with Store(out_dir) as store, ExitStack() as open_pool:  # the pool, open until the timing phase is done
         identities = {id(s): s.identity(store, options.certify) for s in specs}
         keys = {id(s): run_key(identities[id(s)]) for s in specs}
@@ -216,7 +216,7 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         if options.scheduler:
             elsewhere, ways = cluster_timer(options.scheduler) if untimed else (None, 1)
         else:
-            elsewhere, ways = (None, 1) if pool is None else (time_on_pool(pool), pool.jobs)
+            elsewhere, ways = pool_timer(pool)
         if untimed:
             where = f"on {plural(ways, 'worker')} at once" if elsewhere is not None else "here, one at a time"
             progress.stage(f"timing {plural(len(untimed), 'run')} timed once: again, best of {timing.REPEATS}, "
@@ -259,12 +259,6 @@ def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: Watc
         if final:
             mark_complete(out_dir)
         return table()
-
-
-def _finished(out_dir: Path) -> bool:
-    """Whether DIR holds a sweep that ended (runs.json complete, no unfinished witness)."""
-    manifest = read_manifest(out_dir)
-    return bool(manifest) and manifest.get(COMPLETE) is True and not (Path(out_dir) / STORE_DIR / UNFINISHED).exists()
 
 
 def _needs_timing(row: dict) -> bool:

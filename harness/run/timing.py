@@ -347,7 +347,7 @@ def chunks_of(indices: list[int], runs: list, first: list[float | None], repeats
     by_engine: dict[str | None, list[int]] = {}
     for i in indices:
         engine = _engine_of(runs[i])
-        by_engine.setdefault(engine if _start_up(engine) else None, []).append(i)
+        by_engine.setdefault(engine if startup_s(engine) > 0.0 else None, []).append(i)
     pieces = []
     for engine, members in by_engine.items():
         for k in range(min(max(1, ways), len(members))):
@@ -357,13 +357,19 @@ def chunks_of(indices: list[int], runs: list, first: list[float | None], repeats
     return pieces
 
 
-def _start_up(engine: str) -> bool:
-    """Whether an engine declares a start-up (Timing.startup_s > 0); False for a name this registry does not know."""
+def startup_s(engine: str) -> float:
+    """The start-up a worker pays once for an engine before its first run (SDK import, compilations), s: the engine's
+    declaration (Timing.startup_s), 0.0 where it declares none or cannot be loaded."""
     try:
-        declared = float(get_engine(engine).timing.startup_s)
-    except (KeyError, ValueError, TypeError, AttributeError):
-        return False
-    return math.isfinite(declared) and declared > 0.0
+        adapter = get_engine(engine)
+    except Exception:  # its runs say why; nothing to schedule around
+        return 0.0
+    declared = getattr(getattr(adapter, "timing", None), "startup_s", 0.0)
+    try:
+        declared = float(declared)
+    except (TypeError, ValueError):
+        return 0.0
+    return declared if math.isfinite(declared) and declared > 0.0 else 0.0
 
 
 def time_runs(runs: list, steps: list[float], prepare: Callable,
