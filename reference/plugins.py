@@ -127,6 +127,18 @@ def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator
         raise PluginError(where, exc) from exc
 
 
+def name_problem(field: str, value: Any) -> str | None:
+    """Why a name a plug-in declares (an integrator's name and state space, a scene's kind, a torque model's key, a
+    report section's name, an engine's integrators and formulations) cannot be used, naming the field and the rule;
+    None when it can. Every table row and listing line holds such names: a newline in one split them (one rule for
+    every kind of plug-in)."""
+    if not isinstance(value, str) or not value:
+        return f"{field} = {value!r:.80}: must be a non-empty string"
+    if not value.isprintable() or value != value.strip():
+        return f"{field} = {value!r:.80}: must be one line of printable characters, no space at its ends"
+    return None
+
+
 def describe(entry: Any, what: str) -> str:
     """`WHAT 'NAME' (VALUE, distribution DIST VERSION)` for an entry point (the distribution where it has one)."""
     dist = getattr(entry, "dist", None)

@@ -449,3 +449,21 @@ def test_every_fitted_order_read_from_convergence_csv_is_one_a_baseline_holds(tm
     orders = gate._order_rows(gate.read_orders(tmp_path))
     assert [row["fitted"] for row in orders] == [4.07, 100.0, 0.0]
     assert all(gate.order_rule("fitted", row["fitted"]) is None for row in orders)
+
+
+def test_a_negative_fitted_order_is_read_but_never_written_into_a_baseline(tmp_path):
+    """A fit of -50 (an error that grows as the step shrinks) is within read_orders' bounds, so a check can flag it as
+    a drop, but a baseline holding it could never fail and check refuses it (order_rule): baseline refuses to write
+    it, one line naming the row and the rule (issue 46's 7th point; none of the default run's 664 fits is below 0.96).
+    Break-checked: without the loop in write_baseline the baseline is written."""
+    rows = [{"case": "lagrange-top", "engine": engine, "formulation": "", "integrator": "rk4", "order": order,
+             "declared_order": 4.0} for engine, order in (("mujoco", 4.07), ("pinocchio", -50.0))]
+    pd.DataFrame(rows).to_csv(tmp_path / "convergence.csv", index=False)
+    table = pd.DataFrame([{"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4",
+                           "precision": "float64", "dt": 0.01, "status": "ok", "us_per_step": 1.0}])
+    orders = gate.read_orders(tmp_path)
+    assert list(orders["order"]) == [4.07, -50.0]
+    with pytest.raises(gate.GateError, match=r"^convergence\.csv: row 2: order -50\.0 \(fitted\) must be >= 0 to be a "
+                                             r"baseline's order$"):
+        gate.write_baseline(table, tmp_path / "baseline.json", {}, orders)
+    assert not (tmp_path / "baseline.json").exists()

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -894,3 +895,57 @@ def test_a_scene_plugin_claiming_the_rigid_body_kind_is_refused():
                                         r"own$"):
         scenes.register(claim)
     assert scenes.scene("rigid_body") is builtin
+
+
+# --- one rule for every name a plug-in declares (issue 46's second attack, B5: a newline in a name split every
+# listing line and table row; the integrators' names were checked, the other kinds' not)
+
+def _register_named(what: str, name: str) -> None:
+    """Register a toy plug-in of kind `what` under `name` (whatever it raises is the refusal)."""
+    from stereodyn.harness import engines
+    from stereodyn.reference.torque_models import base as torques
+
+    if what == "scene kind":
+        scene = _ParsingScene(lambda parser: None)
+        scene.kind = name
+        scenes.register(scene)
+        scenes.unregister(name)
+    elif what == "torque key":
+        model = type("NamedTorque", (torques.TorqueModel,), {"key": name})
+        torques.register(model)
+        torques.TORQUES.pop(name, None)
+    elif what == "section name":
+        sections.register(name, 99)(lambda context: [])
+        sections.unregister(name)
+    else:  # an engine's integrator, or its formulation (a key of models())
+        engine = _offering(lambda self, i: Offer())  # a class of its own each call
+        if what == "engine integrator":
+            type(engine).integrators = lambda self: (name,)
+        else:
+            type(engine).models = lambda self: {name: None}
+        engines._check(engine, "engine plug-in 'offering'")
+
+
+@pytest.mark.parametrize("what", ["scene kind", "torque key", "section name", "engine integrator",
+                                  "engine formulation"])
+@pytest.mark.parametrize("name, words", [
+    ("two\nlines", r"'two\\nlines': must be one line of printable characters, no space at its ends"),
+    ("red\x1b[31m", r"'red\\x1b\[31m': must be one line of printable characters"),
+    ("padded ", r"'padded ': must be one line of printable characters, no space at its ends"),
+], ids=["newline", "escape", "space"])
+def test_every_name_a_plugin_declares_is_one_printable_line(what, name, words):
+    """The rule of reference.plugins.name_problem, refused at register or load with one line naming the field (a
+    plug-in's import that raises it is that plug-in's warning; an engine, its EngineError, exit 2 where named).
+    Break-checked: name_problem returning None lets every kind register."""
+    from stereodyn.harness import engines
+
+    with pytest.raises((TypeError, engines.EngineError)) as caught:
+        _register_named(what, name)
+    assert len(str(caught.value).splitlines()) == 1
+    assert re.search(words, str(caught.value)), str(caught.value)
+
+
+@pytest.mark.parametrize("what", ["scene kind", "torque key", "section name", "engine integrator",
+                                  "engine formulation"])
+def test_a_plain_name_registers(what):
+    _register_named(what, "atk_plain")

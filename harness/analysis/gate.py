@@ -226,6 +226,12 @@ def write_baseline(df: pd.DataFrame, path: Path, environment: dict | None = None
     text = json.dumps(head, indent=1)[:-2] + ',\n "rows": [\n'
     text += ",\n".join("  " + json.dumps(row, separators=(",", ":")) for row in rows) + "\n ]"
     orders = _order_rows(convergence)
+    for number, row in enumerate(orders, 1):  # what check would refuse is never written (a fit of -50: convergence.csv
+        for key in ("fitted", "declared"):  # reads it, and a check flags it as a drop; no baseline can hold it)
+            rule = None if row[key] is None else order_rule(key, row[key])
+            if rule:
+                raise GateError(f"{CONVERGENCE_FILE}: row {number}: order {row[key]!r} ({key}) {rule} to be a "
+                                "baseline's order")
     if orders:
         text += ',\n "orders": [\n'
         text += ",\n".join("  " + json.dumps(row, separators=(",", ":")) for row in orders) + "\n ]"

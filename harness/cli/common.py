@@ -1,7 +1,7 @@
 """What the commands of the command line share (harness.cli): the argument types and option groups their parsers use,
 the checks of what a command is given (cases, engines and integrators, output paths), and the one-line warnings.
-This module imports only the standard library; the modules the checks read are loaded by load(), inside main()'s
-Ctrl-C handling (harness.cli.dispatch)."""
+This module imports only the standard library and harness.words; the modules the checks read are loaded by load(),
+inside main()'s Ctrl-C handling (harness.cli.dispatch)."""
 from __future__ import annotations
 
 import argparse
@@ -10,6 +10,8 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+
+from ..words import one_line  # no import of its own
 
 case_files = CaseError = engine_names = EngineError = budget = None
 
@@ -266,7 +268,3 @@ def warn(lines: list[str]) -> None:
     for line in lines:
         print(f"stereodyn: warning: {one_line(line)}", file=sys.stderr)
 
-
-def one_line(text: str) -> str:
-    """A newline or other control character in a name or a path, escaped: a message stays one line."""
-    return "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)

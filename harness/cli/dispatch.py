@@ -10,7 +10,8 @@ import signal
 import sys
 import warnings
 
-from .common import BadInput, Parser, load, one_line, warn
+from ..words import one_line
+from .common import BadInput, Parser, load, warn
 from ..run.processes import interrupted_while_loading
 
 # The commands, in the order of `stereodyn --help`: each the module of its name in this package.

@@ -15,7 +15,8 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from ..atomic import write_atomic
-from .common import BadInput, one_line, output_folder, _path, _steps, warn
+from ..words import one_line
+from .common import BadInput, output_folder, _path, _steps, warn
 
 # The quick suite (README, "Regression CI"; .ci/run gates it against reports/baselines/quick.json).
 QUICK = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric", "--t-end", "2", "--dt", "1e-2,3e-3")

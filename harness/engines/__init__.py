@@ -131,6 +131,11 @@ def _check(engine: Engine, where: str) -> None:
         raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
     if not isinstance(models, dict):
         raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
+    for field, name in [*((f"integrators()[{i}]", n) for i, n in enumerate(names)),
+                        *((f"models() key {i}", k) for i, k in enumerate(models))]:
+        why = plugins.name_problem(field, name)  # each is in every row and listing line of its runs
+        if why:
+            raise EngineError(f"{where}: {why}")
     for integrator in names:  # what the plan, the verdicts and the listing read of each integrator
         _check_offer(engine, integrator, where)
 

@@ -20,6 +20,7 @@ from typing import Callable, ClassVar, Protocol
 
 import numpy as np
 
+from ...reference import plugins
 from .. import budget
 from ..trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
                           sample_good)
@@ -268,13 +269,8 @@ def metadata_problem(cls: type) -> str | None:
     <= MAX_ORDER (order_problem), stages a non-negative integer (an iterative method's least), each property
     (PROPERTIES) a boolean. The registry refuses such a class at load, before any run (an order of "four" died in the
     verdicts after the sweep; NaN was never judged)."""
-    for field in ("name", "state_space"):
-        value = getattr(cls, field)
-        if not isinstance(value, str) or not value:
-            return f"{field} = {value!r}: must be a non-empty string"
-        if not value.isprintable() or value != value.strip():  # a newline split every table and listing row
-            return f"{field} = {value!r}: must be one line of printable characters, no space at its ends"
-    problem = order_problem(cls.order)
+    problem = plugins.name_problem("name", cls.name) or plugins.name_problem("state_space", cls.state_space) \
+        or order_problem(cls.order)
     if problem:
         return problem
     stages = cls.stages

@@ -15,6 +15,7 @@ from ..analysis.compare import (BECAME_NAN, DIFFERS, FIGURE_ROWS, FLOOR, GROUPS,
                                 CompareError, environment_rows, group, identical, label, load, load_orders,
                                 metric_signs, order_changes, row_changes, verdict_changes)
 from ..precision import FLOAT64
+from ..words import one_line
 from .markdown import markdown_table
 
 
@@ -77,8 +78,7 @@ _MARKUP = re.compile(r"[\\`*\[\]<>|~&#!]|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])")
 def _md(value) -> str:
     """A value as markdown text that shows as itself, on one line: control characters (a newline in a case name or an
     environment value) written as escapes, markup escaped."""
-    text = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in str(value))
-    return _MARKUP.sub(lambda m: "\\" + m.group(0), text)
+    return _MARKUP.sub(lambda m: "\\" + m.group(0), one_line(value))
 
 
 def _capped(header: list[str], rows: list[list], cap: int, rest: str) -> list[str]:

@@ -55,6 +55,10 @@ SECTIONS = Registry("report section plug-in", ENTRY_POINT_GROUP, BUILT_IN)
 def register(name: str, order: float) -> Callable:
     """Decorator: register `render(context) -> lines` as the section `name` at `order` (a name registered again is
     replaced: a module imported twice, or a plug-in's own version of a section)."""
+    why = plugins.name_problem("name", name)  # the heading and the warning line that name it
+    if why:
+        raise TypeError(f"report section {name!r:.80}: {why}")
+
     def add(render: Callable[[Context], list[str]]) -> Callable[[Context], list[str]]:
         _REGISTRY[name] = Section(name, float(order), render)
         return render

@@ -18,6 +18,7 @@ from ..errors import InternalError
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status, judged, problem
+from ..words import one_line
 from .processes import plugin_fault, raise_unless_data
 from ..tables import METRIC_SUFFIXES, value_rule
 from .spec import RunKey, base_row
@@ -89,15 +90,8 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         row = {**base_row(run, grid), "status": Status.FAILED.value, "_accuracy_s": time.perf_counter() - start,
                "message": f"{type(exc).__name__}: {text}" if text else type(exc).__name__}
     if isinstance(row.get("message"), str):
-        row["message"] = one_line(row["message"])
+        row["message"] = one_line(" ".join(row["message"].split()))  # a plug-in's lines: one, its runs of space one
     return row
-
-
-def one_line(text: str) -> str:
-    """A row's message as one line of printable characters: a plug-in's with newlines and escape sequences printed
-    50 raw lines in the run's summary and broke report.md's tables (issue 46's second attack). Runs of whitespace are
-    one space, any other unprintable character its escape (ESC: \\x1b)."""
-    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in " ".join(text.split()))
 
 
 class NoTrajectory(ValueError):

@@ -61,9 +61,9 @@ _HOOKS = {"parse": "parse(parser, data)", "truth": "truth(case, grids, certify)"
 
 def scene_problem(scene: Any) -> str | None:
     """Why an object cannot be a Scene (the protocol above), naming the field and the rule; None when it can."""
-    kind = getattr(scene, "kind", None)
-    if not isinstance(kind, str) or not kind:
-        return f"kind = {kind!r}: must be a non-empty string"
+    why = plugins.name_problem("kind", getattr(scene, "kind", None))
+    if why:
+        return why
     if not isinstance(getattr(scene, "title", None), str):
         return "title: must be a string"
     for flag in _FLAGS:

@@ -3,7 +3,7 @@
     stereodyn run --out A && stereodyn run --out B      # two consecutive default runs, machine otherwise idle
     python tests/benchmarks/ranking_stability.py A B
 
-A cell is (case, target) with a winner in both runs. It is `same` when both name the same run (engine, formulation,
+A cell is (case, scope, target) with a winner in both runs (scope: an engine, or "any"). It is `same` when both name the same run (engine, formulation,
 integrator, dt); `tie` when they differ but either run lists the other's winner among its ties (the report marks the
 cell "tie"); `differs` otherwise: a winner that moved with no mark, the case the tie rule must prevent. The acceptance
 of issue 11 asks same >= 95 % and differs = 0.
@@ -32,16 +32,21 @@ def _ties(row) -> set[str]:
     return {entry.split(" (")[0].strip() for entry in ties.split(";") if entry.strip()}
 
 
+def _cell(row) -> tuple:
+    """(case, scope, target): pareto.csv has a winner per engine (scope = its name) and over all (scope "any")."""
+    return row["case"], row.get("scope", "any"), float(row["target"])
+
+
 def compare(a: pd.DataFrame, b: pd.DataFrame) -> dict[str, list[str]]:
     cells: dict[str, list[str]] = {"same": [], "tie": [], "differs": []}
-    b_by_cell = {(r["case"], float(r["target"])): r for _, r in b.iterrows()}
+    b_by_cell = {_cell(r): r for _, r in b.iterrows()}
     for _, ra in a.iterrows():
-        rb = b_by_cell.get((ra["case"], float(ra["target"])))
+        rb = b_by_cell.get(_cell(ra))
         if rb is None or not (isinstance(ra["engine"], str) and ra["engine"]) \
                 or not (isinstance(rb["engine"], str) and rb["engine"]):
             continue
         wa, wb = _run(ra), _run(rb)
-        label = f"{ra['case']} {float(ra['target']):g}: {wa} ({ra['us_per_sim_s']:.4g} µs/s) | " \
+        label = f"{ra['case']} {ra.get('scope', 'any')} {float(ra['target']):g}: {wa} ({ra['us_per_sim_s']:.4g} µs/s) | " \
                 f"{wb} ({rb['us_per_sim_s']:.4g} µs/s)"
         kind = "same" if wa == wb else "tie" if (wb in _ties(ra) or wa in _ties(rb)) else "differs"
         cells[kind].append(label)
