@@ -910,10 +910,14 @@ def _register_named(what: str, name: str) -> None:
         scene.kind = name
         scenes.register(scene)
         scenes.unregister(name)
-    elif what == "torque key":
-        model = type("NamedTorque", (torques.TorqueModel,), {"key": name})
-        torques.register(model)
-        torques.TORQUES.pop(name, None)
+    elif what == "torque key":  # refused where the case parser loads the torque plug-ins
+        from stereodyn.reference import torque_models
+
+        torques.register(type("NamedTorque", (torques.TorqueModel,), {"key": name}))
+        try:
+            torque_models.load_plugins()
+        finally:
+            torques.TORQUES.pop(name, None)
     elif what == "section name":
         sections.register(name, 99)(lambda context: [])
         sections.unregister(name)
@@ -939,7 +943,9 @@ def test_every_name_a_plugin_declares_is_one_printable_line(what, name, words):
     Break-checked: name_problem returning None lets every kind register."""
     from stereodyn.harness import engines
 
-    with pytest.raises((TypeError, engines.EngineError)) as caught:
+    from stereodyn.reference.torque_models import TorqueModelError
+
+    with pytest.raises((TypeError, engines.EngineError, TorqueModelError)) as caught:
         _register_named(what, name)
     assert len(str(caught.value).splitlines()) == 1
     assert re.search(words, str(caught.value)), str(caught.value)

@@ -63,3 +63,7 @@ def load_plugins() -> None:
     failed = TORQUE_MODELS.load()
     if failed:  # a plug-in's own bug: name it, never a traceback from inside the parser
         raise TorqueModelError(next(iter(failed.values())))
+    for model in models():  # the key names a case file's table and the listings' lines: here, not in base.register,
+        why = None if plugins.own(model) else plugins.name_problem("key", model.key)  # which imports nothing of ours
+        if why:
+            raise TorqueModelError(f"{plugins.describe_class(model, 'torque model plug-in')}: {why}")

@@ -13,8 +13,6 @@ from typing import Any, Callable, ClassVar, NamedTuple, Sequence
 
 import numpy as np
 
-from .. import plugins
-
 
 class At(NamedTuple):
     """Where a torque is evaluated, in one arithmetic (floats, numpy arrays or heyoka expressions).
@@ -117,9 +115,6 @@ def register(model: type[TorqueModel]) -> type[TorqueModel]:
     make a case file ambiguous."""
     if not (isinstance(model, type) and issubclass(model, TorqueModel)):
         raise TypeError(f"a torque model must be a class derived from TorqueModel, got {model!r}")
-    why = plugins.name_problem("key", getattr(model, "key", None))  # the table [KEY] of a case file, in every row
-    if why:
-        raise TypeError(f"torque model {model.__module__}.{model.__qualname__}: {why}")
     present = TORQUES.get(model.key)
     if present is not None and present is not model:
         raise ValueError(f"torque model key {model.key!r} is taken by {present.__module__}.{present.__qualname__}")
