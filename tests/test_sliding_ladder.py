@@ -149,3 +149,9 @@ def test_the_ladders_attitude_error_is_the_angle_on_the_circle():
     traj.state = ref_ladder.planar_state(ladder, theta + np.array([0.0, 0.05, 2 * np.pi + 0.1]), np.zeros(3))
     out = ladder_metrics(SimpleNamespace(case=SimpleNamespace(ladder=ladder), formulation="bilateral"), traj, equation)
     assert out["attitude_err"] == pytest.approx(0.1, abs=1e-12)
+    # an error within pi keeps every digit (wrapping it through + pi rounded 4.64e-14 to 4.62e-14: Pinocchio's rk4
+    # at dt 5e-4 in the default run)
+    tiny = 4.640732243e-14
+    traj.state = ref_ladder.planar_state(ladder, theta + np.array([0.0, tiny, -tiny / 2]), np.zeros(3))
+    out = ladder_metrics(SimpleNamespace(case=SimpleNamespace(ladder=ladder), formulation="bilateral"), traj, equation)
+    assert out["attitude_err"] == abs((theta[1] + tiny) - theta[1])

@@ -89,8 +89,12 @@ def ladder_metrics(spec, traj: SlidingLadderTrajectory, equation: ref_ladder.Lad
     if spec.formulation == "unilateral" and math.isfinite(equation.detach_time):
         keep = traj.times <= equation.detach_time
     if finite[keep].all():
-        # the angle between the two rods on the circle, in [0, pi] as every attitude error (results.ANGLES)
-        angle = np.abs(np.remainder(state[keep, 2] - equation.theta[keep] + np.pi, 2 * np.pi) - np.pi)
+        # the angle between the two rods on the circle, in [0, pi] as every attitude error (results.ANGLES); only an
+        # angle beyond pi is wrapped: adding pi to an error of 4.6e-14 rounds it to a multiple of ulp(pi), 4.4e-16
+        delta = state[keep, 2] - equation.theta[keep]
+        angle = np.abs(delta)
+        far = angle > np.pi
+        angle[far] = np.abs(np.remainder(delta[far] + np.pi, 2 * np.pi) - np.pi)
         out.update(attitude_err=float(np.max(angle)), attitude_err_end=float(angle[-1]),
                    omega_err=float(np.max(np.abs(state[keep, 5] - equation.theta_dot[keep]))
                                    / (np.max(np.abs(equation.theta_dot[keep])) or 1.0)))
