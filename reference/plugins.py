@@ -36,6 +36,20 @@ class PluginError(Exception):
         """Whether it is an ImportError: a module (an SDK) that is not installed, not a broken plug-in."""
         return isinstance(self.error, ImportError)
 
+    def __reduce__(self):
+        """Pickled (a pool worker's task sends it back) as its line: the plug-in's own exception may not pickle, and
+        Exception's default, cls(*args), cannot rebuild this one (the truth of a case whose torque plug-in's
+        components() raised was a traceback, exit 3)."""
+        return _from_line, (self.where, str(self), self.missing)
+
+
+def _from_line(where: str, line: str, missing: bool) -> PluginError:
+    """A PluginError rebuilt from its line; its error a plain one (ImportError where it was one) of the same text."""
+    exc = PluginError.__new__(PluginError)
+    Exception.__init__(exc, line)
+    exc.where, exc.error = where, (ImportError if missing else Exception)(line.removeprefix(f"{where}: "))
+    return exc
+
 
 class ProcessExit(SystemExit):
     """os._exit(code) called by a plug-in's code inside the guard, raised instead of ending the process."""

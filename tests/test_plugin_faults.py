@@ -925,13 +925,18 @@ def _register_named(what: str, name: str) -> None:
         engine = _offering(lambda self, i: Offer())  # a class of its own each call
         if what == "engine integrator":
             type(engine).integrators = lambda self: (name,)
+        elif what == "engine formulation":  # a scene model's variants (issue 46's third attack, B5)
+            from stereodyn.harness.engines.base import RigidBodyModel
+
+            model = type("Named", (RigidBodyModel,), {"variants": lambda self: ("quaternion", name)})(engine)
+            type(engine).models = lambda self: {"rigid_body": model}
         else:
             type(engine).models = lambda self: {name: None}
         engines._check(engine, "engine plug-in 'offering'")
 
 
 @pytest.mark.parametrize("what", ["scene kind", "torque key", "section name", "engine integrator",
-                                  "engine formulation"])
+                                  "engine formulation", "engine scene"])
 @pytest.mark.parametrize("name, words", [
     ("two\nlines", r"'two\\nlines': must be one line of printable characters, no space at its ends"),
     ("red\x1b[31m", r"'red\\x1b\[31m': must be one line of printable characters"),
@@ -952,6 +957,6 @@ def test_every_name_a_plugin_declares_is_one_printable_line(what, name, words):
 
 
 @pytest.mark.parametrize("what", ["scene kind", "torque key", "section name", "engine integrator",
-                                  "engine formulation"])
+                                  "engine formulation", "engine scene"])
 def test_a_plain_name_registers(what):
     _register_named(what, "atk_plain")

@@ -410,6 +410,28 @@ def test_a_torque_plug_in_whose_components_fail_is_its_cases_truth_failed(monkey
     assert row["status"] == "failed", row
     assert row["message"].startswith("truth failed: PluginError: torque model plug-in 'failing_torque' ("), row
     assert row["message"].endswith(f"FailingTorque): components() failed: {error}"), row
+    # a worker sends it back pickled: PluginError did not rebuild (issue 46's third attack: TypeError in the parent,
+    # exit 3). Break-checked: without PluginError.__reduce__ this raises.
+    import pickle
+    assert truth_failure(pickle.loads(pickle.dumps(raised.value))) == row
     with pytest.raises(plugins.PluginError, match=re.escape(f"components() failed: {error}") + "$"):
         torques.external_torque(case.body, np.array([1.0, 0, 0, 0]), np.array([0.1, 0.2, 0.3]), 0.0)
     assert os._exit is plugins._real_exit
+
+
+@pytest.mark.parametrize("key", ["gravity", "body", "run"])
+def test_a_torque_plug_in_taking_a_case_files_own_table_is_named(monkeypatch, tmp_path, key):
+    """A plug-in's torque key `gravity` made every case file fail on its own [gravity] table, the error naming a
+    built-in case file, never the plug-in (issue 46's third attack, B6). Now one line naming the plug-in and the rule.
+    Break-checked: without the check in load_case the error is 'gravity.g: unknown key (allowed here: m)'."""
+    import sys
+    plugin(monkeypatch, tmp_path, "stereodyn_claiming_torque", PLUGIN.replace('key = "world_torque"', f'key = "{key}"'))
+    path = tmp_path / "plain.toml"
+    path.write_text(CASE.replace("[linear_damping]\nk = 2.0\n", ""))
+    try:
+        with pytest.raises(CaseError, match=rf"plain\.toml: -: torque model plug-in '{key}' "
+                                            rf"\(stereodyn_claiming_torque\.ConstantWorldTorque\): key '{key}' is a "
+                                            "case file's own table; a torque model takes one of its own$"):
+            load_case(path)
+    finally:
+        sys.modules.pop("stereodyn_claiming_torque", None)

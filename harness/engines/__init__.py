@@ -13,7 +13,7 @@ from importlib.metadata import EntryPoint
 
 from ...reference import plugins
 from ...reference.registry import Registry
-from .base import Engine, Offer, RigidBodyModel
+from .base import Engine, Offer, RigidBodyModel, SceneModel
 from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
@@ -131,8 +131,16 @@ def _check(engine: Engine, where: str) -> None:
         raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
     if not isinstance(models, dict):
         raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
-    for field, name in [*((f"integrators()[{i}]", n) for i, n in enumerate(names)),
-                        *((f"models() key {i}", k) for i, k in enumerate(models))]:
+    named = [*((f"integrators()[{i}]", n) for i, n in enumerate(names)),
+             *((f"models() key {i}", k) for i, k in enumerate(models))]
+    for kind, model in models.items():  # the formulations: results.csv's column
+        if isinstance(model, SceneModel):
+            with plugins.guard(f"{where}: models()[{kind!r}].variants() failed"):
+                variants = model.variants()
+            if not (isinstance(variants, (tuple, list))):
+                raise EngineError(f"{where}: models()[{kind!r}].variants() returned {variants!r:.80}, not a tuple")
+            named += [(f"models()[{kind!r}].variants()[{i}]", v) for i, v in enumerate(variants)]
+    for field, name in named:
         why = plugins.name_problem(field, name)  # each is in every row and listing line of its runs
         if why:
             raise EngineError(f"{where}: {why}")

@@ -114,6 +114,11 @@ def load_case(path: str | Path) -> Case | LadderCase:
         load_plugins()  # torque models of other distributions (their tables may be in this file)
     except TorqueModelError as exc:
         raise CaseError(path, "-", str(exc)) from None
+    for model in models():  # a plug-in's torque table named as a case file's own broke every case file, unnamed
+        if model.key in _TABLES[""][0]:
+            where = plugins.describe_class(model, f"torque model plug-in {model.key!r}")
+            raise CaseError(path, "-", f"{where}: key {model.key!r} is a case file's own table; a torque model "
+                                       "takes one of its own")
     return _Parser(path).case(data)
 
 
