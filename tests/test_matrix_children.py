@@ -98,9 +98,11 @@ def test_stopping_the_matrix_ends_its_run_and_what_the_run_started(offline, sig,
         assert _gone(pids), [pid for pid in pids if _alive(pid)]
         if sig != signal.SIGKILL:
             assert matrix.returncode == 130, err
+            # "without --rerun": with it, following the line word for word redid every finished run (issue 46's
+            # third attack, B4); a rerun without it resumes (test_a_rerun_resumes_the_interrupted_run_...)
             assert err.strip().splitlines()[-1] == ("stereodyn: interrupted; the environments built and the runs "
-                                                    "finished are kept (rerun the same matrix command to go on: it "
-                                                    "reuses them)"), err
+                                                    "finished are kept (rerun the same matrix command, without "
+                                                    "--rerun, to go on: it reuses them)"), err
     finally:
         for pid in [matrix.pid, *pids]:
             if _alive(pid):
@@ -149,7 +151,7 @@ def test_a_rerun_resumes_the_interrupted_run_and_never_deletes_a_folder_being_wr
     assert (folder / "store" / "kept.json").is_file() and (folder / "results.csv").is_file()
 
 
-@pytest.mark.parametrize("run_args", [["--help"], ["-h"], ["free-asymmetric", "--hel"]])
+@pytest.mark.parametrize("run_args", [["--help"], ["-h"], ["free-asymmetric", "--hel"], ["--h"]])
 def test_run_arguments_that_run_nothing_are_refused_up_front(tmp_path, capsys, run_args):
     """`matrix A -- --help` would print the run's help in every environment and leave no results: one line, exit 2,
     before any environment is built (before: exit 2 with no matrix.csv, after building them)."""

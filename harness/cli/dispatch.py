@@ -28,7 +28,7 @@ def command(name: str):
 def parser() -> argparse.ArgumentParser:
     """`stereodyn`'s parser: every command's, in COMMANDS order (tools/docs_reference.py documents it)."""
     load()  # the argument types check against the case format's and the budgets' limits
-    top = Parser(prog="stereodyn", description=sys.modules[__package__].__doc__.splitlines()[0])
+    top = Parser(prog="stereodyn", description=" ".join(sys.modules[__package__].__doc__.split("\n\n")[0].split()))
     commands = top.add_subparsers(dest="command", required=True)
     for name in COMMANDS:
         command(name).add_parser(commands)
@@ -37,8 +37,8 @@ def parser() -> argparse.ArgumentParser:
 
 # What the interrupt line adds, per command: what to run to go on (a command that keeps nothing says nothing more).
 INTERRUPTED = {"run": "; every finished run is stored (rerun with --resume to go on)",
-               "matrix": "; the environments built and the runs finished are kept (rerun the same matrix command to "
-                         "go on: it reuses them)"}
+               "matrix": "; the environments built and the runs finished are kept (rerun the same matrix command, "
+                         "without --rerun, to go on: it reuses them)"}
 
 def _load() -> None:
     """The modules the commands and their checks need, and every command's module (COMMANDS)."""

@@ -69,7 +69,7 @@ def run_arguments(args) -> list[str]:
         if any(a == option or a.startswith(option + "=") for a in given):
             raise BadInput(f"matrix: {option} after --: the matrix chooses each run's folder (OUT/runs/N-NAME)")
     for a in given:
-        if a in _NO_RESULT or (len(a) > 3 and "--help".startswith(a)):
+        if a in _NO_RESULT or (len(a) >= 3 and "--help".startswith(a)):  # --h too: run has no other --h option
             raise BadInput(f"matrix: {a} after --: prints the run's help and runs nothing (see stereodyn run --help)")
     return given
 
