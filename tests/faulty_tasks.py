@@ -34,5 +34,11 @@ def starts() -> int:
     return subprocess.Popen([sys.executable, "-c", "import time; time.sleep(300)"]).pid
 
 
+def starts_apart() -> int:
+    """A child in a process group of its own (Popen(process_group=0): setpgid in the child, no at-fork hook, so no
+    parent-death signal either) that outlives the task; its pid."""
+    return subprocess.Popen([sys.executable, "-c", "import time; time.sleep(300)"], process_group=0).pid
+
+
 def pid() -> int:
     return os.getpid()

@@ -85,22 +85,24 @@ def own_process_group() -> None:
     os.register_at_fork(after_in_child=_parent_death_signal)
 
 
-def _group_members(group: int) -> list[int]:
-    """The pids of a process group (Linux: /proc; elsewhere none are known)."""
-    members = []
+def _group_members(leader: int) -> list[int]:
+    """The processes a worker (the leader of its group) answers for: its group's, its children that left the group
+    (subprocess's Popen(process_group=0) sets the group in the child without Python's at-fork hooks, so without the
+    parent-death signal too) and their groups (Linux: /proc; elsewhere none are known)."""
+    table = []
     try:
         entries = list(Path("/proc").iterdir())
     except OSError:
-        return members
+        return []
     for entry in entries:
         if entry.name.isdigit():
             try:
                 fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
             except (OSError, IndexError):
                 continue
-            if int(fields[2]) == group:  # after the name: state, ppid, pgrp
-                members.append(int(entry.name))
-    return members
+            table.append((int(entry.name), int(fields[1]), int(fields[2])))  # after the name: state, ppid, pgrp
+    groups = {leader} | {pid for pid, ppid, group in table if ppid == leader and group == pid}
+    return [pid for pid, ppid, group in table if group in groups or ppid == leader]
 
 
 def end_group() -> None:
@@ -112,7 +114,7 @@ def end_group() -> None:
 
 
 def end_group_of(leader: int) -> None:
-    """Kill the processes of leader's group but the leader (the parent at a pool's shutdown: a worker started by the
+    """Kill the processes leader answers for (_group_members) but the leader (the parent at a pool's shutdown: a worker started by the
     pool's thread dies by its parent-death signal when that thread ends, before it can end its group itself)."""
     for pid in _group_members(leader):
         if pid != leader:
@@ -123,8 +125,9 @@ def end_group_of(leader: int) -> None:
 
 
 def kill_group(leader: int) -> None:
-    """The parent's end of a worker: SIGKILL its process group (the worker, as long as it is not reaped, keeps the
-    group's id from being reused); nothing where it has none."""
+    """The parent's end of a worker: SIGKILL what it answers for (end_group_of), then its process group (the worker,
+    as long as it is not reaped, keeps the group's id from being reused); nothing where it has none."""
+    end_group_of(leader)
     if hasattr(os, "killpg"):
         try:
             os.killpg(leader, signal.SIGKILL)
