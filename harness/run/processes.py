@@ -16,7 +16,8 @@ A worker leads a process group of its own (own_process_group), so that what a pl
 the parent kills the worker's group where it ends a worker (harness/run/workers.py: past a budget, on Ctrl-C, once
 one died), a worker that exits kills the rest of its group first (end_group), and a process a plug-in forks there
 (os.fork, multiprocessing's fork) gets the parent-death signal on the worker, so that it dies with the worker even when
-the worker is SIGKILLed with the command. A grandchild that leaves the group (setsid) is out of reach.
+the worker is SIGKILLed with the command. A child that leaves the group (Popen(process_group=0), setsid) is killed
+with it while the worker lives (_group_members); once the worker died, it and any grandchild that left are init's.
 Ctrl-C reaches the whole process group; the parent handles it (stops the sweep, ends its workers). A worker ignores it
 from its start: the parent blocks SIGINT while it starts workers (the mask survives fork and exec; the kernel holds a
 blocked signal, so the parent's own Ctrl-C meanwhile is delivered when the block ends, never dropped) and the worker
