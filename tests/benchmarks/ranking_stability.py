@@ -46,8 +46,8 @@ def compare(a: pd.DataFrame, b: pd.DataFrame) -> dict[str, list[str]]:
                 or not (isinstance(rb["engine"], str) and rb["engine"]):
             continue
         wa, wb = _run(ra), _run(rb)
-        label = f"{ra['case']} {ra.get('scope', 'any')} {float(ra['target']):g}: {wa} ({ra['us_per_sim_s']:.4g} µs/s) | " \
-                f"{wb} ({rb['us_per_sim_s']:.4g} µs/s)"
+        label = f"{ra['case']} {ra.get('scope', 'any')} {float(ra['target']):g}: {wa} " \
+                f"({ra['us_per_sim_s']:.4g} µs/s) | {wb} ({rb['us_per_sim_s']:.4g} µs/s)"
         kind = "same" if wa == wb else "tie" if (wb in _ties(ra) or wa in _ties(rb)) else "differs"
         cells[kind].append(label)
     return cells
