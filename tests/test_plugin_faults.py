@@ -964,3 +964,24 @@ def test_every_name_a_plugin_declares_is_one_printable_line(what, name, words):
                                   "engine formulation", "engine scene"])
 def test_a_plain_name_registers(what):
     _register_named(what, "atk_plain")
+
+
+@pytest.mark.parametrize("field, duplicated, words", [
+    ("integrators", ("rk4", "rk4"), "integrators() = ('rk4', 'rk4'): names an integrator twice"),
+    ("variants", ("a", "a"), "models()['rigid_body'].variants() = ('a', 'a'): names a formulation twice")])
+def test_an_engine_naming_an_integrator_or_formulation_twice_is_refused_at_load(field, duplicated, words):
+    """Two runs under one key: the run wrote a results.csv that report, baseline and compare then refused ('row 2:
+    duplicate key'), blaming the file (issue 46's re-check). Break-checked: without the checks in engines._check the
+    engine loads."""
+    from stereodyn.harness import engines
+    from stereodyn.harness.engines.base import RigidBodyModel
+
+    engine = _offering(lambda self, i: Offer())
+    if field == "integrators":
+        type(engine).integrators = lambda self: duplicated
+    else:
+        model = type("Twice", (RigidBodyModel,), {"variants": lambda self: duplicated})(engine)
+        type(engine).models = lambda self: {"rigid_body": model}
+    with pytest.raises(engines.EngineError) as caught:
+        engines._check(engine, "engine plug-in 'offering'")
+    assert str(caught.value) == f"engine plug-in 'offering': {words}"

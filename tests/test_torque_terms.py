@@ -380,13 +380,19 @@ class FailingTorque(TorqueModel):
 
     @staticmethod
     def components(p, at):
-        FailingTorque.FAULT()
+        garbage = FailingTorque.FAULT()  # a fault that returns, returns what components() then returns
+        if garbage is not None:
+            return garbage
         return [-p[0] * at.omega[0], -p[0] * at.omega[1], -p[0] * at.omega[2]]
 
 
 @pytest.mark.parametrize("fault, error", [
     (lambda: sys.exit(6), "SystemExit: 6"), (lambda: os._exit(0), "ProcessExit: called os._exit(0)"),
-    (lambda: 1 / 0, "ZeroDivisionError: division by zero")], ids=["sys.exit", "os._exit", "raises"])
+    (lambda: 1 / 0, "ZeroDivisionError: division by zero"),
+    (lambda: "abc", "TypeError: returned 'abc', not the torque's three components"),
+    (lambda: [1.0, 2.0], "TypeError: returned [1.0, 2.0], not the torque's three components"),
+    (lambda: ["x", None, "z"], "TypeError: returned ['x', None, 'z'], not the torque's three components")],
+    ids=["sys.exit", "os._exit", "raises", "text", "two components", "texts"])
 def test_a_torque_plug_in_whose_components_fail_is_its_cases_truth_failed(monkeypatch, tmp_path, fault, error):
     """components() runs while the case's truth is built (a pool task since issue 49; it was the parent, where
     sys.exit(6) ended `run` with exit 6 and nothing

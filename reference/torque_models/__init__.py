@@ -44,7 +44,12 @@ def components(model: Any, p: Sequence, at: At) -> list:
         return model.components(p, at)
     try:
         with plugins.guard("components() failed"):
-            return model.components(p, at)
+            result = model.components(p, at)
+            if not (isinstance(result, (list, tuple)) and len(result) == 3) \
+                    or any(c is None or isinstance(c, (str, bytes)) for c in result):
+                # what the truth's expressions and the numpy torques cannot sum: a TypeError in our frame, exit 3
+                raise TypeError(f"returned {result!r:.60}, not the torque's three components")
+            return list(result)
     except plugins.PluginError as exc:  # named only now: describe_class reads the installed distributions
         cls = model if isinstance(model, type) else type(model)
         where = plugins.describe_class(cls, f"torque model plug-in {getattr(cls, 'key', '?')!r}")
