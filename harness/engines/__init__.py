@@ -131,24 +131,25 @@ def _check(engine: Engine, where: str) -> None:
         raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
     if not isinstance(models, dict):
         raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
-    if len(set(names)) < len(names):
-        raise EngineError(f"{where}: integrators() = {tuple(names)!r:.80}: names an integrator twice")
-    named = [*((f"integrators()[{i}]", n) for i, n in enumerate(names)),
-             *((f"models() key {i}", k) for i, k in enumerate(models))]
+    lists = [("integrators()", "an integrator", tuple(names))]  # each name is in every row and listing line
     for kind, model in models.items():  # the formulations: results.csv's column
         if isinstance(model, SceneModel):
             with plugins.guard(f"{where}: models()[{kind!r}].variants() failed"):
                 variants = model.variants()
             if not (isinstance(variants, (tuple, list))):
                 raise EngineError(f"{where}: models()[{kind!r}].variants() returned {variants!r:.80}, not a tuple")
-            if len(set(map(repr, variants))) < len(variants):  # two runs under one key: a table its readers refuse
-                raise EngineError(f"{where}: models()[{kind!r}].variants() = {variants!r:.80}: names a formulation "
-                                  "twice")
-            named += [(f"models()[{kind!r}].variants()[{i}]", v) for i, v in enumerate(variants)]
-    for field, name in named:
-        why = plugins.name_problem(field, name)  # each is in every row and listing line of its runs
+            lists.append((f"models()[{kind!r}].variants()", "a formulation", tuple(variants)))
+    for i, kind in enumerate(models):
+        why = plugins.name_problem(f"models() key {i}", kind)
         if why:
             raise EngineError(f"{where}: {why}")
+    for field, noun, values in lists:
+        for i, value in enumerate(values):
+            why = plugins.name_problem(f"{field}[{i}]", value)
+            if why:
+                raise EngineError(f"{where}: {why}")
+        if len(set(values)) < len(values):  # two runs under one key: a table its readers refuse
+            raise EngineError(f"{where}: {field} = {values!r:.80}: names {noun} twice")
     for integrator in names:  # what the plan, the verdicts and the listing read of each integrator
         _check_offer(engine, integrator, where)
 
