@@ -115,9 +115,8 @@ def end_group() -> None:
 
 
 def end_group_of(leader: int) -> None:
-    """Kill the processes leader answers for (_group_members) but the leader (the parent at a pool's shutdown: a
-    worker started by the pool's thread dies by its parent-death signal when that thread ends, before it can end its
-    group itself)."""
+    """Kill the processes leader answers for (_group_members) but the leader (the pool's thread at shutdown, before it
+    ends: a worker that thread started dies by its parent-death signal when it ends, before it can end its group)."""
     for pid in _group_members(leader):
         if pid != leader:
             try:

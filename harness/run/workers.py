@@ -147,8 +147,6 @@ class WatchedPool:
             self._closing = True
         self._wake()
         self._thread.join()
-        for worker in list(self._workers):  # what the tasks left running in a worker's group (processes.py)
-            end_group_of(worker.process.pid)
 
     def kill(self) -> None:
         """End the workers now (Ctrl-C, an error): the tasks not done are cancelled."""
@@ -196,6 +194,10 @@ class WatchedPool:
         if self._closing:
             for worker in self._workers:
                 if worker.future is None and worker.process.is_alive():
+                    # What its tasks left (processes.py), killed here, while this thread lives: a worker this thread
+                    # started dies by its parent-death signal once the thread ends, and its children that left its
+                    # group are init's then (the parent's shutdown did this after the join and lost that race in CI).
+                    end_group_of(worker.process.pid)
                     try:
                         worker.conn.send(None)  # exit now, on its own
                     except OSError:
