@@ -20,7 +20,7 @@ from stereodyn.reference import torques, truth
 from stereodyn.reference.body import RigidBody
 from stereodyn.reference.rotations import attitude_angle, quat_mul, quat_to_matrix
 from stereodyn.reference.torque_models import (TORQUES, BodyTorque, CentralField, PrecessionTorque, TorqueModel,
-                                               models)
+                                               TorqueModelError, models)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -263,16 +263,20 @@ def test_a_torque_model_of_another_distribution_is_loaded_by_its_entry_point(mon
         sys.modules.pop("stereodyn_world_torque", None)
 
 
-def test_a_broken_torque_plug_in_is_one_line_naming_it(monkeypatch, tmp_path):
+def test_a_broken_torque_plug_in_is_one_line_naming_it(monkeypatch, tmp_path, capsys):
     import sys
     plugin(monkeypatch, tmp_path, "stereodyn_broken_torque", "raise RuntimeError('no model here')\n")
     path = tmp_path / "damped.toml"
     path.write_text(CASE)
     try:
-        with pytest.raises(CaseError, match=r"damped.toml: -: torque model plug-in 'world' \(stereodyn_broken_torque\) "
-                                            r"does not load: RuntimeError: no model here"):
+        # the plug-in's line alone: the same for every case file, so naming the first one read blamed it
+        with pytest.raises(TorqueModelError, match=r"^torque model plug-in 'world' \(stereodyn_broken_torque\) "
+                                                   r"does not load: RuntimeError: no model here$"):
             load_case(path)
         assert cli.main(["run", "--case-file", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+        assert capsys.readouterr().err.strip().splitlines()[-1] == (
+            "stereodyn: error: torque model plug-in 'world' (stereodyn_broken_torque) does not load: RuntimeError: "
+            "no model here")
     finally:
         sys.modules.pop("stereodyn_broken_torque", None)
 
@@ -435,7 +439,7 @@ def test_a_torque_plug_in_taking_a_case_files_own_table_is_named(monkeypatch, tm
     path = tmp_path / "plain.toml"
     path.write_text(CASE.replace("[linear_damping]\nk = 2.0\n", ""))
     try:
-        with pytest.raises(CaseError, match=rf"plain\.toml: -: torque model plug-in '{key}' "
+        with pytest.raises(TorqueModelError, match=rf"^torque model plug-in '{key}' "
                                             rf"\(stereodyn_claiming_torque\.ConstantWorldTorque\): key '{key}' is a "
                                             "case file's own table; a torque model takes one of its own$"):
             load_case(path)

@@ -64,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         from ..run.store import FolderNotReady, StoreBusy
         from ..run.results import TableError
         from ..analysis.compare import CompareError
+        from ...reference.torque_models import TorqueModelError
     except KeyboardInterrupt:
         print("stereodyn: interrupted", file=sys.stderr)
         return 130
@@ -88,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         code = command(args.command).main(args)
         sys.stdout.flush()  # here, not at exit: a reader gone (`| head -1`) is met while the status is still ours
     except (CaseError, BadInput, GateError, ClusterError, ExportError, StoreBusy, TableError,
-            EngineError, CompareError, FolderNotReady) as exc:
+            EngineError, CompareError, FolderNotReady, TorqueModelError) as exc:
         code = _error(str(exc))
     except OSError as exc:  # a path the checks above could not foresee (a disk full, a folder gone mid-run)
         where = f"{exc.filename}: " if exc.filename else ""

@@ -100,7 +100,8 @@ class LadderCase:
 # ---------------------------------------------------------------------------------------------------------- loading
 
 def load_case(path: str | Path) -> Case | LadderCase:
-    """Read and validate one case file. Bad input raises CaseError naming the file, the key and the rule."""
+    """Read and validate one case file. Bad input raises CaseError naming the file, the key and the rule; a torque
+    model plug-in that cannot be used, TorqueModelError naming it."""
     path = Path(path)
     try:
         data = read_toml(path)
@@ -110,15 +111,15 @@ def load_case(path: str | Path) -> Case | LadderCase:
         raise CaseError(path, "-", f"cannot read file ({exc.strerror or exc})") from None
     except ReadError as exc:  # too large (/dev/zero), not UTF-8, not TOML, nested too deep, a 5000-digit integer
         raise CaseError(path, "-", str(exc)) from None
-    try:
-        load_plugins()  # torque models of other distributions (their tables may be in this file)
-    except TorqueModelError as exc:
-        raise CaseError(path, "-", str(exc)) from None
-    for model in models():  # a plug-in's torque table named as a case file's own broke every case file, unnamed
+    # torque models of other distributions (their tables may be in this file): one that does not load, or whose key
+    # is a case file's own table (it broke every case file, unnamed), is TorqueModelError naming the plug-in, not
+    # this file (the same for every file)
+    load_plugins()
+    for model in models():
         if model.key in _TABLES[""][0]:
             where = plugins.describe_class(model, f"torque model plug-in {model.key!r}")
-            raise CaseError(path, "-", f"{where}: key {model.key!r} is a case file's own table; a torque model "
-                                       "takes one of its own")
+            raise TorqueModelError(f"{where}: key {model.key!r} is a case file's own table; a torque model takes "
+                                   "one of its own")
     return _Parser(path).case(data)
 
 

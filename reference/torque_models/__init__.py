@@ -57,7 +57,8 @@ def components(model: Any, p: Sequence, at: At) -> list:
 
 
 class TorqueModelError(ImportError):
-    """A torque-model plug-in does not import; str() is one line naming it."""
+    """A torque-model plug-in that cannot be used (it does not import, its key breaks a rule): bad input of every case
+    file alike, so it names the plug-in, no file; str() is one line."""
 
 
 def load_plugins() -> None:
