@@ -166,8 +166,10 @@ def test_the_order_is_judged_on_the_finest_run_of_agreeing_slopes():
     through all six fitted 3.70 and failed; the finest three agree (spread 0.05 <= AGREE) and judge 3.92: pass,
     the evidence in the note and the verdict."""
     row = _row(_ladder([3.67, 3.31, 3.75, 3.89, 3.94]), 4.0)
-    assert row["points"] == 3 and abs(row["order"] - 3.91) < 0.01, row
-    assert "slopes 3.67 3.31 3.75 3.89 3.94; judged on dt 0.00465 to 0.00116: 3.92" in row["note"], row["note"]
+    assert row["points"] == 3 and abs(row["order"] - 3.915) < 1e-6, row  # the mean of the finest slopes, 3.89 and 3.94
+    # 3.915 to 3 digits reads 3.91 or 3.92 by its last bit (3.92 here, 3.91 on another machine: CI of stop 52)
+    assert (f"slopes 3.67 3.31 3.75 3.89 3.94; judged on dt 0.00465 to 0.00116: {row['order']:.3g}"
+            in row["note"]), row["note"]
     (verdict,) = verdicts.order_verdicts(pd.DataFrame([row]))
     assert verdict.status == verdicts.PASS and "usertop: slopes 3.67 3.31 3.75 3.89 3.94" in verdict.detail
     # falling toward 4 from above (issue 45's random body: 4.62 4.46 4.28 4.15 4.08): judged 4.15 4.08
