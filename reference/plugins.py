@@ -124,8 +124,9 @@ def code_raised(exc: BaseException) -> bool:
 
 @contextmanager
 def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
-    """Run a plug-in's code: PluginError(where, error) for any Exception, SystemExit or GeneratorExit it raises, except
-    the types in `passing` (a hook's own way to refuse input, e.g. a case file's error), which go through unchanged."""
+    """Run a plug-in's code: PluginError(where, error) for any Exception, SystemExit, GeneratorExit or other
+    BaseException it raises (not stereodyn's own, not the user's Ctrl-C), except the types in `passing` (a hook's own
+    way to refuse input, e.g. a case file's error), which go through unchanged."""
     try:
         with _exits_raise():
             yield
@@ -139,17 +140,24 @@ def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator
         if interrupted(exc):  # not the plug-in's failure: Ctrl-C while it loaded
             raise KeyboardInterrupt from exc
         raise PluginError(where, exc) from exc
+    except BaseException as exc:  # a plug-in's bare BaseException (it was a traceback: issue 46's fourth attack, F3)
+        if own(type(exc)):  # stereodyn's own (harness.errors.InternalError: a bug of ours) goes on
+            raise
+        raise PluginError(where, exc) from exc
 
 
-def name_problem(field: str, value: Any) -> str | None:
+def name_problem(field: str, value: Any, listed: bool = False) -> str | None:
     """Why a name a plug-in declares (an integrator's name and state space, a scene's kind, a torque model's key, a
     report section's name, an engine's integrators and formulations) cannot be used, naming the field and the rule;
     None when it can. Every table row and listing line holds such names: a newline in one split them (one rule for
-    every kind of plug-in)."""
+    every kind of plug-in). listed: a name the command line takes in a comma-separated list (--integrators): no comma
+    (`a,b` was listed as valid and could never be chosen)."""
     if not isinstance(value, str) or not value:
         return f"{field} = {value!r:.80}: must be a non-empty string"
     if not value.isprintable() or value != value.strip():
         return f"{field} = {value!r:.80}: must be one line of printable characters, no space at its ends"
+    if listed and "," in value:
+        return f"{field} = {value!r:.80}: must hold no comma (the command line's lists are comma-separated)"
     return None
 
 

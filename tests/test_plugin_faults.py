@@ -764,7 +764,17 @@ def _offering(offer):
      "offer('rk4').orders['q'] = 0: must be a positive finite number"),
     (lambda self, i: 4, "offer('rk4') returned 4, not an Offer"),
     (lambda self, i: 1 / 0, "offer('rk4') failed: ZeroDivisionError"),
-], ids=["order text", "order inf", "order negative", "formulation order 0", "not an offer", "raises"])
+    # issue 46's fourth attack, F5: a precision named twice wrote two rows under one key (every reader refused the
+    # table); a precision name of its own, adaptive="yes", default_sweep="no" were taken as given
+    (lambda self, i: Offer(order=4, precisions=("float64", "float64")),
+     "offer('rk4').precisions = ('float64', 'float64'): must name each of float64, float32 at most once"),
+    (lambda self, i: Offer(order=4, precisions=("float 64\n",)), "offer('rk4').precisions = ('float 64\\n',)"),
+    (lambda self, i: Offer(order=4, precisions=()), "offer('rk4').precisions = (): must name each"),
+    (lambda self, i: Offer(order=4, adaptive="yes"), "offer('rk4').adaptive = 'yes': must be True or False"),
+    (lambda self, i: Offer(order=4, default_sweep="no"),
+     "offer('rk4').default_sweep = 'no': must be True or False or None"),
+], ids=["order text", "order inf", "order negative", "formulation order 0", "not an offer", "raises",
+        "precision twice", "precision unknown", "no precision", "adaptive text", "default_sweep text"])
 def test_an_engine_whose_offer_no_verdict_can_judge_is_refused_at_load(offer, words):
     """Issue 46's re-attack: an engine plug-in's Offer(order="four") ran the sweep and died in the verdicts (exit 1,
     a traceback), order inf or -1 got no order verdict even under --strict, and an offer() that raised was a traceback
@@ -987,3 +997,39 @@ def test_an_engine_naming_an_integrator_or_formulation_twice_is_refused_at_load(
     with pytest.raises(engines.EngineError) as caught:
         engines._check(engine, "engine plug-in 'offering'")
     assert str(caught.value) == f"engine plug-in 'offering': {words}"
+
+
+def test_a_listed_name_holds_no_comma():
+    """Issue 46's fourth attack, F10: an integrator named "a,b" loaded, and `--integrators a,b` listed it as valid
+    while splitting it in two: it could never be chosen. Refused at load like the other names (the registry's
+    integrators and an engine's integrators()). Break-checked: name_problem without `listed` lets both load."""
+    from stereodyn.harness import engines
+    from stereodyn.harness.integrators.base import metadata_problem
+    from stereodyn.harness.integrators.geometric import ImplicitMidpoint
+
+    named = type("Listed", (ImplicitMidpoint,), {"name": "a,b"})
+    assert "name = 'a,b': must hold no comma" in (metadata_problem(named) or "")
+    engine = _offering(lambda self, i: Offer(order=4))
+    type(engine).integrators = lambda self: ("a,b",)
+    with pytest.raises(engines.EngineError, match=r"integrators\(\)\[0\] = 'a,b': must hold no comma"):
+        engines._check(engine, "engine plug-in 'offering'")
+    assert plugins.name_problem("key", "a,b") is None  # a torque key or a scene kind is no list item
+
+
+class _Bare(BaseException):
+    """A plug-in's own BaseException: no Exception, no SystemExit."""
+
+
+def test_the_guard_takes_a_bare_base_exception_as_the_plugins():
+    """Issue 46's fourth attack, F3: `raise BaseException(...)` at import, in a section's render or a torque model's
+    parse went through every guard (a traceback, exit 1, no report). It is the plug-in's PluginError now; stereodyn's
+    own BaseException (InternalError: a bug of ours) still goes on. Break-checked: without the guard's last clause
+    the first raise escapes."""
+    from stereodyn.harness.errors import InternalError
+
+    with pytest.raises(plugins.PluginError, match=r"^hook: _Bare: bare$"):
+        with plugins.guard("hook"):
+            raise _Bare("bare")
+    with pytest.raises(InternalError):
+        with plugins.guard("hook"):
+            raise InternalError("ours", "")

@@ -357,8 +357,8 @@ def test_a_torque_plug_in_that_exits_at_import_is_one_line_naming_it(monkeypatch
     try:
         assert cli.main(["cases"]) == 2
         err = capsys.readouterr().err
-        assert err.count("\n") == 1 and err.endswith(": -: torque model plug-in 'world' (stereodyn_exiting_torque) does "
-                                                     "not load: SystemExit: 5\n"), err
+        assert err == ("stereodyn: error: torque model plug-in 'world' (stereodyn_exiting_torque) does not load: "
+                       "SystemExit: 5\n"), err
     finally:
         sys.modules.pop("stereodyn_exiting_torque", None)
 

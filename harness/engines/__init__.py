@@ -14,6 +14,7 @@ from importlib.metadata import EntryPoint
 from ...reference import plugins
 from ...reference.registry import Registry
 from .base import Engine, Offer, RigidBodyModel, SceneModel
+from ..precision import PRECISIONS
 from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
@@ -145,7 +146,7 @@ def _check(engine: Engine, where: str) -> None:
             raise EngineError(f"{where}: {why}")
     for field, noun, values in lists:
         for i, value in enumerate(values):
-            why = plugins.name_problem(f"{field}[{i}]", value)
+            why = plugins.name_problem(f"{field}[{i}]", value, listed=field == "integrators()")
             if why:
                 raise EngineError(f"{where}: {why}")
         if len(set(values)) < len(values):  # two runs under one key: a table its readers refuse
@@ -173,6 +174,18 @@ def _check_offer(engine: Engine, integrator: str, where: str) -> None:
         problem = order_problem(order)
         if problem:
             raise EngineError(f"{where}: offer({integrator!r}).{field}{problem.removeprefix('order')}")
+    # what a row's key and the plan read (issue 46's fourth attack, F5: a precision named twice wrote two rows under
+    # one key, which every reader refused; adaptive="yes" ran as adaptive)
+    precisions = offer.precisions
+    if not (isinstance(precisions, (tuple, list)) and precisions and all(p in PRECISIONS for p in precisions)
+            and len(set(precisions)) == len(precisions)):
+        raise EngineError(f"{where}: offer({integrator!r}).precisions = {precisions!r:.80}: must name each of "
+                          f"{', '.join(PRECISIONS)} at most once, at least one")
+    for field, allowed in (("adaptive", (True, False)), ("default_sweep", (True, False, None))):
+        value = getattr(offer, field)
+        if not any(value is a for a in allowed):
+            raise EngineError(f"{where}: offer({integrator!r}).{field} = {value!r:.80}: must be "
+                              f"{' or '.join(map(str, allowed))}")
 
 
 @cache

@@ -269,7 +269,7 @@ def metadata_problem(cls: type) -> str | None:
     <= MAX_ORDER (order_problem), stages a non-negative integer (an iterative method's least), each property
     (PROPERTIES) a boolean. The registry refuses such a class at load, before any run (an order of "four" died in the
     verdicts after the sweep; NaN was never judged)."""
-    problem = plugins.name_problem("name", cls.name) or plugins.name_problem("state_space", cls.state_space) \
+    problem = plugins.name_problem("name", cls.name, listed=True) or plugins.name_problem("state_space", cls.state_space) \
         or order_problem(cls.order)
     if problem:
         return problem

@@ -6,9 +6,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
+from ...reference import plugins
 from ..engines import UnavailableEngine, declared, get_engine
 from ..precision import FLOAT64
 from ..scenes import scene_of
+from ..words import one_line
 from .processes import raise_unless_data
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
 
@@ -99,8 +101,15 @@ def agreement_candidates(specs: list[RunSpec]) -> set[int]:
 def _unsupported(model, case, engine: str) -> str | None:
     """The model's reason not to run the case (SceneModel.unsupported); a plug-in's that raises is the reason of its
     skipped rows, named (our own code's is a bug: raise_unless_data)."""
-    try:
-        return model.unsupported(case)
-    except Exception as exc:
-        raise_unless_data(exc)
-        return f"engine {engine!r}: unsupported(case) raised {type(exc).__name__}: {exc}"[:300]
+    if plugins.own(type(model)):
+        try:
+            return model.unsupported(case)
+        except Exception as exc:
+            raise_unless_data(exc)
+            return f"engine {engine!r}: unsupported(case) raised {type(exc).__name__}: {exc}"[:300]
+    try:  # behind the guard: its sys.exit, os._exit, GeneratorExit or own KeyboardInterrupt ended the command (F2
+        with plugins.guard(engine):  # of issue 46's fourth attack)
+            return model.unsupported(case)
+    except plugins.PluginError as exc:
+        error = exc.error
+        return one_line(f"engine {engine!r}: unsupported(case) raised {type(error).__name__}: {error}")[:300]
