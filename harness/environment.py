@@ -13,6 +13,8 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
+from .words import clipped
+
 # The libraries whose version can change any result (heyoka: the truth); each engine adds its own (About.packages). A
 # result is keyed by all of them (harness.run.store).
 CORE_PACKAGES = ("numpy", "scipy")
@@ -251,10 +253,11 @@ def plugin_distributions() -> dict[str, str]:
 def environment() -> dict[str, str]:
     """Everything a report's footer states about where the numbers came from: the libraries, every installed plug-in
     distribution (engines and integrators: plugin_distributions), the machine."""
-    return {**library_versions(), "pandas": _version("pandas"), **plugin_distributions(), "cpu": cpu_name(),
-            "machine": platform.machine(),
-            "platform": platform.platform(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "git commit": git_commit()}
+    found = {**library_versions(), "pandas": _version("pandas"), **plugin_distributions(), "cpu": cpu_name(),
+             "machine": platform.machine(),
+             "platform": platform.platform(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+             "git commit": git_commit()}
+    return {clipped(name): clipped(value) for name, value in found.items()}  # a plug-in distribution's is any text
 
 
 # runs.json's environment keys of the machine's load when the timing phase starts and ends (harness.run.sweep): the

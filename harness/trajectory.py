@@ -167,7 +167,22 @@ def problem(traj, samples: int, expected: type | None = None) -> str | None:
             return f"{whose} {name} is {value!r}, not a count"  # -1, NaN, inf or 1e200 is not
     if not isinstance(getattr(traj, "info", {}), dict):
         return f"{whose} info is {type(traj.info).__name__}, not a dict"
+    if traj.status is Status.DIVERGED and _divergence_time(traj) is None:  # a diverged row says when (issue 46, F11)
+        return (f"{whose} status is diverged at diverged_at = {getattr(traj, 'diverged_at', None)!r:.40}, not a time "
+                "of its grid, and no sample breaks the divergence rule")
     return None
+
+
+def _divergence_time(traj) -> float | None:
+    """When a diverged trajectory diverged: its diverged_at where that is a time of its span, else its first sample
+    that breaks the divergence rule; None where neither says."""
+    times = np.asarray(traj.times, dtype=float)
+    at = getattr(traj, "diverged_at", math.nan)
+    if isinstance(at, (int, float, np.integer, np.floating)) and not isinstance(at, (bool, np.bool_)) \
+            and times[0] <= at <= times[-1] + 1e-9 * max(1.0, abs(times[-1])):
+        return float(at)
+    bad = _first_bad(traj)
+    return None if bad is None else float(times[bad])
 
 
 def _first_bad(traj) -> int | None:
@@ -188,7 +203,12 @@ def judged(traj):
     sample's time, its samples from there on NaN (the rule as an integrator applies it, for every engine; an engine
     that finds the exact step sets diverged itself). Others unchanged."""
     fields = {f.name for f in dataclasses.fields(traj)} if dataclasses.is_dataclass(traj) else set()
-    if traj.status is not Status.OK or not {"status", "message", "diverged_at"} <= fields:
+    if not {"status", "message", "diverged_at"} <= fields:
+        return traj
+    if traj.status is Status.DIVERGED:  # an engine's own verdict, with its time (from its states where it gave none)
+        at = _divergence_time(traj)
+        return traj if at is None or at == traj.diverged_at else dataclasses.replace(traj, diverged_at=at)
+    if traj.status is not Status.OK:
         return traj
     bad = _first_bad(traj)
     if bad is None:

@@ -5,6 +5,7 @@ report section that fails is left out with a warning (3); metadata checked at lo
 measure, the guard and the registries in this process; `-m slow` runs the real commands with hostile packages."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -172,6 +173,44 @@ def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
     assert "t = 0.04 s" in row["message"]
     row = _row(monkeypatch, _Model(lambda grid: _states(grid)))
     assert row["status"] == "ok" and math.isnan(row["diverged_at"]), row
+
+
+def test_a_diverged_trajectory_says_when(monkeypatch):
+    """Issue 46's fourth attack, F11: a plug-in's own `diverged` with diverged_at NaN was a diverged row with no time.
+    Its time is its first sample that breaks the divergence rule; with no such sample and no time in its span the
+    claim is no trajectory (a failed row). Break-checked: without the check in trajectory.problem the last row is
+    diverged with no time, without the fill in trajectory.judged the first has none."""
+    def diverged(grid, bad_from=None, at=math.nan):
+        return dataclasses.replace(_states(grid, bad_from), status=Status.DIVERGED, message="blew up", diverged_at=at)
+
+    row = _row(monkeypatch, _Model(lambda grid: diverged(grid, bad_from=6)))
+    assert row["status"] == "diverged" and row["diverged_at"] == pytest.approx(0.06, abs=1e-12), row
+    row = _row(monkeypatch, _Model(lambda grid: diverged(grid, at=0.03)))  # its own time, kept
+    assert row["status"] == "diverged" and row["diverged_at"] == pytest.approx(0.03, abs=1e-12), row
+    for at in (math.nan, -1.0, 50.0):
+        row = _row(monkeypatch, _Model(lambda grid: diverged(grid, at=at)))
+        assert row["status"] == "failed" and "not a time of its grid" in row["message"], row
+
+
+def test_a_plugins_huge_message_is_clipped_where_it_is_written(monkeypatch, tmp_path):
+    """Issue 46's fourth attack, F4: a plug-in's 5 MB message went into results.csv whole, and every reader then
+    refused the table ("field larger than field limit (131072)"); a 200 kB plug-in version the same in
+    history_points.csv. Clipped to words.TEXT_MAX where written. Break-checked: without clipped in measure the row
+    holds 5e6 characters, without it in results.frame the table is refused."""
+    from stereodyn.harness import environment as env
+    from stereodyn.harness.run import results
+    from stereodyn.harness.words import TEXT_MAX
+
+    huge = "x" * 5_000_000
+    row = _row(monkeypatch, _Model(lambda grid: dataclasses.replace(_states(grid), status=Status.FAILED,
+                                                                    message=huge)))
+    assert row["status"] == "failed" and len(row["message"]) < TEXT_MAX + 50, len(row["message"])
+    assert row["message"].endswith(f"({5_000_000 - TEXT_MAX} more characters)")
+    path = tmp_path / "results.csv"
+    results.write_results(results.frame([{**row, "message": huge}]), path)  # a reason not from measure: a truth's
+    assert len(results.read_results(path)["message"][0]) < TEXT_MAX + 50
+    monkeypatch.setattr(env, "plugin_distributions", lambda: {"hostile": "1.0 " + "y" * 200_000})
+    assert len(env.environment()["hostile"]) < TEXT_MAX + 50
 
 
 @pytest.mark.parametrize("answer, words", [
@@ -786,6 +825,20 @@ def test_an_engine_whose_offer_no_verdict_can_judge_is_refused_at_load(offer, wo
     with pytest.raises((engines.EngineError, plugins.PluginError)) as caught:
         engines._check(_offering(offer), "engine plug-in 'offering'")
     assert words in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_an_engine_offering_no_integrator_is_refused_at_load():
+    """Issue 46's fourth attack, F9: an engine plug-in whose integrators() is () loaded, and `run --engines` naming
+    it alone planned nothing and ended exit 0, "done". Refused when it loads (a command naming it exits 2 with the
+    line). Break-checked: without the check in engines._check the load passes."""
+    from stereodyn.harness import engines
+
+    engine = _offering(lambda self, i: Offer(order=4))
+    type(engine).integrators = lambda self: ()
+    with pytest.raises(engines.EngineError) as caught:
+        engines._check(engine, "engine plug-in 'offering'")
+    assert str(caught.value) == ("engine plug-in 'offering': integrators() returned (): an engine offers at least one "
+                                 "integrator")
 
 
 def test_an_engine_offering_the_registrys_order_loads():

@@ -22,6 +22,7 @@ from . import gate
 from .compare import FLOOR, GROUPS
 from ..environment import differences
 from ..run.results import KEY
+from ..words import clipped
 
 # The smallest change of a metric flagged: compare's smallest change group (1.1x). Reruns on one machine are
 # bit-identical and round-off across machines moves these deterministic metrics by far less than 10 %
@@ -240,7 +241,7 @@ def points_table(points: list[Point], steps: pd.DataFrame) -> pd.DataFrame:
                      "commit": str(point.environment.get("git commit", ""))[:12],
                      "rows": len(point.table), "orders": len(point.orders),
                      "steps": len(here), "worse": int((here["direction"] == "worse").sum()) if len(here) else 0,
-                     **{k: str(point.environment.get(k, ABSENT)) for k in varying}})
+                     **{clipped(k): clipped(point.environment.get(k, ABSENT)) for k in varying}})
     return pd.DataFrame(rows)
 
 

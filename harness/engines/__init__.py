@@ -130,6 +130,8 @@ def _check(engine: Engine, where: str) -> None:
                           "Engine, harness/engines/base.py)")
     if not (isinstance(names, (tuple, list)) and all(isinstance(n, str) for n in names)):
         raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
+    if not names:  # no run at all: `run --engines NAME` would end "done" having run nothing (issue 46, F9)
+        raise EngineError(f"{where}: integrators() returned {names!r}: an engine offers at least one integrator")
     if not isinstance(models, dict):
         raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
     lists = [("integrators()", "an integrator", tuple(names))]  # each name is in every row and listing line

@@ -18,7 +18,7 @@ from ..errors import InternalError
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..trajectory import Status, judged, problem
-from ..words import one_line
+from ..words import clipped, one_line
 from .processes import plugin_fault, raise_unless_data
 from ..tables import METRIC_SUFFIXES, value_rule
 from .spec import RunKey, base_row
@@ -90,7 +90,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         row = {**base_row(run, grid), "status": Status.FAILED.value, "_accuracy_s": time.perf_counter() - start,
                "message": f"{type(exc).__name__}: {text}" if text else type(exc).__name__}
     if isinstance(row.get("message"), str):
-        row["message"] = one_line(" ".join(row["message"].split()))  # a plug-in's lines: one, its runs of space one
+        row["message"] = clipped(one_line(" ".join(row["message"].split())))  # a plug-in's lines: one, its runs of space one
     return row
 
 

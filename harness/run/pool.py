@@ -14,6 +14,7 @@ from .. import budget, integrators as integrator_registry
 from ..engines import get_engine
 from ..scenes import scene_of
 from ..trajectory import Status
+from ..words import clipped
 from . import timing
 from .timing import startup_s
 from .measure import measure, prepare
@@ -113,7 +114,7 @@ def worker_failed_row(spec: RunSpec, exc: BaseException) -> dict:
     results.csv but not stored (_lost), so --resume tries the run again: the cause may have been passing (an
     interrupt, the memory killer, a cluster going away)."""
     return {**base_row(spec, None), "status": Status.FAILED.value, "_lost": True,
-            "message": f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0]}
+            "message": clipped(f"worker process failed: {type(exc).__name__}: {exc}".splitlines()[0])}
 
 
 def _init_worker(budgets: budget.Budgets | None = None) -> None:

@@ -15,6 +15,7 @@ from ..tables import (ANGLES, MAX_ANGLE, MAX_VALUE, METRIC_SUFFIXES, NON_NEGATIV
                       value_rule)
 from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
+from ..words import clipped
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
            "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "timing", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
@@ -41,6 +42,8 @@ def frame(rows: list[dict]) -> pd.DataFrame:
     """A DataFrame with exactly columns() (missing values NaN), in the canonical row order. A scene's own column
     that no row fills is left out: the table of a sweep without that scene's cases is COLUMNS, as before."""
     df = pd.DataFrame(rows)
+    if "message" in df:  # every reason, whoever wrote it (a truth's, a worker's), within the rule (words.TEXT_MAX)
+        df["message"] = df["message"].map(lambda text: clipped(text) if isinstance(text, str) else text)
     names = [c for c in columns() if c in COLUMNS or c in df]
     for column in names:
         if column not in df:
