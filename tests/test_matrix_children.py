@@ -161,6 +161,22 @@ def test_run_arguments_that_run_nothing_are_refused_up_front(tmp_path, capsys, r
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("run_args, words", [
+    (["--bogus"], "matrix: after --: unrecognized arguments: --bogus"),
+    (["free-asymmetric", "--dt", "0"], "matrix: after --: argument --dt: must be finite and in"),
+    (["no-such-case"], "matrix: after --: "),
+    (["--certify", "--no-certify"], "matrix: after --: --certify and --no-certify"),
+], ids=["unknown option", "dt 0", "unknown case", "certify twice"])
+def test_run_arguments_this_stereodyn_refuses_are_refused_up_front(tmp_path, capsys, run_args, words):
+    """Issue 46's fourth attack, F6: `matrix A -- --bogus` (or --dt 0, a case the suite lacks) built every environment
+    and ended exit 0, "0 of 1 environments ran", a `run failed` row each. Refused before anything is built: one line,
+    exit 2. Break-checked: without check_run_arguments each case reaches uv."""
+    assert cli.main(["matrix", "mujoco==4.0.0", "--out", str(tmp_path / "o"), "--", *run_args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err, err
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_run_that_exits_0_without_results_is_a_row(offline, monkeypatch):
     """What the up-front check cannot foresee (an environment whose stereodyn prints and exits 0): a row saying so,
     and the matrix goes on to write matrix.csv."""

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..atomic import write_atomic
 from ..words import one_line
-from .common import BadInput, output_folder, _path, _steps, warn
+from .common import BadInput, Parser, output_folder, _path, select_cases, _steps, warn
 
 # The quick suite (README, "Regression CI"; .ci/run gates it against reports/baselines/quick.json).
 QUICK = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric", "--t-end", "2", "--dt", "1e-2,3e-3")
@@ -72,6 +72,35 @@ def run_arguments(args) -> list[str]:
         if a in _NO_RESULT or (len(a) >= 3 and "--help".startswith(a)):  # --h too: run has no other --h option
             raise BadInput(f"matrix: {a} after --: prints the run's help and runs nothing (see stereodyn run --help)")
     return given
+
+
+class _RunParser(Parser):
+    """`stereodyn run`'s parser whose error is the matrix's bad input (one line naming the arguments after --)."""
+
+    def error(self, message: str):
+        raise BadInput(f"matrix: after --: {' '.join(message.split())} (see stereodyn run --help)")
+
+
+def check_run_arguments(argv: list[str]) -> None:
+    """Refuse, before anything is built, run arguments this stereodyn's `run` refuses before it runs (an unknown
+    option, a value out of its rule, a case it does not have): each environment's run would fail the same, a `run
+    failed` row per environment after minutes of installs (issue 46's fourth attack, F6). Only where every environment
+    runs this stereodyn (no --stereodyn): another version may take other arguments. Engine and integrator names are
+    the environment's to judge (its engines are its packages')."""
+    from . import run
+    from ..scenes.cases import CaseError
+
+    top = _RunParser(prog="stereodyn")
+    run.add_parser(top.add_subparsers(dest="command", required=True))
+    parsed = top.parse_args(["run", *argv])
+    if parsed.certify and parsed.no_certify:
+        raise BadInput("matrix: after --: --certify and --no-certify: give one (certifying is the default)")
+    if parsed.dt_ladder and parsed.no_ladder:
+        raise BadInput("matrix: after --: --dt-ladder and --no-ladder: give at most one")
+    try:
+        select_cases(parsed)
+    except (BadInput, CaseError) as exc:
+        raise BadInput(f"matrix: after --: {exc}") from None
 
 
 def command(python: Path, argv: list[str], folder: Path) -> list[str]:
@@ -163,6 +192,8 @@ def main(args) -> int:
     check_steps(args)
     matrix = environments(args.specs, args.cross)
     argv = run_arguments(args)
+    if args.stereodyn is None:
+        check_run_arguments(argv)
     try:
         envs.uv_binary()
     except envs.UvMissing as exc:
