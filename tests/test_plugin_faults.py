@@ -582,6 +582,38 @@ def test_hostile_engines_are_their_rows_and_the_sweep_completes(tmp_path):
     assert forked and _gone(forked), [p for p in forked if _alive(p)]
 
 
+@pytest.mark.parametrize("how, words", [
+    ("os_exit", "worker failed: WorkerDied: worker process died (exit code 0)"),
+    pytest.param("kills", "worker failed: WorkerDied: worker process died (killed by SIGKILL)",
+                 marks=pytest.mark.slow),
+    pytest.param("exits", "the first failure: SystemExit: 0", marks=pytest.mark.slow),
+    pytest.param("interrupts", "the first failure: KeyboardInterrupt", marks=pytest.mark.slow),
+    pytest.param("forks", None, marks=pytest.mark.slow),
+])
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_advise_runs_a_plugin_on_a_watched_worker(tmp_path, how, words):
+    """Issue 46's fourth attack, F1: `advise` ran an engine plug-in's prepare and run in the command's own process:
+    os._exit there ended advise with exit 0 and no answer, a SystemExit or KeyboardInterrupt was a traceback, a forked
+    child outlived it. Now its ladders and searches are pool tasks, as run's: the family's answer says why there is
+    none, exit 0 (a failed run is data), and what it forked is gone. Break-checked: with advise's pool None (here),
+    os_exit exits 0 with no answer line."""
+    env = _package(tmp_path / "site", "hostile-engines", {"hostile_engines.py": HOSTILE_ENGINES},
+                   {"stereodyn.engines": {how: f"hostile_engines:{how}"}})
+    env["FORKED_PIDS"] = str(tmp_path / "forked")
+    result = subprocess.run([sys.executable, "-m", "stereodyn", "advise", "free-asymmetric", "--engine", how,
+                             "--t-end", "0.2", "--target", "1e-3"], capture_output=True, text=True, env=env,
+                            cwd=tmp_path, timeout=300)
+    assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr[-3000:]
+    answer = [line for line in result.stdout.splitlines() if line.startswith(f"{how} rk4")]
+    assert len(answer) == 1, result.stdout
+    if words is None:  # it ran: an answer, and the children it forked died with their workers
+        assert "dt = " in answer[0], answer
+        forked = [int(pid) for pid in (tmp_path / "forked").read_text().split()]
+        assert forked and _gone(forked), [p for p in forked if _alive(p)]
+    else:
+        assert answer[0].startswith(f"{how} rk4: no advice") and words in answer[0], answer
+
+
 FORKS_EVERY_RUN = '''
 import os, time
 from stereodyn.harness import integrators

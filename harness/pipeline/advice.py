@@ -1,7 +1,7 @@
 """Step-size advice, the runs (advice.csv; issue 21 item 2): per run family and accuracy target, the model's setting
 checked by runs (analysis.step_advice.search), each run one ladder point (pipeline.dt_ladders.measure, or
 pipeline.tolerance_ladders.measure for an adaptive method: the one measure path of the ladders), the advised runs then
-timed alone in the parent (the ladders' timing phase). Which families are advised, on which known points, and the
+timed on the workers, a core each (the ladders' timing phase). Which families are advised, on which known points, and the
 rows' shape are analysis.step_advice's (advice_tasks, families_to_advise, advice_row; re-exported here). Used by
 `stereodyn run` (pipeline.work_precision) and `stereodyn advise`.
 """
@@ -18,6 +18,7 @@ from ..analysis.ladders import MIN_STEPS
 from ..analysis.step_advice import (ADVICE_COLUMNS, TOLERANCE_HI, TOLERANCE_LO, advice_row,  # noqa: F401 (this API)
                                     advice_tasks, advised_error, error_model, families_to_advise, family_key, rounded,
                                     search)
+from ..run.pool import family_affinity
 from ..run.processes import raise_unless_data
 from ..run.spec import Family
 from ..run.workers import WatchedPool
@@ -130,31 +131,54 @@ __all__ = ["advise_family", "run_advice", "rounded"]
 
 
 def advise(case, families: list[tuple[Family, bool]], targets: tuple[float, ...], max_steps: int,
-           progress: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict[tuple, str]]:
+           progress: Callable[[str], None] | None = None,
+           pool: WatchedPool | None = None) -> tuple[pd.DataFrame, dict[tuple, str]]:
     """What `stereodyn advise` runs: per family, the case's own dt list and a short ladder (dt doubled or halved until
     three points are asymptotic, pipeline.dt_ladders.run_short_ladder) for the order, or for an adaptive method the
-    default tolerance ladder (1e-3, 1e-5 … 1e-13) for its slope; then the checked search per target and the advised
-    runs timed. Returns advice.csv's rows and, per family key without an order, why."""
-    from ..analysis import fitting
-
+    default tolerance ladder (1e-3, 1e-5 … 1e-13) for its slope (ladder_for_advice); then the checked search per
+    target and the advised runs timed. All on the pool's workers (None: here), so that an engine plug-in that exits,
+    kills its process or leaves children behind fails its family's answer, not the command (issue 46, F1). Returns
+    advice.csv's rows and, per family key without an order, why."""
     tasks, why = [], {}
-    for family, adaptive in families:
-        if progress:
-            progress(f"{family.label}: {'tolerance ladder' if adaptive else 'dt list and short ladder'}")
-        if adaptive:
-            known = [{k: v for k, v in p.items() if not k.startswith("_")}
-                     for p in tolerance_ladders.run_ladder(family, tolerance_ladders.DEFAULT_TOLERANCES)]
-            fit = fitting.tolerance_fit(pd.DataFrame(known, columns=list(tolerance_ladders.TOLERANCE_COLUMNS)))
-            order, note = fit["slope"], fit["note"]
-        else:
-            known = [dt_ladders.measure(family, dt, timed=False) for dt in sorted(family.case.dt, reverse=True)]
-            new, row = dt_ladders.run_short_ladder(family, known, max_steps)
-            known += new
-            order, note = row["order"], row["note"]
+    for family, adaptive in families if progress else ():
+        progress(f"{family.label}: {'tolerance ladder' if adaptive else 'dt list and short ladder'}")
+    if pool is None:
+        found = {index: ladder_for_advice(family, adaptive, max_steps)
+                 for index, (family, adaptive) in enumerate(families)}
+    else:
+        futures = {pool.submit(ladder_for_advice, family, adaptive, max_steps,
+                               affinity=family_affinity(family, max_steps)): index
+                   for index, (family, adaptive) in enumerate(families)}
+        found = {}
+        for future in as_completed(futures):
+            try:
+                found[futures[future]] = future.result()
+            except Exception as exc:  # its worker died (os._exit, a signal): the family's answer says so
+                raise_unless_data(exc)
+                found[futures[future]] = ([], math.nan, f"worker failed: {type(exc).__name__}: {exc}".splitlines()[0])
+    for index, (family, adaptive) in enumerate(families):
+        known, order, note = found[index]
         if not math.isfinite(order):
-            why[family.key] = note or "no fitted order"
+            failed = next((p["message"] for p in known if p.get("status") == "failed" and p.get("message")), None)
+            why[family.key] = (note or "no fitted order") + (f"; the first failure: {failed}" if failed else "")
             continue
         tasks.append((family, adaptive, known, order))
     if progress and tasks:
         progress("checking the advice")
-    return run_advice(tasks, targets, max_steps), why
+    return run_advice(tasks, targets, max_steps, pool), why
+
+
+def ladder_for_advice(family: Family, adaptive: bool, max_steps: int) -> tuple[list[dict], float, str]:
+    """(known points, fitted order or slope, its note) of one family for advise: the tolerance ladder's slope of an
+    adaptive method, else the order of the case's dt list and a short ladder. A pool task (a function of the module:
+    a worker unpickles it)."""
+    from ..analysis import fitting
+
+    if adaptive:
+        known = [{k: v for k, v in p.items() if not k.startswith("_")}
+                 for p in tolerance_ladders.run_ladder(family, tolerance_ladders.DEFAULT_TOLERANCES)]
+        fit = fitting.tolerance_fit(pd.DataFrame(known, columns=list(tolerance_ladders.TOLERANCE_COLUMNS)))
+        return known, fit["slope"], fit["note"]
+    known = [dt_ladders.measure(family, dt, timed=False) for dt in sorted(family.case.dt, reverse=True)]
+    new, row = dt_ladders.run_short_ladder(family, known, max_steps)
+    return known + new, row["order"], row["note"]
