@@ -6,10 +6,18 @@ sections are discovered as asv's plug-ins are: a distribution names its module u
 stereodyn's own section modules are the registry's built-in table (BUILT_IN, reference.registry): found the same way,
 never through an import line elsewhere that could be forgotten (tests/test_registries.py checks the table holds every
 module that registers a section). A plug-in that does not import, or whose section raises or exits while it renders
-(or returns what is not a list of lines), is one warning line naming it; the report renders without it. stereodyn's
-own sections are not guarded: their bug is a traceback."""
+(or returns what is not a list of lines), is one warning line naming it; the report renders without it. A plug-in's
+section renders in a forked child process (Linux, macOS), so that one that kills its process, crashes in C or hangs
+past SECTION_BUDGET_S ends that child, not the command: a warning too. stereodyn's own sections render here, not
+guarded: their bug is a traceback."""
 from __future__ import annotations
 
+import os
+import pickle
+import select
+import signal
+import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -83,20 +91,87 @@ def registered() -> list[Section]:
 
 
 def _lines(section: Section, context: Context) -> list[str]:
-    """A section's lines: a plug-in's behind the guard (reference.plugins), checked to be a list of text; [] and one
-    warning line naming it when it fails."""
+    """A section's lines: a plug-in's behind the guard (reference.plugins) in a child process of its own (_apart),
+    checked to be a list of text; [] and one warning line naming it when it fails."""
     if plugins.own(section.render):
         return section.render(context)
     where = plugins.describe_class(section.render, f"report section plug-in {section.name!r}")
     try:
-        with plugins.guard(f"{where} left out"):
-            lines = section.render(context)
-            if not isinstance(lines, list) or not all(isinstance(line, str) for line in lines):
-                raise TypeError(f"render returned {type(lines).__name__}, not a list of lines of text")
+        return _apart(section, context, where) if hasattr(os, "fork") else _guarded(section, context, where)
     except plugins.PluginError as exc:
         plugins.warn(str(exc))
         return []
+
+
+def _guarded(section: Section, context: Context, where: str) -> list[str]:
+    with plugins.guard(f"{where} left out"):
+        lines = section.render(context)
+        if not isinstance(lines, list) or not all(isinstance(line, str) for line in lines):
+            raise TypeError(f"render returned {type(lines).__name__}, not a list of lines of text")
     return lines
+
+
+# A plug-in section's wall-time budget: the built-in sections of the default report take ~1 s all together.
+SECTION_BUDGET_S = 120.0
+
+
+def _apart(section: Section, context: Context, where: str) -> list[str]:
+    """_guarded in a forked child, its answer (the lines, the PluginError's line, or what else it raised: Ctrl-C, our
+    bug) pickled back through a pipe; a child that dies without one, or runs past SECTION_BUDGET_S, is one warning
+    line, as a PluginError is (a section that called os.kill on its process ended `run` and `report`: issue 46's
+    fourth attack)."""
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: answer, then end without the parent's exit handlers
+        os.close(read)
+        try:
+            try:
+                answer = ("lines", _guarded(section, context, where))
+            except plugins.PluginError as exc:
+                answer = ("plugin", str(exc))
+            except BaseException as exc:  # Ctrl-C, or stereodyn's own bug: the parent raises it
+                answer = ("raise", exc)
+            try:
+                data = pickle.dumps(answer)
+            except Exception as exc:
+                data = pickle.dumps(("raise", RuntimeError(f"{type(exc).__name__}: {exc}")))
+            with os.fdopen(write, "wb") as out:
+                out.write(data)
+            for stream in (sys.stdout, sys.stderr):
+                stream.flush()
+        finally:
+            os._exit(0)
+    os.close(write)
+    chunks, deadline, ended = [], time.monotonic() + SECTION_BUDGET_S, False
+    try:
+        with os.fdopen(read, "rb") as pipe:
+            while (left := deadline - time.monotonic()) > 0:
+                if select.select([pipe], [], [], left)[0]:
+                    chunk = os.read(pipe.fileno(), 1 << 20)
+                    if not chunk:
+                        ended = True
+                        break
+                    chunks.append(chunk)
+    finally:
+        if not ended:  # past its budget, or Ctrl-C here
+            os.kill(pid, signal.SIGKILL)
+        _, status = os.waitpid(pid, 0)
+    if not ended:
+        return _left_out(f"{where} left out: did not finish within {SECTION_BUDGET_S:g} s")
+    try:
+        kind, value = pickle.loads(b"".join(chunks))
+    except Exception:  # no answer: the process ended inside the render
+        code = os.waitstatus_to_exitcode(status)
+        how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+        return _left_out(f"{where} left out: its process died ({how})")
+    if kind == "raise":
+        raise value
+    return _left_out(value) if kind == "plugin" else value
+
+
+def _left_out(line: str) -> list[str]:
+    plugins.warn(line)
+    return []
 
 
 def render(context: Context) -> str:
