@@ -166,8 +166,11 @@ def test_the_committed_answers_csv_is_what_the_committed_report_shows():
 
 
 def test_a_changed_answer_is_a_line_of_the_pull_request_summary(tmp_path):
-    """compare --format pr (issue 47): the answers of answers.csv that differ between A and B, one line."""
-    from stereodyn.harness.report.compare import with_answer_changes
+    """compare --format pr (issue 47): the answers of answers.csv that differ between A and B, one line; B is then
+    not identical to A (issue 46 F8), and the headline counts them."""
+    from stereodyn.harness.report.compare import pr_lines
+
+    answer_changes = answers.folder_changes
 
     nan = math.nan
     rows = [("any", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5, 100.0), ("mujoco", 1e-3, "mujoco", "rk4", 0.01, nan, 1e-5,
@@ -176,16 +179,20 @@ def test_a_changed_answer_is_a_line_of_the_pull_request_summary(tmp_path):
     for folder, advice in ((a, None), (b, _advice([("mujoco", "rk4", 1e-3, 0.05, nan, 7e-4, 30.0)]))):
         folder.mkdir()
         answers.answers(_pareto(rows), advice).to_csv(folder / answers.ANSWERS_FILE, index=False)
-    summary = ["**stereodyn compare**: ...", "", "Every row: compare.md and compare.csv beside this summary."]
-    assert with_answer_changes(summary, a, a) == summary  # the same answers: nothing said
-    lines = with_answer_changes(summary, a, b)
-    assert lines[2] == ("What to use (answers.csv): 2 answers changed: c mujoco 1e-03: mujoco rk4 dt=0.01 -> "
-                        "mujoco rk4 dt=0.05; c any 1e-03: mujoco rk4 dt=0.01 -> mujoco rk4 dt=0.05")
-    assert lines[-1] == summary[-1] and len(lines) == len(summary) + 2
-    assert with_answer_changes(summary, a, tmp_path / "base.json") == summary  # a baseline file holds no answers
+
+    def summary(x, y):  # the same rows, orders, verdicts and environment: only the answers can differ
+        return pr_lines(x, y, {}, {}, pd.DataFrame(), [], [], True, answer_changes(x, y))
+
+    assert len(summary(a, a)) == 1 and "is identical to" in summary(a, a)[0]  # the same answers: nothing said
+    lines = summary(a, b)
+    assert "is identical" not in "\n".join(lines) and "; 2 answers changed (What to use)." in lines[0], lines
+    assert lines[-3] == ("What to use (answers.csv): 2 answers changed: c mujoco 1e-03: mujoco rk4 dt=0.01 -> "
+                         "mujoco rk4 dt=0.05; c any 1e-03: mujoco rk4 dt=0.01 -> mujoco rk4 dt=0.05.")
+    assert lines[-1] == "Every row: compare.md and compare.csv beside this summary." and lines[-2] == ""
+    assert answer_changes(a, tmp_path / "base.json") == []  # a baseline file holds no answers
     # a case name with markup and a newline (issue 46's second attack: the line split, its markup rendered)
     for folder in (a, b):
         table = pd.read_csv(folder / answers.ANSWERS_FILE, keep_default_na=True)
         table.assign(case="a|b*c`x`\n<b>").to_csv(folder / answers.ANSWERS_FILE, index=False)
-    line = with_answer_changes(summary, a, b)[2]
+    line = summary(a, b)[-3]
     assert "\n" not in line and line.split(": ", 2)[2].startswith(r"a\|b\*c\`x\`\\n\<b\> mujoco 1e-03: "), line

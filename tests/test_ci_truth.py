@@ -109,6 +109,74 @@ def test_a_real_difference_still_differs_everywhere(tmp_path, capsys):
     assert "Environment: 1 key differs" in pr and "| mujoco | 3.3.7 | 4.0.0 |" in pr, pr
 
 
+# ---------------------------------------------- issue 46 F8: an answer moved by timing noise is no change
+
+# answers.csv cells of a run and of its rerun on one machine (issue 46 F8, measured: `run free-asymmetric
+# lagrange-top --t-end 2 --dt 1e-2,3e-3` twice): (case, scope, target, engine, integrator, dt, us_per_sim_s, spread).
+# Between the two, each cell named another of the runs that tie in cost: noise, yet "2 answers changed" and
+# "identical" in one summary.
+ANSWERS_A = [("free-asymmetric", "pinocchio", 1e-2, "pinocchio", "euler", 0.01, 317.634, 21.457),
+             ("lagrange-top", "pinocchio", 1e-2, "pinocchio", "rk4_naive", 0.01, 879.5825, 11.277),
+             ("lagrange-top", "any", 1e-6, "mujoco", "rk4", 0.003, 456.0, 9.0)]
+ANSWERS_B = [("free-asymmetric", "pinocchio", 1e-2, "pinocchio", "symplectic_euler", 0.01, 358.465, 28.6875),
+             ("lagrange-top", "pinocchio", 1e-2, "pinocchio", "rk4", 0.01, 1259.2445, 535.514),
+             ("lagrange-top", "any", 1e-6, "mujoco", "rk4", 0.003, 471.0, 12.0)]
+
+
+def write_answers(path: Path, cells) -> Path:
+    """DIR/answers.csv of `cells` (ANSWERS_A's shape; engine None: no answer), every column answers.csv has."""
+    from stereodyn.harness.analysis.answers import ANSWER_COLUMNS, ANSWERS_FILE, LISTED
+
+    rows = [dict(case=case, scope=scope, target=target, engine=engine or "", formulation="",
+                 integrator=integrator or "", dt=dt, tolerance=float("nan"), error=target / 2 if engine else None,
+                 us_per_sim_s=cost, us_per_sim_s_spread=spread, source=LISTED if engine else "", fails_at=None,
+                 why_none="" if engine else "none reached it")
+            for case, scope, target, engine, integrator, dt, cost, spread in cells]
+    pd.DataFrame(rows, columns=list(ANSWER_COLUMNS)).to_csv(path / ANSWERS_FILE, index=False)
+    return path
+
+
+def test_a_rerun_whose_answers_moved_by_timing_noise_is_identical_and_no_answer_changed(tmp_path, capsys):
+    """A same-machine rerun whose answers name other runs tied in cost (the Pareto tie rule) passes check, and
+    compare --format pr calls it identical in one line that names no answer changed (before: "2 answers changed"
+    above "is identical"); with another MuJoCo in B the summary's answers line says the same."""
+    a, b = rerun_pair(tmp_path)
+    write_answers(a, ANSWERS_A), write_answers(b, ANSWERS_B)
+    baseline = tmp_path / "baseline.json"
+    assert cli.main(["baseline", str(a), "--out", str(baseline)]) == 0
+    assert cli.main(["check", str(b), "--baseline", str(baseline)]) == 0
+    capsys.readouterr()
+    assert cli.main(["compare", str(a), str(b), "--out", str(tmp_path / "cmp"), "--format", "pr"]) == 0
+    pr = capsys.readouterr().out
+    assert pr.count("\n") == 1 and "is identical to" in pr and "changed" not in pr, pr
+    assert "answers (2 moved only within the timing noise)" in pr, pr
+    env = {**environment("2026-11-02T10:00:00+00:00", "1.00, 1.00, 1.00"), "mujoco": "4.0.0"}
+    other = write_answers(folder(tmp_path / "other", env=env), ANSWERS_B)
+    assert cli.main(["compare", str(a), str(other), "--out", str(tmp_path / "cmp2"), "--format", "pr"]) == 0
+    pr = capsys.readouterr().out
+    assert "identical" not in pr and "answers changed" not in pr and "answer changed (" not in pr, pr
+    assert pr.splitlines()[0].endswith("an order moved by more than 0.1)."), pr  # the headline: no answer counted
+    assert ("What to use (answers.csv): no answer changed beyond the timing noise (2 moved between runs whose costs "
+            "tie).") in pr.splitlines(), pr
+
+
+def test_an_answer_whose_run_became_costlier_or_that_went_is_a_change(tmp_path, capsys):
+    """The same rows, but in B the answer at 1e-6 costs 3x (its run slowed: a costlier one answers) and the one of
+    free-asymmetric at 1e-2 is gone (nothing reaches it): no longer identical, the headline counts 2 answers changed
+    and the answers line names both, and the one that moved within the noise as no change."""
+    a, b = rerun_pair(tmp_path)
+    write_answers(a, ANSWERS_A)
+    write_answers(b, [(*ANSWERS_B[0][:3], None, None, float("nan"), float("nan"), float("nan")), ANSWERS_B[1],
+                      ("lagrange-top", "any", 1e-6, "reference", "rk4", 0.003, 1380.0, 12.0)])
+    capsys.readouterr()
+    assert cli.main(["compare", str(a), str(b), "--format", "pr"]) == 0
+    pr = capsys.readouterr().out
+    assert "identical" not in pr and "; 2 answers changed (What to use)." in pr.splitlines()[0], pr
+    assert ("What to use (answers.csv): 2 answers changed: free-asymmetric pinocchio 1e-02: pinocchio euler dt=0.01 "
+            "-> -; lagrange-top any 1e-06: mujoco rk4 dt=0.003 -> reference rk4 dt=0.003; 1 more moved only within "
+            "the timing noise (no change).") in pr.splitlines(), pr
+
+
 # ----------------------------------------------------------------------------- finding 7: a FIFO never blocks
 
 @pytest.mark.parametrize("kind", ["fifo", "device"])

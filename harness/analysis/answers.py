@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .pareto import ANY, ACCURACY_TARGETS, is_failed, scopes
+from .pareto import ANY, ACCURACY_TARGETS, is_failed, scopes, tied
 
 ANSWERS_FILE = "answers.csv"
 SEARCHED, LISTED = "searched", "listed, not searched"
@@ -180,19 +180,45 @@ def compute(out_dir: Path, failed: set | None = None) -> pd.DataFrame | None:
 
 def changed(a: pd.DataFrame | None, b: pd.DataFrame | None) -> list[dict]:
     """The answers that differ between two answers tables (A the reference): per (case, scope, target) of either,
-    {"case", "scope", "target", "a", "b"} with each side's method and setting (key), "-" for none or absent; in B's
-    order, then A's cells that B lacks."""
+    {"case", "scope", "target", "a", "b", "noise"} with each side's method and setting (key), "-" for no answer
+    (no engine) or a cell absent; in B's order, then A's cells that B lacks.
+
+    noise: the answer moved only within the timing noise, which is no change (`compare --format pr` says so and
+    counts it nowhere else): both sides answer, and A's answer's cost and B's answer's cost tie by the Pareto cells'
+    rule (pareto.tied: within the sum of their spreads, at least TIE_RTOL of the cheaper, never TIE_MAX_RATIO apart).
+    A rerun on one machine names another of the runs that tie (their timings vary run to run) at about the same
+    cost; an answer that went or came, or whose run became costlier beyond the noise (or stopped reaching the target,
+    so that a costlier one answers), is a change."""
     def cells(table) -> dict:
         if table is None:
             return {}
-        return {(r["case"], r["scope"], _target_key(r["target"])): (r, " ".join(x for x in key(r) if x) or "-")
-                for _, r in table.iterrows()}
+        return {(r["case"], r["scope"], _target_key(r["target"])):  # a cell without an answer (no engine) says "-"
+                (r, " ".join(x for x in key(r) if x) if _text(r["engine"]) else "-") for _, r in table.iterrows()}
 
     in_a, in_b = cells(a), cells(b)
     out = []
     for cell in [*in_b, *(c for c in in_a if c not in in_b)]:
-        row, said_b = in_b.get(cell, (None, "-"))
-        said_a = in_a.get(cell, (None, "-"))[1]
+        row_b, said_b = in_b.get(cell, (None, "-"))
+        row_a, said_a = in_a.get(cell, (None, "-"))
         if said_a != said_b:
-            out.append({"case": cell[0], "scope": cell[1], "target": float(cell[2]), "a": said_a, "b": said_b})
+            out.append({"case": cell[0], "scope": cell[1], "target": float(cell[2]), "a": said_a, "b": said_b,
+                        "noise": said_a != "-" and said_b != "-" and _costs_tie(row_a, row_b)})
     return out
+
+
+def folder_changes(a: Path, b: Path) -> list[dict]:
+    """changed() between two result directories' answers (read); none where either side is a baseline file, which
+    holds no answers."""
+    if not (Path(a).is_dir() and Path(b).is_dir()):
+        return []
+    return changed(read(a), read(b))
+
+
+def _costs_tie(row_a, row_b) -> bool:
+    """Whether two answers' costs (us_per_sim_s, with their spreads) tie: pareto.tied, the cheaper as the fastest."""
+    number = lambda value: float(value) if _finite(value) else math.nan  # noqa: E731
+    costs = sorted((number(row["us_per_sim_s"]), number(row.get("us_per_sim_s_spread"))) for row in (row_a, row_b))
+    if not all(math.isfinite(cost) and cost > 0 for cost, _ in costs):
+        return False
+    (fastest, fastest_spread), (cost, spread) = costs
+    return bool(tied(cost, spread, fastest, fastest_spread))

@@ -46,6 +46,17 @@ TIE_RTOL = 0.05
 # (issue 21: scipy_rk45 at 1690 µs/s, spread 2030, "tied" with Pinocchio euler at 263 and then won on evaluations).
 TIE_MAX_RATIO = 1.5
 
+
+def tied(cost, spread, fastest: float, fastest_spread: float):
+    """Whether a cost (a number or an array, with its spread) ties with the fastest's: within the timing noise (the
+    sum of the two spreads, a NaN spread counting as 0, and at least TIE_RTOL of the fastest's cost) and never more
+    than TIE_MAX_RATIO times the fastest. The one tie rule: the Pareto cells' (_cell) and compare's (answers.changed:
+    an answer that moved between two runs whose costs tie is timing noise, no change)."""
+    cost, spread = np.asarray(cost, dtype=float), np.asarray(spread, dtype=float)
+    fastest_spread = fastest_spread if math.isfinite(fastest_spread) else 0.0
+    noise = np.maximum(np.where(np.isnan(spread), 0.0, spread) + fastest_spread, TIE_RTOL * fastest)
+    return (cost - fastest <= noise) & (cost <= TIE_MAX_RATIO * fastest)
+
 _CANDIDATE_COLUMNS = ("case", "engine", "formulation", "integrator", "dt", "tolerance", "attitude_err",
                       "us_per_sim_s", "us_per_sim_s_spread", "rhs_per_sim_s", "steps", "source", "status")
 
@@ -151,14 +162,11 @@ def _cell(good: pd.DataFrame, excluded: pd.DataFrame, shaky: pd.DataFrame) -> di
         return {"engine": "", "formulation": "", "integrator": "", "source": source, "ties": "",
                 "not_recommended": "; ".join(_candidate(r) for _, r in excluded.nsmallest(3, "us_per_sim_s").iterrows())}
     fastest = good.loc[good["us_per_sim_s"].idxmin()]
-    cost = good["us_per_sim_s"].to_numpy(float)
-    fastest_spread = fastest["us_per_sim_s_spread"] if math.isfinite(fastest["us_per_sim_s_spread"]) else 0.0
-    noise = np.maximum(good["us_per_sim_s_spread"].fillna(0.0).to_numpy(float) + fastest_spread,
-                       TIE_RTOL * fastest["us_per_sim_s"])
-    tied = good[(cost - fastest["us_per_sim_s"] <= noise) & (cost <= TIE_MAX_RATIO * fastest["us_per_sim_s"])]
+    mates = good[tied(good["us_per_sim_s"].to_numpy(float), good["us_per_sim_s_spread"].to_numpy(float),
+                      float(fastest["us_per_sim_s"]), float(fastest["us_per_sim_s_spread"]))]
     # right-hand-side evaluations are comparable within one engine only: they decide among the fastest's engine's
     # tie-mates, and only where every one of them counts them (heyoka's taylor does not: a Taylor step has no stages)
-    same = tied[tied["engine"] == fastest["engine"]]
+    same = mates[mates["engine"] == fastest["engine"]]
     rhs = same["rhs_per_sim_s"].astype(float)
     rhs = rhs if rhs.notna().all() else pd.Series(0.0, index=same.index)
     best = same.loc[same.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
@@ -168,7 +176,7 @@ def _cell(good: pd.DataFrame, excluded: pd.DataFrame, shaky: pd.DataFrame) -> di
     best = twins.loc[min(twins.index, key=lambda i: _candidate_name(twins.loc[i]))]
     cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
     return {**{c: best.get(c, math.nan) for c in _CELL_COLUMNS},
-            "ties": "; ".join(_candidate(r) for i, r in tied.iterrows() if i != best.name),
+            "ties": "; ".join(_candidate(r) for i, r in mates.iterrows() if i != best.name),
             "not_recommended": "; ".join(_candidate(r) for _, r in cheaper_bad.nsmallest(3, "us_per_sim_s").iterrows())}
 
 

@@ -97,14 +97,23 @@ def _order(value: float) -> str:
 
 
 def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.DataFrame, orders: list[dict],
-             verdicts: list[dict], same_rows: bool) -> list[str]:
+             verdicts: list[dict], same_rows: bool, answers: list[dict] = ()) -> list[str]:
     """`compare --format pr`: at most PR_LINES lines of markdown, no image: the environment keys that differ, each
     accuracy metric's rows worse and better (lower is better), status changes, fitted orders that moved (nearer the
-    declared order is better) and verdicts that changed; one line when nothing differs at all."""
+    declared order is better), verdicts that changed and the answers (answers.changed) that changed; one line, that
+    B is identical to A, when nothing differs at all.
+
+    An answer that moved only within the timing noise (its `noise`: the two answers' costs tie by the Pareto rule,
+    pareto.tied) is no change: a rerun on one machine names another of the runs that tie, as its timings vary. It is
+    said as such (in the identical line too) and counted nowhere as a change; any other changed answer is a change:
+    the headline counts it, its line names it, and B is then not identical."""
     env = [r for r in environment_rows(env_a, env_b) if r[3] == DIFFERS]
-    if same_rows and not env and not orders and not verdicts:
+    real = [c for c in answers if not c["noise"]]
+    noise = len(answers) - len(real)
+    if same_rows and not env and not orders and not verdicts and not real:
+        moved = f" ({noise} moved only within the timing noise)" if noise else ""
         return [f"**stereodyn compare**: {_md(path_b)} is identical to {_md(path_a)} ({len(changes)} rows, the same "
-                "statuses, metrics, fitted orders, verdicts and environment, the date aside)."]
+                f"statuses, metrics, fitted orders, verdicts, answers{moved} and environment, the date aside)."]
     statuses = changes[changes["status_a"] != changes["status_b"]] if len(changes) else changes
     rank = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2, "-": 3}  # a row gone ("-") is the worst
     status_rows = [[label(r), r["status_a"], r["status_b"],
@@ -116,7 +125,8 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
         + sum(o["sign"] == "worse" for o in orders) + sum(v["sign"] == "worse" for v in verdicts)
     lines = [f"**stereodyn compare**: B {_md(path_b)} against A {_md(path_a)}: {len(changes)} rows; "
              f"{'**' + str(worse) + ' changes for the worse**' if worse else 'no change for the worse'} "
-             f"(a metric beyond {PR_RATIO:g}x either way, an order moved by more than {ORDER_CHANGE:g}).", ""]
+             f"(a metric beyond {PR_RATIO:g}x either way, an order moved by more than {ORDER_CHANGE:g})"
+             + (f"; {_answers(len(real))} changed (What to use)" if real else "") + ".", ""]
     if env:
         lines += [f"Environment: {len(env)} key{'s differ' if len(env) != 1 else ' differs'}", "",
                   *_capped(["key", "A", "B"], [[r[0], _short(r[1]), _short(r[2])] for r in env],
@@ -147,29 +157,31 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
         rows = [[v["name"], v["a"], v["b"], v["sign"]] for v in verdicts]
         lines += [f"Verdicts: {len(verdicts)} changed", "",
                   *_capped(["verdict", "A", "B", ""], rows, PR_LISTED["verdicts"], "(verdicts.csv)"), ""]
-    lines.append("Every row: compare.md and compare.csv beside this summary.")
+    last = "Every row: compare.md and compare.csv beside this summary."
+    if answers:  # one line, in place of the last one where the sections fill PR_LINES
+        line = answer_line(real, noise)
+        lines += [line, "", last] if len(lines) + 3 <= PR_LINES else [line]
+    else:
+        lines.append(last)
     assert "\n".join(lines).count("\n") < PR_LINES, len(lines)  # PR_LISTED bounds it; _md keeps a value one line
     return lines
 
 
-def with_answer_changes(summary: list[str], path_a: Path, path_b: Path, listed: int = 4) -> list[str]:
-    """The PR summary with one line of the answers (answers.csv, What to use) that changed between two result
-    folders, before its last line (within PR_LINES: in place of that line where the summary is full); unchanged for
-    a baseline file, which holds no answers, and for two folders whose answers agree."""
-    from ..analysis import answers
+def _answers(count: int) -> str:
+    return f"{count} answer{'s' if count != 1 else ''}"
 
-    if not (Path(path_a).is_dir() and Path(path_b).is_dir()):
-        return summary
-    found = answers.changed(answers.read(path_a), answers.read(path_b))
-    if not found:
-        return summary
+
+def answer_line(real: list[dict], noise: int, listed: int = 4) -> str:
+    """The PR summary's line of the answers (answers.csv, What to use) that changed (`real`: answers.changed's
+    entries that are no timing noise), and how many more moved only within the timing noise (no change)."""
+    moved = f"{noise} more moved only within the timing noise (no change)" if noise else ""
+    if not real:
+        return (f"What to use (answers.csv): no answer changed beyond the timing noise ({noise} moved between runs "
+                "whose costs tie).")
     said = "; ".join(f"{_md(c['case'])} {_md(c['scope'])} {c['target']:.0e}: {_md(c['a'])} -> {_md(c['b'])}"
-                     for c in found[:listed])  # each name one line, shown as itself (_md)
-    line = f"What to use (answers.csv): {len(found)} answer{'s' if len(found) != 1 else ''} changed: {said}" + \
-        (f"; {len(found) - listed} more" if len(found) > listed else "")
-    if len(summary) + 2 <= PR_LINES:
-        return [*summary[:-1], line, "", summary[-1]]
-    return [*summary[:-1], line]
+                     for c in real[:listed])  # each name one line, shown as itself (_md)
+    return (f"What to use (answers.csv): {_answers(len(real))} changed: {said}"
+            + (f"; {len(real) - listed} more" if len(real) > listed else "") + (f"; {moved}" if moved else "") + ".")
 
 
 def figure(changes: pd.DataFrame) -> bytes | None:
@@ -207,6 +219,7 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
     directory), with pr also compare-pr.md (pr_lines); return the two pages and the headline lines for the terminal
     (with pr: the lines of compare-pr.md)."""
     from . import html, index
+    from ..analysis import answers
     from ..run.results import write_atomic
 
     if out is None:
@@ -231,8 +244,8 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
     if pr:
         summary = pr_lines(path_a, path_b, env_a, env_b, changes, order_changes(load_orders(path_a),
                                                                                 load_orders(path_b)),
-                           verdict_changes(path_a, path_b), identical(table_a, table_b))
-        summary = with_answer_changes(summary, path_a, path_b)
+                           verdict_changes(path_a, path_b), identical(table_a, table_b),
+                           answers.folder_changes(path_a, path_b))
         write_atomic(out / PR_FILE, "\n".join(summary) + "\n")
     if (out / index.INDEX_FILE).is_file():  # a result folder with its index (DIR/README.md) now holds these too
         index.write(out)
