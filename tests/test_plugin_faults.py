@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stereodyn.harness import integrators
+from stereodyn.harness import budget, integrators
 from stereodyn.harness.engines.base import Offer
 from stereodyn.harness.errors import InternalError
 from stereodyn.harness.integrators import registry
@@ -30,7 +30,7 @@ from stereodyn.harness.integrators.base import metadata_problem
 from stereodyn.harness.integrators.lie import ExplicitRK
 from stereodyn.harness.integrators.tableau import CLASSICAL_RK4
 from stereodyn.harness.report import sections
-from stereodyn.harness.run import measure, pool as run_pool
+from stereodyn.harness.run import measure, pool as run_pool, processes
 from stereodyn.harness.run.spec import RunKey
 from stereodyn.harness.run.workers import TaskEnded, WatchedPool, WorkerDied
 from stereodyn.harness import scenes
@@ -88,7 +88,8 @@ def test_what_a_plugin_starts_in_a_worker_dies_with_the_worker():
     killed). Each worker leads its own process group: a worker that ends kills the rest of it, the parent kills the
     group of a worker it ends, and a forked child has the parent-death signal on the worker. A child that left the
     group (Popen(process_group=0), issue 46's third attack, B2) is the worker's child: killed with the group while
-    the worker lives (at the pool's end, or where the parent ends a worker); a worker that died has left it to init.
+    the worker lives (at the pool's end, or where the parent ends a worker); the orphans of a worker that died are
+    the next test's.
     Break-checked: without the children in _group_members the child apart outlives the pool; a 1 s sleep after the
     shutdown's join failed it when the parent killed the leftovers there (CI, stop 51: the replaced worker, a child
     of the pool's thread, died with that thread and left its child apart to init before the parent looked)."""
@@ -107,6 +108,67 @@ def test_what_a_plugin_starts_in_a_worker_dies_with_the_worker():
     finally:
         pool.shutdown()  # the pool's thread kills what the tasks left before it ends (and the worker at its exit)
     assert _gone(left), [p for p in left if _alive(p)]
+
+
+ORPHAN_S = 5.0  # the kill is sent before the task's failure or the pool's end is seen: milliseconds, idle
+
+
+def _stat(pid: int) -> list[str]:
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()  # after the name: state, ppid, pgrp, sid
+
+
+def _read_pids(path: Path) -> list[int]:
+    return [int(p) for p in path.read_text().split()]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_the_orphans_a_plugin_leaves_die_with_its_worker_at_the_end_and_when_it_dies(tmp_path):
+    """Issue 46, fourth attack, F7: `sh -c 'setsid sleep 300 &'` left that sleep alive after the sweep: its sh
+    exited, so it was init's, in no group or session of the worker. A worker is their subreaper (the orphan's parent
+    is the worker) and answers for all its descendants, whatever group or session (the orphan's own child, in a
+    session of its own, is neither the worker's child nor in a group it leads). A worker that exits abruptly
+    (os._exit: no end_group) has left them to init: the parent finds them by the worker's mark in their environment.
+    The pool's end kills its replacement's. Break-checked: without the subreaper call the orphan's parent is init
+    (and, that check left out, both outlive the pool's end); without the closure _group_members misses the orphan's
+    child (the kills' later scans still catch it once it is the worker's orphan); without the mark the abrupt end
+    leaves both alive."""
+    pool = WatchedPool(1, run_pool._init_worker, (None,))  # budgets: none
+    try:
+        worker = pool.submit(faulty_tasks.pid).result(timeout=120)
+        orphans = pool.submit(faulty_tasks.starts_orphans).result(timeout=120)
+        assert all(_alive(p) for p in orphans), orphans
+        orphan, child = orphans
+        assert [int(f) for f in _stat(orphan)[1:4]] == [worker, orphan, orphan]  # the worker's, a session of its own
+        assert [int(f) for f in _stat(child)[1:4]] == [orphan, child, child]
+        assert set(orphans) <= set(processes._group_members(worker))  # what the worker answers for, by no mark
+        path = tmp_path / "pids"
+        failure = pool.submit(faulty_tasks.orphans_then_exits, str(path)).exception(timeout=120)
+        assert isinstance(failure, WorkerDied) and str(failure) == "worker process died (exit code 5)", repr(failure)
+        died_with = orphans + _read_pids(path)  # an earlier task's too: they were the worker's
+        assert _gone(died_with, ORPHAN_S), [(p, _stat(p)) for p in died_with if _alive(p)]
+        orphans = pool.submit(faulty_tasks.starts_orphans).result(timeout=120)  # on the worker that replaced it
+        assert all(_alive(p) for p in orphans), orphans
+    finally:
+        pool.shutdown()
+    assert _gone(orphans, ORPHAN_S), [(p, _stat(p)) for p in orphans if _alive(p)]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_the_orphans_a_plugin_leaves_die_with_a_worker_the_parent_ends(tmp_path):
+    """F7 where the parent ends the worker: past its budget (the worker's group and descendants are killed while it
+    lives, before the worker), and pool.kill() (Ctrl-C, an error)."""
+    pool = WatchedPool(1, run_pool._init_worker, (None,))  # budgets: none but the task's own
+    try:
+        path = tmp_path / "pids"
+        failure = pool.submit(faulty_tasks.orphans_then_hangs, str(path), 0.2).exception(timeout=120)
+        assert isinstance(failure, budget.BudgetExceeded), repr(failure)
+        ended = _read_pids(path)
+        assert _gone(ended, ORPHAN_S), [(p, _stat(p)) for p in ended if _alive(p)]
+        orphans = pool.submit(faulty_tasks.starts_orphans).result(timeout=120)
+        assert all(_alive(p) for p in orphans), orphans
+    finally:
+        pool.kill()
+    assert _gone(orphans, ORPHAN_S), [(p, _stat(p)) for p in orphans if _alive(p)]
 
 
 # --- 2 and the smaller finding: every trajectory through one gate in measure
@@ -703,6 +765,72 @@ def test_a_plugin_never_runs_in_the_command_so_its_children_die_with_the_command
     assert len(forked) >= 4 and command.pid not in {forker for _, forker in forked}, (command.pid, forked)
     children = [child for child, _ in forked]
     assert _gone(children), [p for p in children if _alive(p)]
+
+
+DAEMONS = '''
+import os, subprocess
+from stereodyn.harness import integrators
+from stereodyn.harness.engines.base import About, Engine, Timing
+
+
+class Simulation:
+    def __init__(self, how, case, dt):
+        from stereodyn.harness.engines.pinocchio import PinocchioSimulation
+        self.how, self.inner = how, PinocchioSimulation(case, integrators.get("rk4")(), float(dt))
+
+    def run(self, grid):
+        traj = self.inner.run(grid)
+        said = subprocess.run(["sh", "-c", "setsid sleep 300 </dev/null >/dev/null 2>&1 & echo $!"],
+                              capture_output=True, text=True).stdout
+        with open(os.environ["DAEMON_PIDS"], "a") as out:
+            out.write(said)
+        if self.how == "daemon_then_exit":
+            os._exit(0)
+        return traj
+
+
+def engine(how):
+    class Daemon(Engine):
+        name = how
+        about = About(state_space="lie")
+        timing = Timing(pass_us=3.0)
+
+        def integrators(self):
+            return ("rk4",)
+
+        def unsupported(self, case):
+            return None
+
+        def prepare(self, case, integrator, dt):
+            return Simulation(how, case, dt)
+    return Daemon
+
+
+daemon = engine("daemon")
+daemon_then_exit = engine("daemon_then_exit")
+'''
+
+
+@pytest.mark.slow  # ~8 s: the default suite's pool tests above measure the same on a WatchedPool
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_daemon_a_plugin_starts_is_gone_when_the_command_ends(tmp_path):
+    """Issue 46, fourth attack, F7 as found: `sh -c 'setsid sleep 300 &'` in run() left that sleep alive after
+    `stereodyn run` ended (every one of them), and so did one whose worker then died by os._exit. None is alive the
+    moment the command has ended. Break-checked: with processes.py and workers.py as before F7 every one is alive."""
+    env = _package(tmp_path / "site", "daemons", {"daemons.py": DAEMONS},
+                   {"stereodyn.engines": {how: f"daemons:{how}" for how in ("daemon", "daemon_then_exit")}})
+    env["DAEMON_PIDS"] = str(tmp_path / "daemons")
+    result = subprocess.run([sys.executable, "-m", "stereodyn", "run", *QUICK, "--engines", "daemon,daemon_then_exit",
+                             "--out", str(tmp_path / "out")], capture_output=True, text=True, env=env, cwd=tmp_path,
+                            timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    rows = pd.read_csv(tmp_path / "out" / "results.csv").set_index("engine")
+    assert rows.loc["daemon", "status"] == "ok" and rows.loc["daemon_then_exit", "status"] == "failed", rows
+    daemons = [int(pid) for pid in (tmp_path / "daemons").read_text().split()]
+    left = [p for p in daemons if _alive(p)]
+    for pid in left:  # not to leave them to the next test
+        os.kill(pid, signal.SIGKILL)
+    assert len(daemons) >= 2 and not left, (left, daemons)
 
 
 PKG = "hostile_loads" + "/"  # files the test writes, not the repository's (tests/test_docs.py reads paths)

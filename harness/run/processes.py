@@ -13,11 +13,20 @@ as they do. A worker is tied to its parent from its first moment, whatever the s
   inside a long C call that holds the GIL) and a thread that polls the parent every PARENT_POLL_S (elsewhere, and as a
   second line).
 A worker leads a process group of its own (own_process_group), so that what a plug-in starts in it dies with it:
-the parent kills the worker's group where it ends a worker (harness/run/workers.py: past a budget, on Ctrl-C, once
-one died), a worker that exits kills the rest of its group first (end_group), and a process a plug-in forks there
-(os.fork, multiprocessing's fork) gets the parent-death signal on the worker, so that it dies with the worker even when
-the worker is SIGKILLed with the command. A child that leaves the group (Popen(process_group=0), setsid) is killed
-with it while the worker lives (_group_members); once the worker died, it and any grandchild that left are init's.
+the parent kills what the worker answers for where it ends a worker (harness/run/workers.py: past a budget, on Ctrl-C,
+once one died), a worker that exits kills it first (end_group), and a process a plug-in forks there (os.fork,
+multiprocessing's fork) gets the parent-death signal on the worker, so that it dies with the worker even when the
+worker is SIGKILLed with the command. What a worker answers for (_group_members) is every descendant, whatever group or
+session it moved to (Popen(process_group=0), setsid), and every member of a group one of them leads: a worker is the
+child subreaper of what it starts (Linux PR_SET_CHILD_SUBREAPER), so an orphan (`sh -c 'setsid cmd &'`, a double
+fork) is the worker's child, not init's, while the worker lives. A worker that died abruptly (os._exit, a crash, the
+memory killer) has left its orphans to init; the parent still finds those that carry the worker's mark in their
+environment (WORKER_ENV, inherited by what it execs: /proc/PID/environ) when it removes that worker. Out of reach
+still: an orphan of such a worker that was started with an environment of its own (Popen(env=...) without the mark)
+or forked outside Python (no at-fork hook, and a fork's environ is the worker's start-up one, unmarked), and every
+orphan when the command itself is SIGKILLed (its workers die by the parent-death signal, nobody scans). An orphan that
+ends by itself is a zombie of its worker until the worker exits (init reaped it before): the worker cannot tell it
+from a child whose exit status a plug-in's code will ask for.
 Ctrl-C reaches the whole process group; the parent handles it (stops the sweep, ends its workers). A worker ignores it
 from its start: the parent blocks SIGINT while it starts workers (the mask survives fork and exec; the kernel holds a
 blocked signal, so the parent's own Ctrl-C meanwhile is delivered when the block ends, never dropped) and the worker
@@ -42,20 +51,27 @@ PARENT_ENV = "STEREODYN_POOL_PARENT"  # the pid of the process that starts worke
 # The multiprocessing resource tracker, when its clients were killed, warns about the semaphores they left (it cleans
 # them up itself): noise for a user who pressed Ctrl-C or whose run was killed. It inherits the environment.
 _TRACKER_WARNING = "ignore:resource_tracker:UserWarning"
+WORKER_ENV = "STEREODYN_POOL_WORKER"  # a worker's mark (own_process_group), inherited by what it starts
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
+_PR_SET_CHILD_SUBREAPER = 36
+_KILL_ROUNDS = 3  # end_group_of's scans at most: what a killed process forked meanwhile is the next scan's
 
 
-def _parent_death_signal() -> bool:
-    """Ask the kernel to SIGKILL this process when its parent dies (Linux); False where that is not available."""
+def _prctl(option: int, value: int) -> bool:
     if not sys.platform.startswith("linux"):
         return False
     try:
         import ctypes
 
         libc = ctypes.CDLL(None, use_errno=True)
-        return libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+        return libc.prctl(option, value, 0, 0, 0) == 0
     except (OSError, AttributeError):
         return False
+
+
+def _parent_death_signal() -> bool:
+    """Ask the kernel to SIGKILL this process when its parent dies (Linux); False where that is not available."""
+    return _prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
 def _watch_pid(parent: int) -> None:
@@ -74,9 +90,14 @@ def _watch_sentinel(sentinel: int) -> None:
     os._exit(1)
 
 
-def own_process_group() -> None:
-    """A pool worker's first act: lead a process group of its own (the parent kills it whole: kill_group), and give
-    every process it forks from Python the parent-death signal on it (a plug-in's os.fork)."""
+def own_process_group(marker: str | None = None) -> None:
+    """A pool worker's first act: lead a process group of its own (the parent kills it whole: kill_group), be the
+    subreaper of what it starts (an orphan is its child, not init's: _group_members finds it), give every process it
+    forks from Python the parent-death signal on it (a plug-in's os.fork), and put its marker in the environment of
+    what it starts (WORKER_ENV: the parent finds those once the worker died abruptly)."""
+    if marker is not None:
+        os.environ[WORKER_ENV] = marker
+    _prctl(_PR_SET_CHILD_SUBREAPER, 1)
     if not hasattr(os, "setpgid"):
         return
     try:
@@ -86,24 +107,49 @@ def own_process_group() -> None:
     os.register_at_fork(after_in_child=_parent_death_signal)
 
 
-def _group_members(leader: int) -> list[int]:
-    """The processes a worker (the leader of its group) answers for: its group's, its children that left the group
-    (subprocess's Popen(process_group=0) sets the group in the child without Python's at-fork hooks, so without the
-    parent-death signal too) and their groups (Linux: /proc; elsewhere none are known)."""
-    table = []
+def _marked(pid: str, mark: bytes) -> bool:
     try:
-        entries = list(Path("/proc").iterdir())
+        with open(f"/proc/{pid}/environ", "rb") as environ:
+            return mark in environ.read().split(b"\0")
+    except OSError:  # gone, or another user's
+        return False
+
+
+def _group_members(leader: int, marker: str | None = None) -> list[int]:
+    """The live processes a worker (leader) answers for, from one scan of /proc (Linux; elsewhere none are known):
+    its descendants, whatever group or session they moved to (the orphans among them are its children: it is their
+    subreaper), the members of its group and of any group one of them leads, and theirs in turn; with a marker also
+    the processes whose environment carries it (WORKER_ENV) and theirs. Never the calling process."""
+    try:
+        entries = [entry.name for entry in Path("/proc").iterdir() if entry.name.isdigit()]
     except OSError:
         return []
-    for entry in entries:
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except (OSError, IndexError):
-                continue
-            table.append((int(entry.name), int(fields[1]), int(fields[2])))  # after the name: state, ppid, pgrp
-    groups = {leader} | {pid for pid, ppid, group in table if ppid == leader and group == pid}
-    return [pid for pid, ppid, group in table if group in groups or ppid == leader]
+    mark = f"{WORKER_ENV}={marker}".encode() if marker is not None else None
+    alive, found = set(), {leader}
+    children: dict[int, list[int]] = {}
+    members: dict[int, list[int]] = {}
+    for name in entries:
+        try:
+            with open(f"/proc/{name}/stat", "rb") as stat:
+                state, ppid, group = stat.read().rsplit(b")", 1)[1].split()[:3]  # after the name
+        except (OSError, ValueError):
+            continue
+        pid = int(name)
+        children.setdefault(int(ppid), []).append(pid)
+        members.setdefault(int(group), []).append(pid)
+        if state != b"Z":  # a zombie is walked through (a group it led lives on), not killed
+            alive.add(pid)
+        if mark is not None and _marked(name, mark):
+            found.add(pid)
+    todo = list(found)
+    while todo:  # the closure over "child of" and "member of a group led by"
+        pid = todo.pop()
+        for other in children.get(pid, []) + members.get(pid, []):
+            if other not in found:
+                found.add(other)
+                todo.append(other)
+    found.discard(os.getpid())
+    return sorted(found & alive)
 
 
 def end_group() -> None:
@@ -114,21 +160,28 @@ def end_group() -> None:
         end_group_of(me)
 
 
-def end_group_of(leader: int) -> None:
+def end_group_of(leader: int, marker: str | None = None) -> None:
     """Kill the processes leader answers for (_group_members) but the leader (the pool's thread at shutdown, before it
-    ends: a worker that thread started dies by its parent-death signal when it ends, before it can end its group)."""
-    for pid in _group_members(leader):
-        if pid != leader:
+    ends: a worker that thread started dies by its parent-death signal when it ends, before it can end its group).
+    Scanned again after a kill: what a process forked between the scan and its kill is an orphan of the worker now."""
+    killed = {leader}
+    for _ in range(_KILL_ROUNDS):
+        left = [pid for pid in _group_members(leader, marker) if pid not in killed]
+        if not left:
+            return
+        for pid in left:
             try:
                 os.kill(pid, signal.SIGKILL)
             except OSError:
                 pass
+        killed.update(left)
 
 
-def kill_group(leader: int) -> None:
-    """The parent's end of a worker: SIGKILL what it answers for (end_group_of), then its process group (the worker,
-    as long as it is not reaped, keeps the group's id from being reused); nothing where it has none."""
-    end_group_of(leader)
+def kill_group(leader: int, marker: str | None = None) -> None:
+    """The parent's end of a worker: SIGKILL what it answers for (end_group_of; marker: the worker's WORKER_ENV, for
+    one that died), then its process group (the worker, as long as it is not reaped, keeps the group's id from being
+    reused); nothing where it has none."""
+    end_group_of(leader, marker)
     if hasattr(os, "killpg"):
         try:
             os.killpg(leader, signal.SIGKILL)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import atexit
 import multiprocessing
 import os
+import secrets
 import signal
 import sys
 import threading
@@ -81,12 +82,14 @@ class Affinity:
 
 
 class _Worker:
-    """A worker process, the parent's end of its pipe, whether it is ready (initialized), its task (future), the
-    deadline it reported and the affinity keys of the tasks it was given (paid: the start-ups it has paid for)."""
+    """A worker process, the parent's end of its pipe, its mark (the environment of what it starts carries it:
+    processes.WORKER_ENV), whether it is ready (initialized), its task (future), the deadline it reported and the
+    affinity keys of the tasks it was given (paid: the start-ups it has paid for)."""
 
     def __init__(self, context, initializer, initargs):
         self.conn, child = context.Pipe()
-        self.process = context.Process(target=_serve, args=(child, initializer, initargs), daemon=False)
+        self.marker = secrets.token_hex(8)
+        self.process = context.Process(target=_serve, args=(child, initializer, initargs, self.marker), daemon=False)
         self.process.start()
         child.close()
         self.ready = False
@@ -153,7 +156,7 @@ class WatchedPool:
         with self._lock:
             self._closing = True
         for worker in list(self._workers):
-            kill_group(worker.process.pid)  # the worker and what it started
+            kill_group(worker.process.pid, worker.marker)  # the worker and what it started
             worker.process.kill()
         self._wake()
 
@@ -174,7 +177,7 @@ class WatchedPool:
                 pass
         except BaseException as exc:  # a bug here must not leave callers waiting forever
             for worker in self._workers:
-                kill_group(worker.process.pid)
+                kill_group(worker.process.pid, worker.marker)
                 worker.process.kill()
             self._fail_all(exc)
             raise
@@ -222,6 +225,7 @@ class WatchedPool:
         for worker in list(self._workers):
             if worker.future is not None and worker.ends() is not None and now > worker.ends():
                 _, what, seconds = worker.deadline
+                kill_group(worker.process.pid)  # first: while it lives, its orphans are its children
                 worker.process.kill()
                 self._remove(worker, EndedPastBudget(what, seconds, budget.grace(seconds)))
         return True
@@ -295,7 +299,9 @@ class WatchedPool:
         """A dead (or killed) worker: its task fails with `failure` (None: WorkerDied, how it ended); _hand_out starts another when tasks wait. One
         that died before it was ready (its start-up fails) while no other is ready fails the queued tasks too, rather
         than be replaced forever."""
-        kill_group(worker.process.pid)  # what it started (a plug-in's children), while its pid holds the group's id
+        # What it started (a plug-in's children), while its pid holds the group's id; one that died abruptly has left
+        # its orphans to init: those its mark finds.
+        kill_group(worker.process.pid, worker.marker)
         worker.process.join()
         failure = failure or died(worker.process.exitcode)
         worker.conn.close()
@@ -312,9 +318,9 @@ class WatchedPool:
 
 
 # ---------------------------------------------------------------------------------------------------- in the worker
-def _serve(conn, initializer, initargs) -> None:
+def _serve(conn, initializer, initargs, marker: str | None = None) -> None:
     """A worker's life: its initializer, then one task at a time until told to stop (None) or the parent is gone."""
-    own_process_group()  # before any plug-in's code: what it starts is in this worker's group
+    own_process_group(marker)  # before any plug-in's code: what it starts is this worker's to end
     initializer(*initargs)
     sending = threading.Lock()  # a plug-in's own thread may enter a budget too
 
