@@ -87,11 +87,11 @@ def check_run_arguments(argv: list[str]) -> None:
     failed` row per environment after minutes of installs (issue 46's fourth attack, F6). Only where every environment
     runs this stereodyn (no --stereodyn): another version may take other arguments. Engine and integrator names are
     the environment's to judge (its engines are its packages')."""
-    from . import run
     from ..scenes.cases import CaseError
+    from .dispatch import command
 
     top = _RunParser(prog="stereodyn")
-    run.add_parser(top.add_subparsers(dest="command", required=True))
+    command("run").add_parser(top.add_subparsers(dest="command", required=True))  # by name, as the entry point does
     parsed = top.parse_args(["run", *argv])
     if parsed.certify and parsed.no_certify:
         raise BadInput("matrix: after --: --certify and --no-certify: give one (certifying is the default)")
