@@ -88,7 +88,8 @@ def _started_matrix(offline, out: Path, tied: bool) -> tuple[subprocess.Popen, l
 @pytest.mark.parametrize("sig, tied", [(signal.SIGTERM, False), (signal.SIGINT, False), (signal.SIGKILL, True)])
 def test_stopping_the_matrix_ends_its_run_and_what_the_run_started(offline, sig, tied):
     """SIGTERM or SIGINT to the matrix's pid alone (not its group): the run and the run's own child, untied, end with
-    it, and the last line says to rerun the same matrix command (exit 130). SIGKILL: the run ends by its parent-death
+    it, and the last line says to rerun the same matrix command (exit 130 "interrupted"; SIGTERM 143 "terminated
+    (SIGTERM)", as every command since issue 46's fifth attack). SIGKILL: the run ends by its parent-death
     signal, and the run's child, tied to the run as a pool worker is, with it (before: both ran on, writing)."""
     out = offline / "out"
     matrix, pids = _started_matrix(offline, out, tied)
@@ -97,10 +98,11 @@ def test_stopping_the_matrix_ends_its_run_and_what_the_run_started(offline, sig,
         _, err = matrix.communicate(timeout=60)
         assert _gone(pids), [pid for pid in pids if _alive(pid)]
         if sig != signal.SIGKILL:
-            assert matrix.returncode == 130, err
+            stopped = "terminated (SIGTERM)" if sig == signal.SIGTERM else "interrupted"
+            assert matrix.returncode == (143 if sig == signal.SIGTERM else 130), err
             # "without --rerun": with it, following the line word for word redid every finished run (issue 46's
             # third attack, B4); a rerun without it resumes (test_a_rerun_resumes_the_interrupted_run_...)
-            assert err.strip().splitlines()[-1] == ("stereodyn: interrupted; the environments built and the runs "
+            assert err.strip().splitlines()[-1] == (f"stereodyn: {stopped}; the environments built and the runs "
                                                     "finished are kept (rerun the same matrix command, without "
                                                     "--rerun, to go on: it reuses them)"), err
     finally:

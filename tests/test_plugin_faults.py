@@ -786,6 +786,9 @@ class Simulation:
             out.write(said)
         if self.how == "daemon_then_exit":
             os._exit(0)
+        if self.how == "daemon_then_hang":
+            import time
+            time.sleep(120)
         return traj
 
 
@@ -808,6 +811,7 @@ def engine(how):
 
 daemon = engine("daemon")
 daemon_then_exit = engine("daemon_then_exit")
+daemon_then_hang = engine("daemon_then_hang")
 '''
 
 
@@ -831,6 +835,34 @@ def test_a_daemon_a_plugin_starts_is_gone_when_the_command_ends(tmp_path):
     for pid in left:  # not to leave them to the next test
         os.kill(pid, signal.SIGKILL)
     assert len(daemons) >= 2 and not left, (left, daemons)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_sigterm_ends_the_run_and_what_its_plugins_started(tmp_path):
+    """Issue 46's fifth attack, finding 1: SIGTERM of `run` (a CI runner's cancel) ended the command alone, exit 143
+    with nothing said, and a plug-in's setsid'd daemon lived on (the workers died by their parent-death signal, and
+    nobody ended what they started); a matrix's SIGTERM or Ctrl-C, which SIGTERMs its run, the same. SIGTERM is now
+    Ctrl-C's: the workers and their descendants are ended, one "terminated" line, exit 143. Break-checked: without
+    the SIGTERM handler of harness.cli.dispatch the daemon is alive and nothing is said."""
+    env = _package(tmp_path / "site", "daemons", {"daemons.py": DAEMONS},
+                   {"stereodyn.engines": {"daemon_then_hang": "daemons:daemon_then_hang"}})
+    pids = tmp_path / "daemons"
+    env["DAEMON_PIDS"] = str(pids)
+    command = subprocess.Popen([sys.executable, "-m", "stereodyn", "run", *QUICK, "--engines", "daemon_then_hang",
+                                "--out", str(tmp_path / "out")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, env=env, cwd=tmp_path)
+    deadline = time.monotonic() + 120
+    while not (pids.exists() and pids.read_text().strip()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    command.send_signal(signal.SIGTERM)
+    _, err = command.communicate(timeout=60)
+    daemons = [int(pid) for pid in pids.read_text().split()]
+    gone = _gone(daemons)
+    for pid in [p for p in daemons if _alive(p)]:  # not to leave them to the next test
+        os.kill(pid, signal.SIGKILL)
+    assert command.returncode == 143, err[-3000:]
+    assert err.splitlines()[-1].startswith("stereodyn: terminated (SIGTERM); every finished run is stored"), err
+    assert daemons and gone, daemons
 
 
 PKG = "hostile_loads" + "/"  # files the test writes, not the repository's (tests/test_docs.py reads paths)

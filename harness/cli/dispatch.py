@@ -1,6 +1,6 @@
 """`stereodyn`'s entry point (harness.cli.main): assemble the commands, load them inside the Ctrl-C handling, parse, run the command,
 and turn its errors into exit codes (DESIGN §5): 0 done (failed runs are data), 1 check failed, 2 bad input, 3 a bug
-in stereodyn (harness/errors.py), 130 stopped."""
+in stereodyn (harness/errors.py), 130 stopped by Ctrl-C, 143 by SIGTERM."""
 from __future__ import annotations
 
 import argparse
@@ -85,6 +85,9 @@ def main(argv: list[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else 2
     streams = sys.stdout, sys.stderr
     sys.stdout, sys.stderr = _PipeSafe(sys.stdout), _PipeSafe(sys.stderr)
+    # SIGTERM (a CI runner's cancel, `kill`) as Ctrl-C: the workers and what they started end with the command
+    terminate = signal.signal(signal.SIGTERM, processes.on_interrupt) \
+        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL else None
     try:
         code = command(args.command).main(args)
         sys.stdout.flush()  # here, not at exit: a reader gone (`| head -1`) is met while the status is still ours
@@ -104,7 +107,12 @@ def main(argv: list[str] | None = None) -> int:
             return 3
     finally:
         sys.stdout, sys.stderr = streams
+        if terminate is not None:
+            signal.signal(signal.SIGTERM, terminate)
     if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
+        if processes.terminated():
+            print(f"stereodyn: terminated (SIGTERM){INTERRUPTED.get(args.command, '')}", file=sys.stderr)
+            return 143
         print(f"stereodyn: interrupted{INTERRUPTED.get(args.command, '')}", file=sys.stderr)
         return 130
     return code

@@ -9,7 +9,6 @@ import json
 import math
 import re
 import shutil
-import signal
 import subprocess
 from contextlib import ExitStack
 from pathlib import Path
@@ -139,7 +138,7 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
     with open(log, "a" if resume else "w") as out:
         done = envs.owned(command(environment.python, argv + (["--resume"] if resume else []), folder), stdout=out,
                           stderr=subprocess.STDOUT)
-    if done.returncode == 130:  # interrupted there: the matrix is too
+    if done.returncode in (130, 143):  # interrupted or terminated there: the matrix is too
         raise KeyboardInterrupt
     if done.returncode == 3:  # a bug in stereodyn is never a row (harness/errors.py), in an environment's run neither
         from ..errors import InternalError
@@ -179,11 +178,6 @@ def add_parser(commands) -> None:
     matrix.set_defaults(run_args=None)
 
 
-def _terminated(signum, frame) -> None:
-    """SIGTERM of the matrix: as Ctrl-C, so that the run or install under way is ended with it (envs.owned)."""
-    raise KeyboardInterrupt
-
-
 def main(args) -> int:
     from ..run import environments as envs
     from ..run.store import folder_lock
@@ -199,12 +193,9 @@ def main(args) -> int:
     except envs.UvMissing as exc:
         raise BadInput(str(exc)) from None
     out = output_folder(args.out, "--out")
-    previous = signal.signal(signal.SIGTERM, _terminated)
-    try:
-        with folder_lock(out):  # one matrix at a time in OUT: its runs' folders are its own
-            return _matrix(args, matrix, argv, out)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    # SIGTERM is Ctrl-C's (harness.cli.dispatch): the run or install under way ends with the matrix (envs.owned)
+    with folder_lock(out):  # one matrix at a time in OUT: its runs' folders are its own
+        return _matrix(args, matrix, argv, out)
 
 
 def _matrix(args, matrix: list, argv: list[str], out: Path) -> int:

@@ -248,7 +248,7 @@ def starting_workers() -> Iterator[None]:
 
 
 # ------------------------------------------------------------------------------------------------------- Ctrl-C
-_interrupts: list[float] = []  # monotonic times of the Ctrl-Cs this process took (on_interrupt)
+_interrupts: list[int] = []  # the signals (SIGINT, SIGTERM) this process took, in order (on_interrupt)
 
 
 def interrupted_while_loading(signum, frame) -> None:
@@ -258,11 +258,18 @@ def interrupted_while_loading(signum, frame) -> None:
 
 
 def on_interrupt(signum, frame) -> None:
-    """The command's SIGINT handler: remember the interrupt, then raise KeyboardInterrupt as Python's own does. An
-    SDK that swallows or rewraps the KeyboardInterrupt (pybind11 turns one during a module's init into ImportError:
-    "initialization failed") cannot make the command end as if nothing happened: it ends with 130 (harness.cli)."""
-    _interrupts.append(time.monotonic())
+    """The command's SIGINT and SIGTERM handler: remember the signal, then raise KeyboardInterrupt as Python's own
+    does for SIGINT, so that a SIGTERM ends the workers and what they started as Ctrl-C does (its default ended the
+    command alone: a plug-in's detached child outlived it; issue 46's fifth attack). An SDK that swallows or rewraps
+    the KeyboardInterrupt (pybind11 turns one during a module's init into ImportError: "initialization failed")
+    cannot make the command end as if nothing happened: it ends with 130, or 143 for SIGTERM (harness.cli)."""
+    _interrupts.append(signum)
     raise KeyboardInterrupt
+
+
+def terminated() -> bool:
+    """Whether the last signal this process took was SIGTERM (on_interrupt): the command ends with 143, not 130."""
+    return bool(_interrupts) and _interrupts[-1] == signal.SIGTERM
 
 
 def forget_interrupts() -> None:
@@ -271,7 +278,7 @@ def forget_interrupts() -> None:
 
 
 def interrupted() -> bool:
-    """Whether this process took a Ctrl-C (on_interrupt)."""
+    """Whether this process took a Ctrl-C or a SIGTERM (on_interrupt)."""
     return bool(_interrupts)
 
 
