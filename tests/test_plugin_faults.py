@@ -402,16 +402,26 @@ def test_a_section_that_raises_exits_or_returns_garbage_is_left_out_with_one_war
 def test_a_section_that_kills_its_process_or_hangs_is_left_out(tmp_path, only_sections, monkeypatch):
     """Issue 46's fourth attack, F3's rest: a section calling os.kill on its own process ended `run` (exit 137, no
     report, complete: false) and `report`; one that hangs hung them. A plug-in's section renders in a child process:
-    each is one warning, the other sections render, and what it wrote to the folder stays. Break-checked: rendering
-    it here (_guarded) kills the test's process."""
+    each is one warning, the other sections render, and what it wrote to the folder stays. The fifth attack: one
+    calling os.killpg(0, SIGKILL) killed the command (its child was in the command's group), and a detached child
+    outlived it; the child leads a group of its own and what it started is ended. Break-checked: rendering it here
+    (_guarded) kills the test's process; without own_process_group in the child the killpg kills it too."""
     monkeypatch.setattr(sections, "SECTION_BUDGET_S", 1.0)
 
     def writes(context):
         (context.out_dir / "figure.txt").write_text("drawn")
         return ["## writes", ""]
 
+    def daemon(context):  # a detached child, then its group killed (issue 46's fifth attack: it killed the command)
+        said = subprocess.run(["sh", "-c", "setsid sleep 300 </dev/null >/dev/null 2>&1 & echo $!"],
+                              capture_output=True, text=True).stdout
+        (context.out_dir / "daemon.pid").write_text(said)
+        while os.getsid(int(said)) != int(said):  # setsid has run: the killpg below cannot reach it
+            time.sleep(0.01)
+        os.killpg(0, signal.SIGKILL)
+
     faults = {"kills": lambda c: os.kill(os.getpid(), signal.SIGKILL), "hangs": lambda c: time.sleep(30),
-              "writes": writes, "fine": lambda c: ["## fine", ""]}
+              "killpg": daemon, "writes": writes, "fine": lambda c: ["## fine", ""]}
     for order, (name, render) in enumerate(faults.items()):
         sections.register(name, order)(render)
     with warnings.catch_warnings(record=True) as caught:
@@ -419,8 +429,14 @@ def test_a_section_that_kills_its_process_or_hangs_is_left_out(tmp_path, only_se
         page = sections.render(_context(tmp_path))
     assert page == "## writes\n\n## fine\n\n" and (tmp_path / "figure.txt").read_text() == "drawn"
     said = [str(w.message) for w in caught if issubclass(w.category, plugins.PluginWarning)]
-    assert len(said) == 2 and said[0].endswith("left out: its process died (killed by SIGKILL)"), said
+    assert len(said) == 3 and said[0].endswith("left out: its process died (killed by SIGKILL)"), said
     assert said[1].startswith("report section plug-in 'hangs'") and said[1].endswith("did not finish within 1 s")
+    assert said[2].startswith("report section plug-in 'killpg'") and said[2].endswith("(killed by SIGKILL)")
+    daemon_pid = int((tmp_path / "daemon.pid").read_text())
+    gone = _gone([daemon_pid])
+    if not gone:
+        os.kill(daemon_pid, signal.SIGKILL)
+    assert gone
 
 
 @pytest.mark.slow  # since 2026-12-02, ~12 s (issue 46: a finding's test over 10 s); by default the section that raises or exits (the default suite's 8 minutes)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import secrets
 import select
 import signal
 import sys
@@ -26,6 +27,7 @@ import pandas as pd
 
 from ...reference import plugins
 from ...reference.registry import Registry
+from ..run.processes import kill_group, own_process_group
 
 
 @dataclass(frozen=True)
@@ -119,12 +121,16 @@ def _apart(section: Section, context: Context, where: str) -> list[str]:
     """_guarded in a forked child, its answer (the lines, the PluginError's line, or what else it raised: Ctrl-C, our
     bug) pickled back through a pipe; a child that dies without one, or runs past SECTION_BUDGET_S, is one warning
     line, as a PluginError is (a section that called os.kill on its process ended `run` and `report`: issue 46's
-    fourth attack)."""
+    fourth attack). The child leads a group of its own and marks what it starts, as a pool worker does
+    (processes.own_process_group): its os.killpg(0, ...) is not the command's, and what it leaves is ended."""
     read, write = os.pipe()
+    marker = secrets.token_hex(8)  # in the environment of what the child starts: found once the child is gone
     pid = os.fork()
     if pid == 0:  # the child: answer, then end without the parent's exit handlers
         os.close(read)
         try:
+            own_process_group(marker)  # as a worker: its os.killpg(0, ...) is not the command's (fifth attack), what it
+            # starts is its to end (kill_group below)
             try:
                 answer = ("lines", _guarded(section, context, where))
             except plugins.PluginError as exc:
@@ -155,6 +161,7 @@ def _apart(section: Section, context: Context, where: str) -> list[str]:
     finally:
         if not ended:  # past its budget, or Ctrl-C here
             os.kill(pid, signal.SIGKILL)
+        kill_group(pid, marker)  # and what it started and left (its group, descendants, marked), before it is reaped
         _, status = os.waitpid(pid, 0)
     if not ended:
         return _left_out(f"{where} left out: did not finish within {SECTION_BUDGET_S:g} s")
