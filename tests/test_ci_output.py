@@ -144,3 +144,24 @@ def test_run_quiet_prints_nothing_and_a_rerun_compares_identical_in_one_line(tmp
     printed = capsys.readouterr().out
     assert printed.count("\n") == 1 and "is identical to" in printed, printed
     assert (tmp_path / "b" / "compare-pr.md").read_text() == printed
+
+
+def test_a_hand_edited_message_with_control_characters_gives_valid_junit_and_printable_lines(gated, tmp_path, capsys,
+                                                                                            monkeypatch):
+    """Issue 46's fifth attack, finding 2: a results.csv message holding ESC, NUL and BEL (a hand-edited or foreign
+    file: stereodyn's writer escapes them) went raw into the JUnit file (no XML parser took it), the step summary
+    and the terminal. The reader escapes them (results.read_results), so every output holds the escapes. Break-
+    checked: without the escaping in read_results the XML does not parse."""
+    _, baseline, run = gated
+    table = pd.read_csv(run / "results.csv", keep_default_na=False)
+    table.loc[2, ["status", "message"]] = ["failed", "bad \x1b[31m \x00 \x07 end"]
+    table.to_csv(run / "results.csv", index=False)
+    junit, summary = tmp_path / "junit.xml", tmp_path / "summary.md"
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(summary))
+    capsys.readouterr()
+    assert _check(run, baseline, "--junit", str(junit)) == 1
+    printed = capsys.readouterr().out
+    texts = [junit.read_text(), summary.read_text(), printed]
+    assert all("\x1b" not in text and "\x00" not in text and "\x07" not in text for text in texts)
+    messages = [f.text or "" for f in ElementTree.parse(junit).getroot().iter("failure")]
+    assert any("bad \\x1b[31m \\x00 \\x07 end" in text for text in messages), messages

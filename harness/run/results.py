@@ -15,7 +15,7 @@ from ..tables import (ANGLES, MAX_ANGLE, MAX_VALUE, METRIC_SUFFIXES, NON_NEGATIV
                       value_rule)
 from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
-from ..words import clipped
+from ..words import clipped, one_line
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
            "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "timing", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
@@ -103,7 +103,8 @@ def read_results(path: Path) -> pd.DataFrame:
     too large, empty, not CSV, has a row of another length than the header (ragged or truncated), lacks case, engine,
     integrator or status, has no rows, an empty case or engine, a status that is not one of STATUSES, text in a
     number column, a non-finite metric, timing or dt, a negative metric, count or timing (a dt <= 0), or two rows of
-    one KEY. Text columns read as text ("" where empty), the others as numbers (NaN where empty)."""
+    one KEY. Text columns read as text ("" where empty), unprintable characters escaped (words.one_line: JUnit XML
+    with an ESC or NUL from a hand-edited message was no XML), the others as numbers (NaN where empty)."""
     path = Path(path)
     df = read_csv_table(path, REQUIRED_COLUMNS, dtype=str, keep_default_na=False, skip_blank_lines=True)
     if df.empty:
@@ -111,6 +112,8 @@ def read_results(path: Path) -> pd.DataFrame:
     for column in ("formulation", "message"):  # optional text columns a results.csv of an older version may lack
         if column not in df:
             df[column] = ""
+    for column in [c for c in TEXT_COLUMNS if c in df]:  # a foreign file's ESC or NUL escaped as our writer does, so
+        df[column] = df[column].map(lambda text: text if text.isprintable() else one_line(text))  # no output holds it
     for column in NAMED:
         empty = df.index[df[column].str.strip() == ""]
         if len(empty):
