@@ -215,3 +215,23 @@ def test_a_series_without_numbers_and_a_row_that_appears(tmp_path):
     steps = pd.read_csv(out / "history_steps.csv", keep_default_na=False, dtype={"dt": str})
     assert sorted(zip(steps["integrator"], steps["dt"], steps["quantity"], steps["change"], steps["direction"])) == [
         ("euler", "0.01", "status", "- -> ok", "changed"), ("rk4", "0.003", "status", "ok -> -", "worse")]
+
+
+def test_a_run_label_with_newlines_and_markup_stays_one_cell_as_itself(tmp_path, capsys):
+    """Issue 46's fifth attack, finding 5: a folder named `evil|*`<b>\\n# H\\x1b[31m` broke history.md's tables (the
+    newline ended the row, `# H` became a heading), wrote its ESC into the page and printed it raw; compare's pull-
+    request summary escaped the same name. The page escapes it as that summary does (markdown.md_text), a table
+    cell is one line, the terminal prints the escapes. Break-checked: without md_text in history's two tables the
+    markup is raw."""
+    evil = "evil|*`<b>\n# H\x1b[31m"
+    first = folder(tmp_path / "a", DATES[0])
+    second = folder(tmp_path / evil, DATES[1], scale=(1, "attitude_err", 3.0))
+    out = tmp_path / "out"
+    assert cli.main(["history", str(first), str(second), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    page = (out / "history.md").read_text()
+    assert "\x1b" not in page and "\x1b" not in printed and "\n# H" not in page
+    assert r"evil\|\*\`\<b\>\\n\# H\\x1b\[31m" in page, page  # each markup escaped, as compare's summary
+    assert "evil|*`<b>\\n# H\\x1b[31m" in printed, printed
+    rows = [line for line in page.splitlines() if line.startswith("|")]
+    assert all(line.endswith("|") for line in rows), rows  # no row cut by a newline

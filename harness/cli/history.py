@@ -7,6 +7,7 @@ import subprocess
 from contextlib import ExitStack
 from pathlib import Path
 
+from ..words import one_line
 from .common import _allow_partial, BadInput, _path, _steps, warn
 
 
@@ -111,11 +112,11 @@ def main(args) -> int:
         pages, steps, ordered = build(points, args.by, out, args.step_factor, args.order_step, commit_list)
         if (out / index.INDEX_FILE).is_file():  # a result folder's index now lists history's files too
             index.write(out)
-    print(f"{len(ordered)} runs in order ({args.by}): {', '.join(p.label for p in ordered)}")
+    print(f"{len(ordered)} runs in order ({args.by}): {', '.join(one_line(p.label) for p in ordered)}")
     worse = steps[steps["direction"] == "worse"] if len(steps) else steps
     print(f"{len(steps)} steps flagged, {len(worse)} worse" + (":" if len(worse) else ""))
     for _, step in worse.head(10).iterrows():
-        print(f"  {step['case']} {step['engine']} {step['formulation']} {step['integrator']} dt={step['dt'] or '-'} "
-              f"{step['quantity']}: {step['change']} at {step['label']}")
+        print(one_line(f"  {step['case']} {step['engine']} {step['formulation']} {step['integrator']} "
+                       f"dt={step['dt'] or '-'} {step['quantity']}: {step['change']} at {step['label']}"))
     print(f"wrote {pages[0]} and {pages[1]}")
     return 0

@@ -5,7 +5,6 @@ table)."""
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 
 import pandas as pd
@@ -15,8 +14,7 @@ from ..analysis.compare import (BECAME_NAN, DIFFERS, FIGURE_ROWS, FLOOR, GROUPS,
                                 CompareError, environment_rows, group, identical, label, load, load_orders,
                                 metric_signs, order_changes, row_changes, verdict_changes)
 from ..precision import FLOAT64
-from ..words import one_line
-from .markdown import markdown_table
+from .markdown import markdown_table, md_text
 
 
 def _ratio(value: float) -> str:
@@ -72,19 +70,12 @@ def _short(value: str) -> str:
 # Characters that markdown would read as markup in a value (a case name, an environment value, a path): escaped with a
 # backslash, which GitHub's markdown renders as the character itself. "_" only at a word's edge (inside a word, as in
 # attitude_err, it is never emphasis).
-_MARKUP = re.compile(r"[\\`*\[\]<>|~&#!]|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])")
-
-
-def _md(value) -> str:
-    """A value as markdown text that shows as itself, on one line: control characters (a newline in a case name or an
-    environment value) written as escapes, markup escaped."""
-    return _MARKUP.sub(lambda m: "\\" + m.group(0), one_line(value))
 
 
 def _capped(header: list[str], rows: list[list], cap: int, rest: str) -> list[str]:
-    """A table of at most `cap` rows, every cell escaped (_md): one line a row whatever the values hold."""
+    """A table of at most `cap` rows, every cell escaped (md_text): one line a row whatever the values hold."""
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(_md(cell) for cell in row) + " |" for row in rows[:cap]]
+    lines += ["| " + " | ".join(md_text(cell) for cell in row) + " |" for row in rows[:cap]]
     return lines + ([f"... and {len(rows) - cap} more {rest}"] if len(rows) > cap else [])
 
 
@@ -112,7 +103,7 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
     noise = len(answers) - len(real)
     if same_rows and not env and not orders and not verdicts and not real:
         moved = f" ({noise} moved only within the timing noise)" if noise else ""
-        return [f"**stereodyn compare**: {_md(path_b)} is identical to {_md(path_a)} ({len(changes)} rows, the same "
+        return [f"**stereodyn compare**: {md_text(path_b)} is identical to {md_text(path_a)} ({len(changes)} rows, the same "
                 f"statuses, metrics, fitted orders, verdicts, answers{moved} and environment, the date aside)."]
     statuses = changes[changes["status_a"] != changes["status_b"]] if len(changes) else changes
     rank = {"ok": 0, "diverged": 1, "failed": 2, "skipped": 2, "-": 3}  # a row gone ("-") is the worst
@@ -123,7 +114,7 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
     metrics = metric_signs(changes)
     worse = sum(m["worse"] for m in metrics) + sum(r[3] == "worse" for r in status_rows) \
         + sum(o["sign"] == "worse" for o in orders) + sum(v["sign"] == "worse" for v in verdicts)
-    lines = [f"**stereodyn compare**: B {_md(path_b)} against A {_md(path_a)}: {len(changes)} rows; "
+    lines = [f"**stereodyn compare**: B {md_text(path_b)} against A {md_text(path_a)}: {len(changes)} rows; "
              f"{'**' + str(worse) + ' changes for the worse**' if worse else 'no change for the worse'} "
              f"(a metric beyond {PR_RATIO:g}x either way, an order moved by more than {ORDER_CHANGE:g})"
              + (f"; {_answers(len(real))} changed (What to use)" if real else "") + ".", ""]
@@ -163,7 +154,7 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
         lines += [line, "", last] if len(lines) + 3 <= PR_LINES else [line]
     else:
         lines.append(last)
-    assert "\n".join(lines).count("\n") < PR_LINES, len(lines)  # PR_LISTED bounds it; _md keeps a value one line
+    assert "\n".join(lines).count("\n") < PR_LINES, len(lines)  # PR_LISTED bounds it; md_text keeps a value one line
     return lines
 
 
@@ -178,8 +169,8 @@ def answer_line(real: list[dict], noise: int, listed: int = 4) -> str:
     if not real:
         return (f"What to use (answers.csv): no answer changed beyond the timing noise ({noise} moved between runs "
                 "whose costs tie).")
-    said = "; ".join(f"{_md(c['case'])} {_md(c['scope'])} {c['target']:.0e}: {_md(c['a'])} -> {_md(c['b'])}"
-                     for c in real[:listed])  # each name one line, shown as itself (_md)
+    said = "; ".join(f"{md_text(c['case'])} {md_text(c['scope'])} {c['target']:.0e}: {md_text(c['a'])} -> {md_text(c['b'])}"
+                     for c in real[:listed])  # each name one line, shown as itself (md_text)
     return (f"What to use (answers.csv): {_answers(len(real))} changed: {said}"
             + (f"; {len(real) - listed} more" if len(real) > listed else "") + (f"; {moved}" if moved else "") + ".")
 

@@ -12,7 +12,7 @@ from ..analysis.compare import label as row_label
 from ..analysis.history import ORDER, STATUS, STEP_COLUMNS
 from ..run.results import read_csv_table, write_atomic
 from . import figures, html, sections
-from .markdown import markdown_table
+from .markdown import markdown_table, md_text
 
 HISTORY_FILE, STEPS_FILE, POINTS_FILE = "history.csv", "history_steps.csv", "history_points.csv"
 FIGURE = "figures/history-steps.png"
@@ -60,12 +60,13 @@ def history_lines(context: sections.Context) -> list[str]:
              f"{STEPS_FILE} the steps. A step is where the piecewise-constant fit of a series (asv's step detection) "
              "changes level by at least its threshold: a metric by the factor, a fitted order by the difference, "
              "a status by any change.", "",
-             *markdown_table(shown, [[_number(r[c]) if c in ("rows", "orders", "steps", "worse") else r[c]
+             *markdown_table(shown, [[_number(r[c]) if c in ("rows", "orders", "steps", "worse") else md_text(r[c])
                                       for c in shown] for _, r in points.iterrows()]), ""]
     if steps.empty:
         return lines + ["No series stepped: every metric, status and fitted order kept its level over the sequence.",
                         ""]
-    rows = [[_row(r), r["quantity"], f"{r['point']} ({r['label']})", _number(r["before"]), _number(r["after"]),
+    rows = [[md_text(_row(r)), r["quantity"], f"{r['point']} ({md_text(r['label'])})", _number(r["before"]),
+             _number(r["after"]),
              r["change"], r["direction"]] for _, r in steps.head(LISTED).iterrows()]
     lines += ["### Steps", "", *markdown_table(["row", "quantity", "at run", "before", "after", "change", "direction"],
                                                rows), ""]

@@ -1,6 +1,7 @@
 """The drift table in the terminal and report.md."""
 from __future__ import annotations
 
+import re
 import textwrap
 from typing import Sequence
 
@@ -10,6 +11,7 @@ import pandas as pd
 from ..analysis.text import grouped_reasons, number, reason  # noqa: F401 (number, reason: part of this API)
 from ..environment import environment
 from ..run.results import COLUMNS as RESULTS_COLUMNS
+from ..words import one_line
 from . import sections
 
 from ...reference.integrals import DRIFT_COLUMNS, INTEGRALS
@@ -117,10 +119,22 @@ def drift_table_text(df: pd.DataFrame) -> str:
     return "\n".join(out)
 
 
+_MARKUP = re.compile(r"[\\`*\[\]<>|~&#!]|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])")
+
+
+_BAR = re.compile(r"(?<!\\)\|")  # a bar not escaped yet
+
+
+def md_text(value) -> str:
+    """A value as markdown text that shows as itself, on one line: control characters (a newline in a case name or an
+    environment value) written as escapes, markup escaped (a name the user chose: a folder's, a case's)."""
+    return _MARKUP.sub(lambda m: "\\" + m.group(0), one_line(value))
+
+
 def markdown_table(header: list[str], rows: list[list]) -> list[str]:
-    """The lines of a Markdown table."""
-    # A bar inside a cell (a message about |omega|, say) would end the cell: escape it.
-    escape = lambda cell: str(cell).replace("|", "\\|")  # noqa: E731
+    """The lines of a Markdown table, each cell on its line (words.one_line: a newline in a cell ended the table)."""
+    # A bar inside a cell (a message about |omega|, say) would end the cell: escape it (once: md_text's is escaped)
+    escape = lambda cell: _BAR.sub(r"\\|", one_line(cell))  # noqa: E731
     return (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
             + ["| " + " | ".join(escape(c) for c in row) + " |" for row in rows])
 
