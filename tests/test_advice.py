@@ -190,3 +190,28 @@ def test_a_known_point_below_the_step_cap_is_never_advised(estimate):
     advice = search(error_at, 1e-8, estimate, lo=1e-4, hi=1.0, known=known, cap="t_end / 40000")
     assert math.isnan(advice.setting) and advice.note.startswith("beyond the step cap"), advice
     assert "t_end / 40000" in advice.note and all(dt >= 1e-4 for dt in calls), (advice, calls)
+
+
+def test_advise_takes_the_budgets_its_failed_runs_name(monkeypatch, capsys):
+    """Issue 46's fifth attack, finding 4: a hung plug-in's advice said "run budget exceeded ... (--run-budget raises
+    it)", and `advise --run-budget 5` was refused (unrecognized arguments). advise takes each budget option a
+    failed run names (harness.budget.FLAGS), and its runs are held to it (here and, passed on, in the workers).
+    Break-checked: without budget_options in advise's parser the command exits 2."""
+    from stereodyn.harness import budget
+    from stereodyn.harness.cli import main
+    from stereodyn.harness.pipeline import advice
+
+    seen = []
+
+    def answer(case, families, targets, max_steps, say, pool):
+        seen.append(budget.configured())
+        return pd.DataFrame(columns=list(advice.ADVICE_COLUMNS)), {}
+
+    monkeypatch.setattr(advice, "advise", answer)
+    argv = ["advise", "free-asymmetric", "--engine", "mujoco", "--integrator", "rk4", "--t-end", "1"]
+    flags = [budget.FLAGS[what] for what in ("run", "prepare", "truth")]
+    try:
+        assert main([*argv, flags[0], "5", flags[1], "7", flags[2], "9"]) == 0, capsys.readouterr().err
+        assert (seen[0].run_s, seen[0].prepare_s, seen[0].truth_s) == (5.0, 7.0, 9.0)
+    finally:
+        budget.configure(budget.Budgets())

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import sys
 
-from .common import BadInput, _count, _list, override, _scale, _targets
+from .common import BadInput, budget_options, budgets_of, _count, _list, override, _scale, _targets
 from ..engines import engine_names
 from ..scenes import cases as case_files
 
@@ -24,6 +24,7 @@ def add_parser(commands) -> None:
     advise.add_argument("--t-end", type=_scale, default=None, help="simulated span, replacing the case's t_end")
     advise.add_argument("--max-steps", type=_count, default=None, metavar="N",
                         help="smallest dt tried = t_end / N (default 200000)")
+    budget_options(advise)  # a hung plug-in's answer names --run-budget (fifth attack: advise had none)
     advise.add_argument("--jobs", type=_count, default=1,
                         help="worker processes, one integrator's search each at a time (default 1: a family's "
                              "search runs point after point)")
@@ -58,8 +59,10 @@ def main(args) -> int:
                        + (f" ({engine.unsupported(case)})" if engine.unsupported(case) else ""))
     targets = tuple(sorted(args.target or TERMINAL_TARGETS, reverse=True))
     say = lambda text: print(f"stereodyn: {text}", file=sys.stderr)  # noqa: E731
+    from .. import budget
     from ..run.pool import local_pool
 
+    budget.configure(budgets_of(args))  # here and in the workers (local_pool passes it on)
     with local_pool(args.jobs, len(families)) as pool:  # a plug-in's runs on watched workers, as run's (issue 46, F1)
         table, why = advising.advise(case, families, targets, max_steps, say, pool)
     print("\n".join(advice_lines(case, table, why, families)))

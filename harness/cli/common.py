@@ -128,6 +128,24 @@ def _figures(parser) -> None:
                              f"faster, and the default when the environment sets {FIGURES_ENV}=0)")
 
 
+def budget_options(parser) -> None:
+    """--run-budget, --prepare-budget, --truth-budget (harness.budget): `run`'s and `advise`'s, whose failed rows
+    name them."""
+    for what, default, meaning in (
+            ("run", budget.RUN_BUDGET_S, "one row's accuracy run with its metrics and checks (a ladder point's too)"),
+            ("prepare", budget.PREPARE_BUDGET_S, "one Engine.prepare: model building and compilation"),
+            ("truth", budget.TRUTH_BUDGET_S, "one case's truth and its real128 certification")):
+        parser.add_argument(budget.FLAGS[what], type=_seconds, default=default, metavar="S",
+                            help=f"wall-time budget of {meaning}, s (default {default:g}); past it the row is "
+                                 "failed, its message naming the budget, and --resume redoes it only once the budget "
+                                 "is raised")
+
+
+def budgets_of(args):
+    """The budgets the options of budget_options gave."""
+    return budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget)
+
+
 def _steps(parser) -> None:
     parser.add_argument("--step-factor", type=float, default=1.1,
                         help="a metric's level must change by this factor to be a step (default 1.1)")

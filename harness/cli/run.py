@@ -6,12 +6,11 @@ from pathlib import Path
 
 import sys
 
-from .common import BadInput, check_names, _count, DEFAULT_OUT, _figures, _floats, _list, output_folder, _path, _scale, _seconds, select_cases
+from .common import (BadInput, budget_options, budgets_of, check_names, _count, DEFAULT_OUT, _figures, _floats, _list,
+                     output_folder, _path, _scale, select_cases)
 
 
 def add_parser(commands) -> None:
-    from .. import budget
-
     run = commands.add_parser("run", help="run cases on engines; write results.csv, report.md and report.html")
     run.add_argument("cases", nargs="*", metavar="CASE", help="suite case names or .toml paths (default: the suite)")
     run.add_argument("--case-file", action="append", default=[], metavar="F.toml", help="a case outside the suite")
@@ -57,19 +56,12 @@ def add_parser(commands) -> None:
     run.add_argument("--strict", action="store_true",
                      help="exit 1 when a verdict fails (declared against fitted order, bounded energy, the truth's "
                           "invariants, oracle and theory checks), one line per failed verdict")
-    for what, default, meaning in (
-            ("run", budget.RUN_BUDGET_S, "one row's accuracy run with its metrics and checks (a ladder point's too)"),
-            ("prepare", budget.PREPARE_BUDGET_S, "one Engine.prepare: model building and compilation"),
-            ("truth", budget.TRUTH_BUDGET_S, "one case's truth and its real128 certification")):
-        run.add_argument(budget.FLAGS[what], type=_seconds, default=default, metavar="S",
-                         help=f"wall-time budget of {meaning}, s (default {default:g}); past it the row is failed, "
-                              "its message naming the budget, and --resume redoes it only once the budget is raised")
+    budget_options(run)
     run.add_argument("--extremes", action="store_true",
                      help="run the extreme cases (cases/extreme/, tagged extreme) instead of the default suite")
 
 
 def main(args) -> int:
-    from .. import budget
     from ..analysis import verdicts
     from ..pipeline.phases import Request, run
     from ..run.sweep import SweepOptions
@@ -84,7 +76,7 @@ def main(args) -> int:
     refuse_foreign_tables(args.out)
     output_folder(args.out, "--out")
     request = Request(chosen, options, mode, args.ladder_max_steps,
-                      budget.Budgets(args.run_budget, args.prepare_budget, args.truth_budget), figures=args.figures,
+                      budgets_of(args), figures=args.figures,
                       self_contained=args.self_contained, verbose=args.verbose, quiet=args.quiet)
     values = run(request)
     found = values["verdicts"]
