@@ -1,6 +1,7 @@
 """CI-friendly output (issue 31): a closed pipe keeps check's status, --quiet prints nothing on success, --junit
 writes JUnit XML counting the failures the text counts, GITHUB_STEP_SUMMARY receives the markdown summary. The tables
 are written by hand (the gate reads any valid results.csv): no sweep, seconds in all."""
+import json
 import os
 import re
 import subprocess
@@ -165,3 +166,21 @@ def test_a_hand_edited_message_with_control_characters_gives_valid_junit_and_pri
     assert all("\x1b" not in text and "\x00" not in text and "\x07" not in text for text in texts)
     messages = [f.text or "" for f in ElementTree.parse(junit).getroot().iter("failure")]
     assert any("bad \\x1b[31m \\x00 \\x07 end" in text for text in messages), messages
+
+
+def test_a_garbled_runs_json_is_named_as_such_not_as_missing(gated, capsys):
+    """Issue 46's fifth attack, finding 6: with a runs.json that is there but not JSON, check said "run environment
+    unknown (no runs.json beside results.csv)", and history "no 'date' recorded". Both now name the file and why it
+    cannot be read. Break-checked: without manifest_problem passed to environment_changes the old words come back."""
+    base, _, _ = gated
+    (base / "runs.json").write_text(json.dumps({"format": 1, "environment": {"python": "3.11", "date": "2026-12-03"},
+                                                "runs": [], "complete": True}))
+    baseline = base.parent / "with-environment.json"
+    assert cli.main(["baseline", str(base), "--out", str(baseline)]) == 0
+    (base / "runs.json").write_text('{"complete": tr')
+    capsys.readouterr()
+    assert _check(base, baseline) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("environment:"))
+    assert "runs.json: not a runs.json stereodyn can read (invalid JSON" in line and "no runs.json" not in line, line
+    assert cli.main(["history", str(base), str(baseline), "--by", "date", "--out", str(base.parent / "h")]) == 2
+    assert "not a runs.json stereodyn can read (invalid JSON" in capsys.readouterr().err

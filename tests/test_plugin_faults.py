@@ -23,7 +23,7 @@ import pandas as pd
 import pytest
 
 from stereodyn.harness import budget, integrators
-from stereodyn.harness.engines.base import Offer
+from stereodyn.harness.engines.base import Offer, Timing
 from stereodyn.harness.errors import InternalError
 from stereodyn.harness.integrators import registry
 from stereodyn.harness.integrators.base import metadata_problem
@@ -1074,6 +1074,24 @@ def test_an_engine_offering_no_integrator_is_refused_at_load():
         engines._check(engine, "engine plug-in 'offering'")
     assert str(caught.value) == ("engine plug-in 'offering': integrators() returned (): an engine offers at least one "
                                  "integrator")
+
+
+@pytest.mark.parametrize("timing, words", [
+    (Timing(pass_us=-5.0), "timing.pass_us = -5.0: must be a finite number >= 0"),
+    (Timing(pass_us=math.nan), "timing.pass_us = nan: must be a finite number >= 0"),
+    (Timing(prepare_budget_s=-1.0), "timing.prepare_budget_s = -1.0: must be a finite number > 0 s or None"),
+    (Timing(startup_s="long"), "timing.startup_s = 'long': must be a finite number >= 0"),
+], ids=["pass_us negative", "pass_us nan", "prepare budget negative", "startup text"])
+def test_an_engine_whose_timing_no_scheduler_can_use_is_refused_at_load(timing, words):
+    """Issue 46's fifth attack: Timing(pass_us=-5) and Timing(pass_us=nan, prepare_budget_s=-1) loaded. Refused at
+    load, naming the field and the rule. Break-checked: without _check_timing each loads."""
+    from stereodyn.harness import engines
+
+    engine = _offering(lambda self, i: Offer(order=4))
+    type(engine).timing = timing
+    with pytest.raises(engines.EngineError) as caught:
+        engines._check(engine, "engine plug-in 'offering'")
+    assert str(caught.value) == f"engine plug-in 'offering': {words}"
 
 
 def test_an_engine_offering_the_registrys_order_loads():

@@ -507,12 +507,13 @@ def recorded_environment(manifest: dict | None) -> dict:
     return {**(environment if isinstance(environment, dict) else {}), **code_environment(manifest)}
 
 
-def environment_changes(baseline: dict, current: dict | None) -> list[str]:
+def environment_changes(baseline: dict, current: dict | None, why: str | None = None) -> list[str]:
     """'name old -> new' for every environment entry (library versions, CPU, platform, plug-ins' code) that differs
     between the baseline and the run, by environment.differences: the measurement context (the date, the commit, the
-    load at timing) is no change."""
+    load at timing) is no change. why: why the run's runs.json could not be read, where it is there
+    (store.manifest_problem; a garbled one was said to be missing)."""
     if not current:
-        return ["run environment unknown (no runs.json beside results.csv)"] if baseline else []
+        return [f"run environment unknown ({why or 'no runs.json beside results.csv'})"] if baseline else []
     return [f"{name} {baseline.get(name, '-')} -> {current.get(name, '-')}" for name in differences(baseline, current)]
 
 

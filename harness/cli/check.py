@@ -44,7 +44,7 @@ def main(args) -> int:
         raise BadInput(f"--floor: must be a finite number >= 0, got {args.floor:g}")
     if args.junit is not None:
         output_file(args.junit, "--junit")
-    from ..run.store import read_manifest, reading
+    from ..run.store import manifest_problem, read_manifest, reading
 
     base = gate.read_baseline_file(args.baseline)
     # The mode sets the default tolerance; a tolerance file, then --factor/--floor, refine it.
@@ -72,7 +72,7 @@ def main(args) -> int:
     if missing:  # else every row would read as NaN, i.e. worse
         raise BadInput(f"{args.dir / 'results.csv'}: missing columns {', '.join(missing)} (the baseline has them)")
     warn(warnings)  # once the tables read: a folder that cannot be read is one line, the error
-    changes = gate.environment_changes(base.environment, environment)
+    changes = gate.environment_changes(base.environment, environment, manifest_problem(args.dir))
     context = [f"environment: {', '.join(changes)}" if changes else "environment: as in the baseline",
                gate.mode_line(mode, source, tolerances, changes)]
     verdict = gate.Verdict(len(baseline), len(base.orders), tuple(gate.compare(current, baseline, tolerances)),

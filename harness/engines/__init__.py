@@ -13,7 +13,7 @@ from importlib.metadata import EntryPoint
 
 from ...reference import plugins
 from ...reference.registry import Registry
-from .base import Engine, Offer, RigidBodyModel, SceneModel
+from .base import Engine, Offer, RigidBodyModel, SceneModel, Timing
 from ..precision import PRECISIONS
 from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
@@ -132,6 +132,7 @@ def _check(engine: Engine, where: str) -> None:
         raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
     if not names:  # no run at all: `run --engines NAME` would end "done" having run nothing (issue 46, F9)
         raise EngineError(f"{where}: integrators() returned {names!r}: an engine offers at least one integrator")
+    _check_timing(engine.timing, where)
     if not isinstance(models, dict):
         raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
     lists = [("integrators()", "an integrator", tuple(names))]  # each name is in every row and listing line
@@ -155,6 +156,21 @@ def _check(engine: Engine, where: str) -> None:
             raise EngineError(f"{where}: {field} = {values!r:.80}: names {noun} twice")
     for integrator in names:  # what the plan, the verdicts and the listing read of each integrator
         _check_offer(engine, integrator, where)
+
+
+def _check_timing(timing, where: str) -> None:
+    """Refuse, at load, timing declarations the scheduler and the budgets cannot use (a negative or NaN cost queued
+    its runs anywhere; a negative prepare budget failed every run: issue 46's fifth attack)."""
+    if not isinstance(timing, Timing):
+        raise EngineError(f"{where}: timing = {timing!r:.80}: must be a harness.engines.base.Timing")
+    for field, low, optional in (("pass_us", 0.0, False), ("startup_s", 0.0, False), ("prepare_budget_s", 0.0, True)):
+        value = getattr(timing, field)
+        if optional and value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                or value < low or (field == "prepare_budget_s" and value == 0):
+            raise EngineError(f"{where}: timing.{field} = {value!r:.80}: must be a finite number "
+                              + ("> 0 s or None" if optional else ">= 0"))
 
 
 def _check_offer(engine: Engine, integrator: str, where: str) -> None:
