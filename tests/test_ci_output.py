@@ -184,3 +184,21 @@ def test_a_garbled_runs_json_is_named_as_such_not_as_missing(gated, capsys):
     assert "runs.json: not a runs.json stereodyn can read (invalid JSON" in line and "no runs.json" not in line, line
     assert cli.main(["history", str(base), str(baseline), "--by", "date", "--out", str(base.parent / "h")]) == 2
     assert "not a runs.json stereodyn can read (invalid JSON" in capsys.readouterr().err
+
+
+def test_a_hand_edited_environment_value_is_printed_escaped(gated, capsys):
+    """Issue 46's sixth attack, finding 4: runs.json's environment keys and values reached check's terminal and step
+    summary (and compare, the report) raw: ESC, NUL, a newline that made a markdown heading. The reader of runs.json
+    escapes them (store._manifest). Break-checked: without it the ESC is printed."""
+    base, _, _ = gated
+    (base / "runs.json").write_text(json.dumps({"format": 1, "environment": {"numpy": "2.4.6"}, "runs": [],
+                                                "complete": True}))
+    baseline = base.parent / "with-environment.json"
+    assert cli.main(["baseline", str(base), "--out", str(baseline)]) == 0
+    (base / "runs.json").write_text(json.dumps({"format": 1, "runs": [], "complete": True, "environment": {
+        "numpy": "2.4.6\x1b[31mRED\x00\n# Heading | x"}}))
+    capsys.readouterr()
+    _check(base, baseline)
+    printed = capsys.readouterr().out
+    assert "\x1b" not in printed and "\x00" not in printed and "\n# Heading" not in printed, printed
+    assert "2.4.6\\x1b[31mRED\\x00\\n# Heading | x" in printed, printed

@@ -235,3 +235,15 @@ def test_a_run_label_with_newlines_and_markup_stays_one_cell_as_itself(tmp_path,
     assert "evil|*`<b>\\n# H\\x1b[31m" in printed, printed
     rows = [line for line in page.splitlines() if line.startswith("|")]
     assert all(line.endswith("|") for line in rows), rows  # no row cut by a newline
+
+
+def test_a_run_label_with_a_carriage_return_gives_a_history_that_reads_back(tmp_path):
+    """Issue 46's sixth attack, finding 5: a folder name with a CR was written raw into history_points.csv, which the
+    command then refused on reading it back ("row 2: 2 fields"), exit 2 and no history.md. Labels and paths are one
+    line (words.one_line). Break-checked: without one_line on the label the command exits 2."""
+    first = folder(tmp_path / "a", DATES[0])
+    second = folder(tmp_path / "h-cr\rX", DATES[1])
+    out = tmp_path / "out"
+    assert cli.main(["history", str(first), str(second), "--out", str(out)]) == 0
+    points = pd.read_csv(out / "history_points.csv", keep_default_na=False)
+    assert points["label"].tolist() == ["a", "h-cr\\rX"] and (out / "history.md").is_file()

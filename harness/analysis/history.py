@@ -22,7 +22,7 @@ from . import gate
 from .compare import FLOOR, GROUPS
 from ..environment import differences
 from ..run.results import KEY
-from ..words import clipped
+from ..words import clipped, one_line
 
 # The smallest change of a metric flagged: compare's smallest change group (1.1x). Reruns on one machine are
 # bit-identical and round-off across machines moves these deterministic metrics by far less than 10 %
@@ -236,7 +236,7 @@ def points_table(points: list[Point], steps: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for index, point in enumerate(points, 1):
         here = steps[steps["point"] == index] if len(steps) else steps
-        rows.append({"point": index, "label": point.label, "path": point.path,
+        rows.append({"point": index, "label": point.label, "path": one_line(point.path),  # a CR in it: no CSV
                      "date": point.environment.get("date", ""),
                      "commit": str(point.environment.get("git commit", ""))[:12],
                      "rows": len(point.table), "orders": len(point.orders),

@@ -19,6 +19,7 @@ import sys
 if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or sys.argv[0] == "-m"
                  or sys.argv[0].endswith(os.path.join("stereodyn", "__main__.py"))) \
         and not __import__("stereodyn.harness.run.processes").harness.run.processes.is_worker():
-    signal.signal(signal.SIGINT, sys.modules["stereodyn.harness.run.processes"].interrupted_while_loading)
+    for _signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # one line, whichever stops it while loading
+        signal.signal(_signum, sys.modules["stereodyn.harness.run.processes"].interrupted_while_loading)
 
 from .dispatch import COMMANDS, command, main, parser  # noqa: E402,F401  (main: the `stereodyn` script's entry point)

@@ -85,9 +85,11 @@ def main(argv: list[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else 2
     streams = sys.stdout, sys.stderr
     sys.stdout, sys.stderr = _PipeSafe(sys.stdout), _PipeSafe(sys.stderr)
-    # SIGTERM (a CI runner's cancel, `kill`) as Ctrl-C: the workers and what they started end with the command
-    terminate = signal.signal(signal.SIGTERM, processes.on_interrupt) \
-        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL else None
+    # SIGTERM (a CI runner's cancel, `kill`) and SIGHUP (a closed terminal) as Ctrl-C: the workers and what they
+    # started end with the command
+    stops = (signal.SIGTERM, signal.SIGHUP)
+    terminate = {signum: signal.signal(signum, processes.on_interrupt) for signum in stops
+                 if signal.getsignal(signum) in (signal.SIG_DFL, interrupted_while_loading)}
     try:
         code = command(args.command).main(args)
         sys.stdout.flush()  # here, not at exit: a reader gone (`| head -1`) is met while the status is still ours
@@ -107,12 +109,14 @@ def main(argv: list[str] | None = None) -> int:
             return 3
     finally:
         sys.stdout, sys.stderr = streams
-        if terminate is not None:
-            signal.signal(signal.SIGTERM, terminate)
+        for signum, previous in terminate.items():
+            signal.signal(signum, signal.SIG_DFL if previous is interrupted_while_loading else previous)
     if code == 130 or processes.interrupted():  # one an SDK swallowed or rewrapped too: never a green run
-        if processes.terminated():
-            print(f"stereodyn: terminated (SIGTERM){INTERRUPTED.get(args.command, '')}", file=sys.stderr)
-            return 143
+        signum = processes.terminated()
+        if signum:
+            print(f"stereodyn: terminated ({signal.Signals(signum).name}){INTERRUPTED.get(args.command, '')}",
+                  file=sys.stderr)
+            return 128 + signum
         print(f"stereodyn: interrupted{INTERRUPTED.get(args.command, '')}", file=sys.stderr)
         return 130
     return code

@@ -32,7 +32,7 @@ def load_point(path: Path, label: str, held: ExitStack, allow_partial: bool, war
                   orders.rename(columns={"order": "fitted", "declared_order": "declared"}))
     else:
         orders = pd.DataFrame(gate.read_baseline_file(path).orders)
-    return Point(label, str(path), table, orders, environment)
+    return Point(one_line(label), str(path), table, orders, environment)  # a CR in a label broke history_points.csv
 
 
 def labels(paths: list[Path]) -> list[str]:

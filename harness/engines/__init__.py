@@ -14,6 +14,7 @@ from importlib.metadata import EntryPoint
 from ...reference import plugins
 from ...reference.registry import Registry
 from .base import Engine, Offer, RigidBodyModel, SceneModel, Timing
+from ..budget import MAX_BUDGET_S, MIN_BUDGET_S
 from ..precision import PRECISIONS
 from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
@@ -168,9 +169,9 @@ def _check_timing(timing, where: str) -> None:
         if optional and value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                or value < low or (field == "prepare_budget_s" and value == 0):
+                or value < low or (field == "prepare_budget_s" and not MIN_BUDGET_S <= value <= MAX_BUDGET_S):
             raise EngineError(f"{where}: timing.{field} = {value!r:.80}: must be a finite number "
-                              + ("> 0 s or None" if optional else ">= 0"))
+                              + (f"in [{MIN_BUDGET_S:g}, {MAX_BUDGET_S:g}] s or None" if optional else ">= 0"))
 
 
 def _check_offer(engine: Engine, integrator: str, where: str) -> None:

@@ -129,6 +129,9 @@ def _apart(section: Section, context: Context, where: str) -> list[str]:
     if pid == 0:  # the child: answer, then end without the parent's exit handlers
         os.close(read)
         try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a worker: a KeyboardInterrupt here is the plug-in's
+            for signum in (signal.SIGTERM, signal.SIGHUP):  # the command's handler: a signal to the child is its end
+                signal.signal(signum, signal.SIG_DFL)
             own_process_group(marker)  # as a worker: its os.killpg(0, ...) is not the command's (fifth attack), what it
             # starts is its to end (kill_group below)
             try:

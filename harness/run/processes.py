@@ -252,9 +252,11 @@ _interrupts: list[int] = []  # the signals (SIGINT, SIGTERM) this process took, 
 
 
 def interrupted_while_loading(signum, frame) -> None:
-    """SIGINT while the command's modules load (harness/cli/__init__.py puts it): one line, exit 130."""
-    sys.stderr.write("stereodyn: interrupted\n")
-    os._exit(130)
+    """SIGINT, SIGTERM or SIGHUP while the command's modules load (harness/cli/__init__.py puts it): one line, exit
+    130 (128 + the signal's number for the others), as after loading (on_interrupt, harness.cli)."""
+    sys.stderr.write("stereodyn: interrupted\n" if signum == signal.SIGINT else
+                     f"stereodyn: terminated ({signal.Signals(signum).name})\n")
+    os._exit(128 + signum)
 
 
 def on_interrupt(signum, frame) -> None:
@@ -267,9 +269,10 @@ def on_interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
-def terminated() -> bool:
-    """Whether the last signal this process took was SIGTERM (on_interrupt): the command ends with 143, not 130."""
-    return bool(_interrupts) and _interrupts[-1] == signal.SIGTERM
+def terminated() -> int | None:
+    """The last signal this process took where it was not SIGINT (SIGTERM, SIGHUP: on_interrupt), else None: the
+    command ends with 128 + its number, not 130."""
+    return _interrupts[-1] if _interrupts and _interrupts[-1] != signal.SIGINT else None
 
 
 def forget_interrupts() -> None:

@@ -35,6 +35,7 @@ from ..precision import FLOAT64
 from ..environment import code_origin, library_versions, source_fingerprint
 from ..scenes.checks import ROW_KEY
 from ..readers import ReadError, read_json
+from ..words import one_line
 from .results import COLUMNS, value_rule, write_atomic
 from ..trajectory import Status
 
@@ -397,6 +398,9 @@ def _manifest(out_dir: Path) -> tuple[dict | None, str | None]:
             and isinstance(environment, (dict, type(None))) and isinstance(manifest.get(COMPLETE, False), bool)):
         # not a manifest this version wrote: as if the folder had none
         return None, f"{path}: not a runs.json stereodyn can read (runs, environment or {COMPLETE} of another shape)"
+    if environment:  # a hand-edited value's ESC or newline reached check's terminal, the step summary, the report
+        manifest = {**manifest, "environment": {one_line(k): one_line(v) if isinstance(v, str) else v
+                                                for k, v in environment.items()}}
     return manifest, None
 
 
