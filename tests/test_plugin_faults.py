@@ -599,7 +599,7 @@ def _package(root: Path, name: str, modules: dict[str, str], entry_points: dict[
 
 
 HOSTILE_ENGINES = '''
-import os, signal, sys, time
+import os, signal, subprocess, sys, time
 import numpy as np
 from stereodyn.harness import integrators
 from stereodyn.harness.engines.base import About, Engine, Timing
@@ -624,6 +624,15 @@ class Simulation:
         if how == "kills":
             os.kill(os.getpid(), signal.SIGKILL)
         traj = self.inner.run(grid)
+        if how.startswith("daemon"):  # a setsid'd sleep its worker must end (issue 46, F7), then as the name says
+            said = subprocess.run(["sh", "-c", "setsid sleep 300 </dev/null >/dev/null 2>&1 & echo $!"],
+                                  capture_output=True, text=True).stdout
+            with open(os.environ["DAEMON_PIDS"], "a") as out:
+                out.write(said)
+            if how == "daemon_then_exit":
+                os._exit(0)
+            if how == "daemon_then_hang":
+                time.sleep(120)
         if how == "forks":
             pid = os.fork()
             if pid == 0:
@@ -660,7 +669,7 @@ def engine(how):
 
 
 HOWS = ("exits", "exits_in_prepare", "interrupts", "generator", "os_exit", "kills", "forks", "nan_states", "garbage")
-for how in HOWS:
+for how in (*HOWS, "daemon", "daemon_then_exit", "daemon_then_hang"):
     globals()[how] = engine(how)
 '''
 HOWS = ("exits", "exits_in_prepare", "interrupts", "generator", "os_exit", "kills", "forks", "nan_states", "garbage")
@@ -794,62 +803,14 @@ def test_a_plugin_never_runs_in_the_command_so_its_children_die_with_the_command
     assert _gone(children), [p for p in children if _alive(p)]
 
 
-DAEMONS = '''
-import os, subprocess
-from stereodyn.harness import integrators
-from stereodyn.harness.engines.base import About, Engine, Timing
-
-
-class Simulation:
-    def __init__(self, how, case, dt):
-        from stereodyn.harness.engines.pinocchio import PinocchioSimulation
-        self.how, self.inner = how, PinocchioSimulation(case, integrators.get("rk4")(), float(dt))
-
-    def run(self, grid):
-        traj = self.inner.run(grid)
-        said = subprocess.run(["sh", "-c", "setsid sleep 300 </dev/null >/dev/null 2>&1 & echo $!"],
-                              capture_output=True, text=True).stdout
-        with open(os.environ["DAEMON_PIDS"], "a") as out:
-            out.write(said)
-        if self.how == "daemon_then_exit":
-            os._exit(0)
-        if self.how == "daemon_then_hang":
-            import time
-            time.sleep(120)
-        return traj
-
-
-def engine(how):
-    class Daemon(Engine):
-        name = how
-        about = About(state_space="lie")
-        timing = Timing(pass_us=3.0)
-
-        def integrators(self):
-            return ("rk4",)
-
-        def unsupported(self, case):
-            return None
-
-        def prepare(self, case, integrator, dt):
-            return Simulation(how, case, dt)
-    return Daemon
-
-
-daemon = engine("daemon")
-daemon_then_exit = engine("daemon_then_exit")
-daemon_then_hang = engine("daemon_then_hang")
-'''
-
-
 @pytest.mark.slow  # ~8 s: the default suite's pool tests above measure the same on a WatchedPool
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_daemon_a_plugin_starts_is_gone_when_the_command_ends(tmp_path):
     """Issue 46, fourth attack, F7 as found: `sh -c 'setsid sleep 300 &'` in run() left that sleep alive after
     `stereodyn run` ended (every one of them), and so did one whose worker then died by os._exit. None is alive the
     moment the command has ended. Break-checked: with processes.py and workers.py as before F7 every one is alive."""
-    env = _package(tmp_path / "site", "daemons", {"daemons.py": DAEMONS},
-                   {"stereodyn.engines": {how: f"daemons:{how}" for how in ("daemon", "daemon_then_exit")}})
+    env = _package(tmp_path / "site", "hostile-engines", {"hostile_engines.py": HOSTILE_ENGINES},
+                   {"stereodyn.engines": {how: f"hostile_engines:{how}" for how in ("daemon", "daemon_then_exit")}})
     env["DAEMON_PIDS"] = str(tmp_path / "daemons")
     result = subprocess.run([sys.executable, "-m", "stereodyn", "run", *QUICK, "--engines", "daemon,daemon_then_exit",
                              "--out", str(tmp_path / "out")], capture_output=True, text=True, env=env, cwd=tmp_path,
@@ -872,8 +833,8 @@ def test_sigterm_ends_the_run_and_what_its_plugins_started(tmp_path, stop):
     nobody ended what they started); a matrix's SIGTERM or Ctrl-C, which SIGTERMs its run, the same. SIGTERM is now
     Ctrl-C's: the workers and their descendants are ended, one "terminated" line, exit 143. Break-checked: without
     the SIGTERM handler of harness.cli.dispatch the daemon is alive and nothing is said."""
-    env = _package(tmp_path / "site", "daemons", {"daemons.py": DAEMONS},
-                   {"stereodyn.engines": {"daemon_then_hang": "daemons:daemon_then_hang"}})
+    env = _package(tmp_path / "site", "hostile-engines", {"hostile_engines.py": HOSTILE_ENGINES},
+                   {"stereodyn.engines": {"daemon_then_hang": "hostile_engines:daemon_then_hang"}})
     pids = tmp_path / "daemons"
     env["DAEMON_PIDS"] = str(pids)
     command = subprocess.Popen([sys.executable, "-m", "stereodyn", "run", *QUICK, "--engines", "daemon_then_hang",
