@@ -183,7 +183,9 @@ def test_a_garbled_runs_json_is_named_as_such_not_as_missing(gated, capsys):
     line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("environment:"))
     assert "runs.json: not a runs.json stereodyn can read (invalid JSON" in line and "no runs.json" not in line, line
     assert cli.main(["history", str(base), str(baseline), "--by", "date", "--out", str(base.parent / "h")]) == 2
-    assert "not a runs.json stereodyn can read (invalid JSON" in capsys.readouterr().err
+    said = capsys.readouterr().err  # the cause first (the sixth attack: it led with "no 'date' recorded")
+    assert f"--by date: {base / 'runs.json'}: not a runs.json stereodyn can read (invalid JSON" in said, said
+    assert "recorded" not in said and said.rstrip().endswith("so --by date cannot place it"), said
 
 
 def test_a_hand_edited_environment_value_is_printed_escaped(gated, capsys):

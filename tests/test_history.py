@@ -235,6 +235,10 @@ def test_a_run_label_with_newlines_and_markup_stays_one_cell_as_itself(tmp_path,
     assert "evil|*`<b>\\n# H\\x1b[31m" in printed, printed
     rows = [line for line in page.splitlines() if line.startswith("|")]
     assert all(line.endswith("|") for line in rows), rows  # no row cut by a newline
+    # The browser shows the name as itself (the sixth attack saw \&lt;b\&gt;: the escapes' backslashes on the page).
+    # Break-checked: without html._inline's backslash escapes the backslashes show.
+    html_page = (out / "history.html").read_text()
+    assert "evil|*`&lt;b&gt;\\n# H\\x1b[31m" in html_page and "<b>" not in html_page, html_page
 
 
 def test_a_run_label_with_a_carriage_return_gives_a_history_that_reads_back(tmp_path):

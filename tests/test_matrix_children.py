@@ -168,7 +168,9 @@ def test_run_arguments_that_run_nothing_are_refused_up_front(tmp_path, capsys, r
     (["free-asymmetric", "--dt", "0"], "matrix: after --: argument --dt: must be finite and in"),
     (["no-such-case"], "matrix: after --: "),
     (["--certify", "--no-certify"], "matrix: after --: --certify and --no-certify"),
-], ids=["unknown option", "dt 0", "unknown case", "certify twice"])
+    # run's check_options, the matrix's too (it repeated two of them; this one it lacked)
+    (["--ladder-max-steps", "3"], "matrix: after --: --ladder-max-steps: must be >= 40, got 3"),
+], ids=["unknown option", "dt 0", "unknown case", "certify twice", "ladder too short"])
 def test_run_arguments_this_stereodyn_refuses_are_refused_up_front(tmp_path, capsys, run_args, words):
     """Issue 46's fourth attack, F6: `matrix A -- --bogus` (or --dt 0, a case the suite lacks) built every environment
     and ended exit 0, "0 of 1 environments ran", a `run failed` row each. Refused before anything is built: one line,

@@ -1057,7 +1057,11 @@ def test_an_engine_offering_no_integrator_is_refused_at_load():
     # the sixth attack: 1e308 passed, and the pool's thread died converting it to a timeout (the command hung)
     (Timing(prepare_budget_s=1e308), "timing.prepare_budget_s = 1e+308: must be a finite number in [0.001, 1e+06]"),
     (Timing(startup_s="long"), "timing.startup_s = 'long': must be a finite number >= 0"),
-], ids=["pass_us negative", "pass_us nan", "prepare budget negative", "prepare budget 1e308", "startup text"])
+    # the sixth attack's observation: "no" is truthy, so the planner took it as True
+    (Timing(short_warm_up="no"), "timing.short_warm_up = 'no': must be True or False"),
+    (Timing(process_global_precision=1), "timing.process_global_precision = 1: must be True or False"),
+], ids=["pass_us negative", "pass_us nan", "prepare budget negative", "prepare budget 1e308", "startup text",
+        "short warm-up text", "process-global precision int"])
 def test_an_engine_whose_timing_no_scheduler_can_use_is_refused_at_load(timing, words):
     """Issue 46's fifth attack: Timing(pass_us=-5) and Timing(pass_us=nan, prepare_budget_s=-1) loaded. Refused at
     load, naming the field and the rule. Break-checked: without _check_timing each loads."""

@@ -269,12 +269,19 @@ def check_names(args) -> None:
             raise BadInput(f"--integrators: unknown integrator {', '.join(missing)} for engines "
                            f"{','.join(args.engines)}; valid: {', '.join(sorted(known))}"
                            + (f" (not installed: {'; '.join(absent)})" if absent else ""))
-    if getattr(args, "dt_ladder", False) and args.no_ladder:
-        raise BadInput("--dt-ladder and --no-ladder: give at most one")
-    if getattr(args, "ladder_max_steps", None) is not None:
-        from ..analysis import workprecision
 
-        if args.ladder_max_steps < 2 * workprecision.MIN_STEPS:  # checked before the sweep, not after it
+
+def check_options(args) -> None:
+    """The options' rules that no engine decides, checked before anything is built (run's, and the matrix's for its runs'
+    arguments)."""
+    from ..analysis import workprecision
+
+    if args.certify and args.no_certify:
+        raise BadInput("--certify and --no-certify: give one (certifying is the default)")
+    if args.dt_ladder and args.no_ladder:
+        raise BadInput("--dt-ladder and --no-ladder: give at most one")
+    if args.ladder_max_steps is not None:  # checked before the sweep, not after it
+        if args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
             raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}, got {args.ladder_max_steps}")
         if args.ladder_max_steps > case_files.MAX_STEPS:
             raise BadInput(f"--ladder-max-steps: must be <= {case_files.MAX_STEPS}, got {args.ladder_max_steps}")

@@ -66,7 +66,7 @@ def build(points: list, by: str, out: Path, factor: float, order_step: float, co
 
         why = next((manifest_problem(Path(p.path)) for p in points if str(exc).startswith(f"{p.path}:")
                     and Path(p.path).is_dir()), None)  # a garbled runs.json is named as such, not as a missing date
-        raise BadInput(f"--by {by}: {exc}" + (f" ({why})" if why else "")) from None
+        raise BadInput(f"--by {by}: {why}, so --by {by} cannot place it" if why else f"--by {by}: {exc}") from None
     table, steps = history.history(points, factor, order_step)
     listed = history.points_table(points, steps).assign(ordered_by=by)
     return page.write(out, table, steps, listed), steps, points

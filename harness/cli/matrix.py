@@ -15,7 +15,7 @@ from pathlib import Path
 
 from ..atomic import write_atomic
 from ..words import one_line
-from .common import BadInput, Parser, output_folder, _path, select_cases, _steps, warn
+from .common import BadInput, check_options, Parser, output_folder, _path, select_cases, _steps, warn
 
 # The quick suite (README, "Regression CI"; .ci/run gates it against reports/baselines/quick.json).
 QUICK = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric", "--t-end", "2", "--dt", "1e-2,3e-3")
@@ -92,11 +92,8 @@ def check_run_arguments(argv: list[str]) -> None:
     top = _RunParser(prog="stereodyn")
     command("run").add_parser(top.add_subparsers(dest="command", required=True))  # by name, as the entry point does
     parsed = top.parse_args(["run", *argv])
-    if parsed.certify and parsed.no_certify:
-        raise BadInput("matrix: after --: --certify and --no-certify: give one (certifying is the default)")
-    if parsed.dt_ladder and parsed.no_ladder:
-        raise BadInput("matrix: after --: --dt-ladder and --no-ladder: give at most one")
     try:
+        check_options(parsed)
         select_cases(parsed)
     except (BadInput, CaseError) as exc:
         raise BadInput(f"matrix: after --: {exc}") from None

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import sys
 
-from .common import (BadInput, budget_options, budgets_of, check_names, _count, DEFAULT_OUT, _figures, _floats, _list,
-                     output_folder, _path, _scale, select_cases)
+from .common import (BadInput, budget_options, budgets_of, check_names, check_options, _count, DEFAULT_OUT, _figures,
+                     _floats, _list, output_folder, _path, _scale, select_cases)
 
 
 def add_parser(commands) -> None:
@@ -66,9 +66,8 @@ def main(args) -> int:
     from ..pipeline.phases import Request, run
     from ..run.sweep import SweepOptions
 
+    check_options(args)
     check_names(args)
-    if args.certify and args.no_certify:
-        raise BadInput("--certify and --no-certify: give one (certifying is the default)")
     chosen = select_cases(args)
     options = SweepOptions(args.engines, args.out, args.integrators, jobs=args.jobs, certify=not args.no_certify,
                            resume=args.resume, scheduler=args.scheduler, save_trajectories=args.save_trajectories)
@@ -114,10 +113,6 @@ def ladder_mode(args) -> str:
     --strict only the short ladders of the integrators no case's dt list gives an order, or whose orders miss on too
     few points (without --strict none); --dt-ladder every family's; --no-ladder none, or with --strict the short
     ladders only."""
-    from ..analysis import workprecision
-
-    if args.ladder_max_steps is not None and args.ladder_max_steps < 2 * workprecision.MIN_STEPS:
-        raise BadInput(f"--ladder-max-steps: must be >= {2 * workprecision.MIN_STEPS}")
     if args.dt_ladder:
         return "full"
     if args.no_ladder or args.cases or args.case_file or args.dt is not None:

@@ -172,6 +172,10 @@ def _check_timing(timing, where: str) -> None:
                 or value < low or (field == "prepare_budget_s" and not MIN_BUDGET_S <= value <= MAX_BUDGET_S):
             raise EngineError(f"{where}: timing.{field} = {value!r:.80}: must be a finite number "
                               + (f"in [{MIN_BUDGET_S:g}, {MAX_BUDGET_S:g}] s or None" if optional else ">= 0"))
+    for field in ("short_warm_up", "process_global_precision"):  # "no" is truthy: a flag the planner reads as bool()
+        value = getattr(timing, field)
+        if not isinstance(value, bool):
+            raise EngineError(f"{where}: timing.{field} = {value!r:.80}: must be True or False")
 
 
 def _check_offer(engine: Engine, integrator: str, where: str) -> None:

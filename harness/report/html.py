@@ -117,12 +117,22 @@ def _graded(header: str) -> bool:
     return header in GRADED_HEADERS or header.endswith(("_drift", "_err", "_err_end"))
 
 
+# Markdown's backslash escape (an ASCII punctuation character after a backslash: md_text writes them) or a code span.
+_HELD = re.compile(r"\\([!-/:-@\[-`{-~])|(`[^`]*`)")
+_MARK = re.compile("\ue000(\\d+)\ue001")  # a held piece's place while bold is found (private-use characters)
+
+
 def _inline(text: str) -> str:
-    """Markdown's inline subset: `code` and **bold** (the verdicts' **FAIL**, What to use's **tie**); inside code
-    nothing is bold."""
-    parts = re.split(r"(`[^`]*`)", text)
-    return "".join(f"<code>{html.escape(p[1:-1])}</code>" if p.startswith("`") and p.endswith("`") and len(p) > 1
-                   else re.sub(r"\*\*(\S(?:.*?\S)?)\*\*", r"<strong>\1</strong>", html.escape(p)) for p in parts)
+    """Markdown's inline subset: backslash escapes (a name md_text escaped shows as itself), `code` and **bold** (the
+    verdicts' **FAIL**, What to use's **tie**); inside code nothing is bold and a backslash is itself."""
+    held: list[str] = []
+
+    def hold(m: re.Match) -> str:
+        held.append(html.escape(m.group(1)) if m.group(1) else f"<code>{html.escape(m.group(2)[1:-1])}</code>")
+        return f"\ue000{len(held) - 1}\ue001"
+
+    text = re.sub(r"\*\*(\S(?:.*?\S)?)\*\*", r"<strong>\1</strong>", html.escape(_HELD.sub(hold, text)))
+    return _MARK.sub(lambda m: held[int(m.group(1))] if int(m.group(1)) < len(held) else m.group(0), text)
 
 
 def _cells(line: str) -> list[str]:
