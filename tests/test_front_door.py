@@ -147,3 +147,14 @@ def test_the_three_paths_run_as_written(tmp_path):
     assert list(run.status) == ["ok"] and float(run.attitude_err.iloc[0]) <= 1e-6
     assert 'timestep="0.0039"' in (tmp_path / "my-body.xml").read_text()
     assert (tmp_path / "baseline.json").is_file()
+
+
+def test_the_reference_pages_script_takes_help_as_help_not_as_a_folder(tmp_path, monkeypatch, capsys):
+    """`python tools/docs_reference.py --help` once wrote the pages into a folder named "--help" (committed by
+    mistake); it prints its usage and writes nothing. With a folder it writes the three pages there."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        _reference().main(["--help"])
+    assert exit_.value.code == 0 and "DIR" in capsys.readouterr().out and not list(tmp_path.iterdir())
+    assert _reference().main([str(tmp_path / "pages")]) == 0
+    assert sorted(p.name for p in (tmp_path / "pages").iterdir()) == ["case-keys.md", "cli.md", "tables.md"]

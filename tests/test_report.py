@@ -252,3 +252,24 @@ def test_the_committed_default_report_is_whole():
     assert (folder / "report.html").stat().st_size < 2_000_000
     kovalevskaya = text.split("### kovalevskaya\n")[1].split("\n### ")[0]
     assert "Rows of the invariants figure: energy |E−E₀|/scale; momentum drift; Kovalevskaya integral;" in kovalevskaya
+
+
+def test_cost_ratios_are_the_median_over_cases_of_cheapest_against_cheapest_other_builtin():
+    """report.method.cost_ratios by hand: per case the integrator's cheapest run reaching the target over the cheapest
+    run of another built-in integrator reaching it (a plug-in's runs, failed runs and runs that miss the target left
+    out); the median over the cases compared."""
+    from stereodyn.harness.report.method import cost_ratios
+
+    def run(case, integrator, wall_s, err, status="ok"):
+        return {"case": case, "integrator": integrator, "status": status, "dt": 0.01, "t_end": 1.0,
+                "attitude_err": err, "wall_s": wall_s}
+
+    runs = pd.DataFrame([run("a", "mine", 2e-6, 1e-7), run("a", "mine", 1e-6, 1e-4),   # 1e-6: only the first
+                         run("a", "rk4", 8e-6, 1e-7), run("a", "rk4", 4e-6, 1e-8),
+                         run("a", "plugin", 1e-9, 1e-12),                             # not built in: no rival
+                         run("b", "mine", 3e-6, 1e-8), run("b", "euler", 1e-6, 1e-7, "diverged"),
+                         run("b", "euler", 6e-6, 1e-7), run("b", "rk4", 12e-6, 1e-8),  # the cheaper rival
+                         run("c", "rk4", 1e-6, 1e-10)])                               # mine did not run here
+    ratios = cost_ratios(runs, "mine", {"mine", "rk4", "euler"}, targets=(1e-3, 1e-6, 1e-9))
+    # 1e-3: a 1e-6/4e-6, b 3e-6/6e-6 -> median of 0.25 and 0.5; 1e-6: a 2e-6/4e-6, b 0.5; 1e-9: nothing of mine
+    assert ratios == {1e-3: "0.38x (2 cases)", 1e-6: "0.5x (2 cases)", 1e-9: "-"}

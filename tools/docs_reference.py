@@ -290,11 +290,11 @@ def on_files(files, config):
 
 
 def main(argv: list[str]) -> int:
-    if len(argv) != 1:
-        print("usage: python tools/docs_reference.py DIR", file=sys.stderr)
-        return 2
+    parser = argparse.ArgumentParser(description="Write the documentation site's generated reference pages to DIR.")
+    parser.add_argument("dir", metavar="DIR", type=Path)
+    args = parser.parse_args(argv)  # `--help` is help, not a folder named "--help"
     for path, text in pages().items():
-        target = Path(argv[0]) / path
+        target = args.dir / path
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(text, encoding="utf-8")
         print(target)

@@ -15,6 +15,7 @@ ran (only that engine's runs: what a user of that engine can switch to). In each
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -143,41 +144,71 @@ def pareto_table(runs: pd.DataFrame, cases: list[str], failed: set = frozenset()
     bad = np.array([is_failed(set(failed), r.engine, r.formulation, r.integrator) for r in runs.itertuples()],
                    dtype=bool)
     shaky = disturbed(runs["us_per_sim_s"].to_numpy(float), runs["us_per_sim_s_spread"].to_numpy(float))
+    table = _Candidates.of(runs)
+    case_of, engine_of = runs["case"].to_numpy(object), runs["engine"].to_numpy(object)
     records = []
     for case in cases:
-        in_case = (runs["case"] == case).to_numpy()
+        in_case = case_of == case
         for scope in [ANY, *engines]:
-            in_scope = in_case if scope == ANY else in_case & (runs["engine"] == scope).to_numpy()
+            in_scope = in_case if scope == ANY else in_case & (engine_of == scope)
             for target in ACCURACY_TARGETS:
-                reach = in_scope & (runs["attitude_err"] <= target).to_numpy()
-                cell = _cell(runs[reach & ~bad & ~shaky], runs[reach & bad], runs[reach & shaky & ~bad])
+                reach = in_scope & (table.err <= target)
+                cell = _cell(table, *(np.flatnonzero(m) for m in (reach & ~bad & ~shaky, reach & bad,
+                                                                  reach & shaky & ~bad)))
                 records.append({"case": case, "scope": scope, "target": target, **cell})
     return pd.DataFrame(records, columns=list(PARETO_COLUMNS))
 
 
-def _cell(good: pd.DataFrame, excluded: pd.DataFrame, shaky: pd.DataFrame) -> dict:
-    """One cell: the winner's columns, its tie-mates and the cheaper runs not recommended."""
-    if good.empty:
+@dataclass(frozen=True)
+class _Candidates:
+    """The candidate runs as arrays, a run a position (1430 cells of pandas subsets were 4 s of the default run):
+    cost, spread (us_per_sim_s and its spread), err (attitude_err), rhs (rhs_per_sim_s), engine, and per run its
+    row as a dict, its name (_candidate_name) and its label (_candidate)."""
+
+    cost: np.ndarray
+    spread: np.ndarray
+    err: np.ndarray
+    rhs: np.ndarray
+    engine: np.ndarray
+    rows: list[dict]
+    names: list[str]
+    labels: list[str]
+
+    @classmethod
+    def of(cls, runs: pd.DataFrame) -> "_Candidates":
+        rows = runs.to_dict("records")
+        return cls(runs["us_per_sim_s"].to_numpy(float), runs["us_per_sim_s_spread"].to_numpy(float),
+                   runs["attitude_err"].to_numpy(float), runs["rhs_per_sim_s"].to_numpy(float),
+                   runs["engine"].to_numpy(object), rows, [_candidate_name(r) for r in rows],
+                   [_candidate(r) for r in rows])
+
+    def cheapest(self, positions: np.ndarray, n: int = 3) -> str:
+        """The labels of the n cheapest of positions, cheapest first (equal costs in table order)."""
+        return "; ".join(self.labels[i] for i in positions[np.argsort(self.cost[positions], kind="stable")[:n]])
+
+
+def _cell(table: _Candidates, good: np.ndarray, excluded: np.ndarray, shaky: np.ndarray) -> dict:
+    """One cell from the positions of its candidates (good), of the runs left out for a failed verdict (excluded) and
+    for a disturbed timing (shaky): the winner's columns, its tie-mates and the cheaper runs not recommended."""
+    if not len(good):
         source = ONLY_FAILED if len(excluded) else ONLY_DISTURBED if len(shaky) else NONE_REACHED
         return {"engine": "", "formulation": "", "integrator": "", "source": source, "ties": "",
-                "not_recommended": "; ".join(_candidate(r) for _, r in excluded.nsmallest(3, "us_per_sim_s").iterrows())}
-    fastest = good.loc[good["us_per_sim_s"].idxmin()]
-    mates = good[tied(good["us_per_sim_s"].to_numpy(float), good["us_per_sim_s_spread"].to_numpy(float),
-                      float(fastest["us_per_sim_s"]), float(fastest["us_per_sim_s_spread"]))]
+                "not_recommended": table.cheapest(excluded)}
+    fastest = good[np.argmin(table.cost[good])]  # the first of equal costs
+    mates = good[tied(table.cost[good], table.spread[good], table.cost[fastest], table.spread[fastest])]
     # right-hand-side evaluations are comparable within one engine only: they decide among the fastest's engine's
     # tie-mates, and only where every one of them counts them (heyoka's taylor does not: a Taylor step has no stages)
-    same = mates[mates["engine"] == fastest["engine"]]
-    rhs = same["rhs_per_sim_s"].astype(float)
-    rhs = rhs if rhs.notna().all() else pd.Series(0.0, index=same.index)
-    best = same.loc[same.assign(_rhs=rhs).sort_values(["_rhs", "us_per_sim_s"], kind="stable").index[0]]
+    same = mates[table.engine[mates] == table.engine[fastest]]
+    rhs = table.rhs[same]
+    rhs = rhs if not np.isnan(rhs).any() else np.zeros(len(same))
+    first = np.lexsort((table.cost[same], rhs))[0]  # fewest evaluations, then fastest (stable: table order)
     # Two idle default runs named different winners in 11 of 264 cells only because MuJoCo's euler and
     # implicitfast (bit-identical on a ball joint) swapped places by a few per cent of time.
-    twins = same[(rhs == rhs[best.name]) & (same["attitude_err"] == best["attitude_err"])]
-    best = twins.loc[min(twins.index, key=lambda i: _candidate_name(twins.loc[i]))]
-    cheaper_bad = excluded[excluded["us_per_sim_s"] < best["us_per_sim_s"]]
-    return {**{c: best.get(c, math.nan) for c in _CELL_COLUMNS},
-            "ties": "; ".join(_candidate(r) for i, r in mates.iterrows() if i != best.name),
-            "not_recommended": "; ".join(_candidate(r) for _, r in cheaper_bad.nsmallest(3, "us_per_sim_s").iterrows())}
+    twins = same[(rhs == rhs[first]) & (table.err[same] == table.err[same[first]])]
+    best = min(twins, key=lambda i: table.names[i])
+    return {**{c: table.rows[best].get(c, math.nan) for c in _CELL_COLUMNS},
+            "ties": "; ".join(table.labels[i] for i in mates if i != best),
+            "not_recommended": table.cheapest(excluded[table.cost[excluded] < table.cost[best]])}
 
 
 def scope_rows(table: pd.DataFrame, scope: str = ANY) -> pd.DataFrame:

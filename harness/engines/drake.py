@@ -23,6 +23,7 @@ LeafSystem from the context's time and state at every derivative evaluation, eve
 """
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
@@ -120,6 +121,7 @@ def offered() -> tuple[str, ...]:
 MODELLED = (DISCRETE, *FIXED_STEP, *ADAPTIVE)
 
 
+@functools.cache  # offer() asks for every run planned: the package's metadata read 2,000 times was 2 s of a run
 def _drake_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
