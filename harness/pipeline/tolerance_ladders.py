@@ -22,7 +22,7 @@ The ladders run on the sweep's process pool (harness.run.sweep.worker_pool), one
 from __future__ import annotations
 
 import math
-from concurrent.futures import as_completed
+from concurrent.futures import Future, as_completed
 from typing import Callable
 
 from .. import budget
@@ -93,23 +93,32 @@ def run_ladder(family: AdaptiveFamily, tolerances: tuple[float, ...] = TOLERANCE
     return points
 
 
+def start_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool, tolerances: tuple[float, ...] = TOLERANCES,
+                  budget_s: float = POINT_BUDGET_S) -> dict[Future, int]:
+    """Every family's ladder submitted to the pool, the costliest first: {future: index in chosen}, for
+    run_ladders(started=...) to gather. Submitted before the phase's other work (pipeline.work_precision), the
+    longest ladder (Drake's runge_kutta3_adaptive on free-asymmetric, ~35 s of one task) starts first instead of
+    running alone at the phase's end while the other worker waits."""
+    order = sorted(range(len(chosen)), key=lambda i: adaptive_cost(chosen[i]), reverse=True)
+    return {pool.submit(run_ladder, chosen[index], tolerances, budget_s): index for index in order}
+
+
 def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
                 progress: Callable[[str], None] | None = None,
                 tolerances: tuple[float, ...] = TOLERANCES, budget_s: float = POINT_BUDGET_S,
-                timed: bool = True) -> list[dict]:
+                timed: bool = True, started: dict[Future, int] | None = None) -> list[dict]:
     """Every family's ladder, its accuracy runs in this process (pool None) or on the sweep's pool, each point timed
     once there, then with timed its points timed again on its workers (time_points; timed False leaves that to the caller).
     Returns the points (TOLERANCE_COLUMNS) in the order of `chosen`, each family's loose to tight. budget_s:
-    run_ladder's point budget."""
+    run_ladder's point budget; started: start_ladders' futures of these families, where they are on the pool already."""
     results: dict[int, list[dict]] = {}
-    order = sorted(range(len(chosen)), key=lambda i: adaptive_cost(chosen[i]), reverse=True)
     if pool is None:
-        for index in order:
+        for index in sorted(range(len(chosen)), key=lambda i: adaptive_cost(chosen[i]), reverse=True):
             results[index] = run_ladder(chosen[index], tolerances, budget_s)
             if progress:
                 progress(chosen[index].label)
     else:
-        futures = {pool.submit(run_ladder, chosen[index], tolerances, budget_s): index for index in order}
+        futures = started if started is not None else start_ladders(chosen, pool, tolerances, budget_s)
         for future in as_completed(futures):
             index = futures[future]
             try:
@@ -127,4 +136,4 @@ def run_ladders(chosen: list[AdaptiveFamily], pool: WatchedPool | None = None,
 
 
 __all__ = ["AdaptiveFamily", "DEFAULT_TOLERANCES", "POINT_BUDGET_S", "TOLERANCES", "TOLERANCE_COLUMNS", "measure",
-           "run_ladder", "run_ladders", "tolerance_frame"]
+           "run_ladder", "run_ladders", "start_ladders", "tolerance_frame"]

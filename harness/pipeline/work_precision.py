@@ -24,7 +24,7 @@ from ..run.workers import WatchedPool
 from ..scenes.cases import Case
 from .advice import run_advice
 from .dt_ladders import run_ladders, time_points
-from .tolerance_ladders import run_ladders as run_tolerance_ladders
+from .tolerance_ladders import run_ladders as run_tolerance_ladders, start_ladders as start_tolerance_ladders
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,10 @@ def ladders(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
     """The dt, short and tolerance ladders of plan_ladders(ladder) on the sweep's pool (None: in this process), then
     their tables written and the orders appended to checks.csv."""
     plan = workprecision.plan_ladders(results, cases, engines, integrators, ladder, max_steps)
+    # the tolerance ladders go on the pool first (they need nothing of the dt ladders): the dt ladders' many tasks
+    # fill the other worker while the longest tolerance ladder runs, where it ran alone at the end
+    started = start_tolerance_ladders(plan.adaptive, pool, plan.tolerances) if plan.adaptive and pool is not None \
+        else None
     points, ladder_rows = run_ladders(plan.chosen, plan.max_steps, pool, progress, plan.short, timed=False) \
         if plan.chosen or plan.short else ([], [])
     first_parts = workprecision.first_part_families(plan.short, points, ladder_rows, plan.sweep_rows, plan.rigid)
@@ -54,8 +58,8 @@ def ladders(out_dir: Path, results: pd.DataFrame, cases: list[Case], engines: li
         points += more
         ladder_rows = workprecision.with_first_parts(ladder_rows, parts)
     convergence = workprecision.convergence_rows(ladder_rows, plan.sweep_rows)
-    tolerance_points = run_tolerance_ladders(plan.adaptive, pool, progress, plan.tolerances, timed=False) \
-        if plan.adaptive else []
+    tolerance_points = run_tolerance_ladders(plan.adaptive, pool, progress, plan.tolerances, timed=False,
+                                             started=started) if plan.adaptive else []
     _time_deciding(results, points, tolerance_points, plan, pool)
     ladder_df = pd.DataFrame(points, columns=list(LADDER_COLUMNS))
     tolerance_df = tolerance_frame(tolerance_points)

@@ -121,8 +121,10 @@ def remove_partial_files(out_dir: Path) -> list[Path]:
 def _plain(value: Any) -> Any:
     """JSON-ready: numpy scalars and arrays as Python numbers and lists, NaN as null."""
     if isinstance(value, np.ndarray):
-        return [_plain(v) for v in value.tolist()]
+        value = value.tolist()
     if isinstance(value, (list, tuple)):
+        if all(type(v) is float for v in value) and all(map(math.isfinite, value)):
+            return list(value)  # a series of finite numbers as it is: element by element was 5 s of a default run
         return [_plain(v) for v in value]
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
