@@ -9,7 +9,7 @@ import dataclasses
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -97,9 +97,31 @@ def first_bad_step(step, observe, g, v, start: int, end: int, dt: float, limit2:
     return end, g  # not reached for a deterministic step; the sample itself is the bound
 
 
+# The quaternion is as the engine left it (not renormalised): one whose norm grew or shrank by the divergence factor
+# is no attitude any more (a plug-in's 1e150 gave |q|^2 - 1 = 1e300, which no reader accepts; 0 gave an ok row with
+# no attitude error: issue 46's eighth attack). Applied after the run (judged), not in the engines' stepping loops:
+# the largest |q|^2 of an ok row of the default suite is 721 (explicit Euler, 2026-12-04), far inside.
+QUAT_NORM_FACTOR = DIVERGENCE_FACTOR
+
+
+def _first_bad_norm(quat: np.ndarray) -> int | None:
+    """Index of the first sample whose quaternion's norm is outside [1 / QUAT_NORM_FACTOR, QUAT_NORM_FACTOR]
+    (NaN: not this rule's), else None."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm2 = np.einsum("ij,ij->i", quat, quat)
+    hits = np.flatnonzero((norm2 > QUAT_NORM_FACTOR ** 2) | (norm2 < QUAT_NORM_FACTOR ** -2))
+    return int(hits[0]) if hits.size else None
+
+
 def divergence_message(diverged_at: float) -> str:
     """The divergence rule's message for a run that broke it at diverged_at (s)."""
     return f"state not finite or |omega| beyond {DIVERGENCE_FACTOR:g} x its start at t = {diverged_at:.6g} s"
+
+
+def norm_message(diverged_at: float) -> str:
+    """The quaternion-norm rule's message (_first_bad_norm) for a run that broke it at diverged_at (s)."""
+    return (f"quaternion norm outside [{1 / QUAT_NORM_FACTOR:g}, {QUAT_NORM_FACTOR:g}] (no attitude) at "
+            f"t = {diverged_at:.6g} s")
 
 
 def diverged_trajectory(grid: "TimeGrid", quat: np.ndarray, omega: np.ndarray, bad: int, diverged_at: float,
@@ -181,27 +203,33 @@ def _divergence_time(traj) -> float | None:
     if isinstance(at, (int, float, np.integer, np.floating)) and not isinstance(at, (bool, np.bool_)) \
             and times[0] <= at <= times[-1] + 1e-9 * max(1.0, abs(times[-1])):
         return float(at)
-    bad = _first_bad(traj)
-    return None if bad is None else float(times[bad])
+    first = _first_bad(traj)
+    return None if first is None else float(times[first[0]])
 
 
-def _first_bad(traj) -> int | None:
-    """The first sample that breaks the divergence rule: a Trajectory's by first_bad_sample (from its first sample's
-    omega), any other's first row of `state` with a value not finite; None where none does (or it has no state)."""
+def _first_bad(traj, omega0=None) -> tuple[int, Callable[[float], str]] | None:
+    """The first sample that breaks the divergence rule and the rule's message: a Trajectory's by first_bad_sample
+    (the scale: omega0, the case's initial rad/s (3,), where given, else its first sample's) or by its quaternion's
+    norm (_first_bad_norm), any other's first row of `state` with a value not finite; None where none does (or it has
+    no state)."""
     if isinstance(traj, Trajectory):
-        return first_bad_sample(traj.omega, traj.quat, np.asarray(traj.omega, dtype=float)[0])
+        quat, omega = np.asarray(traj.quat, dtype=float), np.asarray(traj.omega, dtype=float)
+        hits = [(first_bad_sample(omega, quat, omega[0] if omega0 is None else omega0), divergence_message),
+                (_first_bad_norm(quat), norm_message)]
+        return min(((i, said) for i, said in hits if i is not None), key=lambda hit: hit[0], default=None)
     state = getattr(traj, "state", None)
     if not isinstance(state, np.ndarray) or not _real(state) or state.ndim < 1:
         return None
     rows = np.isfinite(state.reshape(len(state), -1)).all(axis=1)
     hits = np.flatnonzero(~rows)
-    return int(hits[0]) if hits.size else None
+    return (int(hits[0]), divergence_message) if hits.size else None
 
 
-def judged(traj):
-    """traj with the divergence rule applied: an ok trajectory with a sample that breaks it becomes diverged at that
-    sample's time, its samples from there on NaN (the rule as an integrator applies it, for every engine; an engine
-    that finds the exact step sets diverged itself). Others unchanged."""
+def judged(traj, omega0=None):
+    """traj with the divergence rule applied (_first_bad; omega0: the case's initial rad/s (3,), the scale of |omega|,
+    so that a first sample of 1e300 rad/s is no scale of its own): an ok trajectory with a sample that breaks it
+    becomes diverged at that sample's time, its samples from there on NaN (the rule as an integrator applies it, for
+    every engine; an engine that finds the exact step sets diverged itself). Others unchanged."""
     fields = {f.name for f in dataclasses.fields(traj)} if dataclasses.is_dataclass(traj) else set()
     if not {"status", "message", "diverged_at"} <= fields:
         return traj
@@ -210,9 +238,10 @@ def judged(traj):
         return traj if at is None or at == traj.diverged_at else dataclasses.replace(traj, diverged_at=at)
     if traj.status is not Status.OK:
         return traj
-    bad = _first_bad(traj)
-    if bad is None:
+    first = _first_bad(traj, omega0)
+    if first is None:
         return traj
+    bad, said = first
     at = float(np.asarray(traj.times, dtype=float)[bad])
     blanked = {}
     for name in {"quat", "omega", "state"} & fields:
@@ -221,8 +250,8 @@ def judged(traj):
             value = value.astype(float)  # a copy: the engine's arrays stay as they were
             value[bad:] = np.nan
             blanked[name] = value
-    return dataclasses.replace(traj, **blanked, status=Status.DIVERGED, message=divergence_message(at),
-                               diverged_at=at)
+    return dataclasses.replace(traj, **blanked, status=Status.DIVERGED,
+                               message=said(at), diverged_at=at)
 
 
 @dataclass(frozen=True, eq=False)

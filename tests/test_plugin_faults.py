@@ -237,6 +237,80 @@ def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
     assert row["status"] == "ok" and math.isnan(row["diverged_at"]), row
 
 
+@pytest.mark.parametrize("quat, omega, at, said", [
+    (None, 1e300, 0.0, "|omega| beyond"),         # from the first sample on: the case's omega0 is the scale
+    (1e150, None, 0.01, "quaternion norm"),       # |q|^2 - 1 = 1e300: "a bug in stereodyn" (exit 3), no row
+    (1e300, None, 0.01, "quaternion norm"),       # |q|^2 overflows: an ok row with casimir_drift 2.2e-16
+    (0.0, None, 0.01, "quaternion norm"),         # no attitude: an ok row with no attitude error
+    (1e-3, None, math.nan, ""),                   # |q| = 2e-3, inside [1e-6, 1e6]: still a row of data
+], ids=["omega huge from t=0", "quat 1e150", "quat 1e300", "quat zero", "quat small"])
+def test_states_no_body_has_are_diverged_at_their_time(monkeypatch, quat, omega, at, said):
+    """Issue 46's eighth attack, F2-F4: a plug-in's ok trajectory with |omega| = 1e300 at every sample (its first
+    sample was the rule's scale) or a quaternion of norm 1e150, 1e300 or 0 (the quaternion had no rule but being
+    finite) ended the sweep as "a bug in stereodyn" or was an ok row with wrong or empty metrics. Break-checked:
+    without omega0 in measure.checked the first is ok then exit 3; without _first_bad_norm the next three are."""
+    def states(grid):
+        traj = _states(grid)
+        q, w = traj.quat.copy(), traj.omega.copy()
+        if quat is not None:
+            q[1:] *= quat
+        if omega is not None:
+            w[:] = omega
+        return dataclasses.replace(traj, quat=q, omega=w)
+
+    row = _row(monkeypatch, _Model(states))
+    if math.isnan(at):
+        assert row["status"] == "ok" and math.isfinite(row["casimir_drift"]), row
+        return
+    assert row["status"] == "diverged" and row["diverged_at"] == pytest.approx(at, abs=1e-12), row
+    assert said in row["message"], row["message"]
+
+
+class _Weird(BaseException):
+    pass
+
+
+def _raise_weird():
+    raise _Weird("x")
+
+
+def _raise_interrupt():  # raised by its code, not the user's Ctrl-C (that one ends the command: exit 130)
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize("fault, said", [(lambda: sys.exit(3), "SystemExit: 3"),
+                                         (lambda: os._exit(5), "ProcessExit: called os._exit(5)"),
+                                         (_raise_weird, "_Weird: x"), (lambda: 1 / 0, "ZeroDivisionError"),
+                                         (_raise_interrupt, "KeyboardInterrupt")],
+                         ids=["sys.exit", "os._exit", "BaseException", "Exception", "its own KeyboardInterrupt"])
+def test_a_plugin_engines_unsupported_that_exits_is_the_reason_of_its_skipped_rows(fault, said):
+    """Issue 46's eighth attack, F1: a plug-in engine's unsupported(case) calling sys.exit(3) made `run` exit 3 with
+    nothing said (os._exit(5): exit 5; a bare BaseException: a traceback). Its rigid body is our RigidBodyModel asking
+    the engine, so the plan took it for our code and left out the guard. Break-checked: deciding by the model alone,
+    the first three end the test."""
+    from stereodyn.harness.engines.base import About, Engine, RigidBodyModel
+    from stereodyn.harness.run import plan
+
+    class Exits(Engine):
+        name = "exits"
+        about = About(state_space="lie")
+
+        def integrators(self):
+            return ("rk4",)
+
+        def unsupported(self, case):
+            fault()
+
+    engine = Exits()
+    handler = signal.signal(signal.SIGINT, processes.on_interrupt)  # the command's: it tells its Ctrl-C from a raise
+    try:
+        reason = plan._unsupported(RigidBodyModel(engine), engine, CASE, "exits")
+    finally:
+        signal.signal(signal.SIGINT, handler)
+    assert reason.startswith(f"engine 'exits': unsupported(case) raised {said}"), reason
+    assert os._exit is plugins._real_exit
+
+
 def test_a_diverged_trajectory_says_when(monkeypatch):
     """Issue 46's fourth attack, F11: a plug-in's own `diverged` with diverged_at NaN was a diverged row with no time.
     Its time is its first sample that breaks the divergence rule; with no such sample and no time in its span the
@@ -396,6 +470,28 @@ def test_a_section_that_raises_exits_or_returns_garbage_is_left_out_with_one_war
     assert said[3].endswith("TypeError: render returned str, not a list of lines of text")
     assert os._exit is plugins._real_exit  # the guard put it back
 
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="a plug-in section renders apart where the OS forks")
+def test_a_section_returning_list_and_str_classes_of_its_own_renders_their_text(tmp_path, only_sections):
+    """Issue 46's eighth attack, F5: a section returning a list (or str) subclass defined inside render passed the
+    check but could not be pickled back from its child: a traceback, exit 1 and no report, in `run` and `report`.
+    Its lines are text: they render."""
+    def own_classes(context):
+        class Lines(list):
+            pass
+
+        class Line(str):
+            pass
+        return Lines([Line("## own classes"), ""])
+
+    sections.register("own-classes", 0)(own_classes)
+    sections.register("fine", 1)(lambda c: ["## fine", ""])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        page = sections.render(_context(tmp_path))
+    assert page == "## own classes\n\n## fine\n\n"
+    assert not [w for w in caught if issubclass(w.category, plugins.PluginWarning)]
 
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="a plug-in section renders apart where the OS forks")

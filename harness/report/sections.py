@@ -110,7 +110,9 @@ def _guarded(section: Section, context: Context, where: str) -> list[str]:
         lines = section.render(context)
         if not isinstance(lines, list) or not all(isinstance(line, str) for line in lines):
             raise TypeError(f"render returned {type(lines).__name__}, not a list of lines of text")
-    return lines
+    # a plain list of plain str, what the pipe of _apart carries: a list or str subclass the section defined inside
+    # render cannot be pickled (it was a traceback: issue 46's eighth attack); str.__str__ copies a subclass's text
+    return [str.__str__(line) for line in lines]
 
 
 # A plug-in section's wall-time budget: the built-in sections of the default report take ~1 s all together.
@@ -142,7 +144,7 @@ def _apart(section: Section, context: Context, where: str) -> list[str]:
                 answer = ("raise", exc)
             try:
                 data = pickle.dumps(answer)
-            except Exception as exc:
+            except Exception as exc:  # what our own bug raised and cannot be sent: raised in the parent as text
                 data = pickle.dumps(("raise", RuntimeError(f"{type(exc).__name__}: {exc}")))
             with os.fdopen(write, "wb") as out:
                 out.write(data)

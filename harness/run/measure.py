@@ -65,7 +65,8 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
         sim = budget.prepared(lambda: model.prepare(run.case, run.formulation, run.integrator, run.dt, run.tolerance,
                                                     **precision_keyword(run)), prepare_budget(run, budgets))
         with budget.within("run", budgets.run_s):
-            traj = checked(sim, sim.run(grid), grid, getattr(scene, "trajectory", None))
+            traj = checked(sim, sim.run(grid), grid, getattr(scene, "trajectory", None),
+                           getattr(run.case, "omega0", None))
             row["_accuracy_s"] = time.perf_counter() - start
             row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
 
@@ -98,17 +99,18 @@ class NoTrajectory(ValueError):
     """A simulation's run() that returned what is no trajectory of its grid: a failed row of a plug-in."""
 
 
-def checked(sim, traj, grid, expected: type | None = None):
-    """What sim.run(grid) returned, checked (harness.trajectory.problem) and judged by the divergence rule: an ok
-    trajectory with NaN states is diverged at their time, whichever engine made it. Not a trajectory: NoTrajectory
-    (the run's failed row) from a plug-in's simulation, InternalError from stereodyn's own (our bug)."""
+def checked(sim, traj, grid, expected: type | None = None, omega0=None):
+    """What sim.run(grid) returned, checked (harness.trajectory.problem) and judged by the divergence rule (omega0:
+    the case's initial rad/s, its scale): an ok trajectory with NaN states is diverged at their time, whichever
+    engine made it. Not a trajectory: NoTrajectory (the run's failed row) from a plug-in's simulation, InternalError
+    from stereodyn's own (our bug)."""
     why = problem(traj, len(grid.times), expected)
     if why is not None:
         text = f"{type(sim).__module__}.{type(sim).__qualname__}.run() {why}"
         if plugins.own(type(sim)):
             raise InternalError(f"NoTrajectory: {text}", f"NoTrajectory: {text}\n")
         raise NoTrajectory(text)
-    return judged(traj)
+    return judged(traj, omega0)
 
 
 class BadMetric(ValueError):

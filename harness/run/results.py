@@ -128,6 +128,11 @@ def read_results(path: Path) -> pd.DataFrame:
         bad = df.index[values.isna() & (text != "") & (text.str.lower() != "nan")]
         if len(bad):
             raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]][:40]!r} is not a number")
+        if column == "dt":  # a key: empty is an adaptive run's; "nan" spelled out re-keyed a fixed-step row as one
+            bad = df.index[values.isna() & (text != "")]  # (issue 46's eighth attack), where -0.01 was refused
+            if len(bad):
+                raise TableError(f"{path}: row {bad[0] + 1}, column dt: {text[bad[0]][:40]!r}: must be a number > 0, "
+                                 "or empty (an adaptive run)")
         if column in FINITE or column.endswith(METRIC_SUFFIXES):
             bad = df.index[values.isin((math.inf, -math.inf))]
             if len(bad):
