@@ -37,6 +37,9 @@ if os.environ.get("STAND_IN_TIED"):
     from stereodyn.harness.run.processes import _parent_death_signal
     options["preexec_fn"] = _parent_death_signal
 child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(300)"], **options)
+if os.environ.get("STAND_IN_HANDLES"):  # as `stereodyn run` does: SIGTERM ends what it started, tied or not
+    import signal
+    signal.signal(signal.SIGTERM, lambda *_: (child.kill(), os._exit(143)))
 (out.parent / "pids.tmp").write_text(f"{os.getpid()} {child.pid}")
 os.replace(out.parent / "pids.tmp", out.parent / "pids")
 time.sleep(300)
@@ -70,9 +73,9 @@ def _gone(pids: list[int], seconds: float = 15.0) -> bool:
     return True
 
 
-def _started_matrix(offline, out: Path, tied: bool) -> tuple[subprocess.Popen, list[int]]:
-    env = {**os.environ, **({"STAND_IN_TIED": "1"} if tied else {})}
-    env.pop("STAND_IN_TIED", None) if not tied else None
+def _started_matrix(offline, out: Path, tied: bool, handles: bool = False) -> tuple[subprocess.Popen, list[int]]:
+    env = {k: v for k, v in os.environ.items() if k not in ("STAND_IN_TIED", "STAND_IN_HANDLES")}
+    env.update({"STAND_IN_TIED": "1"} if tied else {}, **({"STAND_IN_HANDLES": "1"} if handles else {}))
     argv = ["matrix", f"{DIST}==1.0", "--overlay", "--out", str(out), "--", *RUN]
     matrix = subprocess.Popen([sys.executable, "-c", DRIVER, SLOW_RUN, *argv], env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True)
@@ -85,14 +88,19 @@ def _started_matrix(offline, out: Path, tied: bool) -> tuple[subprocess.Popen, l
     return matrix, [int(p) for p in pids_file.read_text().split()]
 
 
-@pytest.mark.parametrize("sig, tied", [(signal.SIGTERM, False), (signal.SIGINT, False), (signal.SIGKILL, True)])
-def test_stopping_the_matrix_ends_its_run_and_what_the_run_started(offline, sig, tied):
+@pytest.mark.parametrize("sig, tied, handles", [(signal.SIGTERM, False, False), (signal.SIGINT, False, False),
+                                                (signal.SIGKILL, True, False), (signal.SIGKILL, False, True)],
+                         ids=["SIGTERM", "SIGINT", "SIGKILL, child tied", "SIGKILL, child a daemon"])
+def test_stopping_the_matrix_ends_its_run_and_what_the_run_started(offline, sig, tied, handles):
     """SIGTERM or SIGINT to the matrix's pid alone (not its group): the run and the run's own child, untied, end with
     it, and the last line says to rerun the same matrix command (exit 130 "interrupted"; SIGTERM 143 "terminated
     (SIGTERM)", as every command since issue 46's fifth attack). SIGKILL: the run ends by its parent-death
-    signal, and the run's child, tied to the run as a pool worker is, with it (before: both ran on, writing)."""
+    signal, and the run's child, tied to the run as a pool worker is, with it (before: both ran on, writing). The
+    parent-death signal is SIGTERM, which a run handles as the user's: what it started that no tie reaches (a
+    plug-in's daemon) ends too (issue 46's eighth attack, F7: with SIGKILL such daemons were left to init).
+    Break-checked: with SIGKILL as the run's parent-death signal the daemon lives on."""
     out = offline / "out"
-    matrix, pids = _started_matrix(offline, out, tied)
+    matrix, pids = _started_matrix(offline, out, tied, handles)
     try:
         os.kill(matrix.pid, sig)
         _, err = matrix.communicate(timeout=60)

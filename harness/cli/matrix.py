@@ -9,6 +9,7 @@ import json
 import math
 import re
 import shutil
+import signal
 import subprocess
 from contextlib import ExitStack
 from pathlib import Path
@@ -134,7 +135,7 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
     log = folder.parent / f"{folder.name}.log"
     with open(log, "a" if resume else "w") as out:
         done = envs.owned(command(environment.python, argv + (["--resume"] if resume else []), folder), stdout=out,
-                          stderr=subprocess.STDOUT)
+                          stderr=subprocess.STDOUT, death_signal=signal.SIGTERM)  # a run ends its workers and theirs
     if done.returncode in (130, 143):  # interrupted or terminated there: the matrix is too
         raise KeyboardInterrupt
     if done.returncode == 3:  # a bug in stereodyn is never a row (harness/errors.py), in an environment's run neither

@@ -6,10 +6,12 @@ A failed install is data (Environment.reason), as a failed run is: the matrix sh
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -115,25 +117,28 @@ def _running_versions(uv: str, requirements: tuple[str, ...]) -> str:
     return "\n".join(pins) + "\n"
 
 
-def _tie_to_parent() -> None:
-    """In the child, before it executes: the kernel SIGKILLs it the moment the matrix dies, even by SIGKILL (Linux
-    PR_SET_PDEATHSIG; a run's own workers are tied to the run the same way, harness/run/processes.py)."""
+def _tie_to_parent(signum: int) -> None:
+    """In the child, before it executes: the kernel sends it signum the moment the matrix dies, even by SIGKILL
+    (Linux PR_SET_PDEATHSIG; a run's own workers are tied to the run the same way, harness/run/processes.py)."""
     from .processes import _parent_death_signal
 
-    _parent_death_signal()
+    _parent_death_signal(signum)
 
 
 # After SIGTERM, how long an owned process group gets to end before SIGKILL.
 STOP_GRACE_S = 5.0
 
 
-def owned(argv: list[str], timeout: float | None = None, **options) -> subprocess.CompletedProcess:
+def owned(argv: list[str], timeout: float | None = None, death_signal: int = signal.SIGKILL,
+          **options) -> subprocess.CompletedProcess:
     """subprocess.run for the matrix's children (uv, an environment's `stereodyn run`): each in a process group of its
-    own and tied to the matrix by the parent-death signal, so that nothing it started outlives the matrix. Whatever
-    ends the wait (Ctrl-C or SIGTERM of the matrix, which raise KeyboardInterrupt here: harness/cli/matrix.py; the
-    timeout) ends the whole group first: SIGTERM, then SIGKILL after STOP_GRACE_S. A SIGKILLed matrix ends its
-    child by the parent-death signal; what that child started dies with it (a run's workers) or is its own."""
-    process = subprocess.Popen(argv, process_group=0, preexec_fn=_tie_to_parent, **options)
+    own and tied to the matrix by the parent-death signal (death_signal), so that nothing it started outlives the
+    matrix. Whatever ends the wait (Ctrl-C or SIGTERM of the matrix, which raise KeyboardInterrupt here:
+    harness/cli/matrix.py; the timeout) ends the whole group first: SIGTERM, then SIGKILL after STOP_GRACE_S. A
+    SIGKILLed matrix ends its child by the parent-death signal: SIGKILL (uv), or for a run SIGTERM, which the run
+    takes as the user's, ending its workers and what they started (SIGKILL left a plug-in's daemons to init)."""
+    process = subprocess.Popen(argv, process_group=0, preexec_fn=functools.partial(_tie_to_parent, death_signal),
+                               **options)
     try:
         out, err = process.communicate(timeout=timeout)
     except BaseException:
@@ -144,8 +149,6 @@ def owned(argv: list[str], timeout: float | None = None, **options) -> subproces
 
 def stop_group(process: subprocess.Popen) -> None:
     """End an owned process and its group: SIGTERM, SIGKILL past STOP_GRACE_S; waited for."""
-    import signal
-
     for sig in (signal.SIGTERM, signal.SIGKILL):
         try:
             os.killpg(process.pid, sig)

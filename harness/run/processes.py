@@ -69,9 +69,10 @@ def _prctl(option: int, value: int) -> bool:
         return False
 
 
-def _parent_death_signal() -> bool:
-    """Ask the kernel to SIGKILL this process when its parent dies (Linux); False where that is not available."""
-    return _prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+def _parent_death_signal(signum: int = signal.SIGKILL) -> bool:
+    """Ask the kernel to send this process signum (SIGKILL) when its parent dies (Linux); False where that is not
+    available."""
+    return _prctl(_PR_SET_PDEATHSIG, signum)
 
 
 def _watch_pid(parent: int) -> None:
