@@ -77,7 +77,7 @@ def test_the_shell_recipe_gates_a_plugin_integrator_and_writes_the_pull_request_
     env_row = next(line for line in lines if line.startswith("| plug-in integrator heun_gate |"))
     shown = [cell.split("source ")[1].rstrip("…") for cell in env_row.strip("| ").split(" | ")[1:3]]
     assert recorded[0] != recorded[1] and shown == [h[:12] for h in recorded], env_row
-    assert "**" in lines[0] and "changes for the worse**" in lines[0]
+    assert "**" in lines[0] and " for the worse**" in lines[0]
     signed = [line for line in lines if line.startswith("| attitude_err |")]
     assert signed and " worse | " in signed[0], pr  # the error grew: signed worse, not just "changed"
     assert any(line.startswith("| lagrange-top pinocchio") and "heun_gate" in line and line.endswith("| worse |")

@@ -221,7 +221,7 @@ def test_a_metric_become_nan_is_worse_in_check_compare_and_history(tmp_path, cap
     capsys.readouterr()
     assert cli.main(["compare", str(a), str(b), "--format", "pr"]) == 0
     pr = capsys.readouterr().out
-    assert "**1 changes for the worse**" in pr and "NaN in B free-asymmetric mujoco rk4 dt=0.003" in pr, pr
+    assert "**1 change for the worse**" in pr and "NaN in B free-asymmetric mujoco rk4 dt=0.003" in pr, pr
     changes = pd.read_csv(b / "compare.csv")
     assert changes["attitude_err"].max() == float("inf")  # compare.csv: B / A infinitely worse
     assert cli.main(["history", str(a), str(b), "--out", str(tmp_path / "h")]) == 0
@@ -266,7 +266,7 @@ def test_an_order_that_fell_toward_its_declared_one_is_worse_where_the_gate_fail
     capsys.readouterr()
     assert cli.main(["compare", str(baseline), str(run), "--format", "pr"]) == 0
     pr = capsys.readouterr().out
-    assert "no change for the worse" not in pr and "**1 changes for the worse**" in pr, pr
+    assert "no change for the worse" not in pr and "**1 change for the worse**" in pr, pr
     key = ("c",)
     assert [c["sign"] for c in compare.order_changes({key: {"fitted": 3.0, "declared": 4.0}},
                                                      {key: {"fitted": 4.0, "declared": 4.0}})] == ["better"]

@@ -14,6 +14,7 @@ from ..analysis.compare import (BECAME_NAN, DIFFERS, FIGURE_ROWS, FLOOR, GROUPS,
                                 CompareError, environment_rows, group, identical, label, load, load_orders,
                                 metric_signs, order_changes, row_changes, verdict_changes)
 from ..precision import FLOAT64
+from ..words import plural
 from .markdown import markdown_table, md_text
 
 
@@ -115,7 +116,7 @@ def pr_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.D
     worse = sum(m["worse"] for m in metrics) + sum(r[3] == "worse" for r in status_rows) \
         + sum(o["sign"] == "worse" for o in orders) + sum(v["sign"] == "worse" for v in verdicts)
     lines = [f"**stereodyn compare**: B {md_text(path_b)} against A {md_text(path_a)}: {len(changes)} rows; "
-             f"{'**' + str(worse) + ' changes for the worse**' if worse else 'no change for the worse'} "
+             f"{'**' + plural(worse, 'change') + ' for the worse**' if worse else 'no change for the worse'} "
              f"(a metric beyond {PR_RATIO:g}x either way, an order moved by more than {ORDER_CHANGE:g})"
              + (f"; {_answers(len(real))} changed (What to use)" if real else "") + ".", ""]
     if env:
