@@ -204,3 +204,20 @@ def test_a_hand_edited_environment_value_is_printed_escaped(gated, capsys):
     printed = capsys.readouterr().out
     assert "\x1b" not in printed and "\x00" not in printed and "\n# Heading" not in printed, printed
     assert "2.4.6\\x1b[31mRED\\x00\\n# Heading | x" in printed, printed
+
+
+def test_the_step_summary_escapes_every_value():
+    """Issue 46's eighth attack, F9: check's step summary escaped only `|` and newlines: a case name or environment
+    value holding <script>, an image, backticks or a link rendered as such in GitHub's page (compare --format pr
+    escaped them). Every value is md_text's. Break-checked: without md_text in step_summary the raw tags stand."""
+    from stereodyn.harness.analysis.gate import Finding, Verdict
+    from stereodyn.harness.report.check import step_summary
+
+    nasty = "<script>alert(1)</script> `tick` [l](http://e) **b**"
+    finding = Finding((nasty, "mujoco", "", "rk4", "float64", 0.01), "attitude_err", "1e-6", "2e-6", "1.05x",
+                      message="<img src=x onerror=alert(1)>")
+    text = step_summary(Verdict(1, 0, (finding,), ()), "check failed: 1 of 1 baseline rows got worse",
+                        [f"environment: cpu {nasty}"], [f"1 worse: {nasty}"])
+    assert "<script>" not in text and "<img src=x onerror=alert(1)>" not in text and " `tick`" not in text \
+        and "[l](http" not in text, text
+    assert "\\<script\\>" in text and "\\`tick\\`" in text and "\\*\\*b\\*\\*" in text, text

@@ -286,8 +286,8 @@ def _raise_interrupt():  # raised by its code, not the user's Ctrl-C (that one e
 def test_a_plugin_engines_unsupported_that_exits_is_the_reason_of_its_skipped_rows(fault, said):
     """Issue 46's eighth attack, F1: a plug-in engine's unsupported(case) calling sys.exit(3) made `run` exit 3 with
     nothing said (os._exit(5): exit 5; a bare BaseException: a traceback). Its rigid body is our RigidBodyModel asking
-    the engine, so the plan took it for our code and left out the guard. Break-checked: deciding by the model alone,
-    the first three end the test."""
+    the engine, so the plan took it for our code and left out the guard. Break-checked: deciding by the model alone
+    (Hooks._own), the first three end the test."""
     from stereodyn.harness.engines.base import About, Engine, RigidBodyModel
     from stereodyn.harness.run import plan
 
@@ -304,10 +304,48 @@ def test_a_plugin_engines_unsupported_that_exits_is_the_reason_of_its_skipped_ro
     engine = Exits()
     handler = signal.signal(signal.SIGINT, processes.on_interrupt)  # the command's: it tells its Ctrl-C from a raise
     try:
-        reason = plan._unsupported(RigidBodyModel(engine), engine, CASE, "exits")
+        ask = plan.Hooks(engine, "exits")
+        ask.model = RigidBodyModel(engine)
+        reason = ask.reason("unsupported(case)", ask.model.unsupported, CASE)
     finally:
         signal.signal(signal.SIGINT, handler)
     assert reason.startswith(f"engine 'exits': unsupported(case) raised {said}"), reason
+    assert os._exit is plugins._real_exit
+
+
+def test_a_plugin_engines_planning_hooks_are_one_line_or_their_rows_reason():
+    """Issue 46's eighth attack, F8 and F11: a plug-in model's unsupported_run() or default_run() that raised was a
+    traceback in `run` and `advise` (sys.exit(3): exit 3 with nothing said; os._exit(5): exit 5); a reason with a
+    newline printed on two lines. A declaration's failure is one line naming the plug-in and the hook (EngineError,
+    exit 2); a pair's reason that fails is its skipped rows' reason; a reason is one line. Break-checked: calling the
+    hooks directly (Hooks._own True) ends the test or raises the plug-in's error."""
+    from stereodyn.harness.engines import EngineError
+    from stereodyn.harness.engines.base import About, Engine, RigidBodyModel
+    from stereodyn.harness.run import plan
+
+    class Plugin(Engine):
+        name = "hooks"
+        about = About(state_space="lie")
+
+        def integrators(self):
+            return ("rk4",)
+
+    class Model(RigidBodyModel):
+        pass
+
+    engine = Plugin()
+    ask = plan.Hooks(engine, "hooks")
+    ask.model = Model(engine)
+    for fault, said in ((lambda *a: sys.exit(3), "SystemExit: 3"), (lambda *a: os._exit(5), "called os._exit(5)"),
+                        (lambda *a: 1 / 0, "ZeroDivisionError")):
+        with pytest.raises(EngineError) as caught:
+            ask("default_run(...)", fault, CASE, "", "rk4")
+        assert str(caught.value).startswith("engine plug-in 'hooks': default_run(...) failed: ") \
+            and said in str(caught.value), str(caught.value)
+        why = ask.reason("unsupported_run(...)", fault, CASE, "", "rk4")
+        assert why.startswith("engine 'hooks': unsupported_run(...) raised ") and said in why, why
+    assert ask.reason("unsupported(case)", lambda case: "two\nlines | <b>", CASE) == "two lines | <b>"
+    assert ask.reason("unsupported(case)", lambda case: None, CASE) is None
     assert os._exit is plugins._real_exit
 
 
@@ -470,6 +508,19 @@ def test_a_section_that_raises_exits_or_returns_garbage_is_left_out_with_one_war
     assert said[3].endswith("TypeError: render returned str, not a list of lines of text")
     assert os._exit is plugins._real_exit  # the guard put it back
 
+
+
+def test_a_plugin_section_may_not_take_a_built_in_sections_name(tmp_path, only_sections):
+    """Issue 46's eighth attack, F10: a plug-in's @sections.register("summary", 95) replaced the built-in Summary in
+    silence. Refused (TypeError: its module does not load, one warning); a name of its own registers. Break-checked:
+    without the check in register the plug-in's function replaces the built-in one."""
+    from stereodyn.harness.report import build
+
+    sections.register("summary", 20)(build._summary)  # the built-in, as its module registers it
+    with pytest.raises(TypeError, match="'summary': the name of a built-in section"):
+        sections.register("summary", 95)(lambda context: ["## mine", ""])
+    assert sections._REGISTRY["summary"].render is build._summary
+    sections.register("summary-of-mine", 95)(lambda context: ["## mine", ""])
 
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="a plug-in section renders apart where the OS forks")
@@ -1168,6 +1219,32 @@ def test_an_engine_whose_timing_no_scheduler_can_use_is_refused_at_load(timing, 
     with pytest.raises(engines.EngineError) as caught:
         engines._check(engine, "engine plug-in 'offering'")
     assert str(caught.value).startswith(f"engine plug-in 'offering': {words}"), str(caught.value)
+
+
+@pytest.mark.parametrize("about, words", [
+    (None, "about = None: must be a harness.engines.base.About"),
+    ("About(packages=42)", "about.packages = 42: must be a tuple of distribution names"),
+    ("About(packages=('',))", "about.packages = ('',): must be a tuple of distribution names"),
+    ("About(linestyle=42)", "about.linestyle = 42: must be one of -, --, -., :"),
+    ("About(linestyle=(0, 'x'))", "about.linestyle = (0, 'x'): must be one of"),
+    ("About(export_formats='mjcf')", "about.export_formats = 'mjcf': must be a tuple of format names"),
+    ("About(state_space=3)", "about.state_space = 3: must be text or None"),
+], ids=["None", "packages int", "packages empty name", "linestyle int", "dashes text", "formats text",
+        "state space int"])
+def test_an_engine_whose_about_cannot_be_used_is_refused_at_load(about, words):
+    """Issue 46's eighth attack, F12: About(packages=42), about = None and packages=('',) loaded, then were a
+    traceback in the sweep (the store's key) or in `stereodyn engines`; linestyle=42 one when the figures were drawn.
+    Refused at load, naming the field and the rule. Break-checked: without _check_about each loads."""
+    from stereodyn.harness import engines
+    from stereodyn.harness.engines.base import About
+
+    engine = _offering(lambda self, i: Offer(order=4))
+    type(engine).about = eval(about) if isinstance(about, str) else about
+    with pytest.raises(engines.EngineError) as caught:
+        engines._check(engine, "engine plug-in 'offering'")
+    assert str(caught.value).startswith(f"engine plug-in 'offering': {words}"), str(caught.value)
+    type(engine).about = About(packages=("mujoco",), linestyle=(0, (3, 1, 1, 1)))  # a dash tuple is a line style
+    engines._check(engine, "engine plug-in 'offering'")
 
 
 def test_an_engine_offering_the_registrys_order_loads():

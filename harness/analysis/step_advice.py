@@ -290,24 +290,32 @@ def families_to_advise(case, engine_name: str, integrators: list[str] | None,
     """The families `stereodyn advise` checks: the integrators named, or the engine's default-sweep integrators
     with a declared order or error control, on one formulation (the one named, else quaternion or the engine's
     first). Bad names raise ValueError with the valid ones."""
+    from ..run.plan import Hooks
+
     engine = get_engine(engine_name)
-    own, model = formulations(engine), rigid_body(engine)
+    ask = Hooks(engine, engine_name)  # a plug-in's hooks behind the guard, as a sweep's plan asks them
+    own, model = ask("formulations", formulations, engine), ask("models()", rigid_body, engine)
+    ask.model = model
     if formulation is None:
         formulation = "quaternion" if "quaternion" in own else (own[0] if own else "")
     elif formulation not in own:
         raise ValueError(f"--formulation: {engine_name} has {', '.join(own) or 'no formulations'}, not {formulation!r}")
-    known = engine.integrators()
+    known = ask("integrators()", engine.integrators)
     if integrators:
         unknown = [i for i in integrators if i not in known]
         if unknown:
             raise ValueError(f"--integrator: unknown for {engine_name}: {', '.join(unknown)}; valid: {', '.join(known)}")
         chosen = list(integrators)
     else:
-        chosen = [i for i in known if in_default_sweep(engine, i) and model.default_run(case, formulation, i)
-                  and (engine.offer(i).adaptive or math.isfinite(declared_order(engine, i)))]
+        chosen = [i for i in known if ask(f"offer({i!r})", in_default_sweep, engine, i)
+                  and ask("default_run(...)", model.default_run, case, formulation, i)
+                  and (ask(f"offer({i!r})", engine.offer, i).adaptive or math.isfinite(declared_order(engine, i)))]
     out = []
+    if ask.reason("unsupported(case)", model.unsupported, case):
+        return out
     for integrator in chosen:
-        if engine.unsupported(case) or model.unsupported_run(case, formulation, integrator):
+        if ask.reason("unsupported_run(...)", model.unsupported_run, case, formulation, integrator):
             continue
-        out.append((Family(case, engine_name, formulation, integrator), engine.offer(integrator).adaptive))
+        out.append((Family(case, engine_name, formulation, integrator), ask(f"offer({integrator!r})", engine.offer,
+                                                                           integrator).adaptive))
     return out

@@ -53,10 +53,14 @@ def main(args) -> int:
         raise BadInput(str(exc)) from None
     if not families:
         from ..engines import get_engine
+        from ..engines.declared import rigid_body
+        from ..run.plan import Hooks
 
         engine = get_engine(args.engine)
-        raise BadInput(f"--engine {args.engine}: nothing to advise on case {case.name}"
-                       + (f" ({engine.unsupported(case)})" if engine.unsupported(case) else ""))
+        ask = Hooks(engine, args.engine)
+        ask.model = rigid_body(engine)
+        why = ask.reason("unsupported(case)", ask.model.unsupported, case)
+        raise BadInput(f"--engine {args.engine}: nothing to advise on case {case.name}" + (f" ({why})" if why else ""))
     targets = tuple(sorted(args.target or TERMINAL_TARGETS, reverse=True))
     say = lambda text: print(f"stereodyn: {text}", file=sys.stderr)  # noqa: E731
     from .. import budget

@@ -13,7 +13,7 @@ from importlib.metadata import EntryPoint
 
 from ...reference import plugins
 from ...reference.registry import Registry
-from .base import Engine, Offer, RigidBodyModel, SceneModel, Timing
+from .base import About, Engine, Offer, RigidBodyModel, SceneModel, Timing
 from ..budget import MAX_BUDGET_S, MIN_BUDGET_S
 from ..precision import PRECISIONS
 from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
@@ -134,6 +134,7 @@ def _check(engine: Engine, where: str) -> None:
     if not names:  # no run at all: `run --engines NAME` would end "done" having run nothing (issue 46, F9)
         raise EngineError(f"{where}: integrators() returned {names!r}: an engine offers at least one integrator")
     _check_timing(engine.timing, where)
+    _check_about(engine.about, where)
     if not isinstance(models, dict):
         raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
     lists = [("integrators()", "an integrator", tuple(names))]  # each name is in every row and listing line
@@ -176,6 +177,35 @@ def _check_timing(timing, where: str) -> None:
         value = getattr(timing, field)
         if not isinstance(value, bool):
             raise EngineError(f"{where}: timing.{field} = {value!r:.80}: must be True or False")
+
+
+# Matplotlib's named line styles; a dash tuple (offset, (on, off, ...)) is the other form About.linestyle takes.
+LINESTYLES = ("-", "--", "-.", ":", "solid", "dashed", "dashdot", "dotted")
+
+
+def _check_about(about, where: str) -> None:
+    """Refuse, at load, an About the store, the listings and the figures cannot use (packages=42 or about=None were a
+    traceback in the sweep or in `stereodyn engines`, linestyle=42 one when the figures were drawn: issue 46's eighth
+    attack)."""
+    if not isinstance(about, About):
+        raise EngineError(f"{where}: about = {about!r:.80}: must be a harness.engines.base.About")
+    rules = {"packages": "a tuple of distribution names", "export_formats": "a tuple of format names"}
+    for field, rule in rules.items():
+        value = getattr(about, field)
+        if not (isinstance(value, (tuple, list)) and all(isinstance(v, str) and v.strip() for v in value)):
+            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be {rule}")
+    style = about.linestyle
+    dashes = isinstance(style, tuple) and len(style) == 2 and isinstance(style[0], (int, float)) \
+        and isinstance(style[1], tuple) and style[1] and all(isinstance(d, (int, float)) and not isinstance(d, bool)
+                                                              and math.isfinite(d) and d >= 0 for d in style[1])
+    if style not in LINESTYLES and not dashes:
+        raise EngineError(f"{where}: about.linestyle = {style!r:.80}: must be one of {', '.join(LINESTYLES)} or a "
+                          "dash tuple (offset, (on, off, ...))")
+    for field in ("state_space", "formulation"):
+        value = getattr(about, field)
+        if not (isinstance(value, str) or (field == "state_space" and value is None)):
+            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be text"
+                              + (" or None" if field == "state_space" else ""))
 
 
 def _check_offer(engine: Engine, integrator: str, where: str) -> None:

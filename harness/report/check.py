@@ -6,7 +6,7 @@ from xml.etree import ElementTree
 
 from ..analysis import gate
 from ..precision import FLOAT64
-from .markdown import markdown_table
+from .markdown import markdown_table, md_text
 
 STEP_SUMMARY_ROWS = 30  # findings listed in the step summary; the log and the JUnit file have every one
 
@@ -48,12 +48,14 @@ def junit(baseline: gate.Baseline, verdict: gate.Verdict, headline: str) -> str:
 def step_summary(verdict: gate.Verdict, headline: str, context: list[str], groups: list[str]) -> str:
     """The markdown of a check for GitHub's step summary: the headline, the environment and mode lines, the grouped
     findings and the first STEP_SUMMARY_ROWS of them as a table."""
-    lines = [f"### stereodyn {headline}", "", *(f"- {line}" for line in context), ""]
+    # every value escaped as compare --format pr does (md_text): a case name or environment value holding <script>,
+    # backticks or a link rendered as such in GitHub's page (issue 46's eighth attack)
+    lines = [f"### stereodyn {md_text(headline)}", "", *(f"- {md_text(line)}" for line in context), ""]
     findings = [*verdict.findings, *verdict.order_findings]
     if findings:
-        lines += [*(f"- {line}" for line in groups), ""]
-        rows = [[_name(f.key), f.key[1], f.what, f.baseline, f.current, f.allowed, f.message]
-                for f in findings[:STEP_SUMMARY_ROWS]]
+        lines += [*(f"- {md_text(line)}" for line in groups), ""]
+        rows = [[md_text(cell) for cell in (_name(f.key), f.key[1], f.what, f.baseline, f.current, f.allowed,
+                                            f.message)] for f in findings[:STEP_SUMMARY_ROWS]]
         lines += markdown_table(["row", "engine", "what", "baseline", "now", "allowed", "message"], rows) + [""]
         if len(findings) > STEP_SUMMARY_ROWS:
             lines += [f"... and {len(findings) - STEP_SUMMARY_ROWS} more in the log.", ""]

@@ -64,12 +64,18 @@ SECTIONS = Registry("report section plug-in", ENTRY_POINT_GROUP, BUILT_IN)
 
 def register(name: str, order: float) -> Callable:
     """Decorator: register `render(context) -> lines` as the section `name` at `order` (a name registered again is
-    replaced: a module imported twice, or a plug-in's own version of a section)."""
+    replaced: a module imported twice). A plug-in's section may not take a built-in section's name: TypeError, so
+    its module does not load, one warning (it replaced "summary" in silence: issue 46's eighth attack; engines and
+    integrators refuse a built-in's name the same way)."""
     why = plugins.name_problem("name", name)  # the heading and the warning line that name it
     if why:
         raise TypeError(f"report section {name!r:.80}: {why}")
 
     def add(render: Callable[[Context], list[str]]) -> Callable[[Context], list[str]]:
+        held = _REGISTRY.get(name)
+        if held is not None and plugins.own(held.render) and not plugins.own(render):
+            raise TypeError(f"report section {name!r}: the name of a built-in section; a plug-in's section takes a "
+                            "name of its own")
         _REGISTRY[name] = Section(name, float(order), render)
         return render
     return add

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from ...reference import plugins
-from ..engines import UnavailableEngine, declared, get_engine
+from ..engines import EngineError, UnavailableEngine, declared, get_engine
 from ..precision import FLOAT64
 from ..scenes import scene_of
 from ..words import one_line
@@ -47,38 +47,45 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
     specs, skipped = [], []
     for engine_rank, name in enumerate(engines):
         engine = get_engine(name)
-        selection = Selection.of(engine, integrators)
+        ask = Hooks(engine, name)
+        selection = ask("integrators()", Selection.of, engine, integrators)
         if not selection.default and not selection.integrators and not isinstance(engine, UnavailableEngine):
             continue  # it offers none of the integrators named: no rows, not a skipped row per case
-        models = engine.models()
+        models = ask("models()", engine.models)
         for case in cases:
             scene = scene_of(case)
             model = models.get(scene.kind)
             if model is None:
                 skipped.append(skipped_row(RunSpec(case, name, "", None, engine_rank=engine_rank),
-                                           engine.unmodelled(scene)))
+                                           ask("unmodelled(scene)", engine.unmodelled, scene)))
                 continue
-            reason = _unsupported(model, engine, case, name)
-            variants = tuple(model.variants()) or ("",)
-            for integrator_rank, integrator in enumerate(model.integrators(list(selection.integrators)) or ([""] if reason else [])):
+            ask.model = model
+            reason = ask.reason("unsupported(case)", model.unsupported, case)
+            variants = tuple(ask("variants()", model.variants)) or ("",)
+            chosen = ask("integrators(names)", model.integrators, list(selection.integrators))
+            for integrator_rank, integrator in enumerate(chosen or ([""] if reason else [])):
                 # an integrator the SDK offers that the adapter does not run (Offer.unmodelled): one skipped row
-                unmodelled = engine.offer(integrator).unmodelled if integrator else ""
-                dts = (None,) if integrator and (engine.offer(integrator).adaptive or unmodelled) else case.dt
+                offer = ask(f"offer({integrator!r})", engine.offer, integrator) if integrator else None
+                unmodelled = offer.unmodelled if offer else ""
+                dts = (None,) if integrator and (offer.adaptive or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
-                    dts = tuple(declared.rigid_body(engine).default_dts(case, integrator, tuple(dts)))
+                    dts = tuple(ask("default_dts(...)", declared.rigid_body(engine).default_dts, case, integrator,
+                                    tuple(dts)))
                 for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
-                    if integrator and selection.default and not model.default_run(case, formulation, integrator):
+                    if integrator and selection.default and not ask("default_run(...)", model.default_run, case,
+                                                                     formulation, integrator):
                         continue  # the engine leaves this pair out of the default sweep (SceneModel.default_run)
                     # the precisions the engine's model of this scene runs (SceneModel.precisions)
-                    precisions = model.precisions(integrator) if integrator else (FLOAT64,)
+                    precisions = ask("precisions(integrator)", model.precisions, integrator) if integrator \
+                        else (FLOAT64,)
+                    # a formulation/integrator pair that cannot model the case (SceneModel.unsupported_run)
+                    why = reason or unmodelled or (integrator and ask.reason(
+                        "unsupported_run(...)", model.unsupported_run, case, formulation, integrator))
                     for dt in dts:
                         for precision_rank, precision in enumerate(precisions):
                             spec = RunSpec(case, name, integrator, dt, formulation, precision=precision,
                                            engine_rank=engine_rank, integrator_rank=integrator_rank,
                                            formulation_rank=formulation_rank, precision_rank=precision_rank)
-                            # a formulation/integrator pair that cannot model the case (SceneModel.unsupported_run)
-                            why = reason or unmodelled or (integrator and model.unsupported_run(case, formulation,
-                                                                                                integrator))
                             (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
     return specs, skipped
 
@@ -98,20 +105,43 @@ def agreement_candidates(specs: list[RunSpec]) -> set[int]:
     return {index for index, key in methods.items() if len(engines[key]) > 1}
 
 
-def _unsupported(model, engine_object, case, engine: str) -> str | None:
-    """The model's reason not to run the case (SceneModel.unsupported); a plug-in's that raises is the reason of its
-    skipped rows, named (our own code's is a bug: raise_unless_data). A plug-in engine's rigid body is our model
-    asking the engine (engines.base.RigidBodyModel): the engine's code, so behind the guard too (its sys.exit was
-    exit 3 with nothing said: issue 46's eighth attack)."""
-    if plugins.own(type(model)) and plugins.own(type(engine_object)):
+class Hooks:
+    """An engine's planning hooks, called for plan(): a plug-in's (its engine, or the model it gives, not stereodyn's
+    own: our RigidBodyModel asks the engine) behind the guard. ask(what, hook, *args): a declaration; its failure
+    (any raise, sys.exit, os._exit) is one line naming the plug-in and the hook (EngineError, exit 2: it was exit 3
+    with nothing said, or a traceback: issue 46's eighth attack). ask.reason(...): a reason not to run a case or a
+    pair, None or text; its failure is the reason of the skipped rows, named. Our own code's failure is a bug.
+    `stereodyn advise` asks through it too (analysis.step_advice.families_to_advise)."""
+
+    def __init__(self, engine, name: str):
+        self.engine, self.name, self.model = engine, name, None
+
+    def _own(self) -> bool:
+        return plugins.own(type(self.engine)) and (self.model is None or plugins.own(type(self.model)))
+
+    def __call__(self, what: str, hook, *args):
+        if self._own():
+            return hook(*args)
         try:
-            return model.unsupported(case)
-        except Exception as exc:
-            raise_unless_data(exc)
-            return f"engine {engine!r}: unsupported(case) raised {type(exc).__name__}: {exc}"[:300]
-    try:  # behind the guard: its sys.exit, os._exit, GeneratorExit or own KeyboardInterrupt ended the command (F2
-        with plugins.guard(engine):  # of issue 46's fourth attack)
-            return model.unsupported(case)
-    except plugins.PluginError as exc:
-        error = exc.error
-        return one_line(f"engine {engine!r}: unsupported(case) raised {type(error).__name__}: {error}")[:300]
+            with plugins.guard(f"engine plug-in {self.name!r}: {what} failed"):
+                return hook(*args)
+        except plugins.PluginError as exc:
+            raise EngineError(one_line(str(exc))) from None
+
+    def reason(self, what: str, hook, *args) -> str | None:
+        if self._own():
+            try:
+                return hook(*args)
+            except Exception as exc:
+                raise_unless_data(exc)  # our own code's is a bug (harness.errors)
+                return f"engine {self.name!r}: {what} raised {type(exc).__name__}: {exc}"[:300]
+        try:
+            with plugins.guard(self.name):
+                why = hook(*args)
+        except plugins.PluginError as exc:
+            error = exc.error
+            return one_line(f"engine {self.name!r}: {what} raised {type(error).__name__}: {error}")[:300]
+        # a plug-in's lines one, as measure makes a run's message: its runs of space (a newline) one space
+        return one_line(" ".join(why.split())) if isinstance(why, str) else why
+
+
