@@ -125,11 +125,14 @@ def read_results(path: Path) -> pd.DataFrame:
     for column in [c for c in df.columns if c not in TEXT_COLUMNS]:
         text = df[column].str.strip()
         values = pd.to_numeric(text.replace("", "nan"), errors="coerce")
-        # NaN is an empty cell, as stereodyn writes it: "nan" spelled out is refused as "inf" is (in dt, a key, it
-        bad = df.index[values.isna() & (text != "")]  # re-keyed a fixed-step row as adaptive: issue 46's 8th attack)
+        bad = df.index[values.isna() & (text != "") & (text.str.lower() != "nan")]
         if len(bad):
-            raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]][:40]!r} is not a number"
-                             + (" (NaN is an empty cell)" if text[bad[0]].lower() == "nan" else ""))
+            raise TableError(f"{path}: row {bad[0] + 1}, column {column}: {text[bad[0]][:40]!r} is not a number")
+        if column == "dt":  # a key: empty is an adaptive run's; "nan" spelled out (elsewhere a missing number, as
+            bad = df.index[values.isna() & (text != "")]  # empty) re-keyed a fixed-step row as one: issue 46's 8th
+            if len(bad):  # attack, where -0.01 was refused
+                raise TableError(f"{path}: row {bad[0] + 1}, column dt: {text[bad[0]][:40]!r}: must be a number > 0, "
+                                 "or empty (an adaptive run)")
         if column in FINITE or column.endswith(METRIC_SUFFIXES):
             bad = df.index[values.isin((math.inf, -math.inf))]
             if len(bad):
