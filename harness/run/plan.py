@@ -69,8 +69,8 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                 unmodelled = offer.unmodelled if offer else ""
                 dts = (None,) if integrator and (offer.adaptive or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
-                    dts = tuple(ask("default_dts(...)", declared.rigid_body(engine).default_dts, case, integrator,
-                                    tuple(dts)))
+                    rigid = ask("models()", declared.rigid_body, engine)
+                    dts = tuple(ask("default_dts(...)", rigid.default_dts, case, integrator, tuple(dts)))
                 for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
                     if integrator and selection.default and not ask("default_run(...)", model.default_run, case,
                                                                      formulation, integrator):
