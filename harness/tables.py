@@ -116,6 +116,7 @@ METRIC_SUFFIXES = ("_drift", "_err", "_err_end")
 NON_NEGATIVE = ("t_end", "steps", "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "rhs_per_sim_s",
                 "chart_changes")
 POSITIVE = ("dt",)
+COUNTS = ("steps", "chart_changes")  # whole numbers (steps = 2.5 passed every reader: issue 46's ninth attack)
 # The largest number a reader accepts in a metric, timing or count column (read_results, a baseline's rows, a stored
 # record on --resume): one bound, so that whatever a reader accepts every command can compute with (the ratios to the
 # 1e-12 floor, the powers of ten of their logs in history, factor x baseline in check: 1e100 / 1e-12 = 1e112, far from
@@ -142,6 +143,8 @@ def value_rule(column: str, value: float) -> str | None:
     checked = column in NON_NEGATIVE or column.endswith(METRIC_SUFFIXES)
     if checked and value < 0:
         return "must be >= 0"
+    if column in COUNTS and math.isfinite(value) and value != math.floor(value):
+        return "must be a whole number (a count)"
     if column in ANGLES and value > MAX_ANGLE:
         return "must be <= pi (an angle in rad)"
     if (checked or column in POSITIVE) and value > MAX_VALUE:

@@ -356,11 +356,13 @@ def _cell(lines, row: int, column: str, value: str):
     # wall_s -1 drew matplotlib's UserWarning five times in `report`; a negative timing is bad input
     (lambda lines: _cell(lines, 1, "wall_s", "-1"), ("row 1, column wall_s", "must be >= 0")),
     (lambda lines: _cell(lines, 1, "steps", "-3"), ("row 1, column steps", "must be >= 0")),
+    # issue 46's ninth attack: 2.5 steps passed every reader
+    (lambda lines: _cell(lines, 1, "steps", "2.5"), ("row 1, column steps", "must be a whole number (a count)")),
     (lambda lines: lines[:1] + [lines[1].rstrip("\n") + ",extra\n"] + lines[1:], ("row 1:", "the header has")),
     (lambda lines: lines + [lines[1][: len(lines[1]) // 2] + "\n"], ("row 2:", "truncated")),
     (lambda lines: lines[:1], ("no rows",)),
 ], ids=["text metric", "unknown status", "metric inf", "timing -inf", "no case", "dt inf", "dt -inf", "dt 0",
-        "dt nan", "no engine", "row twice", "negative drift", "negative wall_s", "negative steps", "long row", "cut row",
+        "dt nan", "no engine", "row twice", "negative drift", "negative wall_s", "negative steps", "half a step", "long row", "cut row",
         "header only"])
 def test_a_malformed_results_table_is_refused_by_every_reader(good, tmp_path, capsys, edit, expected):
     """check, baseline, compare and report each exit 2 with one line (report's stderr no warning either)."""

@@ -346,7 +346,20 @@ def test_a_plugin_engines_planning_hooks_are_one_line_or_their_rows_reason():
         assert why.startswith("engine 'hooks': unsupported_run(...) raised ") and said in why, why
     assert ask.reason("unsupported(case)", lambda case: "two\nlines | <b>", CASE) == "two lines | <b>"
     assert ask.reason("unsupported(case)", lambda case: None, CASE) is None
+    with pytest.raises(EngineError, match=r"^engine plug-in 'hooks': unsupported\(case\) returned 42, not a reason"):
+        ask.reason("unsupported(case)", lambda case: 42, CASE)  # the ninth attack: a skipped row, reason "42"
     assert os._exit is plugins._real_exit
+
+
+@pytest.mark.parametrize("status", [Status.OK, Status.FAILED])
+@pytest.mark.parametrize("at", [math.inf, -math.inf, -5.0, 0.05])
+def test_a_time_of_divergence_is_a_diverged_rows_only(monkeypatch, status, at):
+    """Issue 46's ninth attack, F4: a plug-in's ok (or failed) trajectory with diverged_at = inf, -inf or -5 wrote it
+    into results.csv; run exited 0 and every reader then refused the folder. Only a diverged row has a time.
+    Break-checked: with the trajectory's diverged_at written as it was each row keeps it."""
+    row = _row(monkeypatch, _Model(lambda grid: dataclasses.replace(_states(grid), status=status, diverged_at=at,
+                                                                    message="fine" if status is Status.OK else "x")))
+    assert row["status"] == status.value and math.isnan(row["diverged_at"]), row
 
 
 def test_a_diverged_trajectory_says_when(monkeypatch):

@@ -86,3 +86,28 @@ def test_the_key_changes_with_the_horizon_and_the_certification():
     assert key() != key(with_overrides(case, t_end=case.t_end / 2))
     assert key() != key(certify=False)
     assert key() == key(with_overrides(case, dt=[0.5]))  # the sweep's other steps are not this run's content
+
+
+@pytest.mark.parametrize("edit", [
+    lambda record: record["row"].pop("attitude_err"),               # a metric deleted: an ok row with it empty
+    lambda record: record["row"].__setitem__("extra", 1.0),         # a key added
+    lambda record: record.__setitem__("extra", 1),                  # at the top level
+    lambda record: record["identity"].__setitem__("dt", 0.5),       # the identity of another run
+    lambda record: record.pop("seal"),                              # a record without its seal
+], ids=["metric deleted", "row key added", "top key added", "identity edited", "no seal"])
+def test_a_record_not_exactly_as_put_wrote_it_is_absent(tmp_path, edit):
+    """Issue 46's ninth attack, F3: --resume reused a record whose attitude_err was deleted (an ok row with it empty,
+    which check then failed), or that held an extra key, or whose identity's dt no longer matched. A record carries
+    a seal (store.seal) over what the results are made of; one that does not match counts as absent. Break-checked:
+    without the seal's check in well_formed each is read back."""
+    import json
+
+    with Store(tmp_path) as records:
+        records.put("k1", IDENTITY, ROW, None)
+        path = records.path("k1")
+        record = json.loads(path.read_text())
+        edit(record)
+        path.write_text(json.dumps(record))
+        assert records.get("k1") is None
+        records.put("k1", IDENTITY, ROW, {"t": [0.0, 1.0]})
+        assert records.get("k1") is not None  # as put wrote it, with or without a series

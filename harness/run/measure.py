@@ -68,7 +68,10 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
             traj = checked(sim, sim.run(grid), grid, getattr(scene, "trajectory", None),
                            getattr(run.case, "omega0", None))
             row["_accuracy_s"] = time.perf_counter() - start
-            row.update(status=traj.status.value, message=traj.message, diverged_at=traj.diverged_at)
+            # a time of divergence belongs to a diverged row only (judged checked it against the grid): a plug-in's
+            # ok trajectory with diverged_at = inf wrote a results.csv every reader refused (issue 46's ninth attack)
+            row.update(status=traj.status.value, message=traj.message,
+                       diverged_at=traj.diverged_at if traj.status is Status.DIVERGED else math.nan)
 
             def rerun(case):
                 return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance,

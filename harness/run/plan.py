@@ -141,7 +141,10 @@ class Hooks:
         except plugins.PluginError as exc:
             error = exc.error
             return one_line(f"engine {self.name!r}: {what} raised {type(error).__name__}: {error}")[:300]
+        if not isinstance(why, (str, type(None))):  # 42 was the reason "42" (issue 46's ninth attack)
+            raise EngineError(f"engine plug-in {self.name!r}: {what} returned {why!r:.80}, not a reason (text, or None "
+                              "to run)")
         # a plug-in's lines one, as measure makes a run's message: its runs of space (a newline) one space
-        return one_line(" ".join(why.split())) if isinstance(why, str) else why
+        return None if why is None else one_line(" ".join(why.split()))
 
 

@@ -178,6 +178,16 @@ def run_key(identity: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
+def seal(record: dict) -> str:
+    """The digest Store.put writes into a record: sha256 of the canonical JSON of what the results are made of (its
+    key, identity, row and budget; not the series, which only the figures read), first 24 hex digits. A record whose
+    seal does not match is not exactly what put() wrote (a metric deleted, a key added, its identity's dt edited:
+    each was reused by --resume, issue 46's ninth attack) and counts as absent."""
+    sealed = {name: record.get(name) for name in ("format", "key", "identity", "row", "budget")}
+    return hashlib.sha256(json.dumps(sealed, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:24]
+
+
+_RECORD_KEYS = frozenset({"format", "key", "identity", "row", "series", "budget", "seal"})  # what put() writes
 _TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "timing")
 _IDENTITY_COLUMNS = ("engine", "formulation", "integrator", "precision")  # in both the identity and the row
 _STATUSES = frozenset(s.value for s in Status)
@@ -200,12 +210,13 @@ def _is_number(column: str, value: Any) -> bool:
 
 
 def well_formed(record: Any, key: str) -> bool:
-    """Whether a stored record has the shape Store.put writes: the format, its own key, an identity, a row whose
-    status is a Status, whose text columns are text and whose other columns are numbers, and series/checks of the
-    right container type. A record failing this is treated as absent (redone, never copied into results.csv)."""
+    """Whether a stored record has the shape Store.put writes: the format, its own key, its seal (seal), an identity,
+    a row whose status is a Status, whose text columns are text and whose other columns are numbers, and
+    series/checks of the right container type. A record failing this is treated as absent (redone, never copied into results.csv)."""
     if not (isinstance(record, dict) and record.get("format") == FORMAT and record.get("key") == key
             and isinstance(record.get("identity"), dict) and isinstance(record.get("row"), dict)
-            and isinstance(record.get("series"), (dict, type(None)))):
+            and isinstance(record.get("series"), (dict, type(None))) and record.keys() <= _RECORD_KEYS
+            and record.get("seal") == seal(record)):
         return False
     row = record["row"]
     if row.get("status") not in _STATUSES or not all(isinstance(row.get(c), str) for c in ("case", "engine")):
@@ -335,6 +346,7 @@ class Store:
                   "series": _plain(series)}
         if budget is not None:
             record["budget"] = _plain(budget)
+        record["seal"] = seal(record)
         write_atomic(self.path(key), json.dumps(record, separators=(",", ":")) + "\n")
 
     def states_path(self, key: str) -> Path:
