@@ -242,8 +242,12 @@ def test_nan_states_of_any_engine_are_diverged_at_their_time(monkeypatch):
     (1e150, None, 0.01, "quaternion norm"),       # |q|^2 - 1 = 1e300: "a bug in stereodyn" (exit 3), no row
     (1e300, None, 0.01, "quaternion norm"),       # |q|^2 overflows: an ok row with casimir_drift 2.2e-16
     (0.0, None, 0.01, "quaternion norm"),         # no attitude: an ok row with no attitude error
-    (1e-3, None, math.nan, ""),                   # |q| = 2e-3, inside [1e-6, 1e6]: still a row of data
-], ids=["omega huge from t=0", "quat 1e150", "quat 1e300", "quat zero", "quat small"])
+    (1e-3, None, math.nan, ""),                   # |q| = 1e-3, inside [1e-6, 1e6]: still a row of data
+    (2e6, None, 0.01, "quaternion norm"),         # just beyond the bound: the bound is 1e6, not 1e9
+    (5e5, None, math.nan, ""),                    # just inside it: not 1e3
+    (5e-7, None, 0.01, "quaternion norm"),        # below 1e-6
+], ids=["omega huge from t=0", "quat 1e150", "quat 1e300", "quat zero", "quat small", "quat 2e6", "quat 5e5",
+        "quat 5e-7"])
 def test_states_no_body_has_are_diverged_at_their_time(monkeypatch, quat, omega, at, said):
     """Issue 46's eighth attack, F2-F4: a plug-in's ok trajectory with |omega| = 1e300 at every sample (its first
     sample was the rule's scale) or a quaternion of norm 1e150, 1e300 or 0 (the quaternion had no rule but being
