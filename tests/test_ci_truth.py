@@ -504,11 +504,12 @@ def test_resume_keeps_only_records_whose_numbers_results_csv_would_accept(value,
     absent on --resume and is redone, never copied into a results.csv that check then refuses; what the store itself
     writes (null, "inf": test_store_contracts) is kept."""
     from stereodyn.harness.run.results import COLUMNS
-    from stereodyn.harness.run.store import FORMAT, well_formed
+    from stereodyn.harness.run.store import FORMAT, seal, well_formed
 
     text = {"case": "c", "engine": "reference", "formulation": "quaternion", "integrator": "rk4",
             "precision": "float64", "status": "ok", "message": "", "timing": "single"}
     row = {column: text.get(column) for column in COLUMNS}
     row.update(dt=0.01, t_end=1.0, steps=100, attitude_err=value)
     record = {"format": FORMAT, "key": "k" * 24, "identity": {"engine": "reference"}, "row": row, "series": None}
+    record["seal"] = seal(record)  # sealed as Store.put seals it: what is judged here is the number
     assert well_formed(record, "k" * 24) is kept
