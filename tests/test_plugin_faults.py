@@ -366,6 +366,36 @@ def test_a_time_of_divergence_is_a_diverged_rows_only(monkeypatch, status, at):
     assert row["status"] == status.value and math.isnan(row["diverged_at"]), row
 
 
+@pytest.mark.parametrize("hook, answer, words", [
+    ("default_dts", object(), "must be a tuple of steps"), ("default_dts", 42, "must be a tuple of steps"),
+    ("default_dts", (0.01, -1.0), "must be a tuple of steps"),
+    ("precisions", ("float16",), "must name each of float64, float32 at most once"),
+    ("precisions", ("float64", "float64"), "at most once"), ("precisions", object(), "at most once"),
+    ("variants", "quaternion", "must be a tuple of names"), ("default_run", "yes", "must be True or False"),
+], ids=["dts object", "dts int", "dts negative", "precision float16", "precision twice", "precisions object",
+        "variants text", "default_run text"])
+def test_a_plugin_models_planning_answer_the_plan_cannot_use_is_one_line(monkeypatch, hook, answer, words):
+    """Issue 46's tenth attack: a plug-in model's default_dts() returning an object or 42, precisions() returning
+    ("float16",) or an object, were tracebacks in the plan (precisions naming float64 twice: run exit 0 and a
+    results.csv with each key twice that report refused). Each answer is checked where the plan asks: one line naming
+    the plug-in, the hook and the rule (EngineError, exit 2). Break-checked: without the rules the plan takes them."""
+    from stereodyn.harness.engines import EngineError
+    from stereodyn.harness.engines.base import RigidBodyModel
+    from stereodyn.harness.run import plan
+
+    class Model(RigidBodyModel):
+        pass
+
+    setattr(Model, hook, lambda self, *args: answer)
+    engine = _offering(lambda self, i: Offer(order=4, default_sweep=True))
+    type(engine).models = lambda self: {"rigid_body": Model(self)}
+    monkeypatch.setattr(plan, "get_engine", lambda name: engine)
+    with pytest.raises(EngineError) as caught:
+        plan.plan([CASE], ["offering"], None)  # the default sweep: it asks default_dts and default_run too
+    assert str(caught.value).startswith(f"engine plug-in 'offering': {hook}(") and " returned " in str(caught.value) \
+        and words in str(caught.value), str(caught.value)
+
+
 def test_a_diverged_trajectory_says_when(monkeypatch):
     """Issue 46's fourth attack, F11: a plug-in's own `diverged` with diverged_at NaN was a diverged row with no time.
     Its time is its first sample that breaks the divergence rule; with no such sample and no time in its span the
@@ -1245,9 +1275,12 @@ def test_an_engine_whose_timing_no_scheduler_can_use_is_refused_at_load(timing, 
     ("About(linestyle=42)", "about.linestyle = 42: must be one of -, --, -., :"),
     ("About(linestyle=(0, 'x'))", "about.linestyle = (0, 'x'): must be one of"),
     ("About(export_formats='mjcf')", "about.export_formats = 'mjcf': must be a tuple of format names"),
-    ("About(state_space=3)", "about.state_space = 3: must be text or None"),
+    ("About(state_space=3)", "about.state_space = 3: must be one line of text or None"),
+    # the tenth attack: a newline in a package name printed raw in the report's environment
+    ("About(packages=('bad name\\n',))", "about.packages = ('bad name\\n',): must be a tuple of distribution names"),
+    ("About(state_space='a\\nb')", "about.state_space = 'a\\nb': must be one line of text"),
 ], ids=["None", "packages int", "packages empty name", "linestyle int", "dashes text", "formats text",
-        "state space int"])
+        "state space int", "package name newline", "state space newline"])
 def test_an_engine_whose_about_cannot_be_used_is_refused_at_load(about, words):
     """Issue 46's eighth attack, F12: About(packages=42), about = None and packages=('',) loaded, then were a
     traceback in the sweep (the store's key) or in `stereodyn engines`; linestyle=42 one when the figures were drawn.

@@ -290,7 +290,7 @@ def families_to_advise(case, engine_name: str, integrators: list[str] | None,
     """The families `stereodyn advise` checks: the integrators named, or the engine's default-sweep integrators
     with a declared order or error control, on one formulation (the one named, else quaternion or the engine's
     first). Bad names raise ValueError with the valid ones."""
-    from ..run.plan import Hooks
+    from ..run.plan import Hooks, flag
 
     engine = get_engine(engine_name)
     ask = Hooks(engine, engine_name)  # a plug-in's hooks behind the guard, as a sweep's plan asks them
@@ -308,7 +308,7 @@ def families_to_advise(case, engine_name: str, integrators: list[str] | None,
         chosen = list(integrators)
     else:
         chosen = [i for i in known if ask(f"offer({i!r})", in_default_sweep, engine, i)
-                  and ask("default_run(...)", model.default_run, case, formulation, i)
+                  and ask("default_run(...)", model.default_run, case, formulation, i, rule=flag)
                   and (ask(f"offer({i!r})", engine.offer, i).adaptive or math.isfinite(declared_order(engine, i)))]
     out = []
     if ask.reason("unsupported(case)", model.unsupported, case):

@@ -192,8 +192,9 @@ def _check_about(about, where: str) -> None:
     rules = {"packages": "a tuple of distribution names", "export_formats": "a tuple of format names"}
     for field, rule in rules.items():
         value = getattr(about, field)
-        if not (isinstance(value, (tuple, list)) and all(isinstance(v, str) and v.strip() for v in value)):
-            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be {rule}")
+        if not (isinstance(value, (tuple, list)) and all(isinstance(v, str) and v.strip() and v.isprintable()
+                                                          for v in value)):  # a newline printed raw in the report
+            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be {rule}, each one line")
     style = about.linestyle
     dashes = isinstance(style, tuple) and len(style) == 2 and isinstance(style[0], (int, float)) \
         and isinstance(style[1], tuple) and style[1] and all(isinstance(d, (int, float)) and not isinstance(d, bool)
@@ -203,8 +204,8 @@ def _check_about(about, where: str) -> None:
                           "dash tuple (offset, (on, off, ...))")
     for field in ("state_space", "formulation"):
         value = getattr(about, field)
-        if not (isinstance(value, str) or (field == "state_space" and value is None)):
-            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be text"
+        if not ((isinstance(value, str) and value.isprintable()) or (field == "state_space" and value is None)):
+            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be one line of text"
                               + (" or None" if field == "state_space" else ""))
 
 

@@ -3,12 +3,15 @@ skipped up front (the engine cannot model the case). harness.run.sweep executes 
 its run families from it."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
+
+import numpy as np
 
 from ...reference import plugins
 from ..engines import EngineError, UnavailableEngine, declared, get_engine
-from ..precision import FLOAT64
+from ..precision import FLOAT64, PRECISIONS
 from ..scenes import scene_of
 from ..words import one_line
 from .processes import raise_unless_data
@@ -61,8 +64,8 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                 continue
             ask.model = model
             reason = ask.reason("unsupported(case)", model.unsupported, case)
-            variants = tuple(ask("variants()", model.variants)) or ("",)
-            chosen = ask("integrators(names)", model.integrators, list(selection.integrators))
+            variants = tuple(ask("variants()", model.variants, rule=_names)) or ("",)
+            chosen = ask("integrators(names)", model.integrators, list(selection.integrators), rule=_names)
             for integrator_rank, integrator in enumerate(chosen or ([""] if reason else [])):
                 # an integrator the SDK offers that the adapter does not run (Offer.unmodelled): one skipped row
                 offer = ask(f"offer({integrator!r})", engine.offer, integrator) if integrator else None
@@ -70,14 +73,15 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                 dts = (None,) if integrator and (offer.adaptive or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
                     rigid = ask("models()", declared.rigid_body, engine)
-                    dts = tuple(ask("default_dts(...)", rigid.default_dts, case, integrator, tuple(dts)))
+                    dts = tuple(ask("default_dts(...)", rigid.default_dts, case, integrator, tuple(dts),
+                                    rule=_steps))
                 for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
                     if integrator and selection.default and not ask("default_run(...)", model.default_run, case,
-                                                                     formulation, integrator):
+                                                                     formulation, integrator, rule=flag):
                         continue  # the engine leaves this pair out of the default sweep (SceneModel.default_run)
                     # the precisions the engine's model of this scene runs (SceneModel.precisions)
-                    precisions = ask("precisions(integrator)", model.precisions, integrator) if integrator \
-                        else (FLOAT64,)
+                    precisions = ask("precisions(integrator)", model.precisions, integrator, rule=_precisions) \
+                        if integrator else (FLOAT64,)
                     # a formulation/integrator pair that cannot model the case (SceneModel.unsupported_run)
                     why = reason or unmodelled or (integrator and ask.reason(
                         "unsupported_run(...)", model.unsupported_run, case, formulation, integrator))
@@ -105,6 +109,28 @@ def agreement_candidates(specs: list[RunSpec]) -> set[int]:
     return {index for index, key in methods.items() if len(engines[key]) > 1}
 
 
+def _names(answer) -> str | None:
+    ok = isinstance(answer, (tuple, list)) and all(isinstance(a, str) for a in answer)
+    return None if ok else "must be a tuple of names"
+
+
+def _steps(answer) -> str | None:
+    ok = isinstance(answer, (tuple, list)) and all(
+        isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a) and a > 0 for a in answer)
+    return None if ok else "must be a tuple of steps (s, each a finite number > 0)"
+
+
+def _precisions(answer) -> str | None:  # the rule of Offer.precisions at load (engines._check_offer)
+    ok = isinstance(answer, (tuple, list)) and answer and all(p in PRECISIONS for p in answer) \
+        and len(set(answer)) == len(answer)
+    return None if ok else f"must name each of {', '.join(PRECISIONS)} at most once, at least one"
+
+
+def flag(answer) -> str | None:
+    """A yes/no hook's rule (default_run): "yes" or an object is no answer."""
+    return None if isinstance(answer, (bool, np.bool_)) else "must be True or False"
+
+
 class Hooks:
     """An engine's planning hooks, called for plan(): a plug-in's (its engine, or the model it gives, not stereodyn's
     own: our RigidBodyModel asks the engine) behind the guard. ask(what, hook, *args): a declaration; its failure
@@ -119,14 +145,19 @@ class Hooks:
     def _own(self) -> bool:
         return plugins.own(type(self.engine)) and (self.model is None or plugins.own(type(self.model)))
 
-    def __call__(self, what: str, hook, *args):
+    def __call__(self, what: str, hook, *args, rule: Callable | None = None):
+        """hook(*args); rule(answer) -> why it is no answer a plan can use, or None (a plug-in's answer only)."""
         if self._own():
             return hook(*args)
         try:
             with plugins.guard(f"engine plug-in {self.name!r}: {what} failed"):
-                return hook(*args)
+                answer = hook(*args)
         except plugins.PluginError as exc:
             raise EngineError(one_line(str(exc))) from None
+        why = rule(answer) if rule is not None else None
+        if why:  # an object for a list of steps was a traceback in the plan (issue 46's tenth attack)
+            raise EngineError(one_line(f"engine plug-in {self.name!r}: {what} returned {answer!r:.80}: {why}"))
+        return answer
 
     def reason(self, what: str, hook, *args) -> str | None:
         if self._own():
