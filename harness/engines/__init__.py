@@ -15,7 +15,7 @@ from ...reference import plugins
 from ...reference.registry import Registry
 from .base import About, Engine, Offer, RigidBodyModel, SceneModel, Timing
 from ..budget import MAX_BUDGET_S, MIN_BUDGET_S
-from ..precision import PRECISIONS
+from ..precision import precisions_problem
 from ..truth_names import TRUTH_ENGINE, TRUTH_FORMULATION, TRUTH_INTEGRATOR  # noqa: F401 (this API: the truth's names)
 
 ENTRY_POINT_GROUP = "stereodyn.engines"
@@ -230,11 +230,9 @@ def _check_offer(engine: Engine, integrator: str, where: str) -> None:
             raise EngineError(f"{where}: offer({integrator!r}).{field}{problem.removeprefix('order')}")
     # what a row's key and the plan read (issue 46's fourth attack, F5: a precision named twice wrote two rows under
     # one key, which every reader refused; adaptive="yes" ran as adaptive)
-    precisions = offer.precisions
-    if not (isinstance(precisions, (tuple, list)) and precisions and all(p in PRECISIONS for p in precisions)
-            and len(set(precisions)) == len(precisions)):
-        raise EngineError(f"{where}: offer({integrator!r}).precisions = {precisions!r:.80}: must name each of "
-                          f"{', '.join(PRECISIONS)} at most once, at least one")
+    why = precisions_problem(offer.precisions)
+    if why:
+        raise EngineError(f"{where}: offer({integrator!r}).precisions = {offer.precisions!r:.80}: {why}")
     for field, allowed in (("adaptive", (True, False)), ("default_sweep", (True, False, None))):
         value = getattr(offer, field)
         if not any(value is a for a in allowed):

@@ -11,7 +11,7 @@ import numpy as np
 
 from ...reference import plugins
 from ..engines import EngineError, UnavailableEngine, declared, get_engine
-from ..precision import FLOAT64, PRECISIONS
+from ..precision import FLOAT64, precisions_problem
 from ..scenes import scene_of
 from ..words import one_line
 from .processes import raise_unless_data
@@ -55,6 +55,7 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
         if not selection.default and not selection.integrators and not isinstance(engine, UnavailableEngine):
             continue  # it offers none of the integrators named: no rows, not a skipped row per case
         models = ask("models()", engine.models)
+        rigid = ask("models()", declared.rigid_body, engine)  # whose default_dts a default sweep takes
         for case in cases:
             scene = scene_of(case)
             model = models.get(scene.kind)
@@ -72,7 +73,6 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                 unmodelled = offer.unmodelled if offer else ""
                 dts = (None,) if integrator and (offer.adaptive or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
-                    rigid = ask("models()", declared.rigid_body, engine)
                     dts = tuple(ask("default_dts(...)", rigid.default_dts, case, integrator, tuple(dts),
                                     rule=_steps))
                 for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
@@ -80,7 +80,7 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                                                                      formulation, integrator, rule=flag):
                         continue  # the engine leaves this pair out of the default sweep (SceneModel.default_run)
                     # the precisions the engine's model of this scene runs (SceneModel.precisions)
-                    precisions = ask("precisions(integrator)", model.precisions, integrator, rule=_precisions) \
+                    precisions = ask("precisions(integrator)", model.precisions, integrator, rule=precisions_problem) \
                         if integrator else (FLOAT64,)
                     # a formulation/integrator pair that cannot model the case (SceneModel.unsupported_run)
                     why = reason or unmodelled or (integrator and ask.reason(
@@ -118,12 +118,6 @@ def _steps(answer) -> str | None:
     ok = isinstance(answer, (tuple, list)) and all(
         isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a) and a > 0 for a in answer)
     return None if ok else "must be a tuple of steps (s, each a finite number > 0)"
-
-
-def _precisions(answer) -> str | None:  # the rule of Offer.precisions at load (engines._check_offer)
-    ok = isinstance(answer, (tuple, list)) and answer and all(p in PRECISIONS for p in answer) \
-        and len(set(answer)) == len(answer)
-    return None if ok else f"must name each of {', '.join(PRECISIONS)} at most once, at least one"
 
 
 def flag(answer) -> str | None:

@@ -178,16 +178,19 @@ def run_key(identity: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
+SEALED = ("format", "key", "identity", "row", "budget")  # a record's parts the seal covers
+_RECORD_KEYS = frozenset({*SEALED, "series", "seal"})  # every key put() writes
+
+
 def seal(record: dict) -> str:
     """The digest Store.put writes into a record: sha256 of the canonical JSON of what the results are made of (its
     key, identity, row and budget; not the series, which only the figures read), first 24 hex digits. A record whose
     seal does not match is not exactly what put() wrote (a metric deleted, a key added, its identity's dt edited:
     each was reused by --resume, issue 46's ninth attack) and counts as absent."""
-    sealed = {name: record.get(name) for name in ("format", "key", "identity", "row", "budget")}
+    sealed = {name: record.get(name) for name in SEALED}
     return hashlib.sha256(json.dumps(sealed, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:24]
 
 
-_RECORD_KEYS = frozenset({"format", "key", "identity", "row", "series", "budget", "seal"})  # what put() writes
 _TEXT_COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "status", "message", "timing")
 _IDENTITY_COLUMNS = ("engine", "formulation", "integrator", "precision")  # in both the identity and the row
 _STATUSES = frozenset(s.value for s in Status)
