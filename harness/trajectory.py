@@ -161,11 +161,13 @@ def _array_problem(name: str, value, shape: tuple) -> str | None:
 MAX_COUNT = 1e15
 
 
-def problem(traj, samples: int, expected: type | None = None) -> str | None:
-    """Why what a simulation's run() returned is no trajectory of `samples` samples (its grid's), or None: an object
-    of the scene's class (expected; None: any with the fields below), a Status, a message in words, and arrays of
+def problem(traj, times: np.ndarray, expected: type | None = None) -> str | None:
+    """Why what a simulation's run() returned is no trajectory on its grid's sample `times` ((n,) s), or None: an
+    object of the scene's class (expected; None: any with the fields below), a Status, a message in words, arrays of
     numbers of one row per sample (Trajectory: times, quat (n, 4), omega (n, 3); SlidingLadderTrajectory: times,
-    state (n, 6), violation (n,)). A plug-in's answer is checked before any metric reads it (its bug is its row)."""
+    state (n, 6), violation (n,)), and its times the grid's (_times_problem). A plug-in's answer is checked before any
+    metric reads it (its bug is its row)."""
+    samples = len(times)
     if expected is not None and not isinstance(traj, expected):
         return f"returned {type(traj).__name__}, not a {expected.__name__}"
     if not isinstance(getattr(traj, "status", None), Status):
@@ -182,6 +184,9 @@ def problem(traj, samples: int, expected: type | None = None) -> str | None:
         why = _array_problem(name, getattr(traj, name, None), shape)
         if why is not None:
             return f"{whose} {why}"
+    why = _times_problem(np.asarray(traj.times, dtype=float), np.asarray(times, dtype=float))
+    if why is not None:
+        return f"{whose} {why}"
     for name in ("steps", "rhs_evals"):
         value = getattr(traj, name, 0)
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
@@ -192,6 +197,22 @@ def problem(traj, samples: int, expected: type | None = None) -> str | None:
     if traj.status is Status.DIVERGED and _divergence_time(traj) is None:  # a diverged row says when (issue 46, F11)
         return (f"{whose} status is diverged at diverged_at = {getattr(traj, 'diverged_at', None)!r:.40}, not a time "
                 "of its grid, and no sample breaks the divergence rule")
+    return None
+
+
+def _times_problem(got: np.ndarray, grid: np.ndarray) -> str | None:
+    """Why a trajectory's times are not its grid's sample times, or None. Every metric compares sample i with the
+    truth at the grid's time i: reversed or shifted times gave an ok row with wrong errors (issue 46's tenth attack).
+    Within a thousandth of the grid's smallest spacing (a time summed step by step drifts by some 1e-12 s; the next
+    sample is a whole spacing away), or 1e-9 of the span for a grid of one sample."""
+    if not got.size:
+        return None
+    gaps = np.diff(grid)
+    tolerance = 1e-3 * float(gaps.min()) if gaps.size else 1e-9 * max(1.0, abs(float(grid[-1])))
+    off = np.abs(got - grid)
+    if not np.isfinite(got).all() or off.max() > tolerance:
+        i = int(np.argmax(~np.isfinite(got) | (off > tolerance)))
+        return f"times[{i}] is {float(got[i])!r:.25}, not the grid's sample time {float(grid[i])!r:.25} s"
     return None
 
 

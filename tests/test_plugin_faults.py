@@ -448,12 +448,42 @@ def test_a_plugins_huge_message_is_clipped_where_it_is_written(monkeypatch, tmp_
     (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), rhs_evals=10**200),
      f"rhs_evals is {10**200!r}, not a count"),
     (lambda grid: Trajectory(grid.times, np.zeros((11, 4)), np.zeros((11, 3)), steps=math.nan), "steps is nan"),
-], ids=["None", "text", "short", "quat shape", "status text", "negative steps", "rhs inf", "rhs huge", "steps nan"])
+    # reversed, shifted by a sample, or a NaN time: an ok row whose errors compared the wrong samples (the tenth attack)
+    (lambda grid: Trajectory(grid.times[::-1].copy(), np.tile([1.0, 0, 0, 0], (11, 1)), np.zeros((11, 3))),
+     "times[0] is 0.1, not the grid's sample time 0.0 s"),
+    (lambda grid: Trajectory(grid.times + 0.01, np.tile([1.0, 0, 0, 0], (11, 1)), np.zeros((11, 3))),
+     "times[0] is 0.01, not the grid's"),
+    (lambda grid: Trajectory(np.where(np.arange(11) == 5, np.nan, grid.times), np.tile([1.0, 0, 0, 0], (11, 1)),
+                             np.zeros((11, 3))), "times[5] is nan"),
+], ids=["None", "text", "short", "quat shape", "status text", "negative steps", "rhs inf", "rhs huge", "steps nan",
+        "times reversed", "times shifted", "time nan"])
 def test_garbage_from_a_plugins_run_is_its_failed_row(monkeypatch, answer, words):
     """It was exit 3, "a bug in stereodyn" (an AttributeError in our metrics): the bug is the plug-in's."""
     row = _row(monkeypatch, _Model(answer))
     assert row["status"] == "failed" and row["message"].startswith("NoTrajectory: "), row
     assert words in row["message"], row["message"]
+
+
+def test_times_that_drift_as_summed_steps_do_are_the_grids(monkeypatch):
+    """A time summed step by step is off by some 1e-12 s: still the grid's sample (the rule: a thousandth of the
+    spacing). Break-checked: a tolerance of 1e-15 s fails this; one of a whole spacing passes "times shifted"."""
+    drift = lambda grid: dataclasses.replace(_states(grid), times=grid.times + 1e-12 * np.arange(11))
+    assert _row(monkeypatch, _Model(drift))["status"] == "ok"
+    beyond = lambda grid: dataclasses.replace(_states(grid), times=grid.times + 2e-5 * np.arange(11))  # 0.2 % of 0.01
+    row = _row(monkeypatch, _Model(beyond))
+    assert row["status"] == "failed" and "times[1] is 0.01002" in row["message"], row
+
+
+def test_a_skipped_trajectory_from_run_is_a_skipped_row_with_nothing_measured(monkeypatch):
+    """A plug-in's run() that answers skipped did not run the case: its row had the metrics of states it never
+    computed (issue 46's tenth attack, noted). Break-checked: computing the metrics for it fills energy_drift."""
+    said = lambda grid: dataclasses.replace(_states(grid), status=Status.SKIPPED, message="no such joint here")
+    row = _row(monkeypatch, _Model(said))
+    assert row["status"] == "skipped" and row["message"] == "no such joint here", row
+    assert "energy_drift" not in row and "attitude_err" not in row, row
+    silent = lambda grid: dataclasses.replace(_states(grid), status=Status.SKIPPED)
+    row = _row(monkeypatch, _Model(silent))
+    assert row["status"] == "skipped" and "returned skipped, with no reason" in row["message"], row
 
 
 class _Scene:

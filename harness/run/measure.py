@@ -77,7 +77,11 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
                 return model.prepare(case, run.formulation, run.integrator, run.dt, run.tolerance,
                                      **precision_keyword(run)).run(grid)
 
-            row.update(checked_metrics(scene, scene.metrics(run, model, traj, grid, truth, full, rerun, keep_states)))
+            if traj.status is Status.SKIPPED:  # it did not run this: nothing to measure (a plug-in's word at run time)
+                row["message"] = traj.message or f"{type(sim).__qualname__}.run() returned skipped, with no reason"
+            else:
+                row.update(checked_metrics(scene, scene.metrics(run, model, traj, grid, truth, full, rerun,
+                                                                keep_states)))
             budget.check()  # a loop that could not be stopped inside (one compiled call, MJX's) is judged here
         if timed is not None and traj.status is Status.OK:
             row.update(timed(sim, grid))
@@ -107,7 +111,7 @@ def checked(sim, traj, grid, expected: type | None = None, omega0=None):
     the case's initial rad/s, its scale): an ok trajectory with NaN states is diverged at their time, whichever
     engine made it. Not a trajectory: NoTrajectory (the run's failed row) from a plug-in's simulation, InternalError
     from stereodyn's own (our bug)."""
-    why = problem(traj, len(grid.times), expected)
+    why = problem(traj, grid.times, expected)
     if why is not None:
         text = f"{type(sim).__module__}.{type(sim).__qualname__}.run() {why}"
         if plugins.own(type(sim)):
