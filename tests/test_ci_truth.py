@@ -70,7 +70,7 @@ def rerun_pair(tmp_path):
 def test_a_same_machine_rerun_is_the_same_environment_for_check_compare_and_history(tmp_path, capsys, monkeypatch):
     """The load averages, the date and the commit are measurement context: check says "as in the baseline" and gives
     no hint to loosen the gate (in the step summary neither), compare --format pr calls the rerun identical, with a
-    baseline as A too (which records no source hash and no verdicts), and history lists no environment column."""
+    baseline as A too (which records no verdicts), and history lists no environment column."""
     a, b = rerun_pair(tmp_path)
     baseline = tmp_path / "baseline.json"
     assert cli.main(["baseline", str(a), "--out", str(baseline)]) == 0
@@ -107,6 +107,32 @@ def test_a_real_difference_still_differs_everywhere(tmp_path, capsys):
     assert cli.main(["compare", str(a), str(b), "--format", "pr"]) == 0
     pr = capsys.readouterr().out
     assert "Environment: 1 key differs" in pr and "| mujoco | 3.3.7 | 4.0.0 |" in pr, pr
+
+
+def test_a_change_of_stereodyns_own_source_is_named_by_every_reader_and_is_no_other_machine(tmp_path, capsys):
+    """Issue 46's eleventh attack, F2: a baseline left out stereodyn's source, so after a change of the code check
+    and compare with the baseline as A said "same environment" while compare of the two folders said "1 key
+    differs: stereodyn source". All three name it now; check gives no --mode cross-machine hint for it (the code
+    under test changes by design). Break-checked: recorded_environment without the own source fails the first
+    assertion; mode_line without OWN_SOURCE among its exceptions fails the second."""
+    a = folder(tmp_path / "a")
+    b = folder(tmp_path / "b", date="2026-11-01T11:00:00+00:00")
+    manifest = json.loads((b / "runs.json").read_text())
+    manifest["code"]["stereodyn source"] = "b" * 24
+    (b / "runs.json").write_text(json.dumps(manifest))
+    baseline = tmp_path / "baseline.json"
+    assert cli.main(["baseline", str(a), "--out", str(baseline)]) == 0
+    capsys.readouterr()
+    assert cli.main(["check", str(b), "--baseline", str(baseline)]) == 0
+    printed = capsys.readouterr().out
+    assert f"environment: stereodyn source {'a' * 24} -> {'b' * 24}\n" in printed, printed
+    assert "cross-machine" not in printed, printed
+    for first in (a, baseline):
+        assert cli.main(["compare", str(first), str(b), "--format", "pr"]) == 0
+        pr = capsys.readouterr().out
+        assert "Environment: 1 key differs" in pr and "| stereodyn source | aaaaaaaaaaaa… | bbbbbbbbbbbb… |" in pr, pr
+    assert cli.main(["history", str(baseline), str(b), "--out", str(tmp_path / "h")]) == 0
+    assert "stereodyn source" in pd.read_csv(tmp_path / "h" / "history_points.csv").columns
 
 
 # ---------------------------------------------- issue 46 F8: an answer moved by timing noise is no change

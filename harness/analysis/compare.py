@@ -61,8 +61,7 @@ def _load(path: Path) -> tuple[pd.DataFrame, dict]:
     try:
         if path.is_dir():  # a runs.json of the wrong shape counts as absent (harness.run.store.read_manifest)
             manifest = read_manifest(path)  # the environment with the code: a plug-in's changed source differs
-            return gate.read_table(path), {**gate.recorded_environment(manifest),
-                                           **gate.code_environment(manifest, own=True)}
+            return gate.read_table(path), gate.recorded_environment(manifest)
         if path.is_file():
             baseline = gate.read_baseline_file(path)
             return pd.DataFrame(baseline.rows), baseline.environment

@@ -481,16 +481,16 @@ def compare_orders(current: pd.DataFrame | None, orders: list[dict]) -> list[Fin
     return findings
 
 
-def code_environment(manifest: dict | None, own: bool = False) -> dict:
+def code_environment(manifest: dict | None) -> dict:
     """runs.json's "code" as environment entries: 'plug-in engine NAME' and 'plug-in integrator NAME' ->
     'DIST VERSION, source HASH' for every class a plug-in provides (a plug-in's changed source shows even when its
-    version did not change), and with own 'stereodyn source' (its fingerprint: it changes with every commit, so the
-    gate leaves it out). Entries of an unexpected shape are left out (runs.json's code is informative)."""
+    version did not change), and 'stereodyn source' (its fingerprint: it changes with every commit; the gate
+    lists it, as the code under test, never as another machine: mode_line). Entries of an unexpected shape are left out (runs.json's code is informative)."""
     code = (manifest or {}).get("code")
     if not isinstance(code, dict):
         return {}
     entries = {}
-    if own and isinstance(code.get(OWN_SOURCE), str):
+    if isinstance(code.get(OWN_SOURCE), str):
         entries[OWN_SOURCE] = code[OWN_SOURCE]
     for kind, table in (("engine", code.get("engines")), ("integrator", code.get("integrators"))):
         for name, origins in (table.items() if isinstance(table, dict) else ()):
@@ -502,7 +502,9 @@ def code_environment(manifest: dict | None, own: bool = False) -> dict:
 
 
 def recorded_environment(manifest: dict | None) -> dict:
-    """The environment a baseline keeps and check compares: runs.json's environment and its plug-ins' code."""
+    """The environment a baseline keeps and check, compare and history compare: runs.json's environment and the code
+    (stereodyn's source, its plug-ins'), one rule for all of them (a baseline without stereodyn's source said "same
+    environment" where the folder it came from said "1 key differs": issue 46's eleventh attack, F2)."""
     environment = (manifest or {}).get("environment")
     return {**(environment if isinstance(environment, dict) else {}), **code_environment(manifest)}
 
@@ -581,8 +583,8 @@ def mode_line(mode: str, source: str, tolerances: Tolerances, changes: list[str]
         line += f", other bounds for {', '.join(name for name, _ in tolerances.per_metric)}"
     if tolerances.time_factor is not None:
         line += f"; us_per_step to {tolerances.time_factor:g} x baseline"
-    if mode == SAME_MACHINE and any(not c.startswith(("run environment unknown", "platform ", "plug-in "))
-                                    for c in changes):
+    if mode == SAME_MACHINE and any(not c.startswith(("run environment unknown", "platform ", "plug-in ", OWN_SOURCE))
+                                    for c in changes):  # the code under test changes by design: no other machine
         line += f" (the environment differs: on another machine or versions, --mode {CROSS_MACHINE})"
     return line
 
