@@ -396,6 +396,28 @@ def test_a_plugin_models_planning_answer_the_plan_cannot_use_is_one_line(monkeyp
         and words in str(caught.value), str(caught.value)
 
 
+def test_a_plan_of_no_run_at_all_is_refused_before_the_folder(monkeypatch, tmp_path):
+    """Issue 46's eleventh attack, F8: a plug-in model whose default_dts() gives no step left the default sweep with
+    no run and no skipped row: `run` exited 0 with a results.csv of a header only, which report, baseline and compare
+    then refused. An empty answer may mean "not in my default sweep"; a sweep of nothing is one line, exit 2, and no
+    folder. Break-checked: without the check run_sweep writes the header-only folder."""
+    from stereodyn.harness.engines import EngineError
+    from stereodyn.harness.engines.base import RigidBodyModel
+    from stereodyn.harness.run import plan, sweep
+
+    class Model(RigidBodyModel):
+        def default_dts(self, case, integrator, dts):
+            return ()
+
+    engine = _offering(lambda self, i: Offer(order=4, default_sweep=True))
+    type(engine).models = lambda self: {"rigid_body": Model(self)}
+    monkeypatch.setattr(plan, "get_engine", lambda name: engine)
+    out = tmp_path / "out"
+    with pytest.raises(EngineError, match=r"^nothing to run: the plans of offering for 1 case hold no run"):
+        sweep.run_sweep([CASE], sweep.SweepOptions(["offering"], out, jobs=1))
+    assert not out.exists()
+
+
 def test_a_diverged_trajectory_says_when(monkeypatch):
     """Issue 46's fourth attack, F11: a plug-in's own `diverged` with diverged_at NaN was a diverged row with no time.
     Its time is its first sample that breaks the divergence rule; with no such sample and no time in its span the

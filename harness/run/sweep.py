@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from .. import budget
-from ..engines import get_engine
+from ..engines import EngineError, get_engine
 from ..engines.declared import method
 from ..environment import TIMING_END, TIMING_START, load_snapshot
 from ..environment import environment as current_environment
@@ -114,8 +114,12 @@ def run_sweep(cases: list, options: SweepOptions, *, progress: ProgressBar | Non
 def _sweep(cases: list, options: SweepOptions, progress: ProgressBar, pool: WatchedPool | None, final: bool,
            agreement: list | None = None, decides: Callable[[pd.DataFrame], set] | None = None) -> pd.DataFrame:
     out_dir, engines = options.out_dir, options.engines
-    out_dir.mkdir(parents=True, exist_ok=True)
     specs, skipped_rows = plan(cases, engines, options.integrators)
+    if cases and not specs and not skipped_rows:  # a folder of no rows, which every reader refuses, is no green run
+        raise EngineError(f"nothing to run: the plans of {', '.join(engines)} for {plural(len(cases), 'case')} hold "
+                          "no run and no skipped row (every integrator of their default sweep left out: default_dts() "
+                          "gave no step, or default_run() said no)")
+    out_dir.mkdir(parents=True, exist_ok=True)
     if options.save_trajectories:  # a scene whose state is not a body's (quat, omega) has none to save
         specs = [dataclasses.replace(s, keep_states=True) if scene_of(s.case).keeps_states else s for s in specs]
     if agreement is not None:
