@@ -539,3 +539,17 @@ def test_resume_keeps_only_records_whose_numbers_results_csv_would_accept(value,
     record = {"format": FORMAT, "key": "k" * 24, "identity": {"engine": "reference"}, "row": row, "series": None}
     record["seal"] = seal(record)  # sealed as Store.put seals it: what is judged here is the number
     assert well_formed(record, "k" * 24) is kept
+
+
+def test_a_verdict_status_no_verdict_has_is_refused_by_every_reader(tmp_path, capsys):
+    """Issue 46's eleventh attack, F6: a verdicts.csv status edited to `garbage` was compared as "not measured ->
+    garbage: better" and rendered as a verdict; results.csv refuses a status it does not know, and so does
+    verdicts.csv now: one line naming the file, the row and the statuses (exit 2). Break-checked: without the check
+    in verdicts.read compare --format pr exits 0."""
+    a = folder(tmp_path / "a", verdict="not measured, no reason")
+    b = folder(tmp_path / "b", verdict="garbage")
+    capsys.readouterr()
+    assert cli.main(["compare", str(a), str(b), "--out", str(tmp_path / "cmp"), "--format", "pr"]) == 2
+    err = capsys.readouterr().err
+    assert f"{b / 'verdicts.csv'}: row 1: status = 'garbage': must be one of 'pass', 'fail'" in err, err
+    assert cli.main(["compare", str(a), str(a), "--out", str(tmp_path / "same"), "--format", "pr"]) == 0

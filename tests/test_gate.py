@@ -441,6 +441,21 @@ def test_a_fitted_order_no_fit_gives_is_refused_where_convergence_csv_is_read(tm
         load_orders(tmp_path)
 
 
+def test_a_run_family_fitted_twice_in_convergence_csv_is_refused_where_it_is_read(tmp_path):
+    """Issue 46's eleventh attack, F5: a family's row appended again with order 1.0 was read by check, compare and
+    history, the last row winning ("fitted 1.00"), where results.csv and baselines refuse a duplicated key.
+    Break-checked: without the duplicate check read_orders returns both rows."""
+    row = {"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4", "order": 4.07,
+           "declared_order": 4.0}
+    pd.DataFrame([row, {**row, "engine": "pinocchio"}, {**row, "order": 1.0}]).to_csv(tmp_path / "convergence.csv",
+                                                                                       index=False)
+    with pytest.raises(gate.GateError) as caught:
+        gate.read_orders(tmp_path)
+    assert str(caught.value) == (f"{tmp_path / 'convergence.csv'}: row 3: duplicate key case=lagrange-top engine=mujoco formulation= "
+                                 "integrator=rk4 precision=float64 (also row 1): one fitted order per run family"), \
+        str(caught.value)
+
+
 def test_every_fitted_order_read_from_convergence_csv_is_one_a_baseline_holds(tmp_path):
     rows = [{"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4", "order": order,
              "declared_order": 4.0} for order in (4.07, 100.0, 0.0)]

@@ -190,7 +190,13 @@ def read_orders(results_dir: Path) -> pd.DataFrame | None:
                 rule = f"in (0, {MAX_ORDER}]" if column == "declared_order" else f"within -{MAX_ORDER} .. {MAX_ORDER}"
                 raise GateError(f"{path}: row {number}: {column} = {row[column]!r}: must be a finite number {rule} (a "
                                 "convergence order)")
-    return with_precision(df).fillna({"formulation": ""})
+    df = with_precision(df).fillna({"formulation": ""})
+    keys = [_order_key(row) for row in df.to_dict("records")]
+    twice = duplicate(keys)
+    if twice:  # the last one won in silence (issue 46's eleventh attack, F5), where results.csv refuses it
+        raise GateError(f"{path}: row {twice[1] + 1}: duplicate key {describe_key(keys[twice[1]])} (also row "
+                        f"{twice[0] + 1}): one fitted order per run family")
+    return df
 
 
 def _order_rows(convergence: pd.DataFrame | None) -> list[dict]:

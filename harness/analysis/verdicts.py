@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ..scenes.cases import CHAOTIC_TAGS  # noqa: F401 (part of this API)
-from ..tables import read_optional
+from ..tables import TableError, read_optional
 from .fitting import (AGREE, CONVERGENCE_FILE, FIRST_PART, MIN_CASES, MIN_POINTS, NO_EVIDENCE, NOT_MEASURABLE, NOT_YET,
                       SUPERCONVERGENT)
 from ..scenes.metrics import DRIFT_COLUMNS
@@ -70,6 +70,7 @@ NOT_ENOUGH = "not enough evidence"
 # judged, the slopes moving toward the declared order) and are within ORDER_CASE_TOLERANCE of it: never a failure;
 # `run --strict` measures finer first (short ladders) and fails what is still not asymptotic after that.
 NOT_ASYMPTOTIC = NOT_YET
+STATUSES = (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED, NOT_ENOUGH, NOT_ASYMPTOTIC)  # every status a verdict has
 
 # The median of a family's fitted orders over the cases must be within ORDER_TOLERANCE of the declared order, and no
 # single case more than ORDER_CASE_TOLERANCE off. The suite's fits (reports/default/convergence.csv, 134 families) lie
@@ -414,11 +415,18 @@ def write(verdicts: list[Verdict], path: Path) -> None:
 
 
 def read(out_dir: Path) -> list[Verdict] | None:
+    """DIR/verdicts.csv, None where the run wrote none; TableError for a status no verdict has (a `garbage` one was
+    compared as "better" and rendered: issue 46's eleventh attack, F6)."""
     path = Path(out_dir) / VERDICTS_FILE
     if not path.exists():
         return None
     df = read_csv_table(path, dtype=str, keep_default_na=False)
-    return [Verdict(**{c: row.get(c, "") for c in COLUMNS}) for _, row in df.iterrows()]  # 0.2.0: no precision
+    verdicts = [Verdict(**{c: row.get(c, "") for c in COLUMNS}) for _, row in df.iterrows()]  # 0.2.0: no precision
+    for number, verdict in enumerate(verdicts, 1):
+        if verdict.status not in STATUSES:
+            raise TableError(f"{path}: row {number}: status = {verdict.status[:40]!r}: must be one of "
+                             f"{', '.join(map(repr, STATUSES))}")
+    return verdicts
 
 
 def failed(verdicts: Iterable[Verdict]) -> list[Verdict]:
@@ -448,7 +456,7 @@ def summary_lines(verdicts: list[Verdict]) -> list[str]:
     """The terminal's verdict block: the counts, then one line per failed verdict, per claim nothing measured and
     no reason excuses, per known deviation and per deviation that stopped matching."""
     counts = {s: sum(v.status == s for v in verdicts)
-              for s in (PASS, FAIL, UNMEASURED, NO_REASON, KNOWN, FIXED, NOT_ENOUGH, NOT_ASYMPTOTIC)}
+              for s in STATUSES}
     head = (f"verdicts: {counts[PASS]} passed, {counts[FAIL]} failed, {counts[UNMEASURED] + counts[NO_REASON]} not "
             f"measured" + (f" ({counts[NO_REASON]} with no reason: --strict fails them)" if counts[NO_REASON] else ""))
     head += f", {counts[NOT_ENOUGH]} with {NOT_ENOUGH} (--strict measures more, then fails them)" \
