@@ -146,6 +146,18 @@ def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator
         raise PluginError(where, exc) from exc
 
 
+# What a name (a case's, an engine's, an integrator's, a formulation's; any name a plug-in declares) may not hold: the
+# characters Markdown reads as markup. Every report, compare and history table shows names as they are: a case named
+# "a`x`<b>" opened a code span and bold for the rest of report.md (issue 46's eleventh attack, F3).
+MARKUP = "\\`*[]<>|~&#!"
+
+
+def markup_problem(value: str) -> str | None:
+    """Why a name would not show as itself in Markdown (it holds one of MARKUP), or None."""
+    found = sorted({c for c in value if c in MARKUP})
+    return f"must hold none of {' '.join(MARKUP)} (Markdown markup; it holds {' '.join(found)})" if found else None
+
+
 def name_problem(field: str, value: Any, listed: bool = False) -> str | None:
     """Why a name a plug-in declares (an integrator's name and state space, a scene's kind, a torque model's key, a
     report section's name, an engine's integrators and formulations) cannot be used, naming the field and the rule;
@@ -156,6 +168,9 @@ def name_problem(field: str, value: Any, listed: bool = False) -> str | None:
         return f"{field} = {value!r:.80}: must be a non-empty string"
     if not value.isprintable() or value != value.strip():
         return f"{field} = {value!r:.80}: must be one line of printable characters, no space at its ends"
+    why = markup_problem(value)
+    if why:
+        return f"{field} = {value!r:.80}: {why}"
     if listed and "," in value:
         return f"{field} = {value!r:.80}: must hold no comma (the command line's lists are comma-separated)"
     return None

@@ -502,6 +502,17 @@ def test_tags_must_be_strings(tmp_path):
             "must be a string")
 
 
+def test_a_case_name_shows_as_itself_in_markdown(tmp_path):
+    """Issue 46's eleventh attack, F3: a case named ev|il`x`<b>h&amp; (its file's stem) opened a code span and bold
+    for the rest of report.md, whose headings and cells escaped only bars: a name holds no Markdown markup. A plain
+    name with spaces, dots, dashes, underscores and parentheses loads. Break-checked: without the rule it loads."""
+    rejects(write(tmp_path, edit(BASE, ('name = "base"', 'name = "ev|il`x`<b>h&amp;"'))), "name",
+            "must hold none of")
+    rejects(write(tmp_path, edit(BASE, ('name = "base"\n', '')), "a*b.toml"), "name", "it holds *")
+    assert load_case(write(tmp_path, edit(BASE, ('name = "base"', 'name = "my top_2 (v1.5) +x -y"')))).name \
+        == "my top_2 (v1.5) +x -y"
+
+
 # ----------------------------------------------------------------------------------------- suite-level helpers
 
 def test_duplicate_names_name_both_files(tmp_path):

@@ -1518,7 +1518,8 @@ def _register_named(what: str, name: str) -> None:
     ("two\nlines", r"'two\\nlines': must be one line of printable characters, no space at its ends"),
     ("red\x1b[31m", r"'red\\x1b\[31m': must be one line of printable characters"),
     ("padded ", r"'padded ': must be one line of printable characters, no space at its ends"),
-], ids=["newline", "escape", "space"])
+    ("a`x`<b>", r"'a`x`<b>': must hold none of .* \(Markdown markup; it holds < > `\)"),  # the eleventh attack, F3
+], ids=["newline", "escape", "space", "markup"])
 def test_every_name_a_plugin_declares_is_one_printable_line(what, name, words):
     """The rule of reference.plugins.name_problem, refused at register or load with one line naming the field (a
     plug-in's import that raises it is that plug-in's warning; an engine, its EngineError, exit 2 where named).

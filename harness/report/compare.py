@@ -25,11 +25,13 @@ def _ratio(value: float) -> str:
 def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes: pd.DataFrame,
                   figure: str | None) -> list[str]:
     """The lines of the output folder's compare.md."""
-    lines = ["# stereodyn compare", "", f"A: `{path_a}`", "", f"B: `{path_b}`", "", "## Environment", ""]
+    # every value escaped (md_text), as compare-pr.md's: a folder's or a hand-edited table's names are the user's
+    lines = ["# stereodyn compare", "", f"A: {md_text(path_a)}", "", f"B: {md_text(path_b)}", "", "## Environment", ""]
     env = environment_rows(env_a, env_b)
     differing = [r[0] for r in env if r[3] == DIFFERS]
-    lines += [("Differs: " + ", ".join(differing) + ".") if differing else "Same environment (the date aside).", ""]
-    lines += markdown_table(["key", "A", "B", ""], env) + [""]
+    lines += [("Differs: " + ", ".join(map(md_text, differing)) + ".") if differing
+              else "Same environment (the date aside).", ""]
+    lines += markdown_table(["key", "A", "B", ""], [[md_text(cell) for cell in row] for row in env]) + [""]
     groups = changes.apply(group, axis=1) if len(changes) else pd.Series([], dtype=str)
     order = ["status changed", *(name for _, name in GROUPS), "only in A", "only in B"]
     counts = groups.value_counts()
@@ -44,7 +46,7 @@ def compare_lines(path_a: Path, path_b: Path, env_a: dict, env_b: dict, changes:
         if members.empty:
             continue
         shown = [m for m in metrics if members[m].notna().any()]
-        rows = [[label(r), r["status_a"], r["status_b"], r["metric"] or "-",
+        rows = [[md_text(label(r)), md_text(r["status_a"]), md_text(r["status_b"]), md_text(r["metric"] or "-"),
                  *[_ratio(r[m]) for m in shown]] for _, r in members.head(LISTED).iterrows()]
         lines += [f"### {name} ({len(members)} rows)", "",
                   # "B/A" in the header: a ratio, not a drift (the page colours drift columns on their scale)

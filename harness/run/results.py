@@ -16,6 +16,7 @@ from ..tables import (ANGLES, MAX_ANGLE, MAX_VALUE, METRIC_SUFFIXES, NON_NEGATIV
 from ..scenes import kinds, scene
 from ..scenes.metrics import DRIFT_COLUMNS, ERROR_COLUMNS, TORQUE_COLUMNS
 from ..words import clipped, one_line
+from ...reference.plugins import markup_problem
 
 COLUMNS = ("case", "engine", "formulation", "integrator", "precision", "dt", "t_end", "steps", "status", "message",
            "diverged_at", "wall_s", "us_per_step", "us_per_step_spread", "timing", "rhs_per_sim_s", *DRIFT_COLUMNS, *ERROR_COLUMNS, "oracle_err",
@@ -118,6 +119,11 @@ def read_results(path: Path) -> pd.DataFrame:
         empty = df.index[df[column].str.strip() == ""]
         if len(empty):
             raise TableError(f"{path}: row {empty[0] + 1}, column {column}: empty")
+    for column in ("case", "engine", "formulation", "integrator"):  # names, shown as themselves in every report
+        marked = df.index[df[column].map(lambda name: markup_problem(name) is not None)] if column in df else []
+        if len(marked):
+            raise TableError(f"{path}: row {marked[0] + 1}, column {column}: {df[column][marked[0]][:40]!r}: "
+                             f"{markup_problem(df[column][marked[0]])}")
     bad = df.index[~df["status"].isin(STATUSES)]
     if len(bad):
         raise TableError(f"{path}: row {bad[0] + 1}, column status: {df['status'][bad[0]][:40]!r} is not a status "

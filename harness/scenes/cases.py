@@ -355,6 +355,8 @@ class _Parser:
             raise self.fail("name", "must not be empty")
         if not name.isprintable():  # XML (MJCF, URDF) cannot carry control characters, and a table row breaks on them
             raise self.fail("name", f"must hold printable characters only, got {_short(name)}")
+        if plugins.markup_problem(name):  # shown as itself in every table and heading of the report
+            raise self.fail("name", f"{plugins.markup_problem(name)}, got {_short(name)}")
         if len(name) > MAX_NAME:
             raise self.fail("name", f"must be at most {MAX_NAME} characters (it is in every row and table), got "
                                     f"{len(name)}")
