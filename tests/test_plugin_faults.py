@@ -1071,6 +1071,31 @@ def test_a_daemon_a_plugin_starts_is_gone_when_the_command_ends(tmp_path):
     assert len(daemons) >= 2 and not left, (left, daemons)
 
 
+DAEMON_AT_IMPORT = """
+import os, subprocess
+# a double fork at import, in the command's own process: `sh` exits at once, the setsid'd sleep is an orphan
+subprocess.run(["sh", "-c", "setsid sleep 300 >/dev/null 2>&1 & echo $! > " + os.environ["DAEMON_PIDS"]], check=True)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_daemon_a_plugin_starts_at_import_in_the_command_is_gone_when_it_ends(tmp_path):
+    """Issue 46's eleventh attack, F10: a plug-in that starts a daemon when the command imports it (not a worker)
+    left it to init: it outlived `stereodyn cases`, `engines`, `run`. The command is the subreaper of what it starts
+    and ends it at exit. Break-checked: without answer_for_orphans the sleep is alive after the command."""
+    env = _package(tmp_path / "site", "daemon-at-import", {"daemon_at_import.py": DAEMON_AT_IMPORT},
+                   {"stereodyn.scenes": {"daemon": "daemon_at_import"}})
+    env["DAEMON_PIDS"] = str(tmp_path / "daemon")
+    result = subprocess.run([sys.executable, "-m", "stereodyn", "cases"], capture_output=True, text=True, env=env,
+                            cwd=tmp_path, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    daemon = int((tmp_path / "daemon").read_text())
+    alive = _alive(daemon)
+    if alive:  # not to leave it to the next test
+        os.kill(daemon, signal.SIGKILL)
+    assert not alive
+
+
 @pytest.mark.parametrize("stop", [signal.SIGTERM, pytest.param(signal.SIGHUP, marks=pytest.mark.slow)])
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_sigterm_ends_the_run_and_what_its_plugins_started(tmp_path, stop):

@@ -21,5 +21,6 @@ if sys.argv and (os.path.basename(sys.argv[0]) == "stereodyn" or sys.argv[0] == 
         and not __import__("stereodyn.harness.run.processes").harness.run.processes.is_worker():
     for _signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # one line, whichever stops it while loading
         signal.signal(_signum, sys.modules["stereodyn.harness.run.processes"].interrupted_while_loading)
+    sys.modules["stereodyn.harness.run.processes"].answer_for_orphans()  # before any plug-in loads
 
 from .dispatch import COMMANDS, command, main, parser  # noqa: E402,F401  (main: the `stereodyn` script's entry point)

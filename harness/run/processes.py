@@ -34,6 +34,7 @@ ignores it before it unblocks it, so no worker prints a traceback or a second "i
 """
 from __future__ import annotations
 
+import atexit
 import os
 import signal
 import sys
@@ -106,6 +107,66 @@ def own_process_group(marker: str | None = None) -> None:
     except OSError:  # already a group leader (a session leader cannot move): its group is still its own
         pass
     os.register_at_fork(after_in_child=_parent_death_signal)
+
+
+def answer_for_orphans() -> None:
+    """The command's first act (started as the command, never imported as a library: harness/cli/__init__.py): be
+    the subreaper of what it starts, and at its exit end what is left of it. A daemon a plug-in started at import in
+    the command's own process (a double fork, setsid) was init's and outlived the command, where one started in a
+    worker dies with the worker (issue 46's eleventh attack, F10). Linux only (elsewhere nothing is done)."""
+    if _prctl(_PR_SET_CHILD_SUBREAPER, 1):
+        atexit.register(end_descendants)
+
+
+def end_descendants(grace_s: float = 2.0) -> None:
+    """At the command's exit: the pool's workers, which exit on their own once idle, get grace_s to do so; then every
+    descendant still alive (an orphan it adopted as their subreaper, what a plug-in started and left) is killed."""
+    import multiprocessing
+
+    deadline = time.monotonic() + grace_s
+    for child in multiprocessing.active_children():
+        child.join(max(0.0, deadline - time.monotonic()))
+    me = os.getpid()
+    for _ in range(_KILL_ROUNDS):  # scanned again after a kill: what one forked meanwhile is ours now
+        left = [pid for pid in _descendants(me) if pid != me]
+        if not left:
+            return
+        for pid in left:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        for pid in left:  # reaped, so that the next scan does not find them as zombies
+            try:
+                os.waitpid(pid, os.WNOHANG)
+            except OSError:
+                pass
+
+
+def _descendants(root: int) -> list[int]:
+    """The live descendants of root (by parent links only, from one scan of /proc; none where there is no /proc)."""
+    children: dict[int, list[int]] = {}
+    alive = set()
+    try:
+        entries = [entry.name for entry in Path("/proc").iterdir() if entry.name.isdigit()]
+    except OSError:
+        return []
+    for name in entries:
+        try:
+            with open(f"/proc/{name}/stat", "rb") as stat:
+                state, ppid = stat.read().rsplit(b")", 1)[1].split()[:2]
+        except (OSError, ValueError):
+            continue
+        children.setdefault(int(ppid), []).append(int(name))
+        if state != b"Z":
+            alive.add(int(name))
+    found, todo = set(), [root]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return sorted(found & alive)
 
 
 def _marked(pid: str, mark: bytes) -> bool:
