@@ -135,6 +135,38 @@ def _module_tree_hash(top: str) -> str:
     return _hash_files(files)
 
 
+PLUGIN_GROUPS = ("stereodyn.engines", "stereodyn.integrators", "stereodyn.scenes", "stereodyn.report_sections",
+                 "stereodyn.torque_models")
+
+
+def plugin_sources() -> str:
+    """One hash of the .py files of every plug-in module this environment's entry points name (stereodyn's own
+    left out: its source fingerprint covers them), found without importing them (importlib.util.find_spec of the
+    top-level module; a module that cannot be found counts by its name alone). The matrix's overlay key holds it: an
+    edited plug-in gave "runs reused" with the old code's rows (issue 46's eleventh attack, F7)."""
+    import importlib.util
+
+    files: dict[str, Path] = {}
+    names = set()
+    for group in PLUGIN_GROUPS:
+        for entry in metadata.entry_points(group=group):
+            top = entry.value.split(":")[0].split(".")[0].strip()
+            if top and top != "stereodyn":
+                names.add(top)
+    for top in sorted(names):
+        try:
+            spec = importlib.util.find_spec(top)
+        except (ImportError, ValueError):
+            spec = None
+        roots = [Path(p) for p in (spec.submodule_search_locations or ())] if spec is not None else []
+        if roots:
+            files.update({f"{top}/{f.relative_to(root).as_posix()}": f for root in roots for f in root.rglob("*.py")
+                          if "__pycache__" not in f.parts and f.is_file()})
+        elif spec is not None and spec.origin and Path(spec.origin).is_file():
+            files[top] = Path(spec.origin)
+    return hashlib.sha256((",".join(sorted(names)) + _hash_files(files)).encode()).hexdigest()[:24]
+
+
 def code_origin(cls: type) -> dict[str, str]:
     """Where a class (a plug-in integrator or engine) comes from: {"distribution", "version", "source"}.
 

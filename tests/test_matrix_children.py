@@ -6,6 +6,7 @@ nothing are refused up front, or a row.
 Offline as tests/test_matrix.py: the toy engine's wheels installed with uv from a local folder over this environment
 (--overlay), and a stand-in for `stereodyn run` in the environment's own Python (matrix.command replaced; in a
 matrix started as a process of its own, by a small driver script)."""
+import json
 import os
 import signal
 import subprocess
@@ -159,6 +160,65 @@ def test_a_rerun_resumes_the_interrupted_run_and_never_deletes_a_folder_being_wr
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "another stereodyn command is writing to this folder" in err, err
     assert (folder / "store" / "kept.json").is_file() and (folder / "results.csv").is_file()
+
+
+def test_a_finished_run_another_command_changed_is_resumed_not_reused(offline, monkeypatch, capsys):
+    """Issue 46's eleventh attack, F4: the matrix reused a finished run folder ("ok (cached, runs reused)") after a
+    plain `stereodyn run --resume` with other arguments had run into it (or been interrupted there): its rows were no
+    longer the matrix's run. The stamp seals the runs.json the matrix's run left; any other is resumed with the
+    matrix's arguments. Break-checked: without the seal's comparison the third call reuses the folder."""
+    from stereodyn.harness.cli import matrix
+
+    out = offline / "out"
+    folder = out / "runs" / f"1-{DIST}==1.0"
+    calls = []
+
+    def stand_in(python, run, target):
+        calls.append(run)
+        return [str(python), "-c", STAND_IN + "\nimport sys; (Path(sys.argv[1]) / 'store').mkdir(exist_ok=True)",
+                str(target)]
+
+    monkeypatch.setattr(matrix, "command", stand_in)
+    argv = ["matrix", f"{DIST}==1.0", "--overlay", "--out", str(out), "--", *RUN]
+    assert cli.main(argv) == 0 and cli.main(argv) == 0 and calls == [RUN], calls  # finished: reused
+    manifest = json.loads((folder / "runs.json").read_text())
+    (folder / "runs.json").write_text(json.dumps({**manifest, "complete": False}))  # another command ran there
+    assert cli.main(argv) == 0
+    assert calls == [RUN, [*RUN, "--resume"]], calls
+    assert cli.main(argv) == 0 and len(calls) == 2  # finished as the matrix's run: reused again
+
+
+def test_an_overlay_environment_is_another_when_a_plugins_source_changed(monkeypatch):
+    """Issue 46's eleventh attack, F7: with --overlay the plug-ins are this environment's; after one was edited
+    the same matrix reused the runs of the old code. The overlay's key holds the plug-ins' sources
+    (environment.plugin_sources), so an edit is another environment. Break-checked: without them the keys agree."""
+    from stereodyn.harness import environment as env_info
+    from stereodyn.harness.run import environments
+
+    monkeypatch.setattr(env_info, "plugin_sources", lambda: "a" * 24)
+    before = environments.key(("numpy==2.4.6",), "stereodyn==0.3.0", True)
+    assert environments.key(("numpy==2.4.6",), "stereodyn==0.3.0", False) != before
+    monkeypatch.setattr(env_info, "plugin_sources", lambda: "b" * 24)
+    assert environments.key(("numpy==2.4.6",), "stereodyn==0.3.0", True) != before
+
+
+def test_the_plugin_sources_change_with_a_plugins_file_and_import_nothing(tmp_path, monkeypatch):
+    """plugin_sources hashes the files of the modules the entry points name, found without importing them."""
+    from stereodyn.harness import environment as env_info
+
+    package = tmp_path / "edited_plugin"
+    package.mkdir()
+    (package / "__init__.py").write_text("raise SystemExit('imported')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    class Entry:
+        value = "edited_plugin:Engine"
+
+    monkeypatch.setattr(env_info.metadata, "entry_points",
+                        lambda group: [Entry()] if group == "stereodyn.engines" else [])
+    first = env_info.plugin_sources()
+    (package / "__init__.py").write_text("raise SystemExit('imported, edited')\n")
+    assert env_info.plugin_sources() != first
 
 
 @pytest.mark.parametrize("run_args", [["--help"], ["-h"], ["free-asymmetric", "--hel"], ["--h"]])

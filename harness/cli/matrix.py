@@ -4,6 +4,7 @@ neighbouring pair. Written to OUT: matrix.csv (one row per environment: ok, or w
 order side by side), runs/N-NAME/ (each environment's result folder and its log), history.* and compare/N-M/."""
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 import math
@@ -21,6 +22,7 @@ from .common import BadInput, check_options, Parser, output_folder, _path, selec
 # The quick suite (README, "Regression CI"; .ci/run gates it against reports/baselines/quick.json).
 QUICK = ("free-asymmetric", "lagrange-top", "kovalevskaya", "heavy-asymmetric", "--t-end", "2", "--dt", "1e-2,3e-3")
 RUN_STAMP = "matrix-run.json"  # in a run folder: the environment and arguments it was run with (reused if the same)
+RUNS_SEAL = "runs.json sha256"  # in the stamp: the folder's runs.json as the matrix's run left it
 ORDERS_SHOWN = 20
 
 
@@ -105,6 +107,14 @@ def command(python: Path, argv: list[str], folder: Path) -> list[str]:
     return [str(python), "-m", "stereodyn", "run", *argv, "--out", str(folder)]
 
 
+def _seal(folder: Path) -> str | None:
+    """sha256 of the folder's runs.json (None where it has none): what the matrix's run left there."""
+    try:
+        return hashlib.sha256((folder / "runs.json").read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
 def _stamp(folder: Path) -> dict | None:
     try:
         stamp = json.loads((folder / RUN_STAMP).read_text())
@@ -124,7 +134,10 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
     stamp = {"environment": environment.path.name, "run": argv}
     earlier = None if rerun else _stamp(folder)
     same = earlier is not None and {k: earlier.get(k) for k in stamp} == stamp
-    if same and earlier.get("complete", True) and (folder / "results.csv").is_file():
+    # reused only as the matrix's run left it: another command run into the folder since (other arguments, or
+    # interrupted there) changed its runs.json, and it was reused as "ok" (issue 46's eleventh attack, F4)
+    if same and earlier.get("complete", True) and (folder / "results.csv").is_file() \
+            and earlier.get(RUNS_SEAL) == _seal(folder):
         return "ok", "", True
     resume = same and (folder / "store").is_dir()
     if folder.exists() and not resume:
@@ -149,7 +162,7 @@ def run_in(environment, folder: Path, argv: list[str], rerun: bool) -> tuple[str
                              f"({log})", False
     if not (folder / "results.csv").is_file():  # exit 0 and no table: the run's arguments ran nothing
         return "run failed", f"stereodyn run exited 0 but wrote no results.csv ({log})", False
-    write_atomic(folder / RUN_STAMP, json.dumps({**stamp, "complete": True}) + "\n")
+    write_atomic(folder / RUN_STAMP, json.dumps({**stamp, "complete": True, RUNS_SEAL: _seal(folder)}) + "\n")
     return "ok", "", False
 
 

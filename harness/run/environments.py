@@ -80,7 +80,8 @@ def stereodyn_source() -> str:
 
 def key(requirements: tuple[str, ...], stereodyn: str, overlay: bool) -> str:
     """The cache key: the requirements, the Python, what stereodyn is (a checkout: its source fingerprint and its
-    pyproject.toml, which holds the dependency ranges) and the overlay's base (its site folders)."""
+    pyproject.toml, which holds the dependency ranges) and the overlay's base (its site folders, and the source of
+    the plug-ins there: an edited plug-in is another environment, whose runs are run again)."""
     import site
 
     source = stereodyn
@@ -88,7 +89,8 @@ def key(requirements: tuple[str, ...], stereodyn: str, overlay: bool) -> str:
         source = env_info.source_fingerprint() + hashlib.sha256(
             (Path(stereodyn) / "pyproject.toml").read_bytes()).hexdigest()[:16]
     text = json.dumps({"requirements": sorted(requirements), "python": sys.version, "executable": sys.executable,
-                       "stereodyn": source, "overlay": site.getsitepackages() if overlay else None}, sort_keys=True)
+                       "stereodyn": source, "overlay": [site.getsitepackages(), env_info.plugin_sources()] if overlay else None},
+                      sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
