@@ -141,7 +141,9 @@ def test_jobs_are_capped_at_the_number_of_runs(tmp_path, monkeypatch):
 # --- 3. names are data
 
 def test_a_name_with_a_double_quote_runs_everywhere_and_exports_xml_that_parses(tmp_path, capsys):
-    name = 'say "hi" <&> --'
+    # quotes and an apostrophe (XML attribute delimiters); < & > are Markdown markup, refused since issue 46's
+    # eleventh attack (test_a_case_name_shows_as_itself_in_markdown)
+    name = 'say "hi" it\'s -- (x)'
     path = case_file(tmp_path, BASE.replace('name = "base"', f"name = {json.dumps(name)}"))
     out = tmp_path / "out"
     assert cli.main(["run", "--case-file", str(path), "--engines", "mujoco,pinocchio", "--integrators", "rk4",
