@@ -451,9 +451,9 @@ def test_a_run_family_fitted_twice_in_convergence_csv_is_refused_where_it_is_rea
                                                                                        index=False)
     with pytest.raises(gate.GateError) as caught:
         gate.read_orders(tmp_path)
-    assert str(caught.value) == (f"{tmp_path / 'convergence.csv'}: row 3: duplicate key case=lagrange-top engine=mujoco formulation= "
-                                 "integrator=rk4 precision=float64 (also row 1): one fitted order per run family"), \
-        str(caught.value)
+    assert str(caught.value) == (f"{tmp_path / 'convergence.csv'}: row 3: duplicate key case=lagrange-top "
+                                 "engine=mujoco formulation= integrator=rk4 precision=float64 (also row 1): one "
+                                 "fitted order per run family"), str(caught.value)
 
 
 def test_every_fitted_order_read_from_convergence_csv_is_one_a_baseline_holds(tmp_path):

@@ -491,7 +491,8 @@ def code_environment(manifest: dict | None) -> dict:
     """runs.json's "code" as environment entries: 'plug-in engine NAME' and 'plug-in integrator NAME' ->
     'DIST VERSION, source HASH' for every class a plug-in provides (a plug-in's changed source shows even when its
     version did not change), and 'stereodyn source' (its fingerprint: it changes with every commit; the gate
-    lists it, as the code under test, never as another machine: mode_line). Entries of an unexpected shape are left out (runs.json's code is informative)."""
+    lists it, as the code under test, never as another machine: mode_line). Entries of an unexpected shape are left
+    out (runs.json's code is informative)."""
     code = (manifest or {}).get("code")
     if not isinstance(code, dict):
         return {}

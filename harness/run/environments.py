@@ -89,7 +89,8 @@ def key(requirements: tuple[str, ...], stereodyn: str, overlay: bool) -> str:
         source = env_info.source_fingerprint() + hashlib.sha256(
             (Path(stereodyn) / "pyproject.toml").read_bytes()).hexdigest()[:16]
     text = json.dumps({"requirements": sorted(requirements), "python": sys.version, "executable": sys.executable,
-                       "stereodyn": source, "overlay": [site.getsitepackages(), env_info.plugin_sources()] if overlay else None},
+                       "stereodyn": source,
+                       "overlay": [site.getsitepackages(), env_info.plugin_sources()] if overlay else None},
                       sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
