@@ -40,7 +40,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -126,9 +126,15 @@ def end_descendants(grace_s: float = 2.0) -> None:
     deadline = time.monotonic() + grace_s
     for child in multiprocessing.active_children():
         child.join(max(0.0, deadline - time.monotonic()))
-    me = os.getpid()
-    for _ in range(_KILL_ROUNDS):  # scanned again after a kill: what one forked meanwhile is ours now
-        left = [pid for pid in _descendants(me) if pid != me]
+    _kill_all(lambda: _descendants(os.getpid()))
+
+
+def _kill_all(scan: Callable[[], list[int]]) -> None:
+    """SIGKILL every process scan() finds, scanned again after each kill (what one forked between the scan and its
+    kill is found by the next), at most _KILL_ROUNDS times, never a pid twice."""
+    killed: set[int] = set()
+    for _ in range(_KILL_ROUNDS):
+        left = [pid for pid in scan() if pid not in killed]
         if not left:
             return
         for pid in left:
@@ -136,11 +142,7 @@ def end_descendants(grace_s: float = 2.0) -> None:
                 os.kill(pid, signal.SIGKILL)
             except OSError:
                 pass
-        for pid in left:  # reaped, so that the next scan does not find them as zombies
-            try:
-                os.waitpid(pid, os.WNOHANG)
-            except OSError:
-                pass
+        killed.update(left)
 
 
 def _descendants(root: int) -> list[int]:
@@ -226,17 +228,7 @@ def end_group_of(leader: int, marker: str | None = None) -> None:
     """Kill the processes leader answers for (_group_members) but the leader (the pool's thread at shutdown, before it
     ends: a worker that thread started dies by its parent-death signal when it ends, before it can end its group).
     Scanned again after a kill: what a process forked between the scan and its kill is an orphan of the worker now."""
-    killed = {leader}
-    for _ in range(_KILL_ROUNDS):
-        left = [pid for pid in _group_members(leader, marker) if pid not in killed]
-        if not left:
-            return
-        for pid in left:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except OSError:
-                pass
-        killed.update(left)
+    _kill_all(lambda: [pid for pid in _group_members(leader, marker) if pid != leader])
 
 
 def kill_group(leader: int, marker: str | None = None) -> None:
