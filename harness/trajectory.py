@@ -200,6 +200,22 @@ def problem(traj, times: np.ndarray, expected: type | None = None) -> str | None
     return None
 
 
+ARRAYS = ("times", "quat", "omega", "state", "violation")  # a trajectory's per-sample fields (problem checks them)
+
+
+def as_arrays(traj):
+    """traj with its per-sample fields (ARRAYS) as float numpy arrays: a plug-in's lists, tuples or integer arrays,
+    which problem() accepts as numbers of the right shape, were a traceback in the metrics, exit 3 "a bug in
+    stereodyn" (issue 46's twelfth attack). A floating numpy array is left as it is (a float32 run's stay float32)."""
+    if not dataclasses.is_dataclass(traj):
+        return traj
+    fields = {f.name for f in dataclasses.fields(traj)}
+    changed = {name: np.asarray(getattr(traj, name), dtype=float) for name in ARRAYS if name in fields
+               and not (isinstance(getattr(traj, name), np.ndarray)
+                        and np.issubdtype(getattr(traj, name).dtype, np.floating))}
+    return dataclasses.replace(traj, **changed) if changed else traj
+
+
 def _times_problem(got: np.ndarray, grid: np.ndarray) -> str | None:
     """Why a trajectory's times are not its grid's sample times, or None. Every metric compares sample i with the
     truth at the grid's time i: reversed or shifted times gave an ok row with wrong errors (issue 46's tenth attack).

@@ -496,6 +496,25 @@ def test_times_that_drift_as_summed_steps_do_are_the_grids(monkeypatch):
     assert row["status"] == "failed" and "times[1] is 0.01002" in row["message"], row
 
 
+@pytest.mark.parametrize("kind", [list, tuple, "int"])
+def test_states_as_lists_tuples_or_integers_are_measured_as_arrays(monkeypatch, kind):
+    """Issue 46's twelfth attack: Trajectory(times=list(grid.times)), a tuple, or quat.tolist() passed the gate (numbers
+    of the right shape) and were a TypeError in the metrics: exit 3, "a bug in stereodyn". They are measured as the
+    arrays they hold. Break-checked: without as_arrays in measure.checked each is exit 3 (InternalError)."""
+    def states(grid):
+        traj = _states(grid)
+        if kind == "int":
+            return dataclasses.replace(traj, quat=traj.quat.astype(int))
+        return dataclasses.replace(traj, times=kind(grid.times), quat=kind(map(kind, traj.quat)),
+                                   omega=kind(map(kind, traj.omega)))
+
+    from stereodyn.harness.run.truth import case_truth
+
+    monkeypatch.setattr(measure, "model_of", lambda run: _Model(states))
+    row = measure.measure(RUN, case_truth(CASE, certify=False), full=True)  # the series and errors read them too
+    assert row["status"] == "ok" and math.isfinite(row["casimir_drift"]) and math.isfinite(row["attitude_err"]), row
+
+
 def test_a_skipped_trajectory_from_run_is_a_skipped_row_with_nothing_measured(monkeypatch):
     """A plug-in's run() that answers skipped did not run the case: its row had the metrics of states it never
     computed (issue 46's tenth attack, noted). Break-checked: computing the metrics for it fills energy_drift."""

@@ -17,7 +17,7 @@ from ..engines import get_engine
 from ..errors import InternalError
 from ..precision import FLOAT64
 from ..scenes import scene_of
-from ..trajectory import Status, judged, problem
+from ..trajectory import Status, as_arrays, judged, problem
 from ..words import clipped, one_line
 from .processes import plugin_fault, raise_unless_data
 from ..tables import METRIC_SUFFIXES, value_rule
@@ -117,7 +117,7 @@ def checked(sim, traj, grid, expected: type | None = None, omega0=None):
         if plugins.own(type(sim)):
             raise InternalError(f"NoTrajectory: {text}", f"NoTrajectory: {text}\n")
         raise NoTrajectory(text)
-    return judged(traj, omega0)
+    return judged(as_arrays(traj), omega0)
 
 
 class BadMetric(ValueError):
