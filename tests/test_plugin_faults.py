@@ -785,8 +785,12 @@ def _rk(class_name: str, **declared) -> type:
     ({"name": "red\x1b[31m"}, "name = 'red\\x1b[31m': must be one line of printable characters"),
     ({"name": "rk4 "}, "name = 'rk4 ': must be one line of printable characters, no space at its ends"),
     ({"state_space": "lie\u2028"}, "state_space = 'lie\\u2028': must be one line of printable characters"),
-], ids=["order text", "order nan", "order 0", "order bool", "order 101", "order huge", "stages negative", "stages float", "symplectic text",
-        "symmetric int", "iterative None", "no name", "name newline", "name escape", "name space", "space separator"])
+    # issue 46's twelfth attack: an ExplicitRK with tableau None was exit 3 at its first step, the other rows lost
+    ({"tableau": None, "stages": 4}, "tableau = None: must be a ButcherTableau"),
+    ({"tableau": "rk4", "stages": 4}, "tableau = 'rk4': must be a ButcherTableau"),
+], ids=["order text", "order nan", "order 0", "order bool", "order 101", "order huge", "stages negative",
+        "stages float", "symplectic text", "symmetric int", "iterative None", "no name", "name newline", "name escape",
+        "name space", "space separator", "tableau None", "tableau text"])
 def test_an_integrator_with_a_bad_declaration_is_refused_at_register(declared, words):
     cls = _rk("meta_bad", **declared)
     with pytest.raises(ValueError) as caught:

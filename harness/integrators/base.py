@@ -21,6 +21,7 @@ from typing import Callable, ClassVar, Protocol
 import numpy as np
 
 from ...reference import plugins
+from .tableau import ButcherTableau
 from .. import budget
 from ..trajectory import (Status, Trajectory, divergence_limit2, diverged_trajectory, first_bad_step,
                           sample_good)
@@ -282,6 +283,13 @@ def metadata_problem(cls: type) -> str | None:
             return f"{field} = {value!r}: must be True or False"
     if not isinstance(getattr(cls, "description", ""), str):
         return f"description = {cls.description!r}: must be a string"
+    # a method stepped by a tableau-driven base's stepper (ExplicitRK, VectorRK) needs a tableau: None was exit 3 at
+    # its first step, the sweep's other rows lost (issue 46's twelfth attack)
+    driven = any(vars(k).get("stepper") is getattr(cls, "stepper", None) for k in cls.__mro__
+                 if "tableau" in vars(k).get("__annotations__", {}))
+    if driven and not isinstance(getattr(cls, "tableau", None), ButcherTableau):
+        return (f"tableau = {getattr(cls, 'tableau', None)!r:.60}: must be a ButcherTableau "
+                "(harness/integrators/tableau.py)")
     return None
 
 
