@@ -561,3 +561,14 @@ def test_a_verdict_status_no_verdict_has_is_refused_by_every_reader(tmp_path, ca
     err = capsys.readouterr().err
     assert f"{b / 'verdicts.csv'}: row 1: status = 'garbage': must be one of 'pass', 'fail'" in err, err
     assert cli.main(["compare", str(a), str(a), "--out", str(tmp_path / "same"), "--format", "pr"]) == 0
+
+
+def test_history_escapes_an_environment_key_in_its_header(tmp_path):
+    """Issue 46's twelfth attack: an environment key `we|rd*key` that differs became a column whose header history.md
+    wrote raw: a header of 11 cells over rows of 10. Break-checked: without md_text on the header the counts differ."""
+    a = folder(tmp_path / "a", env={**environment("2026-11-01T10:00:00+00:00", "1"), "we|rd*key": "1"})
+    b = folder(tmp_path / "b", env={**environment("2026-11-01T11:00:00+00:00", "1"), "we|rd*key": "2"})
+    assert cli.main(["history", str(a), str(b), "--out", str(tmp_path / "h")]) == 0
+    table = [line for line in (tmp_path / "h" / "history.md").read_text().splitlines() if line.startswith("|")]
+    cells = [line.replace("\\|", "").count("|") for line in table[:4]]
+    assert len(set(cells)) == 1 and "we\\|rd\\*key" in table[0], table[:4]

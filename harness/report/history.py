@@ -60,7 +60,7 @@ def history_lines(context: sections.Context) -> list[str]:
              f"{STEPS_FILE} the steps. A step is where the piecewise-constant fit of a series (asv's step detection) "
              "changes level by at least its threshold: a metric by the factor, a fitted order by the difference, "
              "a status by any change.", "",
-             *markdown_table(shown, [[_number(r[c]) if c in ("rows", "orders", "steps", "worse") else md_text(r[c])
+             *markdown_table([md_text(c) for c in shown], [[_number(r[c]) if c in ("rows", "orders", "steps", "worse") else md_text(r[c])
                                       for c in shown] for _, r in points.iterrows()]), ""]
     if steps.empty:
         return lines + ["No series stepped: every metric, status and fitted order kept its level over the sequence.",
