@@ -456,6 +456,22 @@ def test_a_run_family_fitted_twice_in_convergence_csv_is_refused_where_it_is_rea
                                  "fitted order per run family"), str(caught.value)
 
 
+def test_the_report_refuses_a_run_family_fitted_twice_as_check_does(tmp_path):
+    """Issue 46's twelfth attack: `stereodyn report` read convergence.csv's duplicated family as a second fit (its
+    order table "1.03 / 2.50") where check refused it. Every reader of the derived tables goes through
+    tables.read_optional, which refuses a key of ONE_ROW_PER twice. Break-checked: without it both rows are read."""
+    from stereodyn.harness.tables import TableError, read_optional
+
+    row = {"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4", "order": 4.07}
+    pd.DataFrame([row, {**row, "engine": "pinocchio"}, {**row, "order": 2.5}]).to_csv(tmp_path / "convergence.csv",
+                                                                                       index=False)
+    with pytest.raises(TableError, match=r"convergence.csv: row 3: duplicate key case=lagrange-top engine=mujoco "
+                                         r"formulation= integrator=rk4 \(also row 1\): one row per run family"):
+        read_optional(tmp_path / "convergence.csv")
+    pd.DataFrame([row, {**row, "engine": "pinocchio"}]).to_csv(tmp_path / "convergence.csv", index=False)
+    assert len(read_optional(tmp_path / "convergence.csv")) == 2
+
+
 def test_every_fitted_order_read_from_convergence_csv_is_one_a_baseline_holds(tmp_path):
     rows = [{"case": "lagrange-top", "engine": "mujoco", "formulation": "", "integrator": "rk4", "order": order,
              "declared_order": 4.0} for order in (4.07, 100.0, 0.0)]
