@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import re
 import signal
 import threading
 import warnings
@@ -152,10 +153,16 @@ def guard(where: str, passing: tuple[type[BaseException], ...] = ()) -> Iterator
 MARKUP = "\\`*[]<>|~&#!"
 
 
+# An underscore opens emphasis at a word's start or end ("_x_" showed as an italic x), not inside a word (my_case).
+_EMPHASIS = re.compile(r"(?<![^\W_])_|_(?![^\W_])")
+
+
 def markup_problem(value: str) -> str | None:
-    """Why a name would not show as itself in Markdown (it holds one of MARKUP), or None."""
-    found = sorted({c for c in value if c in MARKUP})
-    return f"must hold none of {' '.join(MARKUP)} (Markdown markup; it holds {' '.join(found)})" if found else None
+    """Why a name would not show as itself in Markdown (it holds one of MARKUP, or an underscore at a word's start
+    or end), or None."""
+    found = sorted({c for c in value if c in MARKUP} | ({"_"} if _EMPHASIS.search(value) else set()))
+    return (f"must hold none of {' '.join(MARKUP)}, nor an underscore at a word's start or end (Markdown markup; it "
+            f"holds {' '.join(found)})") if found else None
 
 
 def name_problem(field: str, value: Any, listed: bool = False) -> str | None:

@@ -509,6 +509,8 @@ def test_a_case_name_shows_as_itself_in_markdown(tmp_path):
     rejects(write(tmp_path, edit(BASE, ('name = "base"', 'name = "ev|il`x`<b>h&amp;"'))), "name",
             "must hold none of")
     rejects(write(tmp_path, edit(BASE, ('name = "base"\n', '')), "a*b.toml"), "name", "it holds *")
+    # an underscore at a word's start or end is emphasis ("_x_" showed as an italic x: the twelfth attack)
+    rejects(write(tmp_path, edit(BASE, ('name = "base"\n', '')), "_x_.toml"), "name", "it holds _")
     assert load_case(write(tmp_path, edit(BASE, ('name = "base"', 'name = "my top_2 (v1.5) +x -y"')))).name \
         == "my top_2 (v1.5) +x -y"
 
