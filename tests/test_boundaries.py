@@ -194,6 +194,11 @@ def test_unwritable_output_paths_exit_2_with_one_line(tmp_path, capsys):
     good = tmp_path / "good"
     assert cli.main(["run", "--case-file", str(path), "--out", str(good), *FAST]) == 0
     one_line_error(cli.main(["baseline", str(good), "--out", str(a_file / "b.json")]), capsys, "--out")
+    # a folder whose store/ is a file: that file is named, not the folder (issue 46's twelfth attack)
+    (tmp_path / "odd").mkdir()
+    (tmp_path / "odd" / "store").write_text("x")
+    one_line_error(cli.main(["run", "--case-file", str(path), "--out", str(tmp_path / "odd"), *FAST]), capsys,
+                   f"--out {tmp_path / 'odd'}: {tmp_path / 'odd' / 'store'} is not a folder")
 
 
 def test_run_out_into_a_folder_of_another_tools_tables_is_refused(tmp_path, capsys):

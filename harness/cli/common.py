@@ -204,6 +204,8 @@ def output_folder(path: Path, option: str, store: bool = True) -> Path:
             with tempfile.TemporaryFile(dir=folder):
                 pass
     except OSError as exc:
+        if folder != path and folder.exists() and not folder.is_dir():  # it was said of DIR (the twelfth attack)
+            raise BadInput(f"{option} {path}: {folder} is not a folder (the run's store; move it away)") from None
         raise BadInput(f"{option} {path}: not a writable folder ({exc.strerror or type(exc).__name__})") from None
     return path
 
