@@ -367,18 +367,24 @@ def test_a_time_of_divergence_is_a_diverged_rows_only(monkeypatch, status, at):
 
 
 @pytest.mark.parametrize("hook, answer, words", [
-    ("default_dts", object(), "must be a tuple of steps"), ("default_dts", 42, "must be a tuple of steps"),
-    ("default_dts", (0.01, -1.0), "must be a tuple of steps"),
+    ("default_dts", object(), "must be steps of"), ("default_dts", 42, "must be steps of"),
+    ("default_dts", (0.01, -1.0), "must be steps of the case's dt list"),
+    ("default_dts", (0.01, 0.01), "each at most once"), ("default_dts", (5.0,), "dt list"),
+    ("default_dts", (0.01, 0.0100000001), "dt list"), ("default_dts", (2.0 ** 1000,), "dt list"),
+    ("default_dts", ([0.01],), "dt list"),
     ("precisions", ("float16",), "must name each of float64, float32 at most once"),
     ("precisions", ("float64", "float64"), "at most once"), ("precisions", object(), "at most once"),
     ("variants", "quaternion", "must be a tuple of names"), ("default_run", "yes", "must be True or False"),
-], ids=["dts object", "dts int", "dts negative", "precision float16", "precision twice", "precisions object",
+], ids=["dts object", "dts int", "dts negative", "dts twice", "dts above t_end", "dts not listed",
+                       "dts 2**1000", "dts unhashable", "precision float16", "precision twice", "precisions object",
         "variants text", "default_run text"])
 def test_a_plugin_models_planning_answer_the_plan_cannot_use_is_one_line(monkeypatch, hook, answer, words):
     """Issue 46's tenth attack: a plug-in model's default_dts() returning an object or 42, precisions() returning
     ("float16",) or an object, were tracebacks in the plan (precisions naming float64 twice: run exit 0 and a
     results.csv with each key twice that report refused). Each answer is checked where the plan asks: one line naming
-    the plug-in, the hook and the rule (EngineError, exit 2). Break-checked: without the rules the plan takes them."""
+    the plug-in, the hook and the rule (EngineError, exit 2). The twelfth attack: default_dts naming a step twice
+    (exit 0, rows every reader refused), one above t_end or one not in the case's list (IndexError, exit 3), 2**1000
+    (a traceback in the summary, exit 1). Break-checked: without the rules the plan takes them."""
     from stereodyn.harness.engines import EngineError
     from stereodyn.harness.engines.base import RigidBodyModel
     from stereodyn.harness.run import plan

@@ -3,7 +3,6 @@ skipped up front (the engine cannot model the case). harness.run.sweep executes 
 its run families from it."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -74,7 +73,7 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                 dts = (None,) if integrator and (offer.adaptive or unmodelled) else case.dt
                 if integrator and selection.default and dts != (None,):
                     dts = tuple(ask("default_dts(...)", rigid.default_dts, case, integrator, tuple(dts),
-                                    rule=_steps))
+                                    rule=lambda answer, listed=tuple(dts): _steps_of(answer, listed)))
                 for formulation_rank, formulation in enumerate(variants[:1] if unmodelled else variants):
                     if integrator and selection.default and not ask("default_run(...)", model.default_run, case,
                                                                      formulation, integrator, rule=flag):
@@ -114,10 +113,15 @@ def _names(answer) -> str | None:
     return None if ok else "must be a tuple of names"
 
 
-def _steps(answer) -> str | None:
+def _steps_of(answer, listed: tuple[float, ...]) -> str | None:
+    """default_dts' rule: steps of the case's dt list, each once (SceneModel.default_dts). A step of its own ran on
+    a grid the truth does not sample, above t_end or 2**1000 s (an IndexError or a traceback, exit 3 or 1), and one
+    step twice wrote rows with one key that every reader refused (issue 46's twelfth attack)."""
+    rule = f"must be steps of the case's dt list ({', '.join(f'{dt:g}' for dt in listed)}), each at most once"
     ok = isinstance(answer, (tuple, list)) and all(
-        isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a) and a > 0 for a in answer)
-    return None if ok else "must be a tuple of steps (s, each a finite number > 0)"
+        isinstance(a, (int, float)) and not isinstance(a, bool) and a in listed for a in answer) \
+        and len(set(answer)) == len(answer)
+    return None if ok else rule
 
 
 def flag(answer) -> str | None:
