@@ -22,7 +22,8 @@ def write_atomic(path: Path, text: str | bytes) -> None:
         os.replace(tmp, path)
     except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
-        if isinstance(exc, OSError) and exc.filename is None:  # a full disk: write() and fsync() name no file
+        # a full disk: write() and fsync() name no file; a folder at path: the rename names our temporary file
+        if isinstance(exc, OSError) and exc.filename in (None, tmp):
             raise OSError(exc.errno, exc.strerror, str(path)) from exc
         raise
 

@@ -91,3 +91,15 @@ def test_the_temporary_file_is_beside_the_target(tmp_path, monkeypatch):
     assert os.path.dirname(src) == os.path.dirname(dst) == os.path.realpath(target.parent)
     assert os.path.basename(src).startswith(".results.csv.") and src.endswith(".tmp")
     assert target.read_text() == "a,b\n1,2\n" and sorted(p.name for p in target.parent.iterdir()) == ["results.csv"]
+
+
+def test_a_folder_where_the_file_goes_is_named_not_the_temporary(tmp_path):
+    """Issue 46's twelfth attack, F10: a store record's path made a folder gave "Is a directory:
+    .../store/.KEY.json.abc.tmp", a name the user never made. The error names the path the write was for, and no
+    temporary is left. Break-checked: with only a nameless error renamed, the message names the temporary."""
+    target = tmp_path / "record.json"
+    target.mkdir()
+    with pytest.raises(IsADirectoryError) as caught:
+        write_atomic(target, "{}")
+    assert caught.value.filename == str(target) and ".tmp" not in str(caught.value), str(caught.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["record.json"]
