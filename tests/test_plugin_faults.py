@@ -1111,7 +1111,10 @@ subprocess.run(["sh", "-c", "setsid sleep 300 >/dev/null 2>&1 & echo $! > " + os
 def test_a_daemon_a_plugin_starts_at_import_in_the_command_is_gone_when_it_ends(tmp_path):
     """Issue 46's eleventh attack, F10: a plug-in that starts a daemon when the command imports it (not a worker)
     left it to init: it outlived `stereodyn cases`, `engines`, `run`. The command is the subreaper of what it starts
-    and ends it at exit. Break-checked: without answer_for_orphans the sleep is alive after the command."""
+    and ends it at exit. Break-checked: without answer_for_orphans the sleep is alive after the command. The twelfth
+    attack saw them "left to init": killed but unreaped, zombies init inherited and reaped seconds later (kill -0
+    finds a zombie). The command reaps what it killed: nothing of the daemon is left, not even its pid. Break-checked:
+    without processes._reap the pid is there (a zombie of init's) on this machine."""
     env = _package(tmp_path / "site", "daemon-at-import", {"daemon_at_import.py": DAEMON_AT_IMPORT},
                    {"stereodyn.scenes": {"daemon": "daemon_at_import"}})
     env["DAEMON_PIDS"] = str(tmp_path / "daemon")
@@ -1119,10 +1122,10 @@ def test_a_daemon_a_plugin_starts_at_import_in_the_command_is_gone_when_it_ends(
                             cwd=tmp_path, timeout=300)
     assert result.returncode == 0, result.stderr[-3000:]
     daemon = int((tmp_path / "daemon").read_text())
-    alive = _alive(daemon)
+    alive, left = _alive(daemon), Path(f"/proc/{daemon}").exists()
     if alive:  # not to leave it to the next test
         os.kill(daemon, signal.SIGKILL)
-    assert not alive
+    assert not alive and not left
 
 
 @pytest.mark.parametrize("stop", [signal.SIGTERM, pytest.param(signal.SIGHUP, marks=pytest.mark.slow)])
