@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from ..reference import plugins
+
 if TYPE_CHECKING:
     from .grid import TimeGrid
 
@@ -191,12 +193,13 @@ def problem(traj, times: np.ndarray, expected: type | None = None) -> str | None
         value = getattr(traj, name, 0)
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
                 or not 0 <= value <= MAX_COUNT:  # an SDK's integer type or a float count is read as a count; text,
-            return f"{whose} {name} is {value!r}, not a count"  # -1, NaN, inf or 1e200 is not
+            return f"{whose} {name} is {plugins.text_of(value, repr)}, not a count"  # -1, NaN, inf or 1e200 is not
     if not isinstance(getattr(traj, "info", {}), dict):
         return f"{whose} info is {type(traj.info).__name__}, not a dict"
     if traj.status is Status.DIVERGED and _divergence_time(traj) is None:  # a diverged row says when (issue 46, F11)
-        return (f"{whose} status is diverged at diverged_at = {getattr(traj, 'diverged_at', None)!r:.40}, not a time "
-                "of its grid, and no sample breaks the divergence rule")
+        at = plugins.shown(getattr(traj, "diverged_at", None), 40)
+        return (f"{whose} status is diverged at diverged_at = {at}, not a time of its grid, and no sample breaks "
+                "the divergence rule")
     return None
 
 

@@ -21,7 +21,30 @@ import signal
 import threading
 import warnings
 from contextlib import contextmanager
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
+
+
+def text_of(value: Any, show: Callable[[Any], str] = str, width: int | None = None) -> str:
+    """show(value) (str, or repr) for a message about a plug-in's value or error, at most width characters. An
+    object whose __str__ or __repr__ raises, or answers no text, is shown by its type: written into a message, it
+    was a traceback wherever the message was made (issue 46's thirteenth attack). The user's Ctrl-C goes on."""
+    try:
+        text = show(value)
+        if not isinstance(text, str):
+            raise TypeError(f"{show.__name__}() returned {type(text).__name__}")
+    except KeyboardInterrupt as exc:
+        if not code_raised(exc):
+            raise
+        text = f"<{type(value).__name__} object: its {show.__name__}() raised KeyboardInterrupt>"
+    except (Exception, SystemExit, GeneratorExit) as exc:
+        text = f"<{type(value).__name__} object: its {show.__name__}() raised {type(exc).__name__}>"
+    text = str.__str__(text)  # a str subclass's own methods are the plug-in's too
+    return text if width is None else text[:width]
+
+
+def shown(value: Any, width: int = 80) -> str:
+    """A plug-in's value as a message shows it: its repr, at most width characters (text_of)."""
+    return text_of(value, repr, width)
 
 
 class PluginError(Exception):
@@ -29,7 +52,7 @@ class PluginError(Exception):
 
     def __init__(self, where: str, error: BaseException):
         self.where, self.error = where, error
-        text = str(error).strip().splitlines()
+        text = text_of(error).strip().splitlines()
         super().__init__(f"{where}: {type(error).__name__}" + (f": {text[0]}" if text else ""))
 
     @property
@@ -171,15 +194,15 @@ def name_problem(field: str, value: Any, listed: bool = False) -> str | None:
     None when it can. Every table row and listing line holds such names: a newline in one split them (one rule for
     every kind of plug-in). listed: a name the command line takes in a comma-separated list (--integrators): no comma
     (`a,b` was listed as valid and could never be chosen)."""
-    if not isinstance(value, str) or not value:
-        return f"{field} = {value!r:.80}: must be a non-empty string"
+    if type(value) is not str or not value:  # a str subclass's methods are the plug-in's (its repr may raise)
+        return f"{field} = {shown(value)}: must be a non-empty string (str)"
     if not value.isprintable() or value != value.strip():
-        return f"{field} = {value!r:.80}: must be one line of printable characters, no space at its ends"
+        return f"{field} = {shown(value)}: must be one line of printable characters, no space at its ends"
     why = markup_problem(value)
     if why:
-        return f"{field} = {value!r:.80}: {why}"
+        return f"{field} = {shown(value)}: {why}"
     if listed and "," in value:
-        return f"{field} = {value!r:.80}: must hold no comma (the command line's lists are comma-separated)"
+        return f"{field} = {shown(value)}: must hold no comma (the command line's lists are comma-separated)"
     return None
 
 

@@ -1652,3 +1652,64 @@ def test_the_guard_takes_a_bare_base_exception_as_the_plugins():
     with pytest.raises(InternalError):
         with plugins.guard("hook"):
             raise InternalError("ours", "")
+
+
+# --- the thirteenth attack: a plug-in's object whose own text raises
+
+class _BadText(Exception):
+    """An error whose __str__ and __repr__ raise (the thirteenth attack's BadStr)."""
+
+    def __str__(self):
+        raise RuntimeError("str boom")
+
+    __repr__ = __str__
+
+
+class _BadSystemExit(SystemExit):
+    def __str__(self):
+        raise RuntimeError("str boom")
+
+    __repr__ = __str__
+
+
+class _BadTuple(tuple):
+    def __repr__(self):
+        raise RuntimeError("repr boom")
+
+
+def test_a_plugins_error_or_answer_whose_text_raises_is_shown_by_its_type(monkeypatch, tmp_path, only_sections):
+    """Issue 46's thirteenth attack, F1 and F2: an exception whose __str__ raises, at an engine's or integrator's
+    import, in default_dts, in unsupported, in a section's render (run and report), and an answer whose __repr__
+    raises (default_dts' tuple, offer's object) were tracebacks, exit 1: our messages called str() or repr() on
+    them. Each is shown by its type (plugins.text_of), in the line the fault always gives. Break-checked: with
+    PluginError taking str(error), and plan's Hooks showing the answer by repr, these raise RuntimeError."""
+    from stereodyn.harness.engines import EngineError
+    from stereodyn.harness.run import plan
+
+    assert plugins.text_of(_BadText()) == "<_BadText object: its str() raised RuntimeError>"
+    assert plugins.shown(_BadTuple((1,))) == "<_BadTuple object: its repr() raised RuntimeError>"
+    for error in (_BadText(), _BadSystemExit()):
+        with pytest.raises(plugins.PluginError) as caught:
+            with plugins.guard("engine plug-in 'x'"):
+                raise error
+        assert str(caught.value) == f"engine plug-in 'x': {type(error).__name__}: <{type(error).__name__} object: " \
+                                    "its str() raised RuntimeError>", str(caught.value)
+    ask = plan.Hooks(_offering(lambda self, i: Offer(order=4)), "hooks")
+    with pytest.raises(EngineError, match=r"^engine plug-in 'hooks': default_dts\(\.\.\.\) returned <_BadTuple "
+                                          r"object: its repr\(\) raised RuntimeError>: must be steps"):
+        ask("default_dts(...)", lambda: _BadTuple((5.0,)), rule=lambda answer: plan._steps_of(answer, (0.01,)))
+    with pytest.raises(EngineError, match=r"default_dts\(\.\.\.\) failed: _BadText: <_BadText object"):
+        ask("default_dts(...)", lambda: (_ for _ in ()).throw(_BadText()))
+    why = ask.reason("unsupported(case)", lambda: (_ for _ in ()).throw(_BadText()))
+    assert why == "engine 'hooks': unsupported(case) raised _BadText: <_BadText object: its str() raised " \
+                  "RuntimeError>", why
+    assert "must be a non-empty string (str)" in plugins.name_problem("name", type("S", (str,), {
+        "__repr__": lambda self: 1 / 0})("rk4"))  # a str subclass's methods are the plug-in's: refused, shown
+    sections.register("bad-text", 1)(lambda c: (_ for _ in ()).throw(_BadText()))
+    sections.register("bad-exit", 2)(lambda c: (_ for _ in ()).throw(_BadSystemExit()))
+    sections.register("fine", 3)(lambda c: ["## fine", ""])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        page = sections.render(_context(tmp_path))
+    said = [str(w.message) for w in caught if issubclass(w.category, plugins.PluginWarning)]
+    assert page == "## fine\n\n" and len(said) == 2 and all("its str() raised RuntimeError" in s for s in said), said

@@ -98,13 +98,15 @@ def _load(name: str, entry: EntryPoint) -> Engine:
             return UnavailableEngine(name, f"{name} engine unavailable: {exc.error}")
         raise EngineError(str(exc)) from exc
     if not (isinstance(cls, type) and issubclass(cls, Engine)):
-        raise EngineError(f"{where}: {cls!r} is not a subclass of stereodyn.harness.engines.base.Engine (engines "
-                          "written against the old Engine protocol must subclass it since 0.2.0)")
+        raise EngineError(f"{where}: {plugins.shown(cls)} is not a subclass of "
+                          "stereodyn.harness.engines.base.Engine (engines written against the old Engine protocol "
+                          "must subclass it since 0.2.0)")
     try:
         with plugins.guard(f"{where}: constructing it failed"):
             engine = cls()
         if engine.name != name:
-            raise EngineError(f"{where}: its name attribute is {engine.name!r}, not the entry point's name {name!r}")
+            raise EngineError(f"{where}: its name attribute is {plugins.shown(engine.name)}, not the entry point's "
+                              f"name {name!r}")
         _check(engine, where)
     except plugins.PluginError as exc:
         raise EngineError(str(exc)) from exc
@@ -130,21 +132,23 @@ def _check(engine: Engine, where: str) -> None:
         raise EngineError(f"{where}: does not implement {', '.join(m + '()' for m in missing)} (required of an "
                           "Engine, harness/engines/base.py)")
     if not (isinstance(names, (tuple, list)) and all(isinstance(n, str) for n in names)):
-        raise EngineError(f"{where}: integrators() returned {names!r:.80}, not a tuple of names")
+        raise EngineError(f"{where}: integrators() returned {plugins.shown(names)}, not a tuple of names")
     if not names:  # no run at all: `run --engines NAME` would end "done" having run nothing (issue 46, F9)
-        raise EngineError(f"{where}: integrators() returned {names!r}: an engine offers at least one integrator")
+        raise EngineError(f"{where}: integrators() returned {plugins.shown(names)}: an engine offers at least one "
+                          "integrator")
     _check_timing(engine.timing, where)
     _check_about(engine.about, where)
     if not isinstance(models, dict):
-        raise EngineError(f"{where}: models() returned {models!r:.80}, not a dict")
+        raise EngineError(f"{where}: models() returned {plugins.shown(models)}, not a dict")
     lists = [("integrators()", "an integrator", tuple(names))]  # each name is in every row and listing line
     for kind, model in models.items():  # the formulations: results.csv's column
         if isinstance(model, SceneModel):
-            with plugins.guard(f"{where}: models()[{kind!r}].variants() failed"):
+            with plugins.guard(f"{where}: models()[{plugins.shown(kind, 40)}].variants() failed"):
                 variants = model.variants()
             if not (isinstance(variants, (tuple, list))):
-                raise EngineError(f"{where}: models()[{kind!r}].variants() returned {variants!r:.80}, not a tuple")
-            lists.append((f"models()[{kind!r}].variants()", "a formulation", tuple(variants)))
+                raise EngineError(f"{where}: models()[{plugins.shown(kind, 40)}].variants() returned "
+                                  f"{plugins.shown(variants)}, not a tuple")
+            lists.append((f"models()[{plugins.shown(kind, 40)}].variants()", "a formulation", tuple(variants)))
     for i, kind in enumerate(models):
         why = plugins.name_problem(f"models() key {i}", kind)
         if why:
@@ -155,7 +159,7 @@ def _check(engine: Engine, where: str) -> None:
             if why:
                 raise EngineError(f"{where}: {why}")
         if len(set(values)) < len(values):  # two runs under one key: a table its readers refuse
-            raise EngineError(f"{where}: {field} = {values!r:.80}: names {noun} twice")
+            raise EngineError(f"{where}: {field} = {plugins.shown(values)}: names {noun} twice")
     for integrator in names:  # what the plan, the verdicts and the listing read of each integrator
         _check_offer(engine, integrator, where)
 
@@ -164,19 +168,19 @@ def _check_timing(timing, where: str) -> None:
     """Refuse, at load, timing declarations the scheduler and the budgets cannot use (a negative or NaN cost queued
     its runs anywhere; a negative prepare budget failed every run: issue 46's fifth attack)."""
     if not isinstance(timing, Timing):
-        raise EngineError(f"{where}: timing = {timing!r:.80}: must be a harness.engines.base.Timing")
+        raise EngineError(f"{where}: timing = {plugins.shown(timing)}: must be a harness.engines.base.Timing")
     for field, low, optional in (("pass_us", 0.0, False), ("startup_s", 0.0, False), ("prepare_budget_s", 0.0, True)):
         value = getattr(timing, field)
         if optional and value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                 or value < low or (field == "prepare_budget_s" and not MIN_BUDGET_S <= value <= MAX_BUDGET_S):
-            raise EngineError(f"{where}: timing.{field} = {value!r:.80}: must be a finite number "
+            raise EngineError(f"{where}: timing.{field} = {plugins.shown(value)}: must be a finite number "
                               + (f"in [{MIN_BUDGET_S:g}, {MAX_BUDGET_S:g}] s or None" if optional else ">= 0"))
     for field in ("short_warm_up", "process_global_precision"):  # "no" is truthy: a flag the planner reads as bool()
         value = getattr(timing, field)
         if not isinstance(value, bool):
-            raise EngineError(f"{where}: timing.{field} = {value!r:.80}: must be True or False")
+            raise EngineError(f"{where}: timing.{field} = {plugins.shown(value)}: must be True or False")
 
 
 # Matplotlib's named line styles; a dash tuple (offset, (on, off, ...)) is the other form About.linestyle takes.
@@ -188,24 +192,24 @@ def _check_about(about, where: str) -> None:
     traceback in the sweep or in `stereodyn engines`, linestyle=42 one when the figures were drawn: issue 46's eighth
     attack)."""
     if not isinstance(about, About):
-        raise EngineError(f"{where}: about = {about!r:.80}: must be a harness.engines.base.About")
+        raise EngineError(f"{where}: about = {plugins.shown(about)}: must be a harness.engines.base.About")
     rules = {"packages": "a tuple of distribution names", "export_formats": "a tuple of format names"}
     for field, rule in rules.items():
         value = getattr(about, field)
         if not (isinstance(value, (tuple, list)) and all(isinstance(v, str) and v.strip() and v.isprintable()
                                                           for v in value)):  # a newline printed raw in the report
-            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be {rule}, each one line")
+            raise EngineError(f"{where}: about.{field} = {plugins.shown(value)}: must be {rule}, each one line")
     style = about.linestyle
     dashes = isinstance(style, tuple) and len(style) == 2 and isinstance(style[0], (int, float)) \
         and isinstance(style[1], tuple) and style[1] and all(isinstance(d, (int, float)) and not isinstance(d, bool)
                                                               and math.isfinite(d) and d >= 0 for d in style[1])
     if style not in LINESTYLES and not dashes:
-        raise EngineError(f"{where}: about.linestyle = {style!r:.80}: must be one of {', '.join(LINESTYLES)} or a "
-                          "dash tuple (offset, (on, off, ...))")
+        raise EngineError(f"{where}: about.linestyle = {plugins.shown(style)}: must be one of "
+                          f"{', '.join(LINESTYLES)} or a dash tuple (offset, (on, off, ...))")
     for field in ("state_space", "formulation"):
         value = getattr(about, field)
         if not ((isinstance(value, str) and value.isprintable()) or (field == "state_space" and value is None)):
-            raise EngineError(f"{where}: about.{field} = {value!r:.80}: must be one line of text"
+            raise EngineError(f"{where}: about.{field} = {plugins.shown(value)}: must be one line of text"
                               + (" or None" if field == "state_space" else ""))
 
 
@@ -217,13 +221,13 @@ def _check_offer(engine: Engine, integrator: str, where: str) -> None:
     with plugins.guard(f"{where}: offer({integrator!r}) failed"):
         offer = engine.offer(integrator)
     if not isinstance(offer, Offer):
-        raise EngineError(f"{where}: offer({integrator!r}) returned {offer!r:.80}, not an Offer")
+        raise EngineError(f"{where}: offer({integrator!r}) returned {plugins.shown(offer)}, not an Offer")
     orders = [("order", offer.order)] if not (isinstance(offer.order, float) and math.isnan(offer.order)) else []
     try:
-        orders += [(f"orders[{formulation!r}]", order) for formulation, order in offer.orders]
+        orders += [(f"orders[{plugins.shown(formulation, 40)}]", order) for formulation, order in offer.orders]
     except (TypeError, ValueError):
-        raise EngineError(f"{where}: offer({integrator!r}).orders = {offer.orders!r:.80}: must be (formulation, "
-                          "order) pairs") from None
+        raise EngineError(f"{where}: offer({integrator!r}).orders = {plugins.shown(offer.orders)}: must be "
+                          "(formulation, order) pairs") from None
     for field, order in orders:
         problem = order_problem(order)
         if problem:
@@ -232,11 +236,11 @@ def _check_offer(engine: Engine, integrator: str, where: str) -> None:
     # one key, which every reader refused; adaptive="yes" ran as adaptive)
     why = precisions_problem(offer.precisions)
     if why:
-        raise EngineError(f"{where}: offer({integrator!r}).precisions = {offer.precisions!r:.80}: {why}")
+        raise EngineError(f"{where}: offer({integrator!r}).precisions = {plugins.shown(offer.precisions)}: {why}")
     for field, allowed in (("adaptive", (True, False)), ("default_sweep", (True, False, None))):
         value = getattr(offer, field)
         if not any(value is a for a in allowed):
-            raise EngineError(f"{where}: offer({integrator!r}).{field} = {value!r:.80}: must be "
+            raise EngineError(f"{where}: offer({integrator!r}).{field} = {plugins.shown(value)}: must be "
                               f"{' or '.join(map(str, allowed))}")
 
 

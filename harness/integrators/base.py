@@ -260,7 +260,7 @@ def order_problem(order) -> str | None:
     """Why a declared order cannot be used (None: it can): a number in (0, MAX_ORDER], not a boolean."""
     if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, float, np.integer, np.floating)) \
             or not math.isfinite(order) or not 0 < order <= MAX_ORDER:
-        return f"order = {order!r}: must be a positive finite number, at most {MAX_ORDER}"
+        return f"order = {plugins.shown(order)}: must be a positive finite number, at most {MAX_ORDER}"
     return None
 
 
@@ -276,19 +276,19 @@ def metadata_problem(cls: type) -> str | None:
         return problem
     stages = cls.stages
     if isinstance(stages, (bool, np.bool_)) or not isinstance(stages, (int, np.integer)) or stages < 0:
-        return f"stages = {stages!r}: must be a non-negative integer (an iterative method's least a step)"
+        return f"stages = {plugins.shown(stages)}: must be a non-negative integer (an iterative method's least a step)"
     for field in PROPERTIES:
         value = getattr(cls, field, False)
         if not isinstance(value, (bool, np.bool_)):
-            return f"{field} = {value!r}: must be True or False"
+            return f"{field} = {plugins.shown(value)}: must be True or False"
     if not isinstance(getattr(cls, "description", ""), str):
-        return f"description = {cls.description!r}: must be a string"
+        return f"description = {plugins.shown(cls.description)}: must be a string"
     # a method stepped by a tableau-driven base's stepper (ExplicitRK, VectorRK) needs a tableau: None was exit 3 at
     # its first step, the sweep's other rows lost (issue 46's twelfth attack)
     driven = any(vars(k).get("stepper") is getattr(cls, "stepper", None) for k in cls.__mro__
                  if "tableau" in vars(k).get("__annotations__", {}))
     if driven and not isinstance(getattr(cls, "tableau", None), ButcherTableau):
-        return (f"tableau = {getattr(cls, 'tableau', None)!r:.60}: must be a ButcherTableau "
+        return (f"tableau = {plugins.shown(getattr(cls, 'tableau', None), 60)}: must be a ButcherTableau "
                 "(harness/integrators/tableau.py)")
     return None
 

@@ -69,7 +69,7 @@ def register(name: str, order: float) -> Callable:
     integrators refuse a built-in's name the same way)."""
     why = plugins.name_problem("name", name)  # the heading and the warning line that name it
     if why:
-        raise TypeError(f"report section {name!r:.80}: {why}")
+        raise TypeError(f"report section {plugins.shown(name)}: {why}")
 
     def add(render: Callable[[Context], list[str]]) -> Callable[[Context], list[str]]:
         held = _REGISTRY.get(name)

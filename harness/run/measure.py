@@ -90,11 +90,11 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on
         raise_unless_data(exc)  # ... unless Ctrl-C broke it (an SDK may rewrap the KeyboardInterrupt)
         row.setdefault("_accuracy_s", time.perf_counter() - start)
-        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {exc}".splitlines()[0])
+        row.update(status=Status.FAILED.value, message=f"{type(exc).__name__}: {plugins.text_of(exc)}".splitlines()[0])
     except BaseException as exc:  # SystemExit, GeneratorExit, a plug-in's own KeyboardInterrupt: its run's failure
         if not plugin_fault(exc):
             raise  # our bug (InternalError), or the user's Ctrl-C
-        text = " ".join(str(exc).split())
+        text = " ".join(plugins.text_of(exc).split())
         row = {**base_row(run, grid), "status": Status.FAILED.value, "_accuracy_s": time.perf_counter() - start,
                "message": f"{type(exc).__name__}: {text}" if text else type(exc).__name__}
     if isinstance(row.get("message"), str):
@@ -134,7 +134,8 @@ def checked_metrics(scene, metrics: dict) -> dict:
         why = ("must be finite or NaN" if math.isinf(value) and column.endswith(METRIC_SUFFIXES)
                else value_rule(column, float(value)))
         if why:
-            text = f"{type(scene).__module__}.{type(scene).__qualname__}.metrics(): {column} = {value!r}: {why}"
+            text = (f"{type(scene).__module__}.{type(scene).__qualname__}.metrics(): {column} = "
+                    f"{plugins.shown(value)}: {why}")
             if plugins.own(type(scene)):
                 raise InternalError(f"BadMetric: {text}", f"BadMetric: {text}\n")
             raise BadMetric(text)

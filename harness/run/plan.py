@@ -154,7 +154,7 @@ class Hooks:
             raise EngineError(one_line(str(exc))) from None
         why = rule(answer) if rule is not None else None
         if why:  # an object for a list of steps was a traceback in the plan (issue 46's tenth attack)
-            raise EngineError(one_line(f"engine plug-in {self.name!r}: {what} returned {answer!r:.80}: {why}"))
+            raise EngineError(one_line(f"engine plug-in {self.name!r}: {what} returned {plugins.shown(answer)}: {why}"))
         return answer
 
     def reason(self, what: str, hook, *args) -> str | None:
@@ -163,16 +163,17 @@ class Hooks:
                 return hook(*args)
             except Exception as exc:
                 raise_unless_data(exc)  # our own code's is a bug (harness.errors)
-                return f"engine {self.name!r}: {what} raised {type(exc).__name__}: {exc}"[:300]
+                return f"engine {self.name!r}: {what} raised {type(exc).__name__}: {plugins.text_of(exc)}"[:300]
         try:
             with plugins.guard(self.name):
                 why = hook(*args)
         except plugins.PluginError as exc:
             error = exc.error
-            return one_line(f"engine {self.name!r}: {what} raised {type(error).__name__}: {error}")[:300]
+            said = plugins.text_of(error)
+            return one_line(f"engine {self.name!r}: {what} raised {type(error).__name__}: {said}")[:300]
         if not isinstance(why, (str, type(None))):  # 42 was the reason "42" (issue 46's ninth attack)
-            raise EngineError(f"engine plug-in {self.name!r}: {what} returned {why!r:.80}, not a reason (text, or None "
-                              "to run)")
+            raise EngineError(f"engine plug-in {self.name!r}: {what} returned {plugins.shown(why)}, not a reason "
+                              "(text, or None to run)")
         # a plug-in's lines one, as measure makes a run's message: its runs of space (a newline) one space
         return None if why is None else one_line(" ".join(why.split()))
 

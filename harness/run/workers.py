@@ -35,6 +35,7 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 
+from ...reference import plugins
 from .. import budget
 from ..errors import InternalError, as_internal
 from .processes import end_group, end_group_of, kill_group, own_process_group, starting_workers
@@ -352,7 +353,7 @@ def _serve(conn, initializer, initargs, marker: str | None = None) -> None:
         try:
             send(message)
         except Exception as exc:  # a result or exception that does not pickle
-            send(("done", False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+            send(("done", False, RuntimeError(f"{type(exc).__name__}: {plugins.text_of(exc)}")))
 
 
 def _failure(exc: BaseException) -> BaseException:
@@ -361,7 +362,7 @@ def _failure(exc: BaseException) -> BaseException:
     failure = as_internal(exc)
     if isinstance(failure, (Exception, InternalError)):
         return failure
-    text = " ".join(str(exc).split())
+    text = " ".join(plugins.text_of(exc).split())
     return TaskEnded(f"{type(exc).__name__}: {text}" if text else type(exc).__name__)
 
 

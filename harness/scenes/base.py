@@ -68,16 +68,16 @@ def scene_problem(scene: Any) -> str | None:
         return "title: must be a string"
     for flag in _FLAGS:
         if not isinstance(getattr(scene, flag, None), bool):
-            return f"{flag} = {getattr(scene, flag, None)!r}: must be True or False"
+            return f"{flag} = {plugins.shown(getattr(scene, flag, None))}: must be True or False"
     columns = getattr(scene, "columns", None)
     if not isinstance(columns, (tuple, list)) or not all(isinstance(c, str) for c in columns):
-        return f"columns = {columns!r}: must be a tuple of column names"
+        return f"columns = {plugins.shown(columns)}: must be a tuple of column names"
     for hook, signature in _HOOKS.items():
         if not callable(getattr(scene, hook, None)):
             return f"{hook}: missing; a scene defines {signature}"
     trajectory = getattr(scene, "trajectory", None)
     if trajectory is not None and not isinstance(trajectory, type):
-        return f"trajectory = {trajectory!r}: must be a class"
+        return f"trajectory = {plugins.shown(trajectory)}: must be a class"
     return None
 
 
@@ -92,7 +92,7 @@ def register(scene: Scene) -> Scene:
     if why is None and builtin is not None and plugins.own(builtin) and not plugins.own(scene):
         why = f"kind {scene.kind!r} is a built-in scene's; a plug-in's scene takes a kind of its own"
     if why is not None:
-        raise TypeError(f"scene {getattr(scene, 'kind', None)!r} ({type(scene).__module__}."
+        raise TypeError(f"scene {plugins.shown(getattr(scene, 'kind', None))} ({type(scene).__module__}."
                         f"{type(scene).__qualname__}): {why}")
     _SCENES[scene.kind] = scene
     return scene

@@ -48,7 +48,7 @@ def components(model: Any, p: Sequence, at: At) -> list:
             if not (isinstance(result, (list, tuple)) and len(result) == 3) \
                     or any(c is None or isinstance(c, (str, bytes)) for c in result):
                 # what the truth's expressions and the numpy torques cannot sum: a TypeError in our frame, exit 3
-                raise TypeError(f"returned {result!r:.60}, not the torque's three components")
+                raise TypeError(f"returned {plugins.shown(result, 60)}, not the torque's three components")
             return list(result)
     except plugins.PluginError as exc:  # named only now: describe_class reads the installed distributions
         cls = model if isinstance(model, type) else type(model)
