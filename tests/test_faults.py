@@ -67,7 +67,7 @@ def test_an_engine_whose_import_was_interrupted_is_not_unavailable():
     with pytest.raises(KeyboardInterrupt):
         engine_registry._load("fake", _Entry(KeyboardInterrupt()))
     missing = engine_registry._load("fake", _Entry(None))  # a missing SDK is still data: the engine's rows skipped
-    assert isinstance(missing, engine_registry.UnavailableEngine) and "fake engine unavailable" in missing.reason
+    assert isinstance(missing, engine_registry.UnavailableEngine) and "ImportError: initialization failed" in missing.reason
 
 
 def test_an_interrupt_an_sdk_swallows_still_ends_the_command_with_130(monkeypatch, capsys):

@@ -28,7 +28,7 @@ from stereodyn.harness.errors import InternalError
 from stereodyn.harness.integrators import registry
 from stereodyn.harness.integrators.base import metadata_problem
 from stereodyn.harness.integrators.lie import ExplicitRK
-from stereodyn.harness.integrators.tableau import CLASSICAL_RK4
+from stereodyn.harness.integrators.tableau import CLASSICAL_RK4, ButcherTableau
 from stereodyn.harness.report import sections
 from stereodyn.harness.run import measure, pool as run_pool, processes
 from stereodyn.harness.run.spec import RunKey
@@ -790,13 +790,17 @@ def _rk(class_name: str, **declared) -> type:
     ({"name": "bad\nname"}, "name = 'bad\\nname': must be one line of printable characters, no space at its ends"),
     ({"name": "red\x1b[31m"}, "name = 'red\\x1b[31m': must be one line of printable characters"),
     ({"name": "rk4 "}, "name = 'rk4 ': must be one line of printable characters, no space at its ends"),
-    ({"state_space": "lie\u2028"}, "state_space = 'lie\\u2028': must be one line of printable characters"),
+    ({"state_space": "lie\u2028"}, "state_space = 'lie\\u2028': must be one of lie, vector"),
+    ({"state_space": "lie group"}, "state_space = 'lie group': must be one of lie, vector"),  # the 13th attack
     # issue 46's twelfth attack: an ExplicitRK with tableau None was exit 3 at its first step, the other rows lost
     ({"tableau": None, "stages": 4}, "tableau = None: must be a ButcherTableau"),
     ({"tableau": "rk4", "stages": 4}, "tableau = 'rk4': must be a ButcherTableau"),
+    # the thirteenth attack: a tuple for a tableau, its stages not given, was "AttributeError: 'tuple' object has no
+    # attribute 'stages'" (no field, no rule)
+    ({"tableau": ((0.0, 0.0), (1.0, 0.0))}, "tableau = ((0.0, 0.0), (1.0, 0.0)): must be a ButcherTableau"),
 ], ids=["order text", "order nan", "order 0", "order bool", "order 101", "order huge", "stages negative",
         "stages float", "symplectic text", "symmetric int", "iterative None", "no name", "name newline", "name escape",
-        "name space", "space separator", "tableau None", "tableau text"])
+        "name space", "space separator", "state space words", "tableau None", "tableau text", "tableau tuple"])
 def test_an_integrator_with_a_bad_declaration_is_refused_at_register(declared, words):
     cls = _rk("meta_bad", **declared)
     with pytest.raises(ValueError) as caught:
@@ -1713,3 +1717,77 @@ def test_a_plugins_error_or_answer_whose_text_raises_is_shown_by_its_type(monkey
         page = sections.render(_context(tmp_path))
     said = [str(w.message) for w in caught if issubclass(w.category, plugins.PluginWarning)]
     assert page == "## fine\n\n" and len(said) == 2 and all("its str() raised RuntimeError" in s for s in said), said
+
+
+@pytest.mark.parametrize("hook", ["unsupported", "unsupported_run"])
+def test_a_reason_hook_that_fails_gives_failed_rows_not_skipped(monkeypatch, hook):
+    """Issue 46's thirteenth attack, F3: a plug-in's unsupported(case) or unsupported_run(...) that raised or exited
+    gave `skipped` rows, the status that says the engine cannot model the case: a crash is a failure. Its rows are
+    failed, with the hook's line as their reason. Break-checked: with plan._not_run's status left as skipped_row's,
+    the rows are skipped."""
+    from stereodyn.harness.engines.base import RigidBodyModel
+    from stereodyn.harness.run import plan
+
+    class Model(RigidBodyModel):
+        pass
+
+    engine = _offering(lambda self, i: Offer(order=4, default_sweep=True))
+    type(engine).models = lambda self: {"rigid_body": Model(self)}
+    setattr(Model if hook == "unsupported_run" else type(engine), hook, lambda self, *a: sys.exit(3))
+    monkeypatch.setattr(plan, "get_engine", lambda name: engine)
+    specs, rows = plan.plan([CASE], ["offering"], ["rk4"])
+    assert not specs and rows and {row["status"] for row in rows} == {"failed"}, rows
+    assert all(row["message"] == f"engine 'offering': {hook}{'(case)' if hook == 'unsupported' else '(...)'} "
+               "raised SystemExit: 3" for row in rows), rows
+    type(engine).unsupported = lambda self, case: "needs a plane"  # a reason is still a skipped row
+    if hook == "unsupported_run":
+        Model.unsupported_run = lambda self, *a: None
+    specs, rows = plan.plan([CASE], ["offering"], ["rk4"])
+    assert {row["status"] for row in rows} == {"skipped"} and rows[0]["message"] == "needs a plane", rows
+
+
+def test_a_tableau_of_lists_is_floats_and_one_of_nan_is_refused():
+    """Issue 46's thirteenth attack, F6 and F7: a ButcherTableau of lists (a correct Kutta 3) loaded and was exit 3
+    in the stepper (a list plus a tuple); NaN or inf in b, a or c loaded and diverged at the first step. Entries are
+    floats in tuples, each finite. Break-checked: without tableau._floats both pass as given."""
+    kutta3 = ButcherTableau(a=[[0, 0, 0], [0.5, 0, 0], [-1, 2, 0]], b=[1 / 6, 2 / 3, 1 / 6], c=[0, 0.5, 1])
+    assert kutta3.a == ((0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (-1.0, 2.0, 0.0)) and kutta3.c + (1.0,) == (0.0, 0.5, 1.0, 1.0)
+    assert all(type(x) is float for row in (*kutta3.a, kutta3.b, kutta3.c) for x in row)
+    for field, bad in (("b", math.nan), ("c", math.inf), ("b", True), ("b", "1")):
+        entries = {"a": ((0.0,),), "b": (1.0,), "c": (0.0,), field: (bad,)}
+        with pytest.raises(ValueError, match=rf"^tableau {field}\[1\]: must be a finite number$"):
+            ButcherTableau(**entries)
+
+
+def test_an_engine_plugin_named_against_the_name_rule_or_missing_its_module_is_said_so(monkeypatch):
+    """Issue 46's thirteenth attack, F8 and F9: engine entry points named `_hy` or `h*y` loaded and ran, and every
+    reader then refused their rows (the name rule holds where names enter); one whose module is missing was counted
+    "not installed" with `pip install '...[hnomod]'`, an extra of ours that does not exist. The first is left out
+    with one warning; the second's rows are skipped with its own line, which the summary does not read as ours.
+    Break-checked: without the name check in _entry_points `_hy` is listed; with the old message the summary
+    names the extra."""
+    from importlib.metadata import EntryPoint
+
+    from stereodyn.harness import engines as registry
+    from stereodyn.harness.analysis import summary
+
+    group = registry.ENTRY_POINT_GROUP
+    points = [EntryPoint("_hy", "nomodule_here:X", group), EntryPoint("h*y", "nomodule_here:X", group),
+              EntryPoint("hnomod", "nomodule_here:X", group)]
+    monkeypatch.setattr(registry.ENGINES, "entry_points", lambda: points)
+    registry._entry_points.cache_clear()
+    registry.get_engine.cache_clear()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            names = registry.engine_names()
+        said = [str(w.message) for w in caught if issubclass(w.category, plugins.PluginWarning)]
+        assert names == ("hnomod",) and len(said) == 2 and all("is not loaded: its entry point's name = " in s
+                                                               for s in said), (names, said)
+        reason = registry.get_engine("hnomod").unsupported(CASE)
+        assert reason.startswith("engine plug-in 'hnomod' (nomodule_here:X)") and "No module named" in reason, reason
+        rows = pd.DataFrame([{"case": "c", "engine": "hnomod", "status": "skipped", "message": reason}])
+        assert summary.not_installed(rows) == []
+    finally:
+        registry._entry_points.cache_clear()
+        registry.get_engine.cache_clear()

@@ -41,6 +41,10 @@ def _entry_points() -> dict[str, EntryPoint]:
     command that lists engines)."""
     claims: dict[str, list[EntryPoint]] = {}
     for entry in ENGINES.entry_points():
+        why = plugins.name_problem("its entry point's name", entry.name, listed=True)
+        if why:  # every table and report names the engine: the one name rule (an engine `_hy` ran, and every reader
+            plugins.warn(f"{plugins.describe(entry, 'engine plug-in')} is not loaded: {why}")  # refused its rows)
+            continue
         claims.setdefault(entry.name, []).append(entry)
     found: dict[str, EntryPoint] = {}
     for name, entries in claims.items():
@@ -94,8 +98,10 @@ def _load(name: str, entry: EntryPoint) -> Engine:
     try:
         cls = plugins.load(entry, "engine plug-in")
     except plugins.PluginError as exc:
-        if exc.missing:  # its SDK (or the plug-in's own module) is missing: its runs are skipped
+        if exc.missing and _own(entry):  # its SDK is missing: its runs are skipped, the extra named (summary)
             return UnavailableEngine(name, f"{name} engine unavailable: {exc.error}")
+        if exc.missing:  # a plug-in's SDK or module: skipped too, with its own line (no extra of ours installs it)
+            return UnavailableEngine(name, str(exc))
         raise EngineError(str(exc)) from exc
     if not (isinstance(cls, type) and issubclass(cls, Engine)):
         raise EngineError(f"{where}: {plugins.shown(cls)} is not a subclass of "

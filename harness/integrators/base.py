@@ -144,7 +144,7 @@ class Integrator(abc.ABC):
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
         tableau = cls.__dict__.get("tableau")
-        if tableau is not None and "stages" not in cls.__dict__:
+        if isinstance(tableau, ButcherTableau) and "stages" not in cls.__dict__:  # anything else: metadata_problem
             cls.stages = tableau.stages
 
     @abc.abstractmethod
@@ -251,6 +251,9 @@ def _positional(function) -> list[str] | None:
 MAX_ORDER = 100
 
 
+# The state spaces an integrator steps on: SO(3) x R^3 (the Pinocchio engine's), a reference formulation's coordinates.
+STATE_SPACES = ("lie", "vector")
+
 # The declared properties (Integrator's boolean metadata): each True or False, never a word or a number.
 PROPERTIES = ("symplectic", "geometric", "energy_bounded", "symmetric", "casimir_preserving", "iterative",
               "default_sweep")
@@ -266,15 +269,24 @@ def order_problem(order) -> str | None:
 
 def metadata_problem(cls: type) -> str | None:
     """Why an Integrator class's declarations cannot be used, naming the field and the rule (None: they can): name
-    and state_space non-empty text on one line (printable, no space at either end), order a positive finite number
-    <= MAX_ORDER (order_problem), stages a non-negative integer (an iterative method's least), each property
-    (PROPERTIES) a boolean. The registry refuses such a class at load, before any run (an order of "four" died in the
-    verdicts after the sweep; NaN was never judged)."""
-    problem = plugins.name_problem("name", cls.name, listed=True) or plugins.name_problem("state_space", cls.state_space) \
-        or order_problem(cls.order)
+    the name rule's, state_space one of STATE_SPACES, order a positive finite number <= MAX_ORDER (order_problem), a
+    tableau-driven method's tableau a ButcherTableau, stages a non-negative integer (an iterative method's least),
+    each property (PROPERTIES) a boolean. The registry refuses such a class at load, before any run (an order of
+    "four" died in the verdicts after the sweep; NaN was never judged)."""
+    problem = plugins.name_problem("name", cls.name, listed=True) or order_problem(cls.order)
     if problem:
         return problem
-    stages = cls.stages
+    # "lie group" was listed, and no engine could run it (issue 46's thirteenth attack)
+    if not (type(cls.state_space) is str and cls.state_space in STATE_SPACES):
+        return f"state_space = {plugins.shown(cls.state_space)}: must be one of {', '.join(STATE_SPACES)}"
+    # a method stepped by a tableau-driven base's stepper (ExplicitRK, VectorRK) needs a tableau: None was exit 3 at
+    # its first step, the sweep's other rows lost (issue 46's twelfth attack)
+    driven = any(vars(k).get("stepper") is getattr(cls, "stepper", None) for k in cls.__mro__
+                 if "tableau" in vars(k).get("__annotations__", {}))
+    if driven and not isinstance(getattr(cls, "tableau", None), ButcherTableau):
+        return (f"tableau = {plugins.shown(getattr(cls, 'tableau', None), 60)}: must be a ButcherTableau "
+                "(harness/integrators/tableau.py)")
+    stages = getattr(cls, "stages", None)
     if isinstance(stages, (bool, np.bool_)) or not isinstance(stages, (int, np.integer)) or stages < 0:
         return f"stages = {plugins.shown(stages)}: must be a non-negative integer (an iterative method's least a step)"
     for field in PROPERTIES:
@@ -283,13 +295,6 @@ def metadata_problem(cls: type) -> str | None:
             return f"{field} = {plugins.shown(value)}: must be True or False"
     if not isinstance(getattr(cls, "description", ""), str):
         return f"description = {plugins.shown(cls.description)}: must be a string"
-    # a method stepped by a tableau-driven base's stepper (ExplicitRK, VectorRK) needs a tableau: None was exit 3 at
-    # its first step, the sweep's other rows lost (issue 46's twelfth attack)
-    driven = any(vars(k).get("stepper") is getattr(cls, "stepper", None) for k in cls.__mro__
-                 if "tableau" in vars(k).get("__annotations__", {}))
-    if driven and not isinstance(getattr(cls, "tableau", None), ButcherTableau):
-        return (f"tableau = {plugins.shown(getattr(cls, 'tableau', None), 60)}: must be a ButcherTableau "
-                "(harness/integrators/tableau.py)")
     return None
 
 

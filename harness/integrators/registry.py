@@ -63,8 +63,10 @@ def state_spaces() -> tuple[str, ...]:
 
 def _check(cls: type) -> type[Integrator]:
     if not (isinstance(cls, type) and issubclass(cls, Integrator)):
-        raise TypeError(f"{cls!r} is not an Integrator subclass")
-    missing = [key for key in Integrator.METADATA if not hasattr(cls, key)]
+        raise TypeError(f"{plugins.shown(cls)} is not an Integrator subclass")
+    # a tableau's stages come from it: with no ButcherTableau, metadata_problem names the tableau, not the stages
+    missing = [key for key in Integrator.METADATA if not hasattr(cls, key)
+               and not (key == "stages" and hasattr(cls, "tableau"))]
     if missing:
         raise TypeError(f"integrator {cls.__qualname__} lacks metadata: {', '.join(missing)}")
     abstract = sorted(getattr(cls, "__abstractmethods__", ()))

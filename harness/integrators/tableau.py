@@ -3,6 +3,7 @@
 vector methods do not import the group methods (and stay low in the import graph, tests/test_import_chain.py)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -15,6 +16,10 @@ class ButcherTableau:
     c: tuple[float, ...]
 
     def __post_init__(self) -> None:
+        # Entries as floats, in tuples (a plug-in's lists of lists were exit 3 in the stepper, which adds tuples; NaN
+        # or inf passed every check below: issue 46's thirteenth attack)
+        for field in ("a", "b", "c"):
+            object.__setattr__(self, field, _floats(getattr(self, field), field, 2 if field == "a" else 1))
         # Each refusal names the row (counted from 1, as printed tableaux are) and the condition it breaks: the
         # registry's one line about a plug-in that does not load quotes it.
         s = len(self.b)
@@ -37,6 +42,26 @@ class ButcherTableau:
     @property
     def stages(self) -> int:
         return len(self.b)
+
+
+def _floats(value, field: str, depth: int) -> tuple:
+    """value as nested tuples of floats (depth 1: a vector, 2: a matrix), each entry a finite real number."""
+    if not isinstance(value, (tuple, list)):
+        rows = " of rows" if depth == 2 else ""
+        raise ValueError(f"tableau {field} = {type(value).__name__}: must be a tuple{rows}")
+    if depth == 2:
+        return tuple(_floats(row, f"{field}[{i + 1}]", 1) for i, row in enumerate(value))
+    entries = []
+    for j, x in enumerate(value):
+        number = isinstance(x, (int, float)) and not isinstance(x, bool) or type(x).__module__ == "numpy"
+        try:
+            x = float(x) if number else math.nan
+        except (TypeError, ValueError):
+            x = math.nan
+        if not math.isfinite(x):
+            raise ValueError(f"tableau {field}[{j + 1}]: must be a finite number")
+        entries.append(x)
+    return tuple(entries)
 
 
 EULER_TABLEAU = ButcherTableau(a=((0.0,),), b=(1.0,), c=(0.0,))

@@ -12,6 +12,7 @@ from ...reference import plugins
 from ..engines import EngineError, UnavailableEngine, declared, get_engine
 from ..precision import FLOAT64, precisions_problem
 from ..scenes import scene_of
+from ..trajectory import Status
 from ..words import one_line
 from .processes import raise_unless_data
 from .spec import RunKey, RunSpec, base_row, skipped_row  # noqa: F401 (base_row, RunKey: part of this API)
@@ -89,8 +90,19 @@ def plan(cases: list, engines: list[str], integrators: Sequence[str] | None) -> 
                             spec = RunSpec(case, name, integrator, dt, formulation, precision=precision,
                                            engine_rank=engine_rank, integrator_rank=integrator_rank,
                                            formulation_rank=formulation_rank, precision_rank=precision_rank)
-                            (skipped.append(skipped_row(spec, why)) if why else specs.append(spec))
+                            (skipped.append(_not_run(spec, why)) if why else specs.append(spec))
     return specs, skipped
+
+
+class HookFailed(str):
+    """A reason not to run that is a planning hook's failure (it raised or exited: Hooks.reason): its rows are
+    failed, not skipped, which says the engine cannot model the case (issue 46's thirteenth attack)."""
+
+
+def _not_run(spec: RunSpec, why: str) -> dict:
+    """The row of a run the plan does not run: skipped with its reason, or failed where a hook failed (HookFailed)."""
+    row = skipped_row(spec, why)
+    return {**row, "status": Status.FAILED.value} if isinstance(why, HookFailed) else row
 
 
 def agreement_candidates(specs: list[RunSpec]) -> set[int]:
@@ -134,7 +146,7 @@ class Hooks:
     own: our RigidBodyModel asks the engine) behind the guard. ask(what, hook, *args): a declaration; its failure
     (any raise, sys.exit, os._exit) is one line naming the plug-in and the hook (EngineError, exit 2: it was exit 3
     with nothing said, or a traceback: issue 46's eighth attack). ask.reason(...): a reason not to run a case or a
-    pair, None or text; its failure is the reason of the skipped rows, named. Our own code's failure is a bug.
+    pair, None or text; its failure is the reason of failed rows (HookFailed), named. Our own code's failure is a bug.
     `stereodyn advise` asks through it too (analysis.step_advice.families_to_advise)."""
 
     def __init__(self, engine, name: str):
@@ -163,14 +175,15 @@ class Hooks:
                 return hook(*args)
             except Exception as exc:
                 raise_unless_data(exc)  # our own code's is a bug (harness.errors)
-                return f"engine {self.name!r}: {what} raised {type(exc).__name__}: {plugins.text_of(exc)}"[:300]
+                return HookFailed(f"engine {self.name!r}: {what} raised {type(exc).__name__}: "
+                                  f"{plugins.text_of(exc)}"[:300])
         try:
             with plugins.guard(self.name):
                 why = hook(*args)
         except plugins.PluginError as exc:
             error = exc.error
             said = plugins.text_of(error)
-            return one_line(f"engine {self.name!r}: {what} raised {type(error).__name__}: {said}")[:300]
+            return HookFailed(one_line(f"engine {self.name!r}: {what} raised {type(error).__name__}: {said}")[:300])
         if not isinstance(why, (str, type(None))):  # 42 was the reason "42" (issue 46's ninth attack)
             raise EngineError(f"engine plug-in {self.name!r}: {what} returned {plugins.shown(why)}, not a reason "
                               "(text, or None to run)")
