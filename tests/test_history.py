@@ -251,3 +251,25 @@ def test_a_run_label_with_a_carriage_return_gives_a_history_that_reads_back(tmp_
     assert cli.main(["history", str(first), str(second), "--out", str(out)]) == 0
     points = pd.read_csv(out / "history_points.csv", keep_default_na=False)
     assert points["label"].tolist() == ["a", "h-cr\\rX"] and (out / "history.md").is_file()
+
+
+def test_by_date_orders_by_the_moment_and_refuses_what_is_no_date():
+    """Issue 46's thirteenth attack, F10: --by date sorted runs.json's dates as text: "not a date", {"a": 1} and
+    null after 2026-12-06, 12 before it, exit 0; two dates with other UTC offsets in the wrong order. A date is
+    read as ISO 8601 (no offset: UTC) and ordered by its moment; anything else is one line naming the folder.
+    Break-checked: with the text sort the offsets' order is wrong and the bad dates pass."""
+    import pandas as pd
+
+    from stereodyn.harness.analysis.history import Point, order
+
+    def point(label, date):
+        return Point(label, f"/runs/{label}", pd.DataFrame(), pd.DataFrame(), {"date": date})
+
+    # 10:00 at +05:00 is 05:00 UTC: before 06:00 UTC, though after it as text
+    east, west, naive = point("east", "2026-12-06T10:00:00+05:00"), point("west", "2026-12-06T06:00:00+00:00"), \
+        point("naive", "2026-12-06T05:30:00")
+    assert [p.label for p in order([west, east, naive], "date")] == ["east", "naive", "west"]
+    for bad in ("not a date", 12, {"a": 1}, None, "2026-13-01"):
+        with pytest.raises(ValueError, match=r"^/runs/bad: date .* recorded in its environment \(runs.json\) is no "
+                                             r"ISO 8601 date and time, so --by date cannot place it$"):
+            order([west, point("bad", bad)], "date")

@@ -237,7 +237,7 @@ def points_table(points: list[Point], steps: pd.DataFrame) -> pd.DataFrame:
     for index, point in enumerate(points, 1):
         here = steps[steps["point"] == index] if len(steps) else steps
         rows.append({"point": index, "label": point.label, "path": one_line(point.path),  # a CR in it: no CSV
-                     "date": point.environment.get("date", ""),
+                     "date": clipped(point.environment.get("date", "")),
                      "commit": str(point.environment.get("git commit", ""))[:12],
                      "rows": len(point.table), "orders": len(point.orders),
                      "steps": len(here), "worse": int((here["direction"] == "worse").sum()) if len(here) else 0,
@@ -278,8 +278,29 @@ def order(points: list[Point], by: str, commits: list[str] | None = None) -> lis
         raise ValueError(f"{missing[0].path}: no {key!r} recorded in its environment (runs.json), so --by {by} cannot "
                          "place it")
     if by == "date":
-        return sorted(points, key=lambda p: str(p.environment["date"]))
+        moments = {id(p): recorded_moment(p.environment["date"]) for p in points}
+        bad = next((p for p in points if moments[id(p)] is None), None)
+        if bad is not None:  # "not a date", 12 or {"a": 1} were sorted as text (issue 46's thirteenth attack)
+            raise ValueError(f"{bad.path}: date {clipped(bad.environment['date'])!r} recorded in its environment "
+                             "(runs.json) is no ISO 8601 date and time, so --by date cannot place it")
+        return sorted(points, key=lambda p: moments[id(p)])
     return sorted(points, key=lambda p: version_key(p.environment[key]))
+
+
+def recorded_moment(value) -> float | None:
+    """A runs.json date (ISO 8601, as stereodyn writes it: with its UTC offset; one without is taken as UTC) as a
+    POSIX time, s; None for what is no such date."""
+    import datetime
+
+    if not isinstance(value, str):
+        return None
+    try:
+        moment = datetime.datetime.fromisoformat(value)
+        if moment.tzinfo is None:
+            moment = moment.replace(tzinfo=datetime.timezone.utc)
+        return moment.timestamp()
+    except (ValueError, OverflowError, OSError):  # no date, or one outside what a timestamp holds (year 1, -14:00)
+        return None
 
 
 def orders_side_by_side(points: list[Point]) -> pd.DataFrame:
