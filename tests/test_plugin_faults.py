@@ -1388,12 +1388,15 @@ def test_an_engine_whose_timing_no_scheduler_can_use_is_refused_at_load(timing, 
     ("About(linestyle=42)", "about.linestyle = 42: must be one of -, --, -., :"),
     ("About(linestyle=(0, 'x'))", "about.linestyle = (0, 'x'): must be one of"),
     ("About(export_formats='mjcf')", "about.export_formats = 'mjcf': must be a tuple of format names"),
-    ("About(state_space=3)", "about.state_space = 3: must be one line of text or None"),
+    ("About(state_space=3)", "about.state_space = 3: must be one of lie, vector or None"),
     # the tenth attack: a newline in a package name printed raw in the report's environment
     ("About(packages=('bad name\\n',))", "about.packages = ('bad name\\n',): must be a tuple of distribution names"),
-    ("About(state_space='a\\nb')", "about.state_space = 'a\\nb': must be one line of text"),
+    ("About(state_space='a\\nb')", "about.state_space = 'a\\nb': must be one of lie, vector or None"),
+    # the thirteenth attack: a state space no integrator steps on loaded
+    ("About(state_space='curved')", "about.state_space = 'curved': must be one of lie, vector or None"),
+    ("About(formulation='a\\nb')", "about.formulation = 'a\\nb': must be one line of text"),
 ], ids=["None", "packages int", "packages empty name", "linestyle int", "dashes text", "formats text",
-        "state space int", "package name newline", "state space newline"])
+        "state space int", "package name newline", "state space newline", "state space curved", "formulation newline"])
 def test_an_engine_whose_about_cannot_be_used_is_refused_at_load(about, words):
     """Issue 46's eighth attack, F12: About(packages=42), about = None and packages=('',) loaded, then were a
     traceback in the sweep (the store's key) or in `stereodyn engines`; linestyle=42 one when the figures were drawn.

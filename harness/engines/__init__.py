@@ -212,11 +212,14 @@ def _check_about(about, where: str) -> None:
     if style not in LINESTYLES and not dashes:
         raise EngineError(f"{where}: about.linestyle = {plugins.shown(style)}: must be one of "
                           f"{', '.join(LINESTYLES)} or a dash tuple (offset, (on, off, ...))")
-    for field in ("state_space", "formulation"):
-        value = getattr(about, field)
-        if not ((isinstance(value, str) and value.isprintable()) or (field == "state_space" and value is None)):
-            raise EngineError(f"{where}: about.{field} = {plugins.shown(value)}: must be one line of text"
-                              + (" or None" if field == "state_space" else ""))
+    from ..integrators.base import STATE_SPACES
+
+    space = about.state_space  # "curved" was accepted, and no registered integrator steps on it (the 13th attack)
+    if not (space is None or (type(space) is str and space in STATE_SPACES)):
+        raise EngineError(f"{where}: about.state_space = {plugins.shown(space)}: must be one of "
+                          f"{', '.join(STATE_SPACES)} or None")
+    if not (isinstance(about.formulation, str) and about.formulation.isprintable()):
+        raise EngineError(f"{where}: about.formulation = {plugins.shown(about.formulation)}: must be one line of text")
 
 
 def _check_offer(engine: Engine, integrator: str, where: str) -> None:
