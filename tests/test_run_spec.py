@@ -132,17 +132,18 @@ class _Ends(BaseException):
     (lambda: (_ for _ in ()).throw(GeneratorExit("g")), "raised GeneratorExit: g"),
     (lambda: os._exit(0), "raised ProcessExit: called os._exit(0)"), (lambda: _raise(_Ends("bare")), "_Ends: bare"),
 ], ids=["exit 0", "exit 3", "generator exit", "os._exit", "bare BaseException"])
-def test_an_engine_whose_unsupported_ends_the_process_gives_skipped_rows(monkeypatch, ending, words):
+def test_an_engine_whose_unsupported_ends_the_process_gives_failed_rows(monkeypatch, ending, words):
     """Issue 46's fourth attack, F2: unsupported(case) runs in the command's process and was guarded for Exception
     only: sys.exit(0) there ended `run` with exit 0 and no rows at all (MuJoCo's lost too), sys.exit(3) read "a bug in
-    stereodyn", GeneratorExit a traceback. Now behind the plug-in guard: skipped rows naming it. Break-checked:
-    catching Exception only again lets each through."""
+    stereodyn", GeneratorExit a traceback. Now behind the plug-in guard: rows naming it, failed since the thirteenth
+    attack (skipped says the engine cannot model the case). Break-checked: catching Exception only again lets each
+    through."""
     engine = RaisingUnsupported()
     monkeypatch.setattr(type(engine), "unsupported", lambda self, case: ending())
     monkeypatch.setattr(planning, "get_engine", lambda name: engine)
     specs, skipped = planning.plan([find_case("free-asymmetric")], ["raising_unsupported"], ["rk4"])
     assert specs == [] and skipped
-    assert all(r["status"] == "skipped" and words in r["message"] for r in skipped), skipped[0]["message"]
+    assert all(r["status"] == "failed" and words in r["message"] for r in skipped), skipped[0]["message"]
 
 
 def _raise(exc):
