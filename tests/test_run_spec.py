@@ -111,15 +111,15 @@ class RaisingUnsupported(CoarseByDefault):
         raise ValueError("no idea")
 
 
-def test_an_engine_whose_unsupported_raises_gives_skipped_rows_naming_it(monkeypatch):
+def test_an_engine_whose_unsupported_raises_gives_failed_rows_naming_it(monkeypatch):
     """Issue 46's re-attack: a plug-in's unsupported(case) that raised was a traceback of the plan (exit 1, no rows).
-    Its rows are skipped with the reason, the sweep goes on; break-checked: calling model.unsupported directly again
+    Its rows are failed with the reason (skipped until the thirteenth attack), the sweep goes on; break-checked: calling model.unsupported directly again
     fails here with the ValueError."""
     engine = RaisingUnsupported()
     monkeypatch.setattr(planning, "get_engine", lambda name: engine)
     specs, skipped = planning.plan([find_case("free-asymmetric")], ["raising_unsupported"], ["rk4"])
     assert specs == [] and skipped
-    assert all(r["status"] == "skipped" and "unsupported(case) raised ValueError: no idea" in r["message"]
+    assert all(r["status"] == "failed" and "unsupported(case) raised ValueError: no idea" in r["message"]
                for r in skipped)
 
 
