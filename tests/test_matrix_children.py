@@ -35,8 +35,8 @@ out = Path(sys.argv[1])
 (out / "store" / "kept.json").write_text("{}")
 options = {}
 if os.environ.get("STAND_IN_TIED"):
-    from stereodyn.harness.run.processes import _parent_death_signal
-    options["preexec_fn"] = _parent_death_signal
+    from stereodyn.harness.run.processes import parent_death_signal
+    options["preexec_fn"] = parent_death_signal
 child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(300)"], **options)
 if os.environ.get("STAND_IN_HANDLES"):  # as `stereodyn run` does: SIGTERM ends what it started, tied or not
     import signal

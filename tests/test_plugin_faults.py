@@ -1794,3 +1794,41 @@ def test_an_engine_plugin_named_against_the_name_rule_or_missing_its_module_is_s
     finally:
         registry._entry_points.cache_clear()
         registry.get_engine.cache_clear()
+
+
+SECTION_HANGS = """
+import os, sys, time
+import pandas as pd
+from stereodyn.harness.report import sections
+
+def hangs(context):
+    with open(sys.argv[1], "w") as out:
+        out.write(str(os.getpid()))
+    time.sleep(300)
+
+sections._REGISTRY.clear()
+sections.SECTIONS._loaded = True
+sections.register("hangs", 1)(hangs)
+sections.render(sections.Context(sys.argv[2], pd.DataFrame(), {}, None, {}, {}))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a parent-death signal, /proc")
+def test_a_section_rendering_when_its_command_is_killed_dies_with_it(tmp_path):
+    """Issue 46's thirteenth attack, F14: SIGKILL of `run` or `report` while a plug-in section rendered left the
+    section's child rendering under init, its budget no longer enforced. The child dies with the command (the
+    parent-death signal, as a pool worker). Break-checked: without parent_death_signal in sections._apart the child
+    is alive after the command."""
+    pid_file = tmp_path / "section.pid"
+    command = subprocess.Popen([sys.executable, "-c", SECTION_HANGS, str(pid_file), str(tmp_path)],
+                               start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not (pid_file.exists() and pid_file.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    child = int(pid_file.read_text())
+    command.kill()
+    command.wait(timeout=60)
+    gone = _gone([child])
+    if not gone:
+        os.kill(child, signal.SIGKILL)
+    assert gone

@@ -27,7 +27,7 @@ import pandas as pd
 
 from ...reference import plugins
 from ...reference.registry import Registry
-from ..run.processes import kill_group, own_process_group
+from ..run.processes import kill_group, own_process_group, parent_death_signal
 
 
 @dataclass(frozen=True)
@@ -133,10 +133,16 @@ def _apart(section: Section, context: Context, where: str) -> list[str]:
     (processes.own_process_group): its os.killpg(0, ...) is not the command's, and what it leaves is ended."""
     read, write = os.pipe()
     marker = secrets.token_hex(8)  # in the environment of what the child starts: found once the child is gone
+    parent = os.getpid()
     pid = os.fork()
     if pid == 0:  # the child: answer, then end without the parent's exit handlers
         os.close(read)
         try:
+            # it dies with the command, as a pool worker does: a SIGKILLed `run` or `report` left it rendering under
+            # init past its budget (issue 46's thirteenth attack); the signal covers every moment after this check
+            parent_death_signal()
+            if os.getppid() != parent:
+                os._exit(1)
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a worker: a KeyboardInterrupt here is the plug-in's
             for signum in (signal.SIGTERM, signal.SIGHUP):  # the command's handler: a signal to the child is its end
                 signal.signal(signum, signal.SIG_DFL)

@@ -123,9 +123,9 @@ def _running_versions(uv: str, requirements: tuple[str, ...]) -> str:
 def _tie_to_parent(signum: int) -> None:
     """In the child, before it executes: the kernel sends it signum the moment the matrix dies, even by SIGKILL
     (Linux PR_SET_PDEATHSIG; a run's own workers are tied to the run the same way, harness/run/processes.py)."""
-    from .processes import _parent_death_signal
+    from .processes import parent_death_signal
 
-    _parent_death_signal(signum)
+    parent_death_signal(signum)
 
 
 # After SIGTERM, how long an owned process group gets to end before SIGKILL.

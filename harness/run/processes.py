@@ -70,7 +70,7 @@ def _prctl(option: int, value: int) -> bool:
         return False
 
 
-def _parent_death_signal(signum: int = signal.SIGKILL) -> bool:
+def parent_death_signal(signum: int = signal.SIGKILL) -> bool:
     """Ask the kernel to send this process signum (SIGKILL) when its parent dies (Linux); False where that is not
     available."""
     return _prctl(_PR_SET_PDEATHSIG, signum)
@@ -106,7 +106,7 @@ def own_process_group(marker: str | None = None) -> None:
         os.setpgid(0, 0)
     except OSError:  # already a group leader (a session leader cannot move): its group is still its own
         pass
-    os.register_at_fork(after_in_child=_parent_death_signal)
+    os.register_at_fork(after_in_child=parent_death_signal)
 
 
 def answer_for_orphans() -> None:
@@ -272,7 +272,7 @@ def exit_with_parent() -> None:
     forkserver method not the parent, which dies with it). Exits now when that process is gone already."""
     import multiprocessing
 
-    _parent_death_signal()
+    parent_death_signal()
     parent = multiprocessing.parent_process()
     if parent is None:  # not a multiprocessing child (called by hand): watch the parent's pid
         _watch(_watch_pid, os.getppid())
@@ -292,7 +292,7 @@ def worker_started() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # ignored now: a pending one is dropped
     parent = int(os.environ[PARENT_ENV])
-    _parent_death_signal()
+    parent_death_signal()
     if os.getppid() != parent:  # it died before the signal was armed (the signal covers every moment after)
         os._exit(1)
     _watch(_watch_pid, parent)
