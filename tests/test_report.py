@@ -273,3 +273,17 @@ def test_cost_ratios_are_the_median_over_cases_of_cheapest_against_cheapest_othe
     ratios = cost_ratios(runs, "mine", {"mine", "rk4", "euler"}, targets=(1e-3, 1e-6, 1e-9))
     # 1e-3: a 1e-6/4e-6, b 3e-6/6e-6 -> median of 0.25 and 0.5; 1e-6: a 2e-6/4e-6, b 0.5; 1e-9: nothing of mine
     assert ratios == {1e-3: "0.38x (2 cases)", 1e-6: "0.5x (2 cases)", 1e-9: "-"}
+
+
+def test_a_runs_message_in_the_table_of_runs_that_did_not_complete_shows_as_itself():
+    """Issue 46's thirteenth attack, F13: the table of runs that did not complete escaped only `|` in a run's message
+    (a plug-in's text): `*x*`, `<img src=x>`, backticks and `[e](f)` rendered as markup and HTML. Escaped as every
+    other value (md_text). Break-checked: without md_text the emphasis and the tag are live."""
+    import pandas as pd
+
+    from stereodyn.harness.report.markdown import problem_lines
+
+    df = pd.DataFrame([{"case": "c", "engine": "hx", "integrator": "rk4", "formulation": "", "dt": 0.01,
+                        "status": "failed", "message": "bad thing | *x* <img src=x> `y` [e](f)"}])
+    row = next(line for line in problem_lines(df) if line.startswith("| failed"))
+    assert r"\*x\*" in row and r"\<img src=x\>" in row and r"\`y\`" in row and r"\[e\](f)" in row and r"\|" in row, row

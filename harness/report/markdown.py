@@ -153,7 +153,8 @@ def problem_lines(df: pd.DataFrame) -> list[str]:
     entries = grouped_reasons(df)
     if not entries:
         return []
-    rows = [[e["status"], str(e["count"]), e["reason"],
+    # a reason is a run's message, a plug-in's text: markup escaped (`*x*` or `<img>` rendered, issue 46's 13th attack)
+    rows = [[e["status"], str(e["count"]), md_text(e["reason"]),
              "; ".join(e["runs"][:REASON_EXAMPLES]) + (f"; and {e['count'] - REASON_EXAMPLES} more"
                                                        if e["count"] > REASON_EXAMPLES else "")]
             for e in entries]
