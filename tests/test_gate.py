@@ -338,6 +338,13 @@ MALFORMED = {
     "floor inf": _options("--floor", "inf"),
     "time factor inf": _options("--time-factor", "inf"),
     "unknown mode": _bad_baseline(lambda d: d.__setitem__("mode", "fast")),
+    # issue 46's thirteenth attack, F12: a baseline row's names were not held to results.csv's name rule (check said
+    # "row missing", exit 1; compare and history read them)
+    "engine with markup": _bad_baseline(lambda d: d["rows"][0].__setitem__("engine", "mu|joco")),
+    "case with emphasis": _bad_baseline(lambda d: d["rows"][0].__setitem__("case", "_c_")),
+    "integrator with a newline": _bad_baseline(lambda d: d["rows"][0].__setitem__("integrator", "rk4\n# x")),
+    "order's engine with markup": _bad_baseline(lambda d: d.__setitem__("orders", [
+        {"case": "free-asymmetric", "engine": "mu*joco", "formulation": "", "integrator": "rk4", "fitted": 4.0}])),
     "junit in a missing folder": _options("--junit", "/nonexistent-folder/junit.xml"),
 }
 

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ...reference.plugins import markup_problem
 from ..environment import OWN_SOURCE, differences
 from ..integrators.base import MAX_ORDER
 from ..precision import FLOAT64
@@ -274,11 +275,25 @@ def _validate_rows(path: Path, name: str, rows, required: tuple, text: tuple, nu
         for key in text:
             if key in row and not isinstance(row[key], str) and not (row[key] is None and key == "formulation"):
                 raise GateError(f"{where}.{key}: must be a string, got {json.dumps(row[key])[:40]}")
+            # names as results.csv holds them (results.read_results): "mu|joco" was read by check, compare and
+            # history where a results.csv row of that name is refused (issue 46's thirteenth attack)
+            why = _name_problem(row[key]) if key in NAMES and isinstance(row.get(key), str) else None
+            if why:
+                raise GateError(f"{where}.{key}: {json.dumps(row[key])[:40]}: {why}")
         for key, value in row.items():
             if numbers(key) and not _is_number(value):
                 raise GateError(f"{where}.{key}: must be a number or null, got {json.dumps(value)[:40]}")
             if numbers(key) and value is not None and not _finite(value):
                 raise GateError(f"{where}.{key}: must be finite, got {str(value)[:40]}")
+
+
+NAMES = ("case", "engine", "formulation", "integrator")  # a row's names: shown as themselves in every output
+
+
+def _name_problem(name: str) -> str | None:
+    if not name.isprintable():
+        return "must be one line of printable characters"
+    return markup_problem(name)
 
 
 def order_rule(key: str, value: float) -> str | None:
