@@ -53,14 +53,40 @@ def read_csv_table(path: Path, required: tuple[str, ...] = (), **options) -> pd.
 ONE_ROW_PER = {"convergence.csv": ("case", "engine", "formulation", "integrator", "precision")}
 
 
+# The derived tables' columns of convergence orders: a number (or empty) in [-MAX_ORDER, MAX_ORDER], a declared one
+# in (0, MAX_ORDER] (integrators.base.order_problem's rule). Every reader (check, history, baseline, compare, the
+# report) reads them here: 1e308, inf and "four" were refused by some and shown or taken as "none" by others (issue
+# 46's thirteenth attack).
+ORDER_COLUMNS = {"convergence.csv": ("order", "declared_order")}
+
+
+def _orders_problem(df: pd.DataFrame, column: str) -> str | None:
+    from .integrators.base import MAX_ORDER
+
+    # as text: "four" is text where a number was written (pandas' str dtype keeps an empty cell missing, NaN)
+    cells = [v.strip() if isinstance(v, str) else "" if pd.isna(v) else str(v) for v in df[column]]
+    values = pd.to_numeric(pd.Series([c or "nan" for c in cells], dtype=object), errors="coerce")
+    for row, (cell, value) in enumerate(zip(cells, values), 1):
+        blank = cell in ("", "nan", "NaN")
+        if not blank and (math.isnan(value) or math.isinf(value) or abs(value) > MAX_ORDER
+                          or (column == "declared_order" and value <= 0)):
+            rule = f"in (0, {MAX_ORDER}]" if column == "declared_order" else f"within -{MAX_ORDER} .. {MAX_ORDER}"
+            return f"row {row}: {column} = {cell[:40]!r}: must be a finite number {rule} (a convergence order)"
+    return None
+
+
 def read_optional(path: Path, text_columns: tuple[str, ...] = ("formulation",)) -> pd.DataFrame | None:
     """A derived table (convergence.csv, ladder.csv, ...), or None where the run wrote none; text columns read as text
     with "" for empty cells; TableError for one that is malformed, never a table silently short of rows, nor one
-    holding a key of ONE_ROW_PER twice."""
+    holding a key of ONE_ROW_PER twice, nor an order of ORDER_COLUMNS out of its bounds."""
     if not Path(path).exists():
         return None
     df = read_csv_table(path, dtype={c: str for c in text_columns}, keep_default_na=True)
     df = df.fillna({c: "" for c in text_columns if c in df})
+    for column in ORDER_COLUMNS.get(Path(path).name, ()):
+        why = _orders_problem(df, column) if column in df else None
+        if why:
+            raise TableError(f"{path}: {why}")
     key = [c for c in ONE_ROW_PER.get(Path(path).name, ()) if c in df]
     twice = df.index[df.duplicated(key, keep="first")] if key else []
     if len(twice):

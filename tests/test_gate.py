@@ -458,9 +458,10 @@ def test_a_run_family_fitted_twice_in_convergence_csv_is_refused_where_it_is_rea
                                                                                        index=False)
     with pytest.raises(gate.GateError) as caught:
         gate.read_orders(tmp_path)
+    # the one reading of convergence.csv (tables.read_optional, the report's too) says it first
     assert str(caught.value) == (f"{tmp_path / 'convergence.csv'}: row 3: duplicate key case=lagrange-top "
-                                 "engine=mujoco formulation= integrator=rk4 precision=float64 (also row 1): one "
-                                 "fitted order per run family"), str(caught.value)
+                                 "engine=mujoco formulation= integrator=rk4 (also row 1): one row per run family"), \
+        str(caught.value)
 
 
 def test_the_report_refuses_a_run_family_fitted_twice_as_check_does(tmp_path):
@@ -505,3 +506,20 @@ def test_a_negative_fitted_order_is_read_but_never_written_into_a_baseline(tmp_p
                                              r"baseline's order$"):
         gate.write_baseline(table, tmp_path / "baseline.json", {}, orders)
     assert not (tmp_path / "baseline.json").exists()
+
+
+@pytest.mark.parametrize("order, declared", [("inf", "4"), ("1e308", "4"), ("four", "4"), ("4.0", "0"),
+                                             ("4.0", "many")])
+def test_every_reader_of_convergence_csv_refuses_an_order_out_of_bounds(tmp_path, order, declared):
+    """Issue 46's thirteenth attack, F15: a fitted order of inf or 1e308 was refused by check, history and baseline,
+    and taken by compare and the report; "four" was refused by the report (a numpy TypeError as its reason) and taken
+    as no fit by the others. One rule where convergence.csv is read (tables.read_optional, gate.read_orders through
+    it). Break-checked: without tables._orders_problem the report's reading takes each."""
+    from stereodyn.harness.tables import TableError, read_optional
+
+    (tmp_path / "convergence.csv").write_text("case,engine,formulation,integrator,order,declared_order\n"
+                                              f"lagrange-top,mujoco,,rk4,{order},{declared}\n")
+    with pytest.raises(TableError, match=r"convergence.csv: row 1: (declared_)?order = .*: must be a finite number"):
+        read_optional(tmp_path / "convergence.csv")
+    with pytest.raises(gate.GateError, match=r"convergence.csv: row 1: (declared_)?order = .*: must be a finite"):
+        gate.read_orders(tmp_path)

@@ -222,6 +222,9 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
         out = Path(path_b)
     table_a, env_a = load(path_a)
     table_b, env_b = load(path_b)
+    # read in every format, as check and history read them: what one refuses compare refuses (a fitted order of inf
+    # in B was refused by check and taken by compare; issue 46's thirteenth attack)
+    orders_a, orders_b = load_orders(path_a), load_orders(path_b)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     changes = row_changes(table_a, table_b)
@@ -236,8 +239,7 @@ def compare(path_a: Path, path_b: Path, out: Path | None = None,
     write_atomic(out / "compare.html", html.render(markdown, {figure_path: png} if png else {}, out))
     write_atomic(out / "compare.csv", changes.to_csv(index=False, float_format="%.6g"))
     if pr:
-        summary = pr_lines(path_a, path_b, env_a, env_b, changes, order_changes(load_orders(path_a),
-                                                                                load_orders(path_b)),
+        summary = pr_lines(path_a, path_b, env_a, env_b, changes, order_changes(orders_a, orders_b),
                            verdict_changes(path_a, path_b), identical(table_a, table_b),
                            answers.folder_changes(path_a, path_b))
         write_atomic(out / PR_FILE, "\n".join(summary) + "\n")
