@@ -94,8 +94,8 @@ def test_the_temporary_file_is_beside_the_target(tmp_path, monkeypatch):
 
 
 def test_a_folder_where_the_file_goes_is_named_not_the_temporary(tmp_path):
-    """Issue 46's twelfth attack, F10: a store record's path made a folder gave "Is a directory:
-    .../store/.KEY.json.abc.tmp", a name the user never made. The error names the path the write was for, and no
+    """Issue 46's twelfth attack, F10: a store record's path made a folder gave "Is a directory:" and the name of
+    our temporary file (.KEY.json.abc.tmp beside it), a name the user never made. The error names the path the write was for, and no
     temporary is left. Break-checked: with only a nameless error renamed, the message names the temporary."""
     target = tmp_path / "record.json"
     target.mkdir()
