@@ -1832,3 +1832,32 @@ def test_a_section_rendering_when_its_command_is_killed_dies_with_it(tmp_path):
     if not gone:
         os.kill(child, signal.SIGKILL)
     assert gone
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="a forked worker")
+def test_a_plugins_exit_handler_that_never_returns_does_not_hold_its_worker(monkeypatch):
+    """Issue 46's fourteenth attack: run() calling atexit.register(time.sleep, 1000) made the command wait on its
+    worker after the report was written (the worker runs its exit handlers at its end: an SDK's caches). The handlers
+    get EXIT_HANDLERS_S, then the worker ends. Break-checked: with atexit._run_exitfuncs() called directly in _exit
+    the child is still alive after 20 s."""
+    import atexit
+
+    from stereodyn.harness.run import workers
+
+    monkeypatch.setattr(workers, "EXIT_HANDLERS_S", 0.5)
+    pid = os.fork()
+    if pid == 0:  # a worker at its end, its group not its own (end_group kills nothing here)
+        try:
+            atexit._clear()  # not the test process's own handlers (pytest's cleanup of its temporary folders)
+            atexit.register(time.sleep, 1000)
+            workers._exit()
+        finally:
+            os._exit(3)
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline and os.waitpid(pid, os.WNOHANG) == (0, 0):
+        time.sleep(0.05)
+    ended = time.monotonic() < deadline
+    if not ended:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+    assert ended

@@ -366,12 +366,28 @@ def _failure(exc: BaseException) -> BaseException:
     return TaskEnded(f"{type(exc).__name__}: {text}" if text else type(exc).__name__)
 
 
+# The exit handlers' time in a worker at its end, s: a bound, not a measured need (Genesis's gs.destroy is the one
+# handler we know matters there), so that one that never returns cannot hold the command.
+EXIT_HANDLERS_S = 10.0
+
+
+def _run_exit_handlers() -> None:
+    try:
+        atexit._run_exitfuncs()
+    except BaseException:  # a handler's error or exit: the worker ends anyway (atexit prints what it can)
+        pass
+
+
 def _exit() -> None:
     """End the worker: its exit handlers run (an SDK may write its caches there: Genesis's gs.destroy ends Quadrants'
     program), the interpreter's teardown does not. Freeing every module and model of the SDKs one by one took each
     worker of the quick suite with every extra 15-17 s of CPU after its last task (py-spy), on the cores the report
-    was drawing on, and the command's exit waited for it (multiprocessing joins its children)."""
-    atexit._run_exitfuncs()
+    was drawing on, and the command's exit waited for it (multiprocessing joins its children). The handlers get
+    EXIT_HANDLERS_S: a plug-in's that never returns (atexit.register(time.sleep, 1000)) hung the worker, and the
+    command with it, after the report was written (issue 46's fourteenth attack)."""
+    handlers = threading.Thread(target=_run_exit_handlers, name="stereodyn-exit-handlers", daemon=True)
+    handlers.start()
+    handlers.join(EXIT_HANDLERS_S)
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
