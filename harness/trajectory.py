@@ -209,14 +209,21 @@ ARRAYS = ("times", "quat", "omega", "state", "violation")  # a trajectory's per-
 def as_arrays(traj):
     """traj with its per-sample fields (ARRAYS) as float numpy arrays: a plug-in's lists, tuples or integer arrays,
     which problem() accepts as numbers of the right shape, were a traceback in the metrics, exit 3 "a bug in
-    stereodyn" (issue 46's twelfth attack). A floating numpy array is left as it is (a float32 run's stay float32)."""
+    stereodyn" (issue 46's twelfth attack), and so was an ndarray subclass (np.matrix: the fourteenth). A plain
+    floating numpy array is left as it is (a float32 run's stay float32)."""
     if not dataclasses.is_dataclass(traj):
         return traj
     fields = {f.name for f in dataclasses.fields(traj)}
-    changed = {name: np.asarray(getattr(traj, name), dtype=float) for name in ARRAYS if name in fields
-               and not (isinstance(getattr(traj, name), np.ndarray)
+    changed = {name: _plain(getattr(traj, name)) for name in ARRAYS if name in fields
+               and not (type(getattr(traj, name)) is np.ndarray
                         and np.issubdtype(getattr(traj, name).dtype, np.floating))}
     return dataclasses.replace(traj, **changed) if changed else traj
+
+
+def _plain(value) -> np.ndarray:
+    """value as a plain ndarray: of its own floating type, else float."""
+    floating = isinstance(value, np.ndarray) and np.issubdtype(value.dtype, np.floating)
+    return np.asarray(value, dtype=value.dtype if floating else float)
 
 
 def _times_problem(got: np.ndarray, grid: np.ndarray) -> str | None:

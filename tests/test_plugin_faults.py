@@ -502,7 +502,8 @@ def test_times_that_drift_as_summed_steps_do_are_the_grids(monkeypatch):
     assert row["status"] == "failed" and "times[1] is 0.01002" in row["message"], row
 
 
-@pytest.mark.parametrize("kind", [list, tuple, "int"])
+@pytest.mark.filterwarnings("ignore::PendingDeprecationWarning")  # np.matrix's own
+@pytest.mark.parametrize("kind", [list, tuple, "int", "matrix"])
 def test_states_as_lists_tuples_or_integers_are_measured_as_arrays(monkeypatch, kind):
     """Issue 46's twelfth attack: Trajectory(times=list(grid.times)), a tuple, or quat.tolist() passed the gate (numbers
     of the right shape) and were a TypeError in the metrics: exit 3, "a bug in stereodyn". They are measured as the
@@ -511,6 +512,8 @@ def test_states_as_lists_tuples_or_integers_are_measured_as_arrays(monkeypatch, 
         traj = _states(grid)
         if kind == "int":
             return dataclasses.replace(traj, quat=traj.quat.astype(int))
+        if kind == "matrix":  # the fourteenth attack: an ndarray subclass of the right shape, exit 3 in the integrals
+            return dataclasses.replace(traj, omega=np.asmatrix(traj.omega), quat=np.asmatrix(traj.quat))
         return dataclasses.replace(traj, times=kind(grid.times), quat=kind(map(kind, traj.quat)),
                                    omega=kind(map(kind, traj.omega)))
 
