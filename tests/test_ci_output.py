@@ -221,3 +221,24 @@ def test_the_step_summary_escapes_every_value():
     assert "<script>" not in text and "<img src=x onerror=alert(1)>" not in text and " `tick`" not in text \
         and "[l](http" not in text, text
     assert "\\<script\\>" in text and "\\`tick\\`" in text and "\\*\\*b\\*\\*" in text, text
+
+
+def test_no_output_of_check_lands_on_a_file_it_reads(gated, tmp_path, capsys, monkeypatch):
+    """Issue 46's fourteenth attack: GITHUB_STEP_SUMMARY naming DIR/results.csv (or a link to it) got check's summary
+    appended to the table it had just checked, exit 0, no word; every later command on DIR refused the folder. The
+    step summary there is a warning and not written; --junit onto a file of DIR, the baseline or the tolerance file
+    is refused, exit 2. A new path in DIR stays allowed. Break-checked: without check._reads the table grows."""
+    _, baseline, run = gated
+    before = (run / "results.csv").read_bytes()
+    (tmp_path / "link.csv").symlink_to(run / "results.csv")
+    for target in (run / "results.csv", tmp_path / "link.csv", baseline):
+        monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(target))
+        capsys.readouterr()
+        assert _check(run, baseline) == 1
+        assert "a file of the folder checked, the baseline or the tolerance file" in capsys.readouterr().err
+    assert (run / "results.csv").read_bytes() == before
+    monkeypatch.delenv("GITHUB_STEP_SUMMARY")
+    for target in (run / "results.csv", baseline):
+        assert _check(run, baseline, "--junit", str(target)) == 2
+    assert (run / "results.csv").read_bytes() == before
+    assert _check(run, baseline, "--junit", str(run / "junit.xml")) == 1 and (run / "junit.xml").is_file()

@@ -44,6 +44,9 @@ def main(args) -> int:
         raise BadInput(f"--floor: must be a finite number >= 0, got {args.floor:g}")
     if args.junit is not None:
         output_file(args.junit, "--junit")
+        if _reads(args, args.junit):
+            raise BadInput(f"--junit {args.junit}: a file of the folder checked, the baseline or the tolerance file; "
+                           "give a new path or one outside them")
     from ..run.store import manifest_problem, read_manifest, reading
 
     base = gate.read_baseline_file(args.baseline)
@@ -105,8 +108,21 @@ def _write_ci(args, base, verdict, headline: str, context: list[str], groups: li
         except OSError as exc:
             raise BadInput(f"--junit {args.junit}: cannot write ({exc.strerror or exc})") from None
     path = os.environ.get(STEP_SUMMARY)
-    if path:
+    if path and _reads(args, Path(path)):  # appended to the results.csv it checked, which every reader then refused
+        warn([f"{STEP_SUMMARY}={path}: a file of the folder checked, the baseline or the tolerance file; the "
+              "summary is not written"])
+    elif path:
         try:  # a FIFO there (nothing reading it) would block check for ever: a regular file or a new path only
             append_regular(Path(path), step_summary(verdict, headline, context, groups))
         except OSError as exc:
             warn([f"{STEP_SUMMARY}={path}: cannot append the summary ({exc.strerror or exc})"])
+
+
+def _reads(args, path: Path) -> bool:
+    """Whether path is a file check reads or the run wrote: the baseline, the tolerance file, a file that exists in
+    the folder checked (issue 46's fourteenth attack: GITHUB_STEP_SUMMARY=DIR/results.csv got the summary appended to
+    the table it had checked, which every reader then refused). A new path in the folder is no file of it."""
+    target = os.path.realpath(path)
+    folder = os.path.realpath(args.dir).rstrip(os.sep) + os.sep
+    inputs = [os.path.realpath(p) for p in (args.baseline, args.tolerances) if p is not None]
+    return target in inputs or (target.startswith(folder) and os.path.lexists(target))
