@@ -20,9 +20,9 @@ def case_truth_on(run) -> object:
     return scene_of(run.case).truth(run.case, [run.grid], False)
 
 
-def _timed(sim, grid) -> dict:
-    """A point timed once in its worker, right after its accuracy run (timing.once): timing SINGLE."""
-    return timing.columns(timing.Timing(timing.once(lambda: sim.run(grid)), 0.0, 1), grid.t_end)
+def _timed(sim, grid, run) -> dict:
+    """A point timed once in its worker, right after its accuracy run (timing.single_time): timing SINGLE."""
+    return timing.columns(timing.Timing(timing.single_time(sim, grid, run), 0.0, 1), grid.t_end)
 
 
 def time_points(points: list[dict], families_by_key: dict[tuple, Family], setting: str = "dt",

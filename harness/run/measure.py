@@ -48,10 +48,10 @@ def prepare_budget(run: RunKey, budgets: budget.Budgets) -> float:
 
 
 def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = False,
-            timed: Callable[[object, object], dict] | None = None, budgets: budget.Budgets | None = None) -> dict:
+            timed: Callable[[object, object, RunKey], dict] | None = None, budgets: budget.Budgets | None = None) -> dict:
     """One run's row: base columns, the untimed accuracy run, the scene's metrics (against truth: the scene's truth
     on a set of grids that holds the run's, or None for no errors), with full the sweep's extras (checks, series).
-    timed(simulation, grid) -> timing columns, when given, times the run after the accuracy run (its warm-up).
+    timed(simulation, grid, run) -> timing columns, when given, times the run after the accuracy run (its warm-up).
     `_accuracy_s` is the prepare-and-run wall time (a budget's measure, not a timing). budgets (default this
     process's, harness.budget): prepare under its prepare budget (prepare_budget), the run with its metrics and checks
     under its run budget; past one, a failed row naming it (and `_budget`, which the store keeps). Never raises: a
@@ -84,7 +84,7 @@ def measure(run: RunKey, truth=None, full: bool = True, keep_states: bool = Fals
                                                                 keep_states)))
             budget.check()  # a loop that could not be stopped inside (one compiled call, MJX's) is judged here
         if timed is not None and traj.status is Status.OK:
-            row.update(timed(sim, grid))
+            row.update(timed(sim, grid, run))
     except budget.BudgetExceeded as exc:  # nothing it measured before the stop counts
         row = {**base_row(run, grid), **budget.failed_row(exc), "_accuracy_s": time.perf_counter() - start}
     except Exception as exc:  # a run that breaks is data: record why and let the sweep go on

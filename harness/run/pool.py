@@ -307,10 +307,10 @@ def sweep_run(spec: RunSpec, truth, budgets: budget.Budgets | None = None) -> di
     _released(spec.engine, spec.precision)  # measure prepares a model of this precision, whatever its outcome
     keep = startup_s(spec.engine) > 0.0
 
-    def timed_once(sim, grid) -> dict:  # called only for an ok run, after its accuracy run
+    def timed_once(sim, grid, run) -> dict:  # called only for an ok run, after its accuracy run
         if keep:
             _keep(spec, sim)
-        return timing.timed_once(sim, grid)
+        return timing.timed_once(sim, grid, run)
 
     row = measure(spec, truth, full=True, keep_states=spec.keep_states or spec.compared, timed=timed_once,
                   budgets=budgets)

@@ -99,10 +99,36 @@ def once(run: Callable[[], object]) -> float:
     return measure(run, repeats=1, budget_s=0.0, min_repeats=1).best
 
 
-def timed_once(sim, grid) -> dict:
-    """measure()'s `timed` hook of a worker's run: one bare run right after the accuracy run (its warm-up), s, under
-    ONCE; the sweep and the ladders turn it into their timing columns (step_columns, columns) with timing SINGLE."""
-    return {ONCE: once(lambda: sim.run(grid))}
+def timed_once(sim, grid, run) -> dict:
+    """measure()'s `timed` hook of a worker's run: its single time right after the accuracy run (its warm-up), s,
+    under ONCE (single_time); the sweep and the ladders turn it into their timing columns (step_columns, columns)
+    with timing SINGLE."""
+    return {ONCE: single_time(sim, grid, run)}
+
+
+# A single time's least length (s) once it is cut to a run's first steps (single_time): the run's own time per step
+# from there on. 20 ms is ~1e4 steps of a Python-stepped run, above the ~1 ms timer and scheduler effects; the timed
+# run of the whole grid was 40 % of a sweep's work (profiled, 2026-12-06: 228 of 529 s of the sweep's runs).
+PARTIAL_S = 0.02
+
+
+def single_time(sim, grid, run) -> float:
+    """One timed run of sim over grid (s), or for a fixed-step run of an engine whose every step costs the same from
+    the first (Timing.short_warm_up: nothing is built per grid length) and whose run lasts more than 2 PARTIAL_S,
+    the time of its first steps (about PARTIAL_S, measured on WARM_UP_STEPS first) scaled to the grid's steps. A
+    deciding run is timed again, whole, best of N (time_runs, time_points)."""
+    whole = lambda: once(lambda: sim.run(grid))  # noqa: E731
+    if getattr(run, "dt", None) is None or not _short_warm_up(run.engine):
+        return whole()
+    probe = first_steps(grid, WARM_UP_STEPS)
+    if 2 * probe.steps >= grid.steps:
+        return whole()
+    per_step = once(lambda: sim.run(probe)) / probe.steps
+    steps = math.ceil(PARTIAL_S / per_step) if per_step > 0.0 else grid.steps
+    if 2 * steps >= grid.steps:
+        return whole()
+    part = first_steps(grid, steps)
+    return once(lambda: sim.run(part)) * grid.steps / part.steps
 
 
 def best_time(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S) -> float:
@@ -230,11 +256,15 @@ def warm_up(sim, grid: TimeGrid, engine: str) -> None:
     or for an engine that declares Timing.short_warm_up only the grid's first WARM_UP_STEPS steps (to the first sample
     at or past them): the timed repeats of a run lie a whole round apart (measure_interleaved), so a warm-up leaves
     no cache warm for them anyway; only its first-call costs matter, and a few hundred steps pay them."""
+    sim.run(first_steps(grid, WARM_UP_STEPS) if _short_warm_up(engine) else grid)
+
+
+def _short_warm_up(engine: str) -> bool:
+    """Whether the engine declares Timing.short_warm_up; False for a name this registry does not know."""
     try:
-        short = bool(get_engine(engine).timing.short_warm_up)
-    except (KeyError, ValueError):  # not an engine of this registry: the whole run
-        short = False
-    sim.run(first_steps(grid, WARM_UP_STEPS) if short else grid)
+        return bool(get_engine(engine).timing.short_warm_up)
+    except (KeyError, ValueError):
+        return False
 
 
 def first_steps(grid: TimeGrid, steps: int) -> TimeGrid:
