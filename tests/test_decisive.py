@@ -181,3 +181,31 @@ def test_the_advice_does_not_report_a_single_time():
     (task,) = advice.advice_tasks([family], [], results, empty, empty, convergence, empty)
     times = {p["dt"]: p["us_per_sim_s"] for p in task[2]}
     assert times[1e-2] == pytest.approx(1000.0) and math.isnan(times[5e-3])
+
+
+def test_a_single_time_from_a_runs_first_steps_follows_its_line(monkeypatch):
+    """Issue 49 (the experiment): a Python-stepped run's single time is taken on its first WARM_UP_STEPS and first
+    ~PARTIAL_S of steps and extrapolated along their line. On a run costing a + b steps exactly (a synthetic clock:
+    timing.once answers the cost of the grid it ran), the extrapolation is the whole run's cost; an engine without a
+    short warm-up, or an adaptive run, is timed whole. Break-checked: scaling the second partial alone (no
+    intercept) misses a 5 ms fixed cost by its share."""
+    from types import SimpleNamespace
+
+    from stereodyn.harness.grid import time_grid
+
+    fixed, per_step = 5e-3, 2e-6
+    ran = []
+
+    class Sim:
+        def run(self, grid):
+            ran.append(grid.steps)
+
+    monkeypatch.setattr(timing, "once", lambda call: (call(), fixed + per_step * ran[-1])[1])
+    grid = time_grid(10.0, 1e-4, 201)  # 100000 steps: 0.205 s whole
+    got = timing.single_time(Sim(), grid, SimpleNamespace(engine="reference", dt=1e-4))
+    assert abs(got - (fixed + per_step * grid.steps)) <= 1e-9 and max(ran) < grid.steps / 2, (got, ran)
+    ran.clear()
+    assert timing.single_time(Sim(), grid, SimpleNamespace(engine="mujoco", dt=1e-4)) == fixed + per_step * 100000
+    assert ran == [grid.steps]
+    ran.clear()
+    assert timing.single_time(Sim(), grid, SimpleNamespace(engine="reference", dt=None)) == fixed + per_step * 100000
