@@ -63,13 +63,17 @@ ORDER_COLUMNS = {"convergence.csv": ("order", "declared_order")}
 def _orders_problem(df: pd.DataFrame, column: str) -> str | None:
     from .integrators.base import MAX_ORDER
 
-    # as text: "four" is text where a number was written (pandas' str dtype keeps an empty cell missing, NaN)
-    cells = [v.strip() if isinstance(v, str) else "" if pd.isna(v) else str(v) for v in df[column]]
-    values = pd.to_numeric(pd.Series([c or "nan" for c in cells], dtype=object), errors="coerce")
-    for row, (cell, value) in enumerate(zip(cells, values), 1):
-        blank = cell in ("", "nan", "NaN")
-        if not blank and (math.isnan(value) or math.isinf(value) or abs(value) > MAX_ORDER
-                          or (column == "declared_order" and value <= 0)):
+    for row, cell in enumerate(df[column], 1):
+        if not isinstance(cell, str) and pd.isna(cell):  # empty: no fit
+            continue
+        cell = str(cell).strip()  # "four" is text where a number was written
+        try:
+            value = float(cell)
+        except ValueError:
+            value = math.nan
+        if math.isnan(value) and cell.lower() == "nan":
+            continue
+        if not math.isfinite(value) or abs(value) > MAX_ORDER or (column == "declared_order" and value <= 0):
             rule = f"in (0, {MAX_ORDER}]" if column == "declared_order" else f"within -{MAX_ORDER} .. {MAX_ORDER}"
             return f"row {row}: {column} = {cell[:40]!r}: must be a finite number {rule} (a convergence order)"
     return None

@@ -32,11 +32,9 @@ def text_of(value: Any, show: Callable[[Any], str] = str, width: int | None = No
         text = show(value)
         if not isinstance(text, str):
             raise TypeError(f"{show.__name__}() returned {type(text).__name__}")
-    except KeyboardInterrupt as exc:
-        if not code_raised(exc):
+    except (Exception, SystemExit, GeneratorExit, KeyboardInterrupt) as exc:
+        if isinstance(exc, KeyboardInterrupt) and not code_raised(exc):
             raise
-        text = f"<{type(value).__name__} object: its {show.__name__}() raised KeyboardInterrupt>"
-    except (Exception, SystemExit, GeneratorExit) as exc:
         text = f"<{type(value).__name__} object: its {show.__name__}() raised {type(exc).__name__}>"
     text = str.__str__(text)  # a str subclass's own methods are the plug-in's too
     return text if width is None else text[:width]

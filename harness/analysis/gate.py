@@ -40,7 +40,7 @@ from ..precision import FLOAT64
 from ..readers import MAX_BASELINE_BYTES, ReadError, read_json, read_toml
 from ..tables import read_optional
 from ..run.results import (KEY, METRIC_SUFFIXES, NAMED, SINGLE, STATUSES, TableError, describe_key, dt_key, duplicate,
-                           metric_names, read_csv_table, read_results, value_rule, with_precision, write_atomic)
+                           metric_names, read_results, value_rule, with_precision, write_atomic)
 
 # KEY: (case, engine, formulation, integrator, precision, dt); precision: a baseline or table of stereodyn 0.2.0 has
 # none, and its runs were float64.

@@ -11,6 +11,7 @@ too.
 """
 from __future__ import annotations
 
+import datetime
 import itertools
 import math
 from dataclasses import dataclass
@@ -290,8 +291,6 @@ def order(points: list[Point], by: str, commits: list[str] | None = None) -> lis
 def recorded_moment(value) -> float | None:
     """A runs.json date (ISO 8601, as stereodyn writes it: with its UTC offset; one without is taken as UTC) as a
     POSIX time, s; None for what is no such date."""
-    import datetime
-
     if not isinstance(value, str):
         return None
     try:

@@ -4,6 +4,7 @@ vector methods do not import the group methods (and stay low in the import graph
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 
@@ -53,11 +54,7 @@ def _floats(value, field: str, depth: int) -> tuple:
         return tuple(_floats(row, f"{field}[{i + 1}]", 1) for i, row in enumerate(value))
     entries = []
     for j, x in enumerate(value):
-        number = isinstance(x, (int, float)) and not isinstance(x, bool) or type(x).__module__ == "numpy"
-        try:
-            x = float(x) if number else math.nan
-        except (TypeError, ValueError):
-            x = math.nan
+        x = float(x) if isinstance(x, numbers.Real) and not isinstance(x, bool) else math.nan  # numpy's too
         if not math.isfinite(x):
             raise ValueError(f"tableau {field}[{j + 1}]: must be a finite number")
         entries.append(x)

@@ -132,7 +132,7 @@ def single_time(sim, grid, run) -> float:
     # a line through the two partial runs: a run's own cost outside its steps (its arrays, its trajectory) is the
     # intercept, not scaled with the steps (scaled from the second alone, single times were 0.77-0.9x the whole run's)
     per_step = max(0.0, (part_s - probe_s) / (part.steps - probe.steps))
-    return max(part_s, part_s + per_step * (grid.steps - part.steps))
+    return part_s + per_step * (grid.steps - part.steps)
 
 
 def best_time(run: Callable[[], object], repeats: int = REPEATS, budget_s: float = BUDGET_S) -> float:
